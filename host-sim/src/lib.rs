@@ -1,0 +1,10 @@
+//! host-sim: the truth simulator, command-line tool and analyses of rollcal.
+//!
+//! - [`scenario`]: scenario files (TOML), the paper's scenario built in;
+//! - [`truth`]: the truth simulator (physical platform, independent of the
+//!   estimator's models);
+//! - [`runner`]: runs any configuration's estimator over a simulated run.
+
+pub mod runner;
+pub mod scenario;
+pub mod truth;

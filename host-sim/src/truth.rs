@@ -1,0 +1,288 @@
+//! The truth simulator (SPEC §4): integrates the physical platform.
+//!
+//! It integrates the platform attitude `C^ps_n` under the true gyro
+//! installation (`ω^ps_ip = G ωc + w_g`), the computed frame `C^c_n` under
+//! the rolling path, and the commanded increment `∫ωc dt`, all by RK4 at the
+//! truth step (0.01 s), and applies the true accelerometer installation `A`
+//! to the true specific force. It shares with the estimator only the tested
+//! geometry primitives (`skew`, `dcm`, `gimbal_dcm`, `euler_angles`,
+//! `rotation_vector`, `wrap_angle`); it uses none of the configurations'
+//! state models, dynamics or measurement functions.
+
+use nalgebra::{Matrix3, Vector3};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use rollcal::geometry::{dcm, euler_angles, gimbal_dcm, rotation_vector, skew, wrap_angles, EARTH_RATE};
+use rollcal::models::{AttitudeKind, ConfigId, PlatformFrame};
+
+use crate::scenario::{Scenario, ARCSEC, DEG};
+
+/// True parameters in radians, ps frame, plus the exactly derived pa values.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TruthParams {
+    /// θaT (rad).
+    pub theta_a_t: Vector3<f64>,
+    /// θaC (rad).
+    pub theta_a_c: Vector3<f64>,
+    /// θgT (rad).
+    pub theta_g_t: Vector3<f64>,
+    /// θgC in the ps frame (rad).
+    pub theta_g_c: Vector3<f64>,
+    /// θgC^pa, exactly `R(θgC^pa) = R(−θaC) R(θgC)` (rad).
+    pub theta_g_c_pa: Vector3<f64>,
+    /// λ (rad).
+    pub lambda: Vector3<f64>,
+    /// θA(0) (rad).
+    pub gimbal0: Vector3<f64>,
+}
+
+impl TruthParams {
+    /// From a scenario.
+    pub fn from_scenario(s: &Scenario) -> Self {
+        let v = |a: [f64; 3]| Vector3::new(a[0], a[1], a[2]) * DEG;
+        let t = &s.truth;
+        let theta_a_c = v(t.theta_a_c_deg);
+        let theta_g_c = v(t.theta_g_c_deg);
+        // Written out here rather than calling the crate's instruments module.
+        let theta_g_c_pa = rotation_vector(&(dcm(&(-theta_a_c)) * dcm(&theta_g_c)));
+        Self {
+            theta_a_t: v(t.theta_a_t_deg),
+            theta_a_c,
+            theta_g_t: v(t.theta_g_t_deg),
+            theta_g_c,
+            theta_g_c_pa,
+            lambda: v(t.lambda_deg),
+            gimbal0: v(t.gimbal0_deg),
+        }
+    }
+
+    fn lower(t: &Vector3<f64>) -> Matrix3<f64> {
+        Matrix3::new(0.0, 0.0, 0.0, t.x, 0.0, 0.0, t.y, t.z, 0.0)
+    }
+
+    /// True gyro matrix `G = R(θgC)(I + L(θgT))` (ps).
+    pub fn g(&self) -> Matrix3<f64> {
+        dcm(&self.theta_g_c) * (Matrix3::identity() + Self::lower(&self.theta_g_t))
+    }
+
+    /// True accelerometer matrix `A = (I + L(θaT)) R(−θaC)` (ps).
+    pub fn a(&self) -> Matrix3<f64> {
+        (Matrix3::identity() + Self::lower(&self.theta_a_t)) * dcm(&(-self.theta_a_c))
+    }
+}
+
+/// The true platform at one instant `t_k`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Instant {
+    /// Time (s).
+    pub t: f64,
+    /// True platform attitude `C^ps_n`.
+    pub c_ps_n: Matrix3<f64>,
+    /// Computed frame `C^c_n`.
+    pub c_c_n: Matrix3<f64>,
+    /// Noise-free accelerometer output at `t` (g).
+    pub accel_at_t: Vector3<f64>,
+    /// Noise-free gimbal angles at `t`, wrapped (rad).
+    pub gimbal: Vector3<f64>,
+}
+
+/// One filter period `[t_{k−1}, t_k]` as the platform computer sees it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PeriodSample {
+    /// Period index k ≥ 1 (the sample at `t_k`).
+    pub k: u32,
+    /// Period length (s).
+    pub dt: f64,
+    /// Commanded angle increment over the period (rad, c frame).
+    pub dtheta_cmd: Vector3<f64>,
+    /// Mean accelerometer output over the period with noise (g).
+    pub accel_mean: Vector3<f64>,
+    /// Gimbal angles at `t_k` with noise, wrapped (rad).
+    pub gimbal: Vector3<f64>,
+    /// Noise-free mean accelerometer output (g).
+    pub accel_mean_clean: Vector3<f64>,
+    /// The true platform at `t_k`.
+    pub truth: Instant,
+}
+
+/// A simulated run.
+#[derive(Clone, Debug)]
+pub struct Simulation {
+    /// True parameters.
+    pub params: TruthParams,
+    /// Earth rate `ω^n_ie` used (rad/s).
+    pub earth_rate_n: Vector3<f64>,
+    /// The true platform at t = 0.
+    pub initial: Instant,
+    /// One sample per period.
+    pub samples: Vec<PeriodSample>,
+}
+
+/// Simulation switches.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SimOptions {
+    /// RNG seed.
+    pub seed: u64,
+    /// Add noise (false: the golden, noise-free run).
+    pub noise: bool,
+    /// Earth rate on (and-ed with the scenario's).
+    pub earth_rate: bool,
+}
+
+#[derive(Clone, Copy)]
+struct State {
+    c_ps_n: Matrix3<f64>,
+    c_c_n: Matrix3<f64>,
+    dtheta: Vector3<f64>,
+}
+
+struct Deriv {
+    c_ps_n: Matrix3<f64>,
+    c_c_n: Matrix3<f64>,
+    dtheta: Vector3<f64>,
+}
+
+fn axpy(s: &State, d: &Deriv, h: f64) -> State {
+    State { c_ps_n: s.c_ps_n + d.c_ps_n * h, c_c_n: s.c_c_n + d.c_c_n * h, dtheta: s.dtheta + d.dtheta * h }
+}
+
+/// Piecewise-constant path rate `ω^n_path` (rad/s) over time.
+struct Path {
+    /// (end time, rate vector) per segment.
+    segments: Vec<(f64, Vector3<f64>)>,
+}
+
+impl Path {
+    fn new(s: &Scenario) -> Self {
+        let mut t = 0.0;
+        let segments = s
+            .path
+            .iter()
+            .map(|seg| {
+                let u = seg.axis.unit().unwrap_or([0.0; 3]);
+                t += seg.angle_deg / seg.rate_deg_s;
+                (t, Vector3::new(u[0], u[1], u[2]) * (seg.rate_deg_s * DEG))
+            })
+            .collect();
+        Self { segments }
+    }
+
+    /// Rate over the step starting at `t0` (steps never straddle a boundary).
+    fn rate(&self, t0: f64) -> Vector3<f64> {
+        self.segments
+            .iter()
+            .find(|(end, _)| t0 < *end - 1e-9)
+            .map_or_else(Vector3::zeros, |(_, w)| *w)
+    }
+}
+
+/// Runs the truth simulator over a scenario.
+pub fn simulate(s: &Scenario, opts: SimOptions) -> Simulation {
+    let params = TruthParams::from_scenario(s);
+    let omega = if s.site.earth_rate && opts.earth_rate { EARTH_RATE } else { 0.0 };
+    let lat = s.site.latitude_deg * DEG;
+    let w_ie = Vector3::new(omega * lat.cos(), omega * lat.sin(), 0.0);
+    let f_n = Vector3::new(0.0, 1.0, 0.0);
+    let g = params.g();
+    let a = params.a();
+    let c_r_n = dcm(&params.lambda);
+    let path = Path::new(s);
+    let dt = s.timing.period_s;
+    let nsub = s.substeps();
+    let h = dt / nsub as f64;
+
+    let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
+    let unit = Normal::new(0.0, 1.0).unwrap_or_else(|_| unreachable!());
+    let mut gauss3 = |sigma: f64| -> Vector3<f64> {
+        if opts.noise {
+            Vector3::new(unit.sample(&mut rng), unit.sample(&mut rng), unit.sample(&mut rng)) * sigma
+        } else {
+            Vector3::zeros()
+        }
+    };
+    let sigma_gyro = s.noise.gyro_deg_h * DEG / 3600.0;
+    let sigma_accel = s.noise.accel_g;
+    let sigma_gimbal = s.noise.gimbal_arcsec * ARCSEC;
+
+    let instant = |t: f64, st: &State| Instant {
+        t,
+        c_ps_n: st.c_ps_n,
+        c_c_n: st.c_c_n,
+        accel_at_t: a * st.c_ps_n * f_n,
+        gimbal: wrap_angles(&euler_angles(&(st.c_ps_n * c_r_n.transpose()))),
+    };
+
+    let mut st = State { c_ps_n: gimbal_dcm(&params.gimbal0) * c_r_n, c_c_n: Matrix3::identity(), dtheta: Vector3::zeros() };
+    let initial = instant(0.0, &st);
+    let mut samples = Vec::with_capacity(s.periods());
+    for k in 1..=s.periods() {
+        let t0 = (k - 1) as f64 * dt;
+        let w_gyro = gauss3(sigma_gyro);
+        st.dtheta = Vector3::zeros();
+        // Composite Simpson over the substep nodes for the mean accelerometer output.
+        let mut acc_sum = a * st.c_ps_n * f_n;
+        for j in 0..nsub {
+            let ts = t0 + j as f64 * h;
+            let w_path = path.rate(ts);
+            let deriv = |x: &State| {
+                let w_c = x.c_c_n * (w_ie + w_path);
+                let w_ps_np = g * w_c + w_gyro - x.c_ps_n * w_ie;
+                Deriv {
+                    c_ps_n: -skew(&w_ps_np) * x.c_ps_n,
+                    c_c_n: -skew(&(x.c_c_n * w_path)) * x.c_c_n,
+                    dtheta: w_c,
+                }
+            };
+            let k1 = deriv(&st);
+            let k2 = deriv(&axpy(&st, &k1, h / 2.0));
+            let k3 = deriv(&axpy(&st, &k2, h / 2.0));
+            let k4 = deriv(&axpy(&st, &k3, h));
+            st = State {
+                c_ps_n: st.c_ps_n + (k1.c_ps_n + (k2.c_ps_n + k3.c_ps_n) * 2.0 + k4.c_ps_n) * (h / 6.0),
+                c_c_n: st.c_c_n + (k1.c_c_n + (k2.c_c_n + k3.c_c_n) * 2.0 + k4.c_c_n) * (h / 6.0),
+                dtheta: st.dtheta + (k1.dtheta + (k2.dtheta + k3.dtheta) * 2.0 + k4.dtheta) * (h / 6.0),
+            };
+            let weight = if j + 1 == nsub { 1.0 } else if j % 2 == 0 { 4.0 } else { 2.0 };
+            acc_sum += a * st.c_ps_n * f_n * weight;
+        }
+        let accel_mean_clean = acc_sum / (3.0 * nsub as f64);
+        let truth = instant(k as f64 * dt, &st);
+        samples.push(PeriodSample {
+            k: k as u32,
+            dt,
+            dtheta_cmd: st.dtheta,
+            accel_mean: accel_mean_clean + gauss3(sigma_accel),
+            gimbal: wrap_angles(&(truth.gimbal + gauss3(sigma_gimbal))),
+            accel_mean_clean,
+            truth,
+        });
+    }
+    Simulation { params, earth_rate_n: w_ie, initial, samples }
+}
+
+/// The true value (rad) of every state of configuration `id` at instant
+/// `at`, in the configuration's state order: the attitude states follow from
+/// the true platform attitude, the pa-frame parameters from the exact
+/// composition `R(θgC^pa) = R(−θaC) R(θgC)`.
+pub fn truth_state(id: ConfigId, p: &TruthParams, at: &Instant) -> Vec<f64> {
+    let layout = id.layout();
+    let (c_p_n, g_c) = match layout.frame {
+        PlatformFrame::Ps => (at.c_ps_n, p.theta_g_c),
+        PlatformFrame::Pa => (dcm(&(-p.theta_a_c)) * at.c_ps_n, p.theta_g_c_pa),
+    };
+    let att = match layout.attitude {
+        AttitudeKind::Misalignment => rotation_vector(&(c_p_n * at.c_c_n.transpose())),
+        AttitudeKind::Gimbal => wrap_angles(&euler_angles(&(c_p_n * dcm(&p.lambda).transpose()))),
+        AttitudeKind::Attitude => wrap_angles(&euler_angles(&c_p_n)),
+    };
+    let mut x: Vec<f64> = att.iter().chain(g_c.iter()).chain(p.theta_g_t.iter()).copied().collect();
+    if layout.ac().is_some() {
+        x.extend(p.theta_a_c.iter());
+    }
+    x.extend(p.theta_a_t.iter());
+    if layout.base {
+        x.extend(p.lambda.iter());
+    }
+    x
+}

@@ -1,0 +1,518 @@
+//! The extended Kalman filter over any configuration (SPEC §6).
+//!
+//! One filter period: [`Filter::predict`] propagates the state by one RK4
+//! step over the commanded motion of the period and the covariance with the
+//! structured transition (the parameters are constant, so only the three
+//! attitude rows of `Φ` differ from the identity); [`Filter::update`] then
+//! processes the period's measurement: the mean accelerometer output over the
+//! period and, in M2, the gimbal angles at its end. The covariance update is
+//! in Joseph form and `P` is kept symmetric.
+//!
+//! **Cold start.** The accelerometers resolve 1e-6 g while the initial
+//! errors are ≈ 0.3° (5e-3 rad): the measurement's second-order terms
+//! (≈ θ² ≈ 3e-5 g) are thirty times the noise. A plain EKF lets the first
+//! updates collapse `P` to the noise level while the linearisation point is
+//! still wrong, locks that error in and ends inconsistent. The remedy chosen
+//! here (see [`Options`]) adds the second-order terms of the measurement to
+//! the innovation covariance, `S = H P Hᵀ + R + ½ [tr(∇²h_a P ∇²h_b P)]_ab`
+//! (the Gaussian second-order filter): while `P` is large the update is
+//! weighted down by the linearisation error it would commit, and the term
+//! vanishes on its own (as `P²`) once the filter has converged.
+
+use core::marker::PhantomData;
+
+use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3};
+
+use crate::command::{CommandFrame, Period};
+use crate::geometry::wrap_angle;
+use crate::models::{Environment, Layout, Model, PeriodPropagation, ATT};
+
+/// Errors of the estimator.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum Error {
+    /// An input (increment, period, measurement, option) is NaN or infinite.
+    NonFiniteInput,
+    /// The period is not strictly positive.
+    InvalidPeriod,
+    /// The configuration observes gimbal angles but none were given.
+    MissingGimbal,
+    /// The Euler-angle attitude reached gimbal lock (`β = ±90°`).
+    GimbalLock,
+    /// The innovation covariance `S` is not positive definite.
+    InnovationNotPositiveDefinite,
+    /// The state covariance `P` lost positive definiteness.
+    CovarianceNotPositiveDefinite,
+    /// The propagated or updated state is not finite.
+    NonFiniteState,
+    /// The innovation failed the NIS gate; the state was left untouched.
+    Gated,
+    /// `update` was called without a preceding `predict`.
+    NoPrediction,
+}
+
+impl core::fmt::Display for Error {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Error::NonFiniteInput => "input is not finite",
+            Error::InvalidPeriod => "period is not strictly positive",
+            Error::MissingGimbal => "configuration observes gimbal angles but none were given",
+            Error::GimbalLock => "attitude reached gimbal lock (beta = +-90 deg)",
+            Error::InnovationNotPositiveDefinite => "innovation covariance is not positive definite",
+            Error::CovarianceNotPositiveDefinite => "state covariance is not positive definite",
+            Error::NonFiniteState => "state is not finite",
+            Error::Gated => "innovation rejected by the NIS gate",
+            Error::NoPrediction => "update without a preceding predict",
+        })
+    }
+}
+
+impl core::error::Error for Error {}
+
+/// Cold-start remedies and gating.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct Options {
+    /// Add the second-order terms of the accelerometer measurement to the
+    /// innovation covariance (the chosen cold-start remedy).
+    pub second_order_covariance: bool,
+    /// Add the second-order mean `½ tr(∇²h_a P)` to the predicted measurement.
+    pub second_order_mean: bool,
+    /// Iterated-EKF relinearisations per update (0 = plain EKF).
+    pub iterations: u8,
+    /// Iterate only the first this many updates.
+    pub iterate_updates: u32,
+    /// Reject an update whose NIS exceeds this value (0 = no gate).
+    pub nis_gate: f64,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            second_order_covariance: true,
+            second_order_mean: false,
+            iterations: 0,
+            iterate_updates: 0,
+            nis_gate: 0.0,
+        }
+    }
+}
+
+impl Options {
+    /// A plain EKF (no cold-start remedy), for comparison.
+    pub const fn plain() -> Self {
+        Self {
+            second_order_covariance: false,
+            second_order_mean: false,
+            iterations: 0,
+            iterate_updates: 0,
+            nis_gate: 0.0,
+        }
+    }
+}
+
+/// Noise levels and environment of a filter.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FilterConfig<T: RealField + Copy> {
+    /// Earth rate and gravity.
+    pub env: Environment<T>,
+    /// Accelerometer noise of the period mean, 1σ per axis (g).
+    pub sigma_accel: T,
+    /// Gyro white rate noise, constant over a period, 1σ per axis (rad/s).
+    pub sigma_gyro: T,
+    /// Gimbal-angle noise, 1σ per angle (rad).
+    pub sigma_gimbal: T,
+    /// Cold-start remedy and gate.
+    pub options: Options,
+}
+
+/// The measurement of one period.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Observation<T: RealField + Copy> {
+    /// Mean accelerometer output over the period (g, instrument axes).
+    pub accel_mean: Vector3<T>,
+    /// Gimbal angles `(α, β, γ)` at the end of the period (rad); required by M2.
+    pub gimbal: Option<Vector3<T>>,
+}
+
+/// Innovation of one update.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Innovation<T: RealField + Copy, const Z: usize> {
+    /// `ν = z − h(x̂)`, gimbal components wrapped into (−π, π] (rad; g).
+    pub nu: SVector<T, Z>,
+    /// Its covariance `S` (including the second-order terms when enabled).
+    pub s: SMatrix<T, Z, Z>,
+    /// Normalised innovation squared `νᵀ S⁻¹ ν`.
+    pub nis: T,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Pending<T: RealField + Copy, const N: usize> {
+    period: Period<T>,
+    prop: PeriodPropagation<T, N>,
+}
+
+/// The estimator of configuration `M` with `N` states and `Z` measurement
+/// components per period.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Filter<T: RealField + Copy, M, const N: usize, const Z: usize> {
+    x: SVector<T, N>,
+    p: SMatrix<T, N, N>,
+    command: CommandFrame<T>,
+    config: FilterConfig<T>,
+    pending: Option<Pending<T, N>>,
+    updates: u32,
+    _model: PhantomData<M>,
+}
+
+/// M1-pa filter (12 states).
+pub type M1PaFilter<T> = Filter<T, crate::models::M1Pa, 12, 3>;
+/// M1-ps filter (15 states).
+pub type M1PsFilter<T> = Filter<T, crate::models::M1Ps, 15, 3>;
+/// M2-ps filter (18 states).
+pub type M2PsFilter<T> = Filter<T, crate::models::M2Ps, 18, 6>;
+/// M3-pa filter (15 states).
+pub type M3PaFilter<T> = Filter<T, crate::models::M3Pa, 15, 3>;
+/// M3-ps filter (18 states).
+pub type M3PsFilter<T> = Filter<T, crate::models::M3Ps, 18, 3>;
+/// M4-pa filter (12 states).
+pub type M4PaFilter<T> = Filter<T, crate::models::M4Pa, 12, 3>;
+/// M4-ps filter (15 states).
+pub type M4PsFilter<T> = Filter<T, crate::models::M4Ps, 15, 3>;
+
+fn all_finite<T: RealField + Copy>(it: impl IntoIterator<Item = T>) -> bool {
+    it.into_iter().all(|v| v.is_finite())
+}
+
+impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter<T, M, N, Z> {
+    const LAYOUT: Layout = M::LAYOUT;
+    const SIZES_AGREE: () = assert!(M::LAYOUT.n() == N && M::LAYOUT.z() == Z);
+
+    /// A filter with initial estimate `x0` (rad) and prior standard
+    /// deviations `sigma0` (rad), the computed frame aligned with n.
+    pub fn new(config: FilterConfig<T>, x0: SVector<T, N>, sigma0: SVector<T, N>) -> Result<Self, Error> {
+        #[allow(clippy::let_unit_value)]
+        let () = Self::SIZES_AGREE;
+        let inputs = [config.sigma_accel, config.sigma_gyro, config.sigma_gimbal];
+        if !all_finite(x0.iter().chain(sigma0.iter()).copied().chain(inputs))
+            || !all_finite(config.env.earth_rate_n.iter().chain(config.env.gravity_n.iter()).copied())
+            || !config.options.nis_gate.is_finite()
+        {
+            return Err(Error::NonFiniteInput);
+        }
+        if sigma0.iter().any(|s| *s <= T::zero()) || config.sigma_accel <= T::zero() {
+            return Err(Error::CovarianceNotPositiveDefinite);
+        }
+        if Self::LAYOUT.gimbal_obs && config.sigma_gimbal <= T::zero() {
+            return Err(Error::CovarianceNotPositiveDefinite);
+        }
+        Ok(Self {
+            x: x0,
+            p: SMatrix::from_diagonal(&sigma0.component_mul(&sigma0)),
+            command: CommandFrame::aligned(config.env.earth_rate_n),
+            config,
+            pending: None,
+            updates: 0,
+            _model: PhantomData,
+        })
+    }
+
+    /// The state estimate (rad), in the configuration's state order.
+    pub fn state(&self) -> &SVector<T, N> {
+        &self.x
+    }
+
+    /// The state covariance `P` (rad²).
+    pub fn covariance(&self) -> &SMatrix<T, N, N> {
+        &self.p
+    }
+
+    /// Per-state standard deviations `√P_ii` (rad).
+    pub fn sigma(&self) -> SVector<T, N> {
+        self.p.diagonal().map(|v| v.max(T::zero()).sqrt())
+    }
+
+    /// The computed frame the filter integrates from the commands.
+    pub fn command_frame(&self) -> &CommandFrame<T> {
+        &self.command
+    }
+
+    /// Number of updates processed.
+    pub fn updates(&self) -> u32 {
+        self.updates
+    }
+
+    /// The configuration's layout.
+    pub const fn layout(&self) -> Layout {
+        Self::LAYOUT
+    }
+
+    /// Propagates the state and covariance over one period of length `dt`
+    /// (s) with commanded angle increment `dtheta_c` (rad, c frame).
+    /// On error the filter is left untouched.
+    pub fn predict(&mut self, dtheta_c: &Vector3<T>, dt: T) -> Result<(), Error> {
+        if !all_finite(dtheta_c.iter().copied().chain([dt])) {
+            return Err(Error::NonFiniteInput);
+        }
+        if dt <= T::zero() {
+            return Err(Error::InvalidPeriod);
+        }
+        let layout = Self::LAYOUT;
+        let period = self.command.period(dtheta_c, dt);
+        let m = layout.matrices(&self.x);
+        let att0 = layout.attitude(&self.x);
+        let prop: PeriodPropagation<T, N> =
+            layout.propagate(&self.config.env, &m, &att0, &period).ok_or(Error::GimbalLock)?;
+        // P ← Φ P Φᵀ + Q, touching only the attitude rows and columns.
+        let a = &prop.phi_att;
+        let ap = a * self.p;
+        let aaa = ap * a.transpose();
+        let q_scale = self.config.sigma_gyro * dt;
+        let b = prop.noise_map * q_scale;
+        let q = b * b.transpose();
+        let mut p = self.p;
+        p.fixed_rows_mut::<3>(ATT).copy_from(&ap);
+        p.fixed_columns_mut::<3>(ATT).copy_from(&ap.transpose());
+        p.fixed_view_mut::<3, 3>(ATT, ATT).copy_from(&(aaa + q));
+        if !all_finite(p.iter().copied()) {
+            return Err(Error::NonFiniteState);
+        }
+        let [_, _, att1] = prop.att;
+        self.x.fixed_rows_mut::<3>(ATT).copy_from(&att1);
+        self.p = p;
+        self.command.advance(&period);
+        self.pending = Some(Pending { period, prop });
+        Ok(())
+    }
+
+    /// Predicted measurement and its Jacobian (w.r.t. the state at the end of
+    /// the period) for the state `x`, whose period trajectory is `prop`.
+    fn measure(&self, x: &SVector<T, N>, pending: &Pending<T, N>) -> (SVector<T, Z>, SMatrix<T, Z, N>) {
+        let layout = Self::LAYOUT;
+        let m = layout.matrices(x);
+        let (za, ha) = layout.mean_accel(&self.config.env, &m, &pending.prop, &pending.period);
+        let mut z = SVector::<T, Z>::zeros();
+        let mut h = SMatrix::<T, Z, N>::zeros();
+        let accel_row = if layout.gimbal_obs {
+            let att = layout.attitude(x);
+            z.fixed_rows_mut::<3>(0).copy_from(&att);
+            h.fixed_view_mut::<3, 3>(0, ATT).copy_from(&Matrix3::identity());
+            3
+        } else {
+            0
+        };
+        z.fixed_rows_mut::<3>(accel_row).copy_from(&za);
+        h.fixed_rows_mut::<3>(accel_row).copy_from(&ha);
+        (z, h)
+    }
+
+    /// The trajectory over the pending period that ends at state `x`
+    /// (integrated backwards), for relinearisation.
+    fn retrace(&self, x: &SVector<T, N>, pending: &Pending<T, N>) -> Result<Pending<T, N>, Error> {
+        let layout = Self::LAYOUT;
+        let pr = &pending.period;
+        let [c0, cm, c1] = pr.c_cn;
+        let [w0, wm, w1] = pr.omega_c;
+        let reversed = Period { dt: -pr.dt, omega_c: [w1, wm, w0], c_cn: [c1, cm, c0] };
+        let m = layout.matrices(x);
+        let back: PeriodPropagation<T, N> = layout
+            .propagate(&self.config.env, &m, &layout.attitude(x), &reversed)
+            .ok_or(Error::GimbalLock)?;
+        let [a1, am, a0] = back.att;
+        let prop = PeriodPropagation {
+            att: [a0, am, a1],
+            phi_att: crate::models::transition_rows(&back.f_mid, pr.dt),
+            f_mid: back.f_mid,
+            noise_map: back.noise_map,
+        };
+        Ok(Pending { period: *pr, prop })
+    }
+
+    /// Second-order terms of the accelerometer rows: returns
+    /// (`½ tr(∇²h_a P)`, `½ tr(∇²h_a P ∇²h_b P)`), by central differences of
+    /// the instantaneous accelerometer Jacobian at the end of the period.
+    fn second_order(&self, x: &SVector<T, N>, pending: &Pending<T, N>) -> (Vector3<T>, Matrix3<T>) {
+        let layout = Self::LAYOUT;
+        let env = &self.config.env;
+        let [_, _, c_end] = pending.period.c_cn;
+        let delta: T = nalgebra::convert(1e-5);
+        let two: T = nalgebra::convert(2.0);
+        let half: T = nalgebra::convert(0.5);
+        let mut hess = [SMatrix::<T, N, N>::zeros(); 3];
+        let relevant = |j: usize| {
+            j < 3
+                || layout.ac().is_some_and(|i| (i..i + 3).contains(&j))
+                || (layout.at()..layout.at() + 3).contains(&j)
+                || layout.lam().is_some_and(|i| (i..i + 3).contains(&j))
+        };
+        for j in (0..N).filter(|&j| relevant(j)) {
+            let mut xp = *x;
+            let mut xm = *x;
+            if let (Some(a), Some(b)) = (xp.get_mut(j), xm.get_mut(j)) {
+                *a += delta;
+                *b -= delta;
+            }
+            let hp: SMatrix<T, 3, N> =
+                layout.accel_jacobian(env, &layout.matrices(&xp), &layout.attitude(&xp), &c_end);
+            let hm: SMatrix<T, 3, N> =
+                layout.accel_jacobian(env, &layout.matrices(&xm), &layout.attitude(&xm), &c_end);
+            let d = (hp - hm) / (two * delta);
+            for (a, hs) in hess.iter_mut().enumerate() {
+                if let (Some(mut col), Some(row)) = (hs.column_iter_mut().nth(j), d.row_iter().nth(a)) {
+                    col.copy_from(&row.transpose());
+                }
+            }
+        }
+        let mut mean = Vector3::zeros();
+        let mut cov = Matrix3::zeros();
+        let mut hp = [SMatrix::<T, N, N>::zeros(); 3];
+        for (a, hs) in hess.iter_mut().enumerate() {
+            *hs = (*hs + hs.transpose()) * half;
+            if let (Some(dst), Some(m)) = (hp.get_mut(a), mean.get_mut(a)) {
+                *dst = *hs * self.p;
+                *m = dst.trace() * half;
+            }
+        }
+        for a in 0..3 {
+            for b in a..3 {
+                if let (Some(ha), Some(hb)) = (hp.get(a), hp.get(b)) {
+                    // tr(A B) = Σ_ij A_ij B_ji
+                    let t = ha.component_mul(&hb.transpose()).sum() * half;
+                    if let Some(v) = cov.get_mut((a, b)) {
+                        *v = t;
+                    }
+                    if let Some(v) = cov.get_mut((b, a)) {
+                        *v = t;
+                    }
+                }
+            }
+        }
+        (mean, cov)
+    }
+
+    /// Processes the measurement of the period that [`Filter::predict`] just
+    /// propagated over. On error (other than a singular covariance after the
+    /// update) the state and covariance are left untouched.
+    pub fn update(&mut self, obs: &Observation<T>) -> Result<Innovation<T, Z>, Error> {
+        let layout = Self::LAYOUT;
+        let pending = self.pending.ok_or(Error::NoPrediction)?;
+        let gimbal = match (layout.gimbal_obs, obs.gimbal) {
+            (true, None) => return Err(Error::MissingGimbal),
+            (true, Some(g)) => Some(g),
+            (false, _) => None,
+        };
+        if !all_finite(obs.accel_mean.iter().chain(gimbal.iter().flat_map(|g| g.iter())).copied()) {
+            return Err(Error::NonFiniteInput);
+        }
+        let mut z = SVector::<T, Z>::zeros();
+        let mut r = SVector::<T, Z>::zeros();
+        let sa2 = self.config.sigma_accel * self.config.sigma_accel;
+        let accel_row = if let Some(g) = gimbal {
+            z.fixed_rows_mut::<3>(0).copy_from(&g);
+            let sg2 = self.config.sigma_gimbal * self.config.sigma_gimbal;
+            r.fixed_rows_mut::<3>(0).fill(sg2);
+            3
+        } else {
+            0
+        };
+        z.fixed_rows_mut::<3>(accel_row).copy_from(&obs.accel_mean);
+        r.fixed_rows_mut::<3>(accel_row).fill(sa2);
+        let r = SMatrix::<T, Z, Z>::from_diagonal(&r);
+
+        let opts = self.config.options;
+        let (mean2, cov2) = if opts.second_order_covariance || opts.second_order_mean {
+            self.second_order(&self.x, &pending)
+        } else {
+            (Vector3::zeros(), Matrix3::zeros())
+        };
+        let x_prior = self.x;
+        let iterations = if self.updates < opts.iterate_updates { opts.iterations } else { 0 };
+        let mut x_lin = x_prior;
+        let mut lin = pending;
+        let mut result = None;
+        for it in 0..=iterations {
+            if it > 0 {
+                lin = self.retrace(&x_lin, &pending)?;
+            }
+            let (zp, h) = self.measure(&x_lin, &lin);
+            let mut nu = z - zp;
+            // IEKF: ν = z − h(x_i) − H (x̂ − x_i).
+            nu -= h * (x_prior - x_lin);
+            if opts.second_order_mean {
+                let mut acc = nu.fixed_rows_mut::<3>(accel_row);
+                acc -= mean2;
+            }
+            if layout.gimbal_obs {
+                for v in nu.iter_mut().take(3) {
+                    *v = wrap_angle(*v);
+                }
+            }
+            let ph = self.p * h.transpose();
+            let mut s = h * ph + r;
+            if opts.second_order_covariance {
+                let mut blk = s.fixed_view_mut::<3, 3>(accel_row, accel_row);
+                blk += cov2;
+            }
+            s = (s + s.transpose()) * nalgebra::convert::<f64, T>(0.5);
+            let chol = s.cholesky().ok_or(Error::InnovationNotPositiveDefinite)?;
+            let k = chol.solve(&ph.transpose()).transpose();
+            let x_new = x_prior + k * nu;
+            let s_inv_nu = chol.solve(&nu);
+            let nis = nu.dot(&s_inv_nu);
+            x_lin = x_new;
+            result = Some((k, h, nu, s, nis));
+        }
+        let (k, h, nu, s, nis) = result.ok_or(Error::NoPrediction)?;
+        if !all_finite(x_lin.iter().copied()) || !nis.is_finite() {
+            return Err(Error::NonFiniteState);
+        }
+        if opts.nis_gate > 0.0 && nis > nalgebra::convert(opts.nis_gate) {
+            self.pending = None;
+            return Err(Error::Gated);
+        }
+        // Joseph form: P = (I − K H) P (I − K H)ᵀ + K R Kᵀ.
+        let ikh = SMatrix::<T, N, N>::identity() - k * h;
+        let mut p = ikh * self.p * ikh.transpose() + k * r * k.transpose();
+        p = (p + p.transpose()) * nalgebra::convert::<f64, T>(0.5);
+        if p.diagonal().iter().any(|v| *v <= T::zero()) || !all_finite(p.iter().copied()) {
+            return Err(Error::CovarianceNotPositiveDefinite);
+        }
+        // Keep the Euler attitude angles in (−π, π]; P is unchanged by 2π shifts.
+        let mut x = x_lin;
+        if layout.attitude != crate::models::AttitudeKind::Misalignment {
+            for v in x.iter_mut().take(3) {
+                *v = wrap_angle(*v);
+            }
+        }
+        self.x = x;
+        self.p = p;
+        self.pending = None;
+        self.updates = self.updates.saturating_add(1);
+        Ok(Innovation { nu, s, nis })
+    }
+
+    /// One filter period: [`Filter::predict`] then [`Filter::update`].
+    pub fn step(&mut self, dtheta_c: &Vector3<T>, dt: T, obs: &Observation<T>) -> Result<Innovation<T, Z>, Error> {
+        let saved = (self.x, self.p, self.command);
+        self.predict(dtheta_c, dt)?;
+        match self.update(obs) {
+            Ok(i) => Ok(i),
+            Err(Error::Gated) => Err(Error::Gated),
+            Err(e) => {
+                (self.x, self.p, self.command) = saved;
+                self.pending = None;
+                Err(e)
+            }
+        }
+    }
+
+    /// Measurement function and Jacobian at an arbitrary end-of-period state,
+    /// for tests and the observability analysis: returns `(h(x), H)` for the
+    /// period that [`Filter::predict`] last propagated over.
+    pub fn measurement_at(&self, x: &SVector<T, N>) -> Result<(SVector<T, Z>, SMatrix<T, Z, N>), Error> {
+        let pending = self.pending.ok_or(Error::NoPrediction)?;
+        let lin = self.retrace(x, &pending)?;
+        Ok(self.measure(x, &lin))
+    }
+}

@@ -1,0 +1,282 @@
+//! Frames, rotations and gimbal kinematics (SPEC §2; paper eqs. 1, 2, 5).
+//!
+//! Every function here is pure and allocation-free. Angles are radians,
+//! direction-cosine matrices (DCMs) follow the convention `C^b_a` = "from
+//! frame a to frame b", and rotation vectors follow the paper's passive
+//! convention `R(θ) = exp(−[θ×])`, so that `R(θ) ≈ I − [θ×]` to first order.
+
+use nalgebra::{Matrix3, RealField, Vector3};
+
+/// `[v×]`: the skew-symmetric matrix with `[v×] w = v × w`.
+#[inline]
+pub fn skew<T: RealField + Copy>(v: &Vector3<T>) -> Matrix3<T> {
+    let z = T::zero();
+    Matrix3::new(z, -v.z, v.y, v.z, z, -v.x, -v.y, v.x, z)
+}
+
+/// `L(t)`: the strictly lower-triangular matrix `[[0,0,0],[t1,0,0],[t2,t3,0]]`
+/// (the paper's `[θ]` of the non-orthogonality angles `θT`, eq. 6).
+#[inline]
+pub fn lower<T: RealField + Copy>(t: &Vector3<T>) -> Matrix3<T> {
+    let z = T::zero();
+    Matrix3::new(z, z, z, t.x, z, z, t.y, t.z, z)
+}
+
+/// `∂(L(t) v)/∂t`: the Jacobian of `L(t) v` with respect to `t` (exact: `L`
+/// is linear in `t`).
+#[inline]
+pub fn d_lower_times<T: RealField + Copy>(v: &Vector3<T>) -> Matrix3<T> {
+    let z = T::zero();
+    Matrix3::new(z, z, z, v.x, z, z, z, v.x, v.y)
+}
+
+/// `R(θ) = exp(−[θ×])` (Rodrigues): the DCM of a frame rotated by the
+/// rotation vector `θ` (rad) with respect to the reference frame.
+pub fn dcm<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T> {
+    let angle2 = theta.norm_squared();
+    let k = skew(theta);
+    let (a, b) = if angle2 < nalgebra::convert(1e-8) {
+        // Taylor series of sin(x)/x and (1-cos x)/x², accurate to < 1e-24.
+        let six: T = nalgebra::convert(6.0);
+        let two: T = nalgebra::convert(2.0);
+        let twenty_four: T = nalgebra::convert(24.0);
+        (T::one() - angle2 / six, T::one() / two - angle2 / twenty_four)
+    } else {
+        let angle = angle2.sqrt();
+        (angle.sin() / angle, (T::one() - angle.cos()) / angle2)
+    };
+    Matrix3::identity() - k * a + k * k * b
+}
+
+/// The inverse of [`dcm`]: the rotation vector `θ` (rad) with `R(θ) = c`,
+/// `|θ| ≤ π`. `c` must be a proper rotation matrix.
+pub fn rotation_vector<T: RealField + Copy>(c: &Matrix3<T>) -> Vector3<T> {
+    let two: T = nalgebra::convert(2.0);
+    // R(θ) = exp(−[θ×]) ⇒ the antisymmetric part of c is −sin|θ| [θ̂×].
+    let w = Vector3::new(c.m23 - c.m32, c.m31 - c.m13, c.m12 - c.m21) / two;
+    let cos = ((c.m11 + c.m22 + c.m33 - T::one()) / two).clamp(-T::one(), T::one());
+    let sin = w.norm();
+    let angle = sin.atan2(cos);
+    if sin < nalgebra::convert(1e-6) && cos > T::zero() {
+        // θ ≈ w (1 + |w|²/6): series of angle/sin(angle).
+        let six: T = nalgebra::convert(6.0);
+        return w * (T::one() + sin * sin / six);
+    }
+    if sin < nalgebra::convert(1e-6) {
+        // Near π: use the symmetric part, c + cᵀ = 2 I cos + 2(1−cos) θ̂θ̂ᵀ.
+        let s = (c + c.transpose()) / two;
+        let one_minus_cos = T::one() - cos;
+        let diag = Vector3::new(s.m11 - cos, s.m22 - cos, s.m33 - cos) / one_minus_cos;
+        let mut axis = if diag.x >= diag.y && diag.x >= diag.z {
+            Vector3::new(diag.x, s.m12 / one_minus_cos, s.m13 / one_minus_cos)
+        } else if diag.y >= diag.z {
+            Vector3::new(s.m21 / one_minus_cos, diag.y, s.m23 / one_minus_cos)
+        } else {
+            Vector3::new(s.m31 / one_minus_cos, s.m32 / one_minus_cos, diag.z)
+        };
+        let n = axis.norm();
+        if n > T::zero() {
+            axis /= n;
+        }
+        // The sign is fixed by the (small) antisymmetric part where it exists.
+        if axis.dot(&w) < T::zero() {
+            axis = -axis;
+        }
+        return axis * angle;
+    }
+    w * (angle / sin)
+}
+
+/// Right Jacobian of the rotation vector, `J_r(θ)`, for the convention
+/// `R(θ) = exp(−[θ×])`: `R(θ + δ) ≈ (I − [(J_r(θ) δ)×]) R(θ)`.
+pub fn right_jacobian<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T> {
+    let angle2 = theta.norm_squared();
+    let k = skew(theta);
+    let (a, b) = if angle2 < nalgebra::convert(1e-8) {
+        let two: T = nalgebra::convert(2.0);
+        let six: T = nalgebra::convert(6.0);
+        let twenty_four: T = nalgebra::convert(24.0);
+        let hundred_twenty: T = nalgebra::convert(120.0);
+        (
+            T::one() / two - angle2 / twenty_four,
+            T::one() / six - angle2 / hundred_twenty,
+        )
+    } else {
+        let angle = angle2.sqrt();
+        (
+            (T::one() - angle.cos()) / angle2,
+            (angle - angle.sin()) / (angle2 * angle),
+        )
+    };
+    Matrix3::identity() - k * a + k * k * b
+}
+
+/// Inverse of [`right_jacobian`]: `J_r⁻¹(θ)`, the map from the angular rate
+/// to the rotation-vector rate, `θ̇ = J_r⁻¹(θ) ω` (SPEC §3, M1 dynamics).
+pub fn right_jacobian_inv<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T> {
+    let angle2 = theta.norm_squared();
+    let k = skew(theta);
+    let two: T = nalgebra::convert(2.0);
+    let c = if angle2 < nalgebra::convert(1e-8) {
+        let twelve: T = nalgebra::convert(12.0);
+        let seven_twenty: T = nalgebra::convert(720.0);
+        T::one() / twelve + angle2 / seven_twenty
+    } else {
+        let angle = angle2.sqrt();
+        T::one() / angle2 - (T::one() + angle.cos()) / (two * angle * angle.sin())
+    };
+    Matrix3::identity() + k / two + k * k * c
+}
+
+/// `∂(R(θ) v)/∂θ = [(R(θ) v)×] J_r(θ)`: Jacobian of a vector rotated by
+/// [`dcm`] with respect to the rotation vector.
+pub fn d_dcm_times<T: RealField + Copy>(theta: &Vector3<T>, v: &Vector3<T>) -> Matrix3<T> {
+    skew(&(dcm(theta) * v)) * right_jacobian(theta)
+}
+
+/// Passive rotation about x by `a` (rad): `[[1,0,0],[0,c,s],[0,−s,c]]`.
+pub fn r1<T: RealField + Copy>(a: T) -> Matrix3<T> {
+    let (s, c) = a.sin_cos();
+    let (o, z) = (T::one(), T::zero());
+    Matrix3::new(o, z, z, z, c, s, z, -s, c)
+}
+
+/// Passive rotation about y by `a` (rad): `[[c,0,−s],[0,1,0],[s,0,c]]`.
+pub fn r2<T: RealField + Copy>(a: T) -> Matrix3<T> {
+    let (s, c) = a.sin_cos();
+    let (o, z) = (T::one(), T::zero());
+    Matrix3::new(c, z, -s, z, o, z, s, z, c)
+}
+
+/// Passive rotation about z by `a` (rad): `[[c,s,0],[−s,c,0],[0,0,1]]`.
+pub fn r3<T: RealField + Copy>(a: T) -> Matrix3<T> {
+    let (s, c) = a.sin_cos();
+    let (o, z) = (T::one(), T::zero());
+    Matrix3::new(c, s, z, -s, c, z, z, z, o)
+}
+
+/// Gimbal DCM `C^p_r = R3(γ) R2(β) R1(α)` of the gimbal angles
+/// `θA = (α, β, γ)` (rad): outer gimbal about base x, middle about y, inner
+/// about z. The same Euler sequence parameterises the attitude `θp` of M4.
+pub fn gimbal_dcm<T: RealField + Copy>(gimbal_angles: &Vector3<T>) -> Matrix3<T> {
+    r3(gimbal_angles.z) * r2(gimbal_angles.y) * r1(gimbal_angles.x)
+}
+
+/// `M(β, γ)`: the gimbal-rate matrix, `ω^p_rp = M θ̇A`.
+pub fn gimbal_rate_matrix<T: RealField + Copy>(beta: T, gamma: T) -> Matrix3<T> {
+    let (sb, cb) = beta.sin_cos();
+    let (sg, cg) = gamma.sin_cos();
+    let z = T::zero();
+    Matrix3::new(cb * cg, sg, z, -cb * sg, cg, z, sb, z, T::one())
+}
+
+/// `T(β, γ) = M⁻¹`: the map from the platform rate to the gimbal-angle rates,
+/// `θ̇A = T ω^p_rp`. `None` within `1e-9` of the gimbal lock `β = ±90°`.
+pub fn gimbal_rate_inverse<T: RealField + Copy>(beta: T, gamma: T) -> Option<Matrix3<T>> {
+    let (sb, cb) = beta.sin_cos();
+    if cb.abs() < nalgebra::convert(1e-9) {
+        return None;
+    }
+    let (sg, cg) = gamma.sin_cos();
+    let z = T::zero();
+    Some(Matrix3::new(
+        cg / cb,
+        -sg / cb,
+        z,
+        sg,
+        cg,
+        z,
+        -sb * cg / cb,
+        sb * sg / cb,
+        T::one(),
+    ))
+}
+
+/// `∂(T(β, γ) w)/∂θA` for a fixed vector `w` (column α is zero):
+/// `∂(T w) = −T (∂M) T w`.
+pub fn d_gimbal_rate_inverse_times<T: RealField + Copy>(
+    t: &Matrix3<T>,
+    beta: T,
+    gamma: T,
+    w: &Vector3<T>,
+) -> Matrix3<T> {
+    let (sb, cb) = beta.sin_cos();
+    let (sg, cg) = gamma.sin_cos();
+    let z = T::zero();
+    let tw = t * w;
+    let dm_dbeta = Matrix3::new(-sb * cg, z, z, sb * sg, z, z, cb, z, z);
+    let dm_dgamma = Matrix3::new(-cb * sg, cg, z, -cb * cg, -sg, z, z, z, z);
+    let col_b = -(t * (dm_dbeta * tw));
+    let col_g = -(t * (dm_dgamma * tw));
+    Matrix3::from_columns(&[Vector3::zeros(), col_b, col_g])
+}
+
+/// `∂(C(θ) v)/∂θ = [(C v)×] M(β, γ)` for the Euler DCM `C = ` [`gimbal_dcm`]`(θ)`.
+pub fn d_gimbal_dcm_times<T: RealField + Copy>(
+    gimbal_angles: &Vector3<T>,
+    v: &Vector3<T>,
+) -> Matrix3<T> {
+    skew(&(gimbal_dcm(gimbal_angles) * v)) * gimbal_rate_matrix(gimbal_angles.y, gimbal_angles.z)
+}
+
+/// Euler angles `(α, β, γ)` (rad) of `C = R3(γ) R2(β) R1(α)`:
+/// `β = asin(C[2][0])`, `α = atan2(−C[2][1], C[2][2])`,
+/// `γ = atan2(−C[1][0], C[0][0])`. Exact away from `β = ±90°`.
+pub fn euler_angles<T: RealField + Copy>(c: &Matrix3<T>) -> Vector3<T> {
+    let beta = c.m31.clamp(-T::one(), T::one()).asin();
+    let alpha = (-c.m32).atan2(c.m33);
+    let gamma = (-c.m21).atan2(c.m11);
+    Vector3::new(alpha, beta, gamma)
+}
+
+/// Wraps an angle (rad) into `(−π, π]`. Non-finite input is returned as is.
+pub fn wrap_angle<T: RealField + Copy>(a: T) -> T {
+    let pi = T::pi();
+    let two_pi = T::two_pi();
+    if a > -pi && a <= pi {
+        return a;
+    }
+    let mut w = a - two_pi * ((a + pi) / two_pi).floor();
+    // Now w ∈ [−π, π); move the closed end to +π.
+    if w <= -pi {
+        w += two_pi;
+    }
+    w
+}
+
+/// Wraps every component of a vector of angles (rad) into `(−π, π]`.
+pub fn wrap_angles<T: RealField + Copy>(a: &Vector3<T>) -> Vector3<T> {
+    a.map(wrap_angle)
+}
+
+/// The navigation-frame Earth rate `ω^n_ie = Ω [cos φ, sin φ, 0]` (rad/s) in
+/// the North–Up–East frame, for latitude `φ` (rad) and Earth rate `Ω`
+/// (rad/s; 0 to switch it off).
+pub fn earth_rate_n<T: RealField + Copy>(omega: T, latitude: T) -> Vector3<T> {
+    let (s, c) = latitude.sin_cos();
+    Vector3::new(omega * c, omega * s, T::zero())
+}
+
+/// Earth rotation rate `Ω` (rad/s), WGS-84.
+pub const EARTH_RATE: f64 = 7.292115e-5;
+
+/// Specific force at rest in the navigation frame, `f^n = [0, 1, 0]` (g).
+pub fn gravity_n<T: RealField + Copy>() -> Vector3<T> {
+    Vector3::new(T::zero(), T::one(), T::zero())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wrap_edges() {
+        let pi = core::f64::consts::PI;
+        assert_eq!(wrap_angle(pi), pi);
+        assert!((wrap_angle(-pi) - pi).abs() < 1e-15);
+        assert!((wrap_angle(3.0 * pi) - pi).abs() < 1e-12);
+        assert!((wrap_angle(2.5 * pi) - 0.5 * pi).abs() < 1e-12);
+        assert!((wrap_angle(-2.5 * pi) + 0.5 * pi).abs() < 1e-12);
+        assert!(wrap_angle(f64::NAN).is_nan());
+    }
+}

@@ -1,0 +1,38 @@
+//! # rollcal
+//!
+//! Continuous-rolling self-calibration of the instrument installation errors
+//! of a three-axis gimballed inertial platform: while the platform rolls in
+//! the 1 g field, an extended Kalman filter estimates the axis rotations
+//! (`θgC`, `θaC`) and non-orthogonalities (`θgT`, `θaT`) of the gyros and
+//! accelerometers and the base mounting angles `λ` from the accelerometer
+//! outputs (and, in M2, the gimbal angles).
+//!
+//! `#![no_std]`, no heap, no panics on any input; every configuration is a
+//! type with its dimensions fixed at compile time. Generic over the scalar
+//! (`f64` reference; `f32` for FPUs without double precision).
+//!
+//! Conventions (SPEC §2): radians inside, specific force in g, navigation
+//! frame North–Up–East, `C^b_a` maps frame-a coordinates to frame b, and
+//! `R(θ) = exp(−[θ×])`. See [`geometry`] for the frames.
+//!
+//! Modules, in the order of the paper:
+//! - [`geometry`]: rotations, gimbal kinematics (paper eqs. 1, 2, 5);
+//! - [`instruments`]: installation models `G`, `A` (eqs. 6, 10, 11);
+//! - [`command`]: the computed frame and the commanded rate;
+//! - [`models`]: the seven configurations (paper §1.3);
+//! - [`ekf`]: the filter (SPEC §6).
+#![no_std]
+#![deny(missing_docs, unsafe_code)]
+#![cfg_attr(
+    not(test),
+    deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)
+)]
+
+pub mod command;
+pub mod ekf;
+pub mod geometry;
+pub mod instruments;
+pub mod models;
+
+pub use ekf::{Error, Filter, FilterConfig, Innovation, Observation, Options};
+pub use models::{ConfigId, Environment, Group, Layout, Model, StateInfo};
