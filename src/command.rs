@@ -30,6 +30,20 @@ pub struct Period<T: RealField + Copy> {
     pub c_cn: [Matrix3<T>; 3],
 }
 
+impl<T: RealField + Copy> Period<T> {
+    /// The same period traversed backwards in time (`dt < 0`, nodes
+    /// reversed), for integrating the dynamics from `t_{k+1}` back to `t_k`.
+    pub fn reversed(&self) -> Self {
+        let [w0, wm, w1] = self.omega_c;
+        let [c0, cm, c1] = self.c_cn;
+        Self {
+            dt: -self.dt,
+            omega_c: [w1, wm, w0],
+            c_cn: [c1, cm, c0],
+        }
+    }
+}
+
 /// The computed frame `c`: `C^c_n`, integrated from the commanded increments.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CommandFrame<T: RealField + Copy> {
@@ -42,7 +56,10 @@ pub struct CommandFrame<T: RealField + Copy> {
 impl<T: RealField + Copy> CommandFrame<T> {
     /// A computed frame aligned with n (`C^c_n(0) = I`, SPEC §4).
     pub fn aligned(earth_rate_n: Vector3<T>) -> Self {
-        Self { c_cn: Matrix3::identity(), earth_rate_n }
+        Self {
+            c_cn: Matrix3::identity(),
+            earth_rate_n,
+        }
     }
 
     /// The commanded motion over the next period of length `dt` (s) whose

@@ -59,7 +59,9 @@ impl core::fmt::Display for Error {
             Error::InvalidPeriod => "period is not strictly positive",
             Error::MissingGimbal => "configuration observes gimbal angles but none were given",
             Error::GimbalLock => "attitude reached gimbal lock (beta = +-90 deg)",
-            Error::InnovationNotPositiveDefinite => "innovation covariance is not positive definite",
+            Error::InnovationNotPositiveDefinite => {
+                "innovation covariance is not positive definite"
+            }
             Error::CovarianceNotPositiveDefinite => "state covariance is not positive definite",
             Error::NonFiniteState => "state is not finite",
             Error::Gated => "innovation rejected by the NIS gate",
@@ -79,6 +81,8 @@ pub struct Options {
     pub second_order_covariance: bool,
     /// Add the second-order mean `½ tr(∇²h_a P)` to the predicted measurement.
     pub second_order_mean: bool,
+    /// Add the second-order terms of the attitude dynamics to the process noise.
+    pub second_order_dynamics: bool,
     /// Iterated-EKF relinearisations per update (0 = plain EKF).
     pub iterations: u8,
     /// Iterate only the first this many updates.
@@ -92,6 +96,7 @@ impl Default for Options {
         Self {
             second_order_covariance: true,
             second_order_mean: false,
+            second_order_dynamics: false,
             iterations: 0,
             iterate_updates: 0,
             nis_gate: 0.0,
@@ -105,6 +110,7 @@ impl Options {
         Self {
             second_order_covariance: false,
             second_order_mean: false,
+            second_order_dynamics: false,
             iterations: 0,
             iterate_updates: 0,
             nis_gate: 0.0,
@@ -162,6 +168,7 @@ pub struct Filter<T: RealField + Copy, M, const N: usize, const Z: usize> {
     command: CommandFrame<T>,
     config: FilterConfig<T>,
     pending: Option<Pending<T, N>>,
+    reference: Option<SVector<T, N>>,
     updates: u32,
     _model: PhantomData<M>,
 }
@@ -181,6 +188,59 @@ pub type M4PaFilter<T> = Filter<T, crate::models::M4Pa, 12, 3>;
 /// M4-ps filter (15 states).
 pub type M4PsFilter<T> = Filter<T, crate::models::M4Ps, 15, 3>;
 
+/// `(½ tr(∇²g_a P), ½ tr(∇²g_a P ∇²g_b P))` of a 3-vector function `g`
+/// whose Jacobian is `jac`, by central differences of `jac` along the
+/// error-state directions `j` with `relevant(j)`.
+fn hessian_terms<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>(
+    x: &SVector<T, N>,
+    p: &SMatrix<T, N, N>,
+    relevant: impl Fn(usize) -> bool,
+    jac: impl Fn(&SVector<T, N>) -> Option<SMatrix<T, 3, N>>,
+) -> Option<(Vector3<T>, Matrix3<T>)> {
+    let layout = M::LAYOUT;
+    let delta: T = nalgebra::convert(1e-5);
+    let two: T = nalgebra::convert(2.0);
+    let half: T = nalgebra::convert(0.5);
+    let mut hess = [SMatrix::<T, N, N>::zeros(); 3];
+    for j in (0..N).filter(|&j| relevant(j)) {
+        let mut e = SVector::<T, N>::zeros();
+        if let Some(v) = e.get_mut(j) {
+            *v = delta;
+        }
+        let d = (jac(&layout.boxplus(x, &e))? - jac(&layout.boxplus(x, &(-e)))?) / (two * delta);
+        for (a, hs) in hess.iter_mut().enumerate() {
+            if let (Some(mut col), Some(row)) = (hs.column_iter_mut().nth(j), d.row_iter().nth(a)) {
+                col.copy_from(&row.transpose());
+            }
+        }
+    }
+    let mut mean = Vector3::zeros();
+    let mut cov = Matrix3::zeros();
+    let mut hp = [SMatrix::<T, N, N>::zeros(); 3];
+    for (a, hs) in hess.iter_mut().enumerate() {
+        *hs = (*hs + hs.transpose()) * half;
+        if let (Some(dst), Some(m)) = (hp.get_mut(a), mean.get_mut(a)) {
+            *dst = *hs * p;
+            *m = dst.trace() * half;
+        }
+    }
+    for a in 0..3 {
+        for b in a..3 {
+            if let (Some(ha), Some(hb)) = (hp.get(a), hp.get(b)) {
+                // tr(A B) = Σ_ij A_ij B_ji
+                let t = ha.component_mul(&hb.transpose()).sum() * half;
+                if let Some(v) = cov.get_mut((a, b)) {
+                    *v = t;
+                }
+                if let Some(v) = cov.get_mut((b, a)) {
+                    *v = t;
+                }
+            }
+        }
+    }
+    Some((mean, cov))
+}
+
 fn all_finite<T: RealField + Copy>(it: impl IntoIterator<Item = T>) -> bool {
     it.into_iter().all(|v| v.is_finite())
 }
@@ -191,12 +251,23 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
 
     /// A filter with initial estimate `x0` (rad) and prior standard
     /// deviations `sigma0` (rad), the computed frame aligned with n.
-    pub fn new(config: FilterConfig<T>, x0: SVector<T, N>, sigma0: SVector<T, N>) -> Result<Self, Error> {
+    pub fn new(
+        config: FilterConfig<T>,
+        x0: SVector<T, N>,
+        sigma0: SVector<T, N>,
+    ) -> Result<Self, Error> {
         #[allow(clippy::let_unit_value)]
         let () = Self::SIZES_AGREE;
         let inputs = [config.sigma_accel, config.sigma_gyro, config.sigma_gimbal];
         if !all_finite(x0.iter().chain(sigma0.iter()).copied().chain(inputs))
-            || !all_finite(config.env.earth_rate_n.iter().chain(config.env.gravity_n.iter()).copied())
+            || !all_finite(
+                config
+                    .env
+                    .earth_rate_n
+                    .iter()
+                    .chain(config.env.gravity_n.iter())
+                    .copied(),
+            )
             || !config.options.nis_gate.is_finite()
         {
             return Err(Error::NonFiniteInput);
@@ -213,9 +284,28 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             command: CommandFrame::aligned(config.env.earth_rate_n),
             config,
             pending: None,
+            reference: None,
             updates: 0,
             _model: PhantomData,
         })
+    }
+
+    /// Switches to a linearised Kalman filter about a nominal trajectory
+    /// that starts at `x_nominal` (the state at the current time) and follows
+    /// the model's own dynamics; `None` returns to the extended filter.
+    ///
+    /// Jacobians are then evaluated on the nominal trajectory and the
+    /// innovation is `z − h(x_nom) − H (x̂ ⊟ x_nom)`. This is the second pass
+    /// of the two-pass estimator (the nominal is the first pass's estimate
+    /// propagated back to the start), and, with the true initial state as
+    /// nominal, the Riccati recursion of the posterior Cramér–Rao bound.
+    pub fn set_nominal(&mut self, x_nominal: Option<SVector<T, N>>) {
+        self.reference = x_nominal;
+    }
+
+    /// The nominal state at the current time, in linearised mode.
+    pub fn nominal(&self) -> Option<&SVector<T, N>> {
+        self.reference.as_ref()
     }
 
     /// The state estimate (rad), in the configuration's state order.
@@ -223,14 +313,29 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         &self.x
     }
 
-    /// The state covariance `P` (rad²).
+    /// The error-state covariance `P` (rad²): the covariance of `δ` in
+    /// `x = x̂ ⊞ δ` (see [`Layout::boxplus`] and [`crate::models::LAMBDA_ERROR`]).
     pub fn covariance(&self) -> &SMatrix<T, N, N> {
         &self.p
     }
 
-    /// Per-state standard deviations `√P_ii` (rad).
+    /// The covariance of the state in its own coordinates, `J P Jᵀ` with
+    /// `J = ∂x/∂δ` (rad²).
+    pub fn state_covariance(&self) -> SMatrix<T, N, N> {
+        let j = Self::LAYOUT.error_to_state(&self.x);
+        j * self.p * j.transpose()
+    }
+
+    /// Per-state standard deviations in the state's own coordinates (rad).
     pub fn sigma(&self) -> SVector<T, N> {
-        self.p.diagonal().map(|v| v.max(T::zero()).sqrt())
+        self.state_covariance()
+            .diagonal()
+            .map(|v| v.max(T::zero()).sqrt())
+    }
+
+    /// The filter's settings.
+    pub fn config(&self) -> &FilterConfig<T> {
+        &self.config
     }
 
     /// The computed frame the filter integrates from the commands.
@@ -260,17 +365,39 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         }
         let layout = Self::LAYOUT;
         let period = self.command.period(dtheta_c, dt);
-        let m = layout.matrices(&self.x);
-        let att0 = layout.attitude(&self.x);
-        let prop: PeriodPropagation<T, N> =
-            layout.propagate(&self.config.env, &m, &att0, &period).ok_or(Error::GimbalLock)?;
+        // The linearisation point: the estimate (EKF) or the nominal.
+        let x_lin = self.reference.unwrap_or(self.x);
+        let prop: PeriodPropagation<T, N> = layout
+            .propagate(
+                &self.config.env,
+                &layout.matrices(&x_lin),
+                &layout.attitude(&x_lin),
+                &period,
+            )
+            .ok_or(Error::GimbalLock)?;
+        let lin_prop = prop;
         // P ← Φ P Φᵀ + Q, touching only the attitude rows and columns.
-        let a = &prop.phi_att;
+        let a = &lin_prop.phi_att;
         let ap = a * self.p;
         let aaa = ap * a.transpose();
         let q_scale = self.config.sigma_gyro * dt;
-        let b = prop.noise_map * q_scale;
-        let q = b * b.transpose();
+        let b = lin_prop.noise_map * q_scale;
+        let mut q = b * b.transpose();
+        if self.config.options.second_order_dynamics {
+            // Linearisation error of the period map x_{k+1} ≈ x_k + f(x_mid) T.
+            let env = &self.config.env;
+            let [_, wm, _] = period.omega_c;
+            let [_, att_mid, _] = prop.att;
+            let mut x_mid = self.x;
+            x_mid.fixed_rows_mut::<3>(ATT).copy_from(&att_mid);
+            let relevant =
+                |j: usize| j < 9 || layout.lam().is_some_and(|i| (i..i + 3).contains(&j));
+            let (_, q2) = hessian_terms::<T, M, N, Z>(&x_mid, &self.p, relevant, |xp| {
+                layout.attitude_rate_jacobian(env, &layout.matrices(xp), &layout.attitude(xp), &wm)
+            })
+            .ok_or(Error::GimbalLock)?;
+            q += q2 * (dt * dt);
+        }
         let mut p = self.p;
         p.fixed_rows_mut::<3>(ATT).copy_from(&ap);
         p.fixed_columns_mut::<3>(ATT).copy_from(&ap.transpose());
@@ -279,7 +406,23 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             return Err(Error::NonFiniteState);
         }
         let [_, _, att1] = prop.att;
-        self.x.fixed_rows_mut::<3>(ATT).copy_from(&att1);
+        let mut x_lin_end = x_lin;
+        x_lin_end.fixed_rows_mut::<3>(ATT).copy_from(&att1);
+        let x_new = match self.reference {
+            // x̂_{k+1} = x_nom,k+1 ⊞ Φ (x̂_k ⊟ x_nom,k).
+            Some(_) => {
+                let mut delta = layout.boxminus(&self.x, &x_lin);
+                let d_att = prop.phi_att * delta;
+                delta.fixed_rows_mut::<3>(ATT).copy_from(&d_att);
+                self.reference = Some(x_lin_end);
+                layout.boxplus(&x_lin_end, &delta)
+            }
+            None => x_lin_end,
+        };
+        if !all_finite(x_new.iter().copied()) {
+            return Err(Error::NonFiniteState);
+        }
+        self.x = x_new;
         self.p = p;
         self.command.advance(&period);
         self.pending = Some(Pending { period, prop });
@@ -288,7 +431,11 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
 
     /// Predicted measurement and its Jacobian (w.r.t. the state at the end of
     /// the period) for the state `x`, whose period trajectory is `prop`.
-    fn measure(&self, x: &SVector<T, N>, pending: &Pending<T, N>) -> (SVector<T, Z>, SMatrix<T, Z, N>) {
+    fn measure(
+        &self,
+        x: &SVector<T, N>,
+        pending: &Pending<T, N>,
+    ) -> (SVector<T, Z>, SMatrix<T, Z, N>) {
         let layout = Self::LAYOUT;
         let m = layout.matrices(x);
         let (za, ha) = layout.mean_accel(&self.config.env, &m, &pending.prop, &pending.period);
@@ -297,7 +444,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let accel_row = if layout.gimbal_obs {
             let att = layout.attitude(x);
             z.fixed_rows_mut::<3>(0).copy_from(&att);
-            h.fixed_view_mut::<3, 3>(0, ATT).copy_from(&Matrix3::identity());
+            h.fixed_view_mut::<3, 3>(0, ATT)
+                .copy_from(&Matrix3::identity());
             3
         } else {
             0
@@ -312,9 +460,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     fn retrace(&self, x: &SVector<T, N>, pending: &Pending<T, N>) -> Result<Pending<T, N>, Error> {
         let layout = Self::LAYOUT;
         let pr = &pending.period;
-        let [c0, cm, c1] = pr.c_cn;
-        let [w0, wm, w1] = pr.omega_c;
-        let reversed = Period { dt: -pr.dt, omega_c: [w1, wm, w0], c_cn: [c1, cm, c0] };
+        let reversed = pr.reversed();
         let m = layout.matrices(x);
         let back: PeriodPropagation<T, N> = layout
             .propagate(&self.config.env, &m, &layout.attitude(x), &reversed)
@@ -336,59 +482,16 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let layout = Self::LAYOUT;
         let env = &self.config.env;
         let [_, _, c_end] = pending.period.c_cn;
-        let delta: T = nalgebra::convert(1e-5);
-        let two: T = nalgebra::convert(2.0);
-        let half: T = nalgebra::convert(0.5);
-        let mut hess = [SMatrix::<T, N, N>::zeros(); 3];
         let relevant = |j: usize| {
             j < 3
                 || layout.ac().is_some_and(|i| (i..i + 3).contains(&j))
                 || (layout.at()..layout.at() + 3).contains(&j)
                 || layout.lam().is_some_and(|i| (i..i + 3).contains(&j))
         };
-        for j in (0..N).filter(|&j| relevant(j)) {
-            let mut xp = *x;
-            let mut xm = *x;
-            if let (Some(a), Some(b)) = (xp.get_mut(j), xm.get_mut(j)) {
-                *a += delta;
-                *b -= delta;
-            }
-            let hp: SMatrix<T, 3, N> =
-                layout.accel_jacobian(env, &layout.matrices(&xp), &layout.attitude(&xp), &c_end);
-            let hm: SMatrix<T, 3, N> =
-                layout.accel_jacobian(env, &layout.matrices(&xm), &layout.attitude(&xm), &c_end);
-            let d = (hp - hm) / (two * delta);
-            for (a, hs) in hess.iter_mut().enumerate() {
-                if let (Some(mut col), Some(row)) = (hs.column_iter_mut().nth(j), d.row_iter().nth(a)) {
-                    col.copy_from(&row.transpose());
-                }
-            }
-        }
-        let mut mean = Vector3::zeros();
-        let mut cov = Matrix3::zeros();
-        let mut hp = [SMatrix::<T, N, N>::zeros(); 3];
-        for (a, hs) in hess.iter_mut().enumerate() {
-            *hs = (*hs + hs.transpose()) * half;
-            if let (Some(dst), Some(m)) = (hp.get_mut(a), mean.get_mut(a)) {
-                *dst = *hs * self.p;
-                *m = dst.trace() * half;
-            }
-        }
-        for a in 0..3 {
-            for b in a..3 {
-                if let (Some(ha), Some(hb)) = (hp.get(a), hp.get(b)) {
-                    // tr(A B) = Σ_ij A_ij B_ji
-                    let t = ha.component_mul(&hb.transpose()).sum() * half;
-                    if let Some(v) = cov.get_mut((a, b)) {
-                        *v = t;
-                    }
-                    if let Some(v) = cov.get_mut((b, a)) {
-                        *v = t;
-                    }
-                }
-            }
-        }
-        (mean, cov)
+        hessian_terms::<T, M, N, Z>(x, &self.p, relevant, |xp| {
+            Some(layout.accel_jacobian(env, &layout.matrices(xp), &layout.attitude(xp), &c_end))
+        })
+        .unwrap_or((Vector3::zeros(), Matrix3::zeros()))
     }
 
     /// Processes the measurement of the period that [`Filter::predict`] just
@@ -402,7 +505,12 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             (true, Some(g)) => Some(g),
             (false, _) => None,
         };
-        if !all_finite(obs.accel_mean.iter().chain(gimbal.iter().flat_map(|g| g.iter())).copied()) {
+        if !all_finite(
+            obs.accel_mean
+                .iter()
+                .chain(gimbal.iter().flat_map(|g| g.iter()))
+                .copied(),
+        ) {
             return Err(Error::NonFiniteInput);
         }
         let mut z = SVector::<T, Z>::zeros();
@@ -420,6 +528,9 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         r.fixed_rows_mut::<3>(accel_row).fill(sa2);
         let r = SMatrix::<T, Z, Z>::from_diagonal(&r);
 
+        if let Some(x_nom) = self.reference {
+            return self.update_linearised(&x_nom, &pending, &z, &r, accel_row);
+        }
         let opts = self.config.options;
         let (mean2, cov2) = if opts.second_order_covariance || opts.second_order_mean {
             self.second_order(&self.x, &pending)
@@ -427,7 +538,11 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             (Vector3::zeros(), Matrix3::zeros())
         };
         let x_prior = self.x;
-        let iterations = if self.updates < opts.iterate_updates { opts.iterations } else { 0 };
+        let iterations = if self.updates < opts.iterate_updates {
+            opts.iterations
+        } else {
+            0
+        };
         let mut x_lin = x_prior;
         let mut lin = pending;
         let mut result = None;
@@ -438,7 +553,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             let (zp, h) = self.measure(&x_lin, &lin);
             let mut nu = z - zp;
             // IEKF: ν = z − h(x_i) − H (x̂ − x_i).
-            nu -= h * (x_prior - x_lin);
+            nu -= h * layout.boxminus(&x_prior, &x_lin);
             if opts.second_order_mean {
                 let mut acc = nu.fixed_rows_mut::<3>(accel_row);
                 acc -= mean2;
@@ -457,17 +572,59 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             s = (s + s.transpose()) * nalgebra::convert::<f64, T>(0.5);
             let chol = s.cholesky().ok_or(Error::InnovationNotPositiveDefinite)?;
             let k = chol.solve(&ph.transpose()).transpose();
-            let x_new = x_prior + k * nu;
+            let x_new = layout.boxplus(&x_prior, &(k * nu));
             let s_inv_nu = chol.solve(&nu);
             let nis = nu.dot(&s_inv_nu);
             x_lin = x_new;
             result = Some((k, h, nu, s, nis));
         }
         let (k, h, nu, s, nis) = result.ok_or(Error::NoPrediction)?;
-        if !all_finite(x_lin.iter().copied()) || !nis.is_finite() {
+        self.commit(x_lin, &k, &h, &r, Innovation { nu, s, nis })
+    }
+
+    /// The update of the linearised filter about the nominal `x_nom`.
+    fn update_linearised(
+        &mut self,
+        x_nom: &SVector<T, N>,
+        pending: &Pending<T, N>,
+        z: &SVector<T, Z>,
+        r: &SMatrix<T, Z, Z>,
+        accel_row: usize,
+    ) -> Result<Innovation<T, Z>, Error> {
+        let layout = Self::LAYOUT;
+        let (z_nom, h) = self.measure(x_nom, pending);
+        let delta = layout.boxminus(&self.x, x_nom);
+        let mut nu = z - z_nom - h * delta;
+        if layout.gimbal_obs {
+            for v in nu.iter_mut().take(accel_row) {
+                *v = wrap_angle(*v);
+            }
+        }
+        let ph = self.p * h.transpose();
+        let mut s = h * ph + r;
+        s = (s + s.transpose()) * nalgebra::convert::<f64, T>(0.5);
+        let chol = s.cholesky().ok_or(Error::InnovationNotPositiveDefinite)?;
+        let k = chol.solve(&ph.transpose()).transpose();
+        let nis = nu.dot(&chol.solve(&nu));
+        let x_new = layout.boxplus(x_nom, &(delta + k * nu));
+        self.commit(x_new, &k, &h, r, Innovation { nu, s, nis })
+    }
+
+    /// Gate, Joseph-form covariance update, and state commit.
+    fn commit(
+        &mut self,
+        x_new: SVector<T, N>,
+        k: &SMatrix<T, N, Z>,
+        h: &SMatrix<T, Z, N>,
+        r: &SMatrix<T, Z, Z>,
+        innovation: Innovation<T, Z>,
+    ) -> Result<Innovation<T, Z>, Error> {
+        let layout = Self::LAYOUT;
+        if !all_finite(x_new.iter().copied()) || !innovation.nis.is_finite() {
             return Err(Error::NonFiniteState);
         }
-        if opts.nis_gate > 0.0 && nis > nalgebra::convert(opts.nis_gate) {
+        let gate = self.config.options.nis_gate;
+        if gate > 0.0 && innovation.nis > nalgebra::convert(gate) {
             self.pending = None;
             return Err(Error::Gated);
         }
@@ -479,7 +636,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             return Err(Error::CovarianceNotPositiveDefinite);
         }
         // Keep the Euler attitude angles in (−π, π]; P is unchanged by 2π shifts.
-        let mut x = x_lin;
+        let mut x = x_new;
         if layout.attitude != crate::models::AttitudeKind::Misalignment {
             for v in x.iter_mut().take(3) {
                 *v = wrap_angle(*v);
@@ -489,18 +646,23 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         self.p = p;
         self.pending = None;
         self.updates = self.updates.saturating_add(1);
-        Ok(Innovation { nu, s, nis })
+        Ok(innovation)
     }
 
     /// One filter period: [`Filter::predict`] then [`Filter::update`].
-    pub fn step(&mut self, dtheta_c: &Vector3<T>, dt: T, obs: &Observation<T>) -> Result<Innovation<T, Z>, Error> {
-        let saved = (self.x, self.p, self.command);
+    pub fn step(
+        &mut self,
+        dtheta_c: &Vector3<T>,
+        dt: T,
+        obs: &Observation<T>,
+    ) -> Result<Innovation<T, Z>, Error> {
+        let saved = (self.x, self.p, self.command, self.reference);
         self.predict(dtheta_c, dt)?;
         match self.update(obs) {
             Ok(i) => Ok(i),
             Err(Error::Gated) => Err(Error::Gated),
             Err(e) => {
-                (self.x, self.p, self.command) = saved;
+                (self.x, self.p, self.command, self.reference) = saved;
                 self.pending = None;
                 Err(e)
             }
@@ -510,7 +672,10 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// Measurement function and Jacobian at an arbitrary end-of-period state,
     /// for tests and the observability analysis: returns `(h(x), H)` for the
     /// period that [`Filter::predict`] last propagated over.
-    pub fn measurement_at(&self, x: &SVector<T, N>) -> Result<(SVector<T, Z>, SMatrix<T, Z, N>), Error> {
+    pub fn measurement_at(
+        &self,
+        x: &SVector<T, N>,
+    ) -> Result<(SVector<T, Z>, SMatrix<T, Z, N>), Error> {
         let pending = self.pending.ok_or(Error::NoPrediction)?;
         let lin = self.retrace(x, &pending)?;
         Ok(self.measure(x, &lin))

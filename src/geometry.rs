@@ -40,7 +40,10 @@ pub fn dcm<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T> {
         let six: T = nalgebra::convert(6.0);
         let two: T = nalgebra::convert(2.0);
         let twenty_four: T = nalgebra::convert(24.0);
-        (T::one() - angle2 / six, T::one() / two - angle2 / twenty_four)
+        (
+            T::one() - angle2 / six,
+            T::one() / two - angle2 / twenty_four,
+        )
     } else {
         let angle = angle2.sqrt();
         (angle.sin() / angle, (T::one() - angle.cos()) / angle2)
@@ -132,6 +135,72 @@ pub fn right_jacobian_inv<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T>
 /// [`dcm`] with respect to the rotation vector.
 pub fn d_dcm_times<T: RealField + Copy>(theta: &Vector3<T>, v: &Vector3<T>) -> Matrix3<T> {
     skew(&(dcm(theta) * v)) * right_jacobian(theta)
+}
+
+/// How the estimation error of a rotation-vector state is defined.
+///
+/// The filter's covariance is over these errors. A multiplicative error
+/// keeps the unobservable directions of the problem independent of the
+/// estimate (e.g. a rotation of the base about the vertical is `δ = e_y`
+/// for every `λ̂` with [`Perturbation::Right`]), which stops a linearising
+/// filter from gaining spurious information along them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Perturbation {
+    /// `θ = θ̂ + δ`.
+    Additive,
+    /// `R(θ) = R(δ) R(θ̂)`: δ is a rotation of the target-side frame.
+    Left,
+    /// `R(θ) = R(θ̂) R(δ)`: δ is a rotation of the reference-side frame.
+    Right,
+}
+
+/// `∂(R(θ) v)/∂δ` at `δ = 0` for the error convention `conv`.
+pub fn d_rotated<T: RealField + Copy>(
+    conv: Perturbation,
+    theta: &Vector3<T>,
+    v: &Vector3<T>,
+) -> Matrix3<T> {
+    match conv {
+        Perturbation::Additive => d_dcm_times(theta, v),
+        Perturbation::Left => skew(&(dcm(theta) * v)),
+        Perturbation::Right => dcm(theta) * skew(v),
+    }
+}
+
+/// `θ̂ ⊞ δ`: the rotation vector after applying the error `δ` to `θ̂`.
+pub fn retract<T: RealField + Copy>(
+    conv: Perturbation,
+    theta: &Vector3<T>,
+    delta: &Vector3<T>,
+) -> Vector3<T> {
+    match conv {
+        Perturbation::Additive => theta + delta,
+        Perturbation::Left => rotation_vector(&(dcm(delta) * dcm(theta))),
+        Perturbation::Right => rotation_vector(&(dcm(theta) * dcm(delta))),
+    }
+}
+
+/// `θ ⊟ θ̂`: the error `δ` with `θ̂ ⊞ δ = θ`.
+pub fn local<T: RealField + Copy>(
+    conv: Perturbation,
+    theta_hat: &Vector3<T>,
+    theta: &Vector3<T>,
+) -> Vector3<T> {
+    match conv {
+        Perturbation::Additive => theta - theta_hat,
+        Perturbation::Left => rotation_vector(&(dcm(theta) * dcm(theta_hat).transpose())),
+        Perturbation::Right => rotation_vector(&(dcm(theta_hat).transpose() * dcm(theta))),
+    }
+}
+
+/// `∂θ/∂δ` at `δ = 0`: maps error covariance to rotation-vector covariance.
+pub fn d_theta_d_delta<T: RealField + Copy>(conv: Perturbation, theta: &Vector3<T>) -> Matrix3<T> {
+    match conv {
+        Perturbation::Additive => Matrix3::identity(),
+        Perturbation::Left => right_jacobian_inv(theta),
+        Perturbation::Right => right_jacobian_inv(theta) * dcm(theta),
+    }
 }
 
 /// Passive rotation about x by `a` (rad): `[[1,0,0],[0,c,s],[0,−s,c]]`.

@@ -25,8 +25,9 @@ use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3};
 
 use crate::command::Period;
 use crate::geometry::{
-    d_dcm_times, d_gimbal_dcm_times, d_gimbal_rate_inverse_times, d_lower_times, dcm, gimbal_dcm,
-    gimbal_rate_inverse, right_jacobian, right_jacobian_inv, skew,
+    d_gimbal_dcm_times, d_gimbal_rate_inverse_times, d_lower_times, d_rotated, d_theta_d_delta,
+    dcm, gimbal_dcm, gimbal_rate_inverse, local, retract, right_jacobian, right_jacobian_inv, skew,
+    Perturbation,
 };
 use crate::instruments::{accel_matrix, gyro_matrix};
 
@@ -161,7 +162,9 @@ impl ConfigId {
 
     /// Parses a SPEC identifier, case-insensitively (`m2-ps` = `M2-ps`).
     pub fn parse(s: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|c| c.as_str().eq_ignore_ascii_case(s))
+        Self::ALL
+            .into_iter()
+            .find(|c| c.as_str().eq_ignore_ascii_case(s))
     }
 
     /// The configuration's composition.
@@ -177,7 +180,12 @@ impl ConfigId {
             ConfigId::M4Pa => (Attitude, Pa, false, false),
             ConfigId::M4Ps => (Attitude, Ps, false, false),
         };
-        Layout { attitude, frame, base, gimbal_obs }
+        Layout {
+            attitude,
+            frame,
+            base,
+            gimbal_obs,
+        }
     }
 
     /// The names, units and groups of the states, in state order.
@@ -251,7 +259,11 @@ pub struct StateInfo {
 }
 
 const fn s(name: &'static str, group: Group) -> StateInfo {
-    StateInfo { name, unit: "rad", group }
+    StateInfo {
+        name,
+        unit: "rad",
+        group,
+    }
 }
 
 macro_rules! states {
@@ -376,6 +388,27 @@ fn block3<T: RealField + Copy, const N: usize>(x: &SVector<T, N>, i: usize) -> V
     )
 }
 
+fn put3<T: RealField + Copy, const N: usize>(x: &mut SVector<T, N>, i: usize, v: &Vector3<T>) {
+    for (k, val) in v.iter().enumerate() {
+        if let Some(dst) = x.get_mut(i + k) {
+            *dst = *val;
+        }
+    }
+}
+
+/// `∂(R(θ)ᵀ v)/∂δ` for the error convention `conv` of `θ`.
+fn d_rotated_transpose<T: RealField + Copy>(
+    conv: Perturbation,
+    theta: &Vector3<T>,
+    v: &Vector3<T>,
+) -> Matrix3<T> {
+    match conv {
+        Perturbation::Additive => -crate::geometry::d_dcm_times(&(-theta), v),
+        Perturbation::Left => -(dcm(theta).transpose() * skew(v)),
+        Perturbation::Right => -skew(&(dcm(theta).transpose() * v)),
+    }
+}
+
 fn set_cols<T: RealField + Copy, const R: usize, const N: usize>(
     m: &mut SMatrix<T, R, N>,
     col: usize,
@@ -403,9 +436,94 @@ pub struct InstallationMatrices<T: RealField + Copy> {
     pub c_rn: Matrix3<T>,
 }
 
+/// Error conventions of the rotation-vector blocks (the filter's covariance
+/// is over these errors; see [`Perturbation`]).
+///
+/// `λ` uses a right (navigation-side) error, so that a rotation of the base
+/// about the vertical, unobservable without Earth rate, is the constant
+/// direction `δλ = e_y` whatever `λ̂` is; the instrument misalignments use
+/// left (platform-side) errors, so that the rotation of the ps frame
+/// definition (paper eq. 28) is the constant direction `δψ = δθgC = δθaC`.
+pub const LAMBDA_ERROR: Perturbation = Perturbation::Additive;
+/// Error convention of `θgC`, `θgC^pa` and `θaC` (see [`LAMBDA_ERROR`]).
+pub const MISALIGNMENT_ERROR: Perturbation = Perturbation::Additive;
+
 impl Layout {
+    /// The error convention of each state block, by first index.
+    pub const fn convention(&self, first: usize) -> Perturbation {
+        if first == GC {
+            return MISALIGNMENT_ERROR;
+        }
+        if let Some(i) = self.ac() {
+            if first == i {
+                return MISALIGNMENT_ERROR;
+            }
+        }
+        if let Some(i) = self.lam() {
+            if first == i {
+                return LAMBDA_ERROR;
+            }
+        }
+        Perturbation::Additive
+    }
+
+    /// First indices of the 3-state blocks.
+    fn blocks(&self) -> impl Iterator<Item = usize> {
+        (0..self.n()).step_by(3)
+    }
+
+    /// `x ⊞ δ`: applies an error-state correction `δ` to the state `x`.
+    pub fn boxplus<T: RealField + Copy, const N: usize>(
+        &self,
+        x: &SVector<T, N>,
+        delta: &SVector<T, N>,
+    ) -> SVector<T, N> {
+        let mut out = *x;
+        for b in self.blocks() {
+            let v = retract(self.convention(b), &block3(x, b), &block3(delta, b));
+            put3(&mut out, b, &v);
+        }
+        out
+    }
+
+    /// `x ⊟ x̂`: the error-state `δ` with `x̂ ⊞ δ = x`.
+    pub fn boxminus<T: RealField + Copy, const N: usize>(
+        &self,
+        x: &SVector<T, N>,
+        x_hat: &SVector<T, N>,
+    ) -> SVector<T, N> {
+        let mut out = SVector::zeros();
+        for b in self.blocks() {
+            let mut v = local(self.convention(b), &block3(x_hat, b), &block3(x, b));
+            if b == ATT && self.attitude != AttitudeKind::Misalignment {
+                v = crate::geometry::wrap_angles(&v);
+            }
+            put3(&mut out, b, &v);
+        }
+        out
+    }
+
+    /// `∂x/∂δ` at `x` (block diagonal): maps the error covariance to the
+    /// covariance of the state's own coordinates, `P_x = J P Jᵀ`.
+    pub fn error_to_state<T: RealField + Copy, const N: usize>(
+        &self,
+        x: &SVector<T, N>,
+    ) -> SMatrix<T, N, N> {
+        let mut j = SMatrix::<T, N, N>::zeros();
+        for b in self.blocks() {
+            let d = d_theta_d_delta(self.convention(b), &block3(x, b));
+            if b + 3 <= N {
+                j.fixed_view_mut::<3, 3>(b, b).copy_from(&d);
+            }
+        }
+        j
+    }
+
     /// Unpacks the installation parameters of a state vector.
-    pub fn installation<T: RealField + Copy, const N: usize>(&self, x: &SVector<T, N>) -> Installation<T> {
+    pub fn installation<T: RealField + Copy, const N: usize>(
+        &self,
+        x: &SVector<T, N>,
+    ) -> Installation<T> {
         Installation {
             theta_g_c: block3(x, GC),
             theta_g_t: block3(x, GT),
@@ -421,7 +539,10 @@ impl Layout {
     }
 
     /// The installation matrices of a state vector.
-    pub fn matrices<T: RealField + Copy, const N: usize>(&self, x: &SVector<T, N>) -> InstallationMatrices<T> {
+    pub fn matrices<T: RealField + Copy, const N: usize>(
+        &self,
+        x: &SVector<T, N>,
+    ) -> InstallationMatrices<T> {
         let params = self.installation(x);
         InstallationMatrices {
             g: gyro_matrix(&params.theta_g_c, &params.theta_g_t),
@@ -459,7 +580,9 @@ impl Layout {
     ) -> Option<Vector3<T>> {
         let w_ip = m.g * omega_c;
         match self.attitude {
-            AttitudeKind::Misalignment => Some(right_jacobian_inv(att) * (w_ip - dcm(att) * omega_c)),
+            AttitudeKind::Misalignment => {
+                Some(right_jacobian_inv(att) * (w_ip - dcm(att) * omega_c))
+            }
             AttitudeKind::Gimbal | AttitudeKind::Attitude => {
                 let t = gimbal_rate_inverse(att.y, att.z)?;
                 let c_pn = gimbal_dcm(att) * m.c_rn;
@@ -481,7 +604,7 @@ impl Layout {
         let mut f = SMatrix::<T, 3, N>::zeros();
         let unit_t = Matrix3::identity() + crate::geometry::lower(&p.theta_g_t);
         // ∂(G ωc)/∂θgC and ∂(G ωc)/∂θgT.
-        let d_g_c = d_dcm_times(&p.theta_g_c, &(unit_t * omega_c));
+        let d_g_c = d_rotated(self.convention(GC), &p.theta_g_c, &(unit_t * omega_c));
         let d_g_t = dcm(&p.theta_g_c) * d_lower_times(omega_c);
         let w_ip = m.g * omega_c;
         match self.attitude {
@@ -492,7 +615,8 @@ impl Layout {
                 // ∂(J_r⁻¹(ψ) w)/∂ψ to second order: −½[w×] − (1/12)([(ψ×w)×] + [ψ×][w×]).
                 let two: T = nalgebra::convert(2.0);
                 let twelve: T = nalgebra::convert(12.0);
-                let d_jinv = -skew(&w_cp) / two - (skew(&att.cross(&w_cp)) + skew(att) * skew(&w_cp)) / twelve;
+                let d_jinv = -skew(&w_cp) / two
+                    - (skew(&att.cross(&w_cp)) + skew(att) * skew(&w_cp)) / twelve;
                 let d_att = d_jinv - jinv * skew(&r_wc) * right_jacobian(att);
                 set_cols(&mut f, ATT, &d_att);
                 set_cols(&mut f, GC, &(jinv * d_g_c));
@@ -502,12 +626,15 @@ impl Layout {
                 let t = gimbal_rate_inverse(att.y, att.z)?;
                 let rl_w = m.c_rn * env.earth_rate_n;
                 let w = w_ip - gimbal_dcm(att) * rl_w;
-                let d_att = d_gimbal_rate_inverse_times(&t, att.y, att.z, &w) - t * d_gimbal_dcm_times(att, &rl_w);
+                let d_att = d_gimbal_rate_inverse_times(&t, att.y, att.z, &w)
+                    - t * d_gimbal_dcm_times(att, &rl_w);
                 set_cols(&mut f, ATT, &d_att);
                 set_cols(&mut f, GC, &(t * d_g_c));
                 set_cols(&mut f, GT, &(t * d_g_t));
                 if let Some(il) = self.lam() {
-                    let d_lam = -(t * gimbal_dcm(att) * d_dcm_times(&p.lambda, &env.earth_rate_n));
+                    let d_lam = -(t
+                        * gimbal_dcm(att)
+                        * d_rotated(LAMBDA_ERROR, &p.lambda, &env.earth_rate_n));
                     set_cols(&mut f, il, &d_lam);
                 }
             }
@@ -538,7 +665,9 @@ impl Layout {
         let mut h = SMatrix::<T, 3, N>::zeros();
         let f_p = self.platform_dcm(att, &m.c_rn, c_cn) * env.gravity_n;
         let d_att = match self.attitude {
-            AttitudeKind::Misalignment => d_dcm_times(att, &(c_cn * env.gravity_n)),
+            AttitudeKind::Misalignment => {
+                d_rotated(Perturbation::Additive, att, &(c_cn * env.gravity_n))
+            }
             AttitudeKind::Gimbal => d_gimbal_dcm_times(att, &(m.c_rn * env.gravity_n)),
             AttitudeKind::Attitude => d_gimbal_dcm_times(att, &env.gravity_n),
         };
@@ -548,11 +677,15 @@ impl Layout {
         let f_a = r_ac * f_p;
         if let Some(ic) = self.ac() {
             // ∂(R(−θ) v)/∂θ = −∂(R(φ) v)/∂φ at φ = −θ.
-            set_cols(&mut h, ic, &(-(unit_t * d_dcm_times(&(-p.theta_a_c), &f_p))));
+            set_cols(
+                &mut h,
+                ic,
+                &(unit_t * d_rotated_transpose(MISALIGNMENT_ERROR, &p.theta_a_c, &f_p)),
+            );
         }
         set_cols(&mut h, self.at(), &d_lower_times(&f_a));
         if let (Some(il), AttitudeKind::Gimbal) = (self.lam(), self.attitude) {
-            let d_lam = m.a * gimbal_dcm(att) * d_dcm_times(&p.lambda, &env.gravity_n);
+            let d_lam = m.a * gimbal_dcm(att) * d_rotated(LAMBDA_ERROR, &p.lambda, &env.gravity_n);
             set_cols(&mut h, il, &d_lam);
         }
         h
@@ -604,9 +737,16 @@ impl Layout {
         let phi_att = transition_rows(&f_mid, dt);
         let noise_map = match self.attitude {
             AttitudeKind::Misalignment => right_jacobian_inv(&att_mid),
-            AttitudeKind::Gimbal | AttitudeKind::Attitude => gimbal_rate_inverse(att_mid.y, att_mid.z)?,
+            AttitudeKind::Gimbal | AttitudeKind::Attitude => {
+                gimbal_rate_inverse(att_mid.y, att_mid.z)?
+            }
         };
-        let out = PeriodPropagation { att: [att0.clone_owned(), att_mid, att1], phi_att, f_mid, noise_map };
+        let out = PeriodPropagation {
+            att: [att0.clone_owned(), att_mid, att1],
+            phi_att,
+            f_mid,
+            noise_map,
+        };
         if att1.iter().chain(phi_att.iter()).all(|v| v.is_finite()) {
             Some(out)
         } else {
@@ -632,7 +772,13 @@ impl Layout {
         let mut z = Vector3::zeros();
         let mut h = SMatrix::<T, 3, N>::zeros();
         let back = [-period.dt, -period.dt * half, T::zero()];
-        for (((att, c_cn), w), tau) in prop.att.iter().zip(period.c_cn.iter()).zip(weights).zip(back) {
+        for (((att, c_cn), w), tau) in prop
+            .att
+            .iter()
+            .zip(period.c_cn.iter())
+            .zip(weights)
+            .zip(back)
+        {
             z += self.accel_output(env, m, att, c_cn) * w;
             let hj: SMatrix<T, 3, N> = self.accel_jacobian(env, m, att, c_cn);
             h += apply_transition(&hj, &transition_rows(&prop.f_mid, tau)) * w;
@@ -641,9 +787,31 @@ impl Layout {
     }
 }
 
+impl Layout {
+    /// The state at the end of `period` (or at its start, for a
+    /// [`Period::reversed`] period) under the model's dynamics; the
+    /// parameters are constant. `None` at gimbal lock.
+    pub fn propagate_state<T: RealField + Copy, const N: usize>(
+        &self,
+        env: &Environment<T>,
+        x: &SVector<T, N>,
+        period: &Period<T>,
+    ) -> Option<SVector<T, N>> {
+        let prop: PeriodPropagation<T, N> =
+            self.propagate(env, &self.matrices(x), &self.attitude(x), period)?;
+        let [_, _, end] = prop.att;
+        let mut out = *x;
+        put3(&mut out, ATT, &end);
+        Some(out)
+    }
+}
+
 /// Attitude rows of `exp(F τ)` to second order for `F = [[F_a, F_p],[0, 0]]`:
 /// `[I + F_a τ + (F_a τ)²/2, (I + F_a τ/2) F_p τ]`.
-pub fn transition_rows<T: RealField + Copy, const N: usize>(f: &SMatrix<T, 3, N>, tau: T) -> SMatrix<T, 3, N> {
+pub fn transition_rows<T: RealField + Copy, const N: usize>(
+    f: &SMatrix<T, 3, N>,
+    tau: T,
+) -> SMatrix<T, 3, N> {
     let half: T = nalgebra::convert(0.5);
     let fa = f.fixed_columns::<3>(ATT).clone_owned() * tau;
     let ft = f * tau;

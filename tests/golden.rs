@@ -10,10 +10,20 @@ struct Row(Vec<f64>);
 fn golden() -> (Vec<String>, Vec<Row>) {
     let text = include_str!("data/paper_scenario_clean.csv");
     let mut lines = text.lines();
-    let header: Vec<String> = lines.next().unwrap().split(',').map(str::to_owned).collect();
+    let header: Vec<String> = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .map(str::to_owned)
+        .collect();
     let rows = lines
         .filter(|l| !l.trim().is_empty())
-        .map(|l| Row(l.split(',').map(|v| v.trim().parse::<f64>().unwrap()).collect()))
+        .map(|l| {
+            Row(l
+                .split(',')
+                .map(|v| v.trim().parse::<f64>().unwrap())
+                .collect())
+        })
         .collect();
     (header, rows)
 }
@@ -21,19 +31,37 @@ fn golden() -> (Vec<String>, Vec<Row>) {
 #[test]
 fn truth_simulator_matches_golden_vectors() {
     let (header, rows) = golden();
-    let col = |name: &str| header.iter().position(|h| h == name).unwrap_or_else(|| panic!("no column {name}"));
-    let sim = simulate(&Scenario::paper(), SimOptions { seed: 0, noise: false, earth_rate: true });
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|h| h == name)
+            .unwrap_or_else(|| panic!("no column {name}"))
+    };
+    let sim = simulate(
+        &Scenario::paper(),
+        SimOptions {
+            seed: 0,
+            noise: false,
+            earth_rate: true,
+        },
+    );
     assert_eq!(rows.len(), sim.samples.len() + 1);
     let axes = ["x", "y", "z"];
     let mut worst = [0.0f64; 5];
     for (k, row) in rows.iter().enumerate() {
         let g = |name: &str| row.0[col(name)];
-        let at = if k == 0 { &sim.initial } else { &sim.samples[k - 1].truth };
+        let at = if k == 0 {
+            &sim.initial
+        } else {
+            &sim.samples[k - 1].truth
+        };
         for (i, a) in axes.iter().enumerate() {
             let d = (g(&format!("accel_at_t_{a}_g")) - at.accel_at_t[i]).abs();
             worst[0] = worst[0].max(d);
             if k > 0 {
-                let d = (g(&format!("accel_mean_prev_period_{a}_g")) - sim.samples[k - 1].accel_mean_clean[i]).abs();
+                let d = (g(&format!("accel_mean_prev_period_{a}_g"))
+                    - sim.samples[k - 1].accel_mean_clean[i])
+                    .abs();
                 worst[1] = worst[1].max(d);
             }
             if k < sim.samples.len() {
@@ -42,7 +70,8 @@ fn truth_simulator_matches_golden_vectors() {
             }
         }
         for (i, a) in ["alpha", "beta", "gamma"].iter().enumerate() {
-            let d = rollcal::geometry::wrap_angle(g(&format!("gimbal_{a}_rad")) - at.gimbal[i]).abs();
+            let d =
+                rollcal::geometry::wrap_angle(g(&format!("gimbal_{a}_rad")) - at.gimbal[i]).abs();
             worst[3] = worst[3].max(d);
         }
         for i in 0..3 {

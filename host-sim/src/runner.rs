@@ -1,6 +1,7 @@
 //! Runs a configuration's estimator over a simulated (or replayed) run.
 
 use nalgebra::{SVector, Vector3};
+use rollcal::command::CommandFrame;
 use rollcal::ekf::{self, Filter, FilterConfig, Observation, Options};
 use rollcal::geometry::{wrap_angle, EARTH_RATE};
 use rollcal::models::{ConfigId, Environment, Group, Model};
@@ -18,11 +19,19 @@ pub trait DynFilter: Send {
     fn sigma(&self) -> Vec<f64>;
     /// Covariance, row-major (rad²).
     fn covariance(&self) -> Vec<f64>;
+    /// Switch to the linearised filter about the nominal starting at `x`.
+    fn set_nominal(&mut self, x: &[f64]);
+    /// The model state propagated backwards over the periods of `samples`
+    /// from the current estimate, to the start of the first one.
+    fn back_propagate(&self, samples: &[PeriodSample]) -> Option<Vec<f64>>;
 }
 
 impl<M: Model<N, Z> + Send, const N: usize, const Z: usize> DynFilter for Filter<f64, M, N, Z> {
     fn step(&mut self, s: &PeriodSample) -> Result<f64, ekf::Error> {
-        let obs = Observation { accel_mean: s.accel_mean, gimbal: Some(s.gimbal) };
+        let obs = Observation {
+            accel_mean: s.accel_mean,
+            gimbal: Some(s.gimbal),
+        };
         Filter::step(self, &s.dtheta_cmd, s.dt, &obs).map(|i| i.nis)
     }
     fn state(&self) -> Vec<f64> {
@@ -32,13 +41,42 @@ impl<M: Model<N, Z> + Send, const N: usize, const Z: usize> DynFilter for Filter
         Filter::sigma(self).iter().copied().collect()
     }
     fn covariance(&self) -> Vec<f64> {
-        Filter::covariance(self).transpose().iter().copied().collect()
+        Filter::covariance(self)
+            .transpose()
+            .iter()
+            .copied()
+            .collect()
+    }
+    fn set_nominal(&mut self, x: &[f64]) {
+        Filter::set_nominal(self, Some(SVector::from_iterator(x.iter().copied())));
+    }
+    fn back_propagate(&self, samples: &[PeriodSample]) -> Option<Vec<f64>> {
+        let layout = self.layout();
+        let env = self.config().env;
+        let mut frame = CommandFrame::aligned(env.earth_rate_n);
+        let periods: Vec<_> = samples
+            .iter()
+            .map(|s| {
+                let p = frame.period(&s.dtheta_cmd, s.dt);
+                frame.advance(&p);
+                p
+            })
+            .collect();
+        let mut x = *Filter::state(self);
+        for p in periods.iter().rev() {
+            x = layout.propagate_state(&env, &x, &p.reversed())?;
+        }
+        Some(x.iter().copied().collect())
     }
 }
 
 /// Filter settings derived from a scenario.
 pub fn filter_config(s: &Scenario, earth_rate: bool, options: Options) -> FilterConfig<f64> {
-    let omega = if s.site.earth_rate && earth_rate { EARTH_RATE } else { 0.0 };
+    let omega = if s.site.earth_rate && earth_rate {
+        EARTH_RATE
+    } else {
+        0.0
+    };
     let lat = s.site.latitude_deg * DEG;
     FilterConfig {
         env: Environment {
@@ -64,7 +102,12 @@ fn make<M: Model<N, Z> + Send + 'static, const N: usize, const Z: usize>(
 
 /// A filter of configuration `id` with initial estimate `x0` (rad; zeros
 /// for a cold start) and prior σ `sigma0` (rad) on every state.
-pub fn new_filter(id: ConfigId, cfg: FilterConfig<f64>, x0: &[f64], sigma0: f64) -> Result<Box<dyn DynFilter>, ekf::Error> {
+pub fn new_filter(
+    id: ConfigId,
+    cfg: FilterConfig<f64>,
+    x0: &[f64],
+    sigma0: f64,
+) -> Result<Box<dyn DynFilter>, ekf::Error> {
     use rollcal::models::*;
     match id {
         ConfigId::M1Pa => make::<M1Pa, 12, 3>(cfg, x0, sigma0),
@@ -120,31 +163,66 @@ pub struct RunResult {
     pub failures: Vec<(u32, ekf::Error)>,
 }
 
+/// How the estimator processes a run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Estimator {
+    /// Filter options (cold-start remedy of the first pass).
+    pub options: Options,
+    /// 1: the extended filter alone; 2: a second, linearised pass about the
+    /// first pass's estimate propagated back to the start.
+    pub passes: u8,
+}
+
+impl Default for Estimator {
+    fn default() -> Self {
+        Self {
+            options: Options::default(),
+            passes: 2,
+        }
+    }
+}
+
 /// Runs configuration `id` from `x0` (zeros: cold start) over `sim`.
 pub fn run_filter(
     id: ConfigId,
     scenario: &Scenario,
     sim: &Simulation,
     earth_rate: bool,
-    options: Options,
+    estimator: Estimator,
     x0: Option<&[f64]>,
     keep_history: bool,
 ) -> Result<RunResult, ekf::Error> {
-    let cfg = filter_config(scenario, earth_rate, options);
+    let cfg = filter_config(scenario, earth_rate, estimator.options);
     let zeros = vec![0.0; id.layout().n()];
-    let mut f = new_filter(id, cfg, x0.unwrap_or(&zeros), scenario.prior.sigma_deg * DEG)?;
-    let mut history = Vec::new();
-    let mut nis = Vec::with_capacity(sim.samples.len());
-    let mut failures = Vec::new();
-    for s in &sim.samples {
-        match f.step(s) {
-            Ok(v) => nis.push(v),
-            Err(e) => failures.push((s.k, e)),
+    let x0 = x0.unwrap_or(&zeros);
+    let sigma0 = scenario.prior.sigma_deg * DEG;
+    let mut nominal: Option<Vec<f64>> = None;
+    let mut out = None;
+    for pass in 1..=estimator.passes.max(1) {
+        let mut f = new_filter(id, cfg, x0, sigma0)?;
+        if let Some(xn) = &nominal {
+            f.set_nominal(xn);
         }
-        if keep_history {
-            history.push((s.truth.t, f.state(), f.sigma()));
+        let keep = keep_history && pass == estimator.passes.max(1);
+        let mut history = Vec::new();
+        let mut nis = Vec::with_capacity(sim.samples.len());
+        let mut failures = Vec::new();
+        for s in &sim.samples {
+            match f.step(s) {
+                Ok(v) => nis.push(v),
+                Err(e) => failures.push((s.k, e)),
+            }
+            if keep {
+                history.push((s.truth.t, f.state(), f.sigma()));
+            }
         }
+        nominal = f.back_propagate(&sim.samples);
+        if nominal.is_none() {
+            return Err(ekf::Error::GimbalLock);
+        }
+        out = Some((f, history, nis, failures));
     }
+    let (f, history, nis, failures) = out.ok_or(ekf::Error::NoPrediction)?;
     let last = sim.samples.last().map_or(sim.initial, |s| s.truth);
     let truth = truth_state(id, &sim.params, &last);
     let (est, sig) = (f.state(), f.sigma());
@@ -160,7 +238,14 @@ pub fn run_filter(
             sigma_rad: sig.get(i).copied().unwrap_or(f64::NAN),
         })
         .collect();
-    Ok(RunResult { config: id, states, covariance: f.covariance(), history, nis, failures })
+    Ok(RunResult {
+        config: id,
+        states,
+        covariance: f.covariance(),
+        history,
+        nis,
+        failures,
+    })
 }
 
 /// Whether a state is expected to converge in configuration `id` (SPEC §3,

@@ -144,15 +144,17 @@ impl Axis {
                 "west" => [0.0, 0.0, -1.0],
                 other => {
                     return Err(ScenarioError(format!(
-                        "unknown axis '{other}' (use north, south, up, down, east, west or [x, y, z])"
-                    )))
+                    "unknown axis '{other}' (use north, south, up, down, east, west or [x, y, z])"
+                )))
                 }
             },
             Axis::Vector(v) => *v,
         };
         let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
         if !(n.is_finite() && n > 1e-12) {
-            return Err(ScenarioError("a path axis vector must be finite and non-zero".into()));
+            return Err(ScenarioError(
+                "a path axis vector must be finite and non-zero".into(),
+            ));
         }
         Ok([v[0] / n, v[1] / n, v[2] / n])
     }
@@ -162,12 +164,14 @@ impl Scenario {
     /// The paper's scenario (SPEC §4).
     pub fn paper() -> Self {
         // The shipped file is validated by a test; fall back never happens.
-        Self::from_toml(PAPER_TOML).unwrap_or_else(|e| panic!("built-in paper scenario is invalid: {e}"))
+        Self::from_toml(PAPER_TOML)
+            .unwrap_or_else(|e| panic!("built-in paper scenario is invalid: {e}"))
     }
 
     /// Parses and validates a scenario.
     pub fn from_toml(text: &str) -> Result<Self, ScenarioError> {
-        let s: Scenario = toml::from_str(text).map_err(|e| ScenarioError(format!("scenario file: {e}")))?;
+        let s: Scenario =
+            toml::from_str(text).map_err(|e| ScenarioError(format!("scenario file: {e}")))?;
         s.validate()?;
         Ok(s)
     }
@@ -205,7 +209,9 @@ impl Scenario {
             }
         }
         if t.gimbal0_deg.iter().any(|x| !x.is_finite()) || t.gimbal0_deg[1].abs() > 80.0 {
-            return err("truth.gimbal0_deg must be finite with |β| ≤ 80° (gimbal lock at ±90°)".into());
+            return err(
+                "truth.gimbal0_deg must be finite with |β| ≤ 80° (gimbal lock at ±90°)".into(),
+            );
         }
         if !self.site.latitude_deg.is_finite() || self.site.latitude_deg.abs() > 90.0 {
             return err("site.latitude_deg must be within ±90°".into());
@@ -214,12 +220,15 @@ impl Scenario {
         if !(tm.period_s.is_finite() && tm.period_s > 0.0) {
             return err("timing.period_s must be > 0".into());
         }
-        if !(tm.truth_step_s.is_finite() && tm.truth_step_s > 0.0 && tm.truth_step_s <= tm.period_s) {
+        if !(tm.truth_step_s.is_finite() && tm.truth_step_s > 0.0 && tm.truth_step_s <= tm.period_s)
+        {
             return err("timing.truth_step_s must be > 0 and ≤ period_s".into());
         }
         let ratio = tm.period_s / tm.truth_step_s;
-        if (ratio - ratio.round()).abs() > 1e-9 || (ratio.round() as u64) % 2 != 0 {
-            return err(format!("timing.period_s / truth_step_s = {ratio} must be an even integer (Simpson's rule)"));
+        if (ratio - ratio.round()).abs() > 1e-9 || !(ratio.round() as u64).is_multiple_of(2) {
+            return err(format!(
+                "timing.period_s / truth_step_s = {ratio} must be an even integer (Simpson's rule)"
+            ));
         }
         if !(tm.duration_s.is_finite() && tm.duration_s >= tm.period_s) {
             return err("timing.duration_s must be ≥ period_s".into());
@@ -232,7 +241,9 @@ impl Scenario {
             return err("path must have at least one segment".into());
         }
         for (i, seg) in self.path.iter().enumerate() {
-            seg.axis.unit().map_err(|e| ScenarioError(format!("path[{i}]: {e}")))?;
+            seg.axis
+                .unit()
+                .map_err(|e| ScenarioError(format!("path[{i}]: {e}")))?;
             if !(seg.rate_deg_s.is_finite() && seg.rate_deg_s > 0.0 && seg.rate_deg_s <= 10.0) {
                 return err(format!("path[{i}].rate_deg_s must be in (0, 10] °/s"));
             }
@@ -282,7 +293,10 @@ mod tests {
         let e = Scenario::from_toml(&bad).unwrap_err();
         assert!(e.0.contains("period_s"), "{e}");
         let bad = PAPER_TOML.replace("rate_deg_s = 0.1", "rate_deg_s = 0.07");
-        assert!(Scenario::from_toml(&bad).unwrap_err().0.contains("whole number"));
+        assert!(Scenario::from_toml(&bad)
+            .unwrap_err()
+            .0
+            .contains("whole number"));
         assert!(Scenario::from_toml("name = 3").is_err());
     }
 }

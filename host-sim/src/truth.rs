@@ -13,7 +13,9 @@ use nalgebra::{Matrix3, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
-use rollcal::geometry::{dcm, euler_angles, gimbal_dcm, rotation_vector, skew, wrap_angles, EARTH_RATE};
+use rollcal::geometry::{
+    dcm, euler_angles, gimbal_dcm, rotation_vector, skew, wrap_angles, EARTH_RATE,
+};
 use rollcal::models::{AttitudeKind, ConfigId, PlatformFrame};
 
 use crate::scenario::{Scenario, ARCSEC, DEG};
@@ -144,7 +146,11 @@ struct Deriv {
 }
 
 fn axpy(s: &State, d: &Deriv, h: f64) -> State {
-    State { c_ps_n: s.c_ps_n + d.c_ps_n * h, c_c_n: s.c_c_n + d.c_c_n * h, dtheta: s.dtheta + d.dtheta * h }
+    State {
+        c_ps_n: s.c_ps_n + d.c_ps_n * h,
+        c_c_n: s.c_c_n + d.c_c_n * h,
+        dtheta: s.dtheta + d.dtheta * h,
+    }
 }
 
 /// Piecewise-constant path rate `ω^n_path` (rad/s) over time.
@@ -180,7 +186,11 @@ impl Path {
 /// Runs the truth simulator over a scenario.
 pub fn simulate(s: &Scenario, opts: SimOptions) -> Simulation {
     let params = TruthParams::from_scenario(s);
-    let omega = if s.site.earth_rate && opts.earth_rate { EARTH_RATE } else { 0.0 };
+    let omega = if s.site.earth_rate && opts.earth_rate {
+        EARTH_RATE
+    } else {
+        0.0
+    };
     let lat = s.site.latitude_deg * DEG;
     let w_ie = Vector3::new(omega * lat.cos(), omega * lat.sin(), 0.0);
     let f_n = Vector3::new(0.0, 1.0, 0.0);
@@ -196,7 +206,11 @@ pub fn simulate(s: &Scenario, opts: SimOptions) -> Simulation {
     let unit = Normal::new(0.0, 1.0).unwrap_or_else(|_| unreachable!());
     let mut gauss3 = |sigma: f64| -> Vector3<f64> {
         if opts.noise {
-            Vector3::new(unit.sample(&mut rng), unit.sample(&mut rng), unit.sample(&mut rng)) * sigma
+            Vector3::new(
+                unit.sample(&mut rng),
+                unit.sample(&mut rng),
+                unit.sample(&mut rng),
+            ) * sigma
         } else {
             Vector3::zeros()
         }
@@ -213,7 +227,11 @@ pub fn simulate(s: &Scenario, opts: SimOptions) -> Simulation {
         gimbal: wrap_angles(&euler_angles(&(st.c_ps_n * c_r_n.transpose()))),
     };
 
-    let mut st = State { c_ps_n: gimbal_dcm(&params.gimbal0) * c_r_n, c_c_n: Matrix3::identity(), dtheta: Vector3::zeros() };
+    let mut st = State {
+        c_ps_n: gimbal_dcm(&params.gimbal0) * c_r_n,
+        c_c_n: Matrix3::identity(),
+        dtheta: Vector3::zeros(),
+    };
     let initial = instant(0.0, &st);
     let mut samples = Vec::with_capacity(s.periods());
     for k in 1..=s.periods() {
@@ -239,11 +257,19 @@ pub fn simulate(s: &Scenario, opts: SimOptions) -> Simulation {
             let k3 = deriv(&axpy(&st, &k2, h / 2.0));
             let k4 = deriv(&axpy(&st, &k3, h));
             st = State {
-                c_ps_n: st.c_ps_n + (k1.c_ps_n + (k2.c_ps_n + k3.c_ps_n) * 2.0 + k4.c_ps_n) * (h / 6.0),
+                c_ps_n: st.c_ps_n
+                    + (k1.c_ps_n + (k2.c_ps_n + k3.c_ps_n) * 2.0 + k4.c_ps_n) * (h / 6.0),
                 c_c_n: st.c_c_n + (k1.c_c_n + (k2.c_c_n + k3.c_c_n) * 2.0 + k4.c_c_n) * (h / 6.0),
-                dtheta: st.dtheta + (k1.dtheta + (k2.dtheta + k3.dtheta) * 2.0 + k4.dtheta) * (h / 6.0),
+                dtheta: st.dtheta
+                    + (k1.dtheta + (k2.dtheta + k3.dtheta) * 2.0 + k4.dtheta) * (h / 6.0),
             };
-            let weight = if j + 1 == nsub { 1.0 } else if j % 2 == 0 { 4.0 } else { 2.0 };
+            let weight = if j + 1 == nsub {
+                1.0
+            } else if j % 2 == 0 {
+                4.0
+            } else {
+                2.0
+            };
             acc_sum += a * st.c_ps_n * f_n * weight;
         }
         let accel_mean_clean = acc_sum / (3.0 * nsub as f64);
@@ -258,7 +284,12 @@ pub fn simulate(s: &Scenario, opts: SimOptions) -> Simulation {
             truth,
         });
     }
-    Simulation { params, earth_rate_n: w_ie, initial, samples }
+    Simulation {
+        params,
+        earth_rate_n: w_ie,
+        initial,
+        samples,
+    }
 }
 
 /// The true value (rad) of every state of configuration `id` at instant
@@ -276,7 +307,12 @@ pub fn truth_state(id: ConfigId, p: &TruthParams, at: &Instant) -> Vec<f64> {
         AttitudeKind::Gimbal => wrap_angles(&euler_angles(&(c_p_n * dcm(&p.lambda).transpose()))),
         AttitudeKind::Attitude => wrap_angles(&euler_angles(&c_p_n)),
     };
-    let mut x: Vec<f64> = att.iter().chain(g_c.iter()).chain(p.theta_g_t.iter()).copied().collect();
+    let mut x: Vec<f64> = att
+        .iter()
+        .chain(g_c.iter())
+        .chain(p.theta_g_t.iter())
+        .copied()
+        .collect();
     if layout.ac().is_some() {
         x.extend(p.theta_a_c.iter());
     }
