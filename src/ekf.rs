@@ -191,13 +191,12 @@ pub type M4PsFilter<T> = Filter<T, crate::models::M4Ps, 15, 3>;
 /// `(½ tr(∇²g_a P), ½ tr(∇²g_a P ∇²g_b P))` of a 3-vector function `g`
 /// whose Jacobian is `jac`, by central differences of `jac` along the
 /// error-state directions `j` with `relevant(j)`.
-fn hessian_terms<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>(
+fn hessian_terms<T: RealField + Copy, const N: usize>(
     x: &SVector<T, N>,
     p: &SMatrix<T, N, N>,
     relevant: impl Fn(usize) -> bool,
     jac: impl Fn(&SVector<T, N>) -> Option<SMatrix<T, 3, N>>,
 ) -> Option<(Vector3<T>, Matrix3<T>)> {
-    let layout = M::LAYOUT;
     let delta: T = nalgebra::convert(1e-5);
     let two: T = nalgebra::convert(2.0);
     let half: T = nalgebra::convert(0.5);
@@ -207,7 +206,7 @@ fn hessian_terms<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: u
         if let Some(v) = e.get_mut(j) {
             *v = delta;
         }
-        let d = (jac(&layout.boxplus(x, &e))? - jac(&layout.boxplus(x, &(-e)))?) / (two * delta);
+        let d = (jac(&(x + e))? - jac(&(x - e))?) / (two * delta);
         for (a, hs) in hess.iter_mut().enumerate() {
             if let (Some(mut col), Some(row)) = (hs.column_iter_mut().nth(j), d.row_iter().nth(a)) {
                 col.copy_from(&row.transpose());
@@ -313,24 +312,14 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         &self.x
     }
 
-    /// The error-state covariance `P` (rad²): the covariance of `δ` in
-    /// `x = x̂ ⊞ δ` (see [`Layout::boxplus`] and [`crate::models::LAMBDA_ERROR`]).
+    /// The state covariance `P` (rad²).
     pub fn covariance(&self) -> &SMatrix<T, N, N> {
         &self.p
     }
 
-    /// The covariance of the state in its own coordinates, `J P Jᵀ` with
-    /// `J = ∂x/∂δ` (rad²).
-    pub fn state_covariance(&self) -> SMatrix<T, N, N> {
-        let j = Self::LAYOUT.error_to_state(&self.x);
-        j * self.p * j.transpose()
-    }
-
-    /// Per-state standard deviations in the state's own coordinates (rad).
+    /// Per-state standard deviations `√P_ii` (rad).
     pub fn sigma(&self) -> SVector<T, N> {
-        self.state_covariance()
-            .diagonal()
-            .map(|v| v.max(T::zero()).sqrt())
+        self.p.diagonal().map(|v| v.max(T::zero()).sqrt())
     }
 
     /// The filter's settings.
@@ -392,7 +381,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             x_mid.fixed_rows_mut::<3>(ATT).copy_from(&att_mid);
             let relevant =
                 |j: usize| j < 9 || layout.lam().is_some_and(|i| (i..i + 3).contains(&j));
-            let (_, q2) = hessian_terms::<T, M, N, Z>(&x_mid, &self.p, relevant, |xp| {
+            let (_, q2) = hessian_terms(&x_mid, &self.p, relevant, |xp| {
                 layout.attitude_rate_jacobian(env, &layout.matrices(xp), &layout.attitude(xp), &wm)
             })
             .ok_or(Error::GimbalLock)?;
@@ -411,11 +400,11 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let x_new = match self.reference {
             // x̂_{k+1} = x_nom,k+1 ⊞ Φ (x̂_k ⊟ x_nom,k).
             Some(_) => {
-                let mut delta = layout.boxminus(&self.x, &x_lin);
+                let mut delta = layout.difference(&self.x, &x_lin);
                 let d_att = prop.phi_att * delta;
                 delta.fixed_rows_mut::<3>(ATT).copy_from(&d_att);
                 self.reference = Some(x_lin_end);
-                layout.boxplus(&x_lin_end, &delta)
+                x_lin_end + delta
             }
             None => x_lin_end,
         };
@@ -470,6 +459,9 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             att: [a0, am, a1],
             phi_att: crate::models::transition_rows(&back.f_mid, pr.dt),
             f_mid: back.f_mid,
+            f_end: layout
+                .attitude_rate_jacobian(&self.config.env, &m, &layout.attitude(x), &pr.omega_c[2])
+                .ok_or(Error::GimbalLock)?,
             noise_map: back.noise_map,
         };
         Ok(Pending { period: *pr, prop })
@@ -488,7 +480,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 || (layout.at()..layout.at() + 3).contains(&j)
                 || layout.lam().is_some_and(|i| (i..i + 3).contains(&j))
         };
-        hessian_terms::<T, M, N, Z>(x, &self.p, relevant, |xp| {
+        hessian_terms(x, &self.p, relevant, |xp| {
             Some(layout.accel_jacobian(env, &layout.matrices(xp), &layout.attitude(xp), &c_end))
         })
         .unwrap_or((Vector3::zeros(), Matrix3::zeros()))
@@ -553,7 +545,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             let (zp, h) = self.measure(&x_lin, &lin);
             let mut nu = z - zp;
             // IEKF: ν = z − h(x_i) − H (x̂ − x_i).
-            nu -= h * layout.boxminus(&x_prior, &x_lin);
+            nu -= h * layout.difference(&x_prior, &x_lin);
             if opts.second_order_mean {
                 let mut acc = nu.fixed_rows_mut::<3>(accel_row);
                 acc -= mean2;
@@ -572,7 +564,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             s = (s + s.transpose()) * nalgebra::convert::<f64, T>(0.5);
             let chol = s.cholesky().ok_or(Error::InnovationNotPositiveDefinite)?;
             let k = chol.solve(&ph.transpose()).transpose();
-            let x_new = layout.boxplus(&x_prior, &(k * nu));
+            let x_new = x_prior + k * nu;
             let s_inv_nu = chol.solve(&nu);
             let nis = nu.dot(&s_inv_nu);
             x_lin = x_new;
@@ -593,7 +585,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     ) -> Result<Innovation<T, Z>, Error> {
         let layout = Self::LAYOUT;
         let (z_nom, h) = self.measure(x_nom, pending);
-        let delta = layout.boxminus(&self.x, x_nom);
+        let delta = layout.difference(&self.x, x_nom);
         let mut nu = z - z_nom - h * delta;
         if layout.gimbal_obs {
             for v in nu.iter_mut().take(accel_row) {
@@ -606,7 +598,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let chol = s.cholesky().ok_or(Error::InnovationNotPositiveDefinite)?;
         let k = chol.solve(&ph.transpose()).transpose();
         let nis = nu.dot(&chol.solve(&nu));
-        let x_new = layout.boxplus(x_nom, &(delta + k * nu));
+        let x_new = x_nom + delta + k * nu;
         self.commit(x_new, &k, &h, r, Innovation { nu, s, nis })
     }
 

@@ -25,9 +25,8 @@ use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3};
 
 use crate::command::Period;
 use crate::geometry::{
-    d_gimbal_dcm_times, d_gimbal_rate_inverse_times, d_lower_times, d_rotated, d_theta_d_delta,
-    dcm, gimbal_dcm, gimbal_rate_inverse, local, retract, right_jacobian, right_jacobian_inv, skew,
-    Perturbation,
+    d_dcm_times, d_gimbal_dcm_times, d_gimbal_rate_inverse_times, d_lower_times, dcm, gimbal_dcm,
+    gimbal_rate_inverse, right_jacobian, right_jacobian_inv, skew, wrap_angles,
 };
 use crate::instruments::{accel_matrix, gyro_matrix};
 
@@ -396,19 +395,6 @@ fn put3<T: RealField + Copy, const N: usize>(x: &mut SVector<T, N>, i: usize, v:
     }
 }
 
-/// `∂(R(θ)ᵀ v)/∂δ` for the error convention `conv` of `θ`.
-fn d_rotated_transpose<T: RealField + Copy>(
-    conv: Perturbation,
-    theta: &Vector3<T>,
-    v: &Vector3<T>,
-) -> Matrix3<T> {
-    match conv {
-        Perturbation::Additive => -crate::geometry::d_dcm_times(&(-theta), v),
-        Perturbation::Left => -(dcm(theta).transpose() * skew(v)),
-        Perturbation::Right => -skew(&(dcm(theta).transpose() * v)),
-    }
-}
-
 fn set_cols<T: RealField + Copy, const R: usize, const N: usize>(
     m: &mut SMatrix<T, R, N>,
     col: usize,
@@ -436,87 +422,19 @@ pub struct InstallationMatrices<T: RealField + Copy> {
     pub c_rn: Matrix3<T>,
 }
 
-/// Error conventions of the rotation-vector blocks (the filter's covariance
-/// is over these errors; see [`Perturbation`]).
-///
-/// `λ` uses a right (navigation-side) error, so that a rotation of the base
-/// about the vertical, unobservable without Earth rate, is the constant
-/// direction `δλ = e_y` whatever `λ̂` is; the instrument misalignments use
-/// left (platform-side) errors, so that the rotation of the ps frame
-/// definition (paper eq. 28) is the constant direction `δψ = δθgC = δθaC`.
-pub const LAMBDA_ERROR: Perturbation = Perturbation::Additive;
-/// Error convention of `θgC`, `θgC^pa` and `θaC` (see [`LAMBDA_ERROR`]).
-pub const MISALIGNMENT_ERROR: Perturbation = Perturbation::Additive;
-
 impl Layout {
-    /// The error convention of each state block, by first index.
-    pub const fn convention(&self, first: usize) -> Perturbation {
-        if first == GC {
-            return MISALIGNMENT_ERROR;
-        }
-        if let Some(i) = self.ac() {
-            if first == i {
-                return MISALIGNMENT_ERROR;
-            }
-        }
-        if let Some(i) = self.lam() {
-            if first == i {
-                return LAMBDA_ERROR;
-            }
-        }
-        Perturbation::Additive
-    }
-
-    /// First indices of the 3-state blocks.
-    fn blocks(&self) -> impl Iterator<Item = usize> {
-        (0..self.n()).step_by(3)
-    }
-
-    /// `x ⊞ δ`: applies an error-state correction `δ` to the state `x`.
-    pub fn boxplus<T: RealField + Copy, const N: usize>(
+    /// `x − y` with the Euler attitude angles (θA, θp) wrapped into (−π, π].
+    pub fn difference<T: RealField + Copy, const N: usize>(
         &self,
         x: &SVector<T, N>,
-        delta: &SVector<T, N>,
+        y: &SVector<T, N>,
     ) -> SVector<T, N> {
-        let mut out = *x;
-        for b in self.blocks() {
-            let v = retract(self.convention(b), &block3(x, b), &block3(delta, b));
-            put3(&mut out, b, &v);
+        let mut d = x - y;
+        if self.attitude != AttitudeKind::Misalignment {
+            let wrapped = wrap_angles(&block3(&d, ATT));
+            put3(&mut d, ATT, &wrapped);
         }
-        out
-    }
-
-    /// `x ⊟ x̂`: the error-state `δ` with `x̂ ⊞ δ = x`.
-    pub fn boxminus<T: RealField + Copy, const N: usize>(
-        &self,
-        x: &SVector<T, N>,
-        x_hat: &SVector<T, N>,
-    ) -> SVector<T, N> {
-        let mut out = SVector::zeros();
-        for b in self.blocks() {
-            let mut v = local(self.convention(b), &block3(x_hat, b), &block3(x, b));
-            if b == ATT && self.attitude != AttitudeKind::Misalignment {
-                v = crate::geometry::wrap_angles(&v);
-            }
-            put3(&mut out, b, &v);
-        }
-        out
-    }
-
-    /// `∂x/∂δ` at `x` (block diagonal): maps the error covariance to the
-    /// covariance of the state's own coordinates, `P_x = J P Jᵀ`.
-    pub fn error_to_state<T: RealField + Copy, const N: usize>(
-        &self,
-        x: &SVector<T, N>,
-    ) -> SMatrix<T, N, N> {
-        let mut j = SMatrix::<T, N, N>::zeros();
-        for b in self.blocks() {
-            let d = d_theta_d_delta(self.convention(b), &block3(x, b));
-            if b + 3 <= N {
-                j.fixed_view_mut::<3, 3>(b, b).copy_from(&d);
-            }
-        }
-        j
+        d
     }
 
     /// Unpacks the installation parameters of a state vector.
@@ -604,7 +522,7 @@ impl Layout {
         let mut f = SMatrix::<T, 3, N>::zeros();
         let unit_t = Matrix3::identity() + crate::geometry::lower(&p.theta_g_t);
         // ∂(G ωc)/∂θgC and ∂(G ωc)/∂θgT.
-        let d_g_c = d_rotated(self.convention(GC), &p.theta_g_c, &(unit_t * omega_c));
+        let d_g_c = d_dcm_times(&p.theta_g_c, &(unit_t * omega_c));
         let d_g_t = dcm(&p.theta_g_c) * d_lower_times(omega_c);
         let w_ip = m.g * omega_c;
         match self.attitude {
@@ -632,9 +550,7 @@ impl Layout {
                 set_cols(&mut f, GC, &(t * d_g_c));
                 set_cols(&mut f, GT, &(t * d_g_t));
                 if let Some(il) = self.lam() {
-                    let d_lam = -(t
-                        * gimbal_dcm(att)
-                        * d_rotated(LAMBDA_ERROR, &p.lambda, &env.earth_rate_n));
+                    let d_lam = -(t * gimbal_dcm(att) * d_dcm_times(&p.lambda, &env.earth_rate_n));
                     set_cols(&mut f, il, &d_lam);
                 }
             }
@@ -665,9 +581,7 @@ impl Layout {
         let mut h = SMatrix::<T, 3, N>::zeros();
         let f_p = self.platform_dcm(att, &m.c_rn, c_cn) * env.gravity_n;
         let d_att = match self.attitude {
-            AttitudeKind::Misalignment => {
-                d_rotated(Perturbation::Additive, att, &(c_cn * env.gravity_n))
-            }
+            AttitudeKind::Misalignment => d_dcm_times(att, &(c_cn * env.gravity_n)),
             AttitudeKind::Gimbal => d_gimbal_dcm_times(att, &(m.c_rn * env.gravity_n)),
             AttitudeKind::Attitude => d_gimbal_dcm_times(att, &env.gravity_n),
         };
@@ -680,12 +594,12 @@ impl Layout {
             set_cols(
                 &mut h,
                 ic,
-                &(unit_t * d_rotated_transpose(MISALIGNMENT_ERROR, &p.theta_a_c, &f_p)),
+                &(-(unit_t * d_dcm_times(&(-p.theta_a_c), &f_p))),
             );
         }
         set_cols(&mut h, self.at(), &d_lower_times(&f_a));
         if let (Some(il), AttitudeKind::Gimbal) = (self.lam(), self.attitude) {
-            let d_lam = m.a * gimbal_dcm(att) * d_rotated(LAMBDA_ERROR, &p.lambda, &env.gravity_n);
+            let d_lam = m.a * gimbal_dcm(att) * d_dcm_times(&p.lambda, &env.gravity_n);
             set_cols(&mut h, il, &d_lam);
         }
         h
@@ -703,6 +617,8 @@ pub struct PeriodPropagation<T: RealField + Copy, const N: usize> {
     pub phi_att: SMatrix<T, 3, N>,
     /// `F` rows (3×N) at the midpoint node.
     pub f_mid: SMatrix<T, 3, N>,
+    /// `F` rows (3×N) at the end node.
+    pub f_end: SMatrix<T, 3, N>,
     /// `B = ∂(attitude rate)/∂(platform rate noise)` at the midpoint (3×3).
     pub noise_map: Matrix3<T>,
 }
@@ -734,6 +650,7 @@ impl Layout {
         let f1 = self.attitude_rate(env, m, &att1, &w1)?;
         let att_mid = (att0 + att1) * half + (k1 - f1) * (dt / eight);
         let f_mid: SMatrix<T, 3, N> = self.attitude_rate_jacobian(env, m, &att_mid, &wm)?;
+        let f_end: SMatrix<T, 3, N> = self.attitude_rate_jacobian(env, m, &att1, &w1)?;
         let phi_att = transition_rows(&f_mid, dt);
         let noise_map = match self.attitude {
             AttitudeKind::Misalignment => right_jacobian_inv(&att_mid),
@@ -745,6 +662,7 @@ impl Layout {
             att: [att0.clone_owned(), att_mid, att1],
             phi_att,
             f_mid,
+            f_end,
             noise_map,
         };
         if att1.iter().chain(phi_att.iter()).all(|v| v.is_finite()) {
@@ -772,16 +690,20 @@ impl Layout {
         let mut z = Vector3::zeros();
         let mut h = SMatrix::<T, 3, N>::zeros();
         let back = [-period.dt, -period.dt * half, T::zero()];
-        for (((att, c_cn), w), tau) in prop
+        // F over [t_j, t_{k+1}]: the midpoint F for the whole period, the mean
+        // of the midpoint and end F (centred at 3T/4) for its second half.
+        let f_nodes = [prop.f_mid, (prop.f_mid + prop.f_end) * half, prop.f_end];
+        for ((((att, c_cn), w), tau), f) in prop
             .att
             .iter()
             .zip(period.c_cn.iter())
             .zip(weights)
             .zip(back)
+            .zip(f_nodes.iter())
         {
             z += self.accel_output(env, m, att, c_cn) * w;
             let hj: SMatrix<T, 3, N> = self.accel_jacobian(env, m, att, c_cn);
-            h += apply_transition(&hj, &transition_rows(&prop.f_mid, tau)) * w;
+            h += apply_transition(&hj, &transition_rows(f, tau)) * w;
         }
         (z, h)
     }
@@ -813,11 +735,14 @@ pub fn transition_rows<T: RealField + Copy, const N: usize>(
     tau: T,
 ) -> SMatrix<T, 3, N> {
     let half: T = nalgebra::convert(0.5);
+    let sixth: T = nalgebra::convert(1.0 / 6.0);
     let fa = f.fixed_columns::<3>(ATT).clone_owned() * tau;
+    let fa2 = fa * fa;
     let ft = f * tau;
-    // (I + F_a τ/2) F τ, then correct the attitude block to I + F_a τ + (F_a τ)²/2.
-    let mut phi = ft + fa * ft * half;
-    let aa = Matrix3::identity() + fa + fa * fa * half;
+    // (I + F_a τ/2 + (F_a τ)²/6) F τ, then the attitude block
+    // I + F_a τ + (F_a τ)²/2 + (F_a τ)³/6 (error ≈ |F τ|⁴/24 < 1e-12).
+    let mut phi = ft + (fa * half + fa2 * sixth) * ft;
+    let aa = Matrix3::identity() + fa + fa2 * half + fa2 * fa * sixth;
     set_cols(&mut phi, ATT, &aa);
     phi
 }

@@ -35,8 +35,8 @@ use rollcal::command::{CommandFrame, Period};
 use rollcal::ekf::{Filter, FilterConfig, Options};
 use rollcal::geometry::{dcm, earth_rate_n, EARTH_RATE};
 use rollcal::models::{
-    apply_transition, transition_rows, AttitudeKind, ConfigId, Environment, Layout, M1Pa, M1Ps,
-    M2Ps, M3Pa, M3Ps, M4Pa, M4Ps, Model, PeriodPropagation,
+    AttitudeKind, ConfigId, Environment, Layout, M1Pa, M1Ps, M2Ps, M3Pa, M3Ps, M4Pa, M4Ps, Model,
+    PeriodPropagation,
 };
 
 const DEG: f64 = PI / 180.0;
@@ -170,12 +170,6 @@ struct Report {
     rate: Blocks,
     phi: Blocks,
     h: Blocks,
-    /// Per period node t_k, t_k + T/2, t_k + T: `Φ(t_j ← t_{k+1})` as used
-    /// in `mean_accel` vs FD of the retraced node attitude.
-    h_nodes: [Blocks; 3],
-    /// `H` rebuilt with `Φ(t_mid ← t_{k+1})` from `(F_mid + F_end)/2`
-    /// instead of `F_mid`, vs FD (accelerometer rows).
-    h_fixed: Blocks,
 }
 
 fn check<M: Model<N, Z>, const N: usize, const Z: usize>() -> Report {
@@ -253,73 +247,12 @@ fn check<M: Model<N, Z>, const N: usize, const Z: usize>() -> Report {
     let h_fd = fd(|x| filter.measurement_at(x).expect("measurement").0, &x_end);
     let h = Blocks::new(id, &h_an, &h_fd);
 
-    // Diagnostics of H: replicate the filter's backward retrace over the
-    // period (the filter's frame starts aligned with n).
-    let pf = CommandFrame::aligned(env.earth_rate_n).period(&inc, 1.0);
-    let [c0, cm, c1] = pf.c_cn;
-    let [w0, wm, w1] = pf.omega_c;
-    let reversed = Period {
-        dt: -pf.dt,
-        omega_c: [w1, wm, w0],
-        c_cn: [c1, cm, c0],
-    };
-    let retrace = |x: &SVector<f64, N>| {
-        let back = propagate(x, &reversed);
-        let [a1, am, a0] = back.att;
-        PeriodPropagation {
-            att: [a0, am, a1],
-            phi_att: transition_rows(&back.f_mid, pf.dt),
-            f_mid: back.f_mid,
-            noise_map: back.noise_map,
-        }
-    };
-    let accel_row = if layout.gimbal_obs { 3 } else { 0 };
-    let m_end = layout.matrices(&x_end);
-    let prop = retrace(&x_end);
-    let (z_rep, h_rep): (Vector3<f64>, SMatrix<f64, 3, N>) =
-        layout.mean_accel(&env, &m_end, &prop, &pf);
-    // The replication is the filter's computation, exactly.
-    let (z_f, h_f) = filter.measurement_at(&x_end).expect("measurement");
-    assert!(
-        (z_rep - z_f.fixed_rows::<3>(accel_row)).amax() <= 1e-15,
-        "{id}: retrace replica"
-    );
-    assert!(
-        (h_rep - h_f.fixed_rows::<3>(accel_row)).amax() <= 1e-15,
-        "{id}: retrace replica"
-    );
-    let taus = [-pf.dt, -0.5 * pf.dt, 0.0];
-    let h_nodes = core::array::from_fn(|j| {
-        let an = transition_rows(&prop.f_mid, taus[j]);
-        let fdj = fd(|x| retrace(x).att[j], &x_end);
-        Blocks::new(id, &an, &fdj)
-    });
-    // Candidate correction: Φ(t_mid ← t_{k+1}) from F averaged over
-    // [t_mid, t_{k+1}] (trapezoid of F_mid and F_end) rather than F_mid.
-    let f_end: SMatrix<f64, 3, N> = layout
-        .attitude_rate_jacobian(&env, &m_end, &layout.attitude(&x_end), &w1)
-        .expect("no gimbal lock");
-    let phis = [
-        transition_rows(&prop.f_mid, taus[0]),
-        transition_rows(&((prop.f_mid + f_end) * 0.5), taus[1]),
-        transition_rows(&prop.f_mid, taus[2]),
-    ];
-    let weights = [1.0 / 6.0, 4.0 / 6.0, 1.0 / 6.0];
-    let mut h_corr = SMatrix::<f64, 3, N>::zeros();
-    for j in 0..3 {
-        let hj: SMatrix<f64, 3, N> = layout.accel_jacobian(&env, &m_end, &prop.att[j], &pf.c_cn[j]);
-        h_corr += apply_transition(&hj, &phis[j]) * weights[j];
-    }
-    let h_fixed = Blocks::new(id, &h_corr, &h_fd.fixed_rows::<3>(accel_row).clone_owned());
-
     Report {
         id,
         accel,
         rate,
         phi,
         h,
-        h_nodes,
-        h_fixed,
     }
 }
 
@@ -382,23 +315,5 @@ fn transition_matches_finite_differences() {
 
 #[test]
 fn measurement_jacobian_matches_finite_differences() {
-    assert_check(
-        "H (measurement_at)",
-        |r| &r.h,
-        |r| {
-            for (node, b) in ["t_k", "t_k+T/2", "t_k+T"].iter().zip(&r.h_nodes) {
-                eprintln!(
-                    "    Φ({node} ← t_k+T) used by mean_accel vs FD of the retraced attitude: \
-                     {:.2e}  [{}]",
-                    b.max(),
-                    b.describe()
-                );
-            }
-            eprintln!(
-                "    H with Φ(t_k+T/2 ← t_k+T) from (F_mid + F_end)/2: {:.2e}  [{}]",
-                r.h_fixed.max(),
-                r.h_fixed.describe()
-            );
-        },
-    );
+    assert_check("H (measurement_at)", |r| &r.h, |_| {});
 }
