@@ -31,6 +31,22 @@ enum Command {
     Run(RunArgs),
     /// Run all seven configurations and print one summary line each.
     Summary(CommonArgs),
+    /// Compare the cold-start remedies over seeds and scenarios (the study
+    /// behind the default estimator; see README).
+    Remedies(RemediesArgs),
+}
+
+#[derive(clap::Args)]
+struct RemediesArgs {
+    /// Seeds per scenario (1..=N).
+    #[arg(long, default_value_t = 8)]
+    seeds: u64,
+    /// Scenario files to add to the paper's scenario.
+    #[arg(long = "scenario", value_name = "FILE")]
+    scenarios: Vec<PathBuf>,
+    /// Write the results as JSON to PATH.
+    #[arg(long, value_name = "PATH")]
+    json: Option<PathBuf>,
 }
 
 #[derive(clap::Args, Clone)]
@@ -135,6 +151,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Some(Command::Run(args)) => cmd_run(&args),
         Some(Command::Summary(args)) => cmd_summary(&args),
+        Some(Command::Remedies(args)) => cmd_remedies(&args),
         None => cmd_summary(&CommonArgs {
             scenario: None,
             seed: 1,
@@ -343,5 +360,87 @@ fn cmd_summary(c: &CommonArgs) -> Result<(), String> {
         "total wall time {:.2} s (simulation included)",
         t_all.elapsed().as_secs_f64()
     );
+    Ok(())
+}
+
+fn cmd_remedies(args: &RemediesArgs) -> Result<(), String> {
+    use host_sim::runner::Estimator;
+    let mut scenarios = vec![Scenario::paper()];
+    for p in &args.scenarios {
+        scenarios.push(Scenario::from_file(p).map_err(|e| e.to_string())?);
+    }
+    let configs = [ConfigId::M1Pa, ConfigId::M4Pa, ConfigId::M2Ps];
+    let remedies: Vec<(&str, Estimator)> = vec![
+        ("plain EKF", Estimator { options: Remedy::Plain.options(), passes: 1 }),
+        ("IEKF (first 20 updates)", Estimator { options: Remedy::Iekf.options(), passes: 1 }),
+        ("2nd-order S", Estimator { options: Remedy::SecondOrder.options(), passes: 1 }),
+        ("2nd-order S + mean", Estimator { options: Remedy::SecondOrderMean.options(), passes: 1 }),
+        ("2nd-order S + dynamics", Estimator { options: Remedy::SecondOrderDynamics.options(), passes: 1 }),
+        ("IEKF + 2nd-order S", Estimator { options: Remedy::IekfSecondOrder.options(), passes: 1 }),
+        ("2nd-order S, then linearised pass", Estimator { options: Remedy::SecondOrder.options(), passes: 2 }),
+    ];
+    // One job per (scenario, seed): simulate once, run every remedy and configuration.
+    let jobs: Vec<(usize, u64)> =
+        (0..scenarios.len()).flat_map(|i| (1..=args.seeds).map(move |s| (i, s))).collect();
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let results = std::sync::Mutex::new(Vec::new());
+    let t0 = Instant::now();
+    std::thread::scope(|scope| {
+        for _ in 0..std::thread::available_parallelism().map_or(2, |n| n.get()) {
+            scope.spawn(|| loop {
+                let j = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some(&(si, seed)) = jobs.get(j) else { break };
+                let sc = &scenarios[si];
+                let sim = simulate(sc, SimOptions { seed, noise: true, earth_rate: sc.site.earth_rate });
+                for (ri, (_, est)) in remedies.iter().enumerate() {
+                    for id in configs {
+                        let worst = match run_filter(id, sc, &sim, sc.site.earth_rate, *est, None, false) {
+                            Ok(r) => r
+                                .states
+                                .iter()
+                                .filter(|s| expected_observable(id, s.name, group_of(s.group)))
+                                .map(|s| s.ratio())
+                                .fold(0.0, f64::max),
+                            Err(_) => f64::INFINITY,
+                        };
+                        results.lock().map(|mut v| v.push((si, seed, ri, id, worst))).ok();
+                    }
+                }
+                eprint!("\r{}/{} runs simulated ({:.0} s)", j + 1, jobs.len(), t0.elapsed().as_secs_f64());
+            });
+        }
+    });
+    eprintln!();
+    let results = results.into_inner().map_err(|e| e.to_string())?;
+    println!(
+        "Cold-start remedies: worst |error|/σ over the claimed parameters, per run; a run fails above 4σ.\n\
+         {} scenario(s) × {} seeds, zero start, Earth rate as in each scenario.\n",
+        scenarios.len(),
+        args.seeds
+    );
+    print!("{:<36}", "remedy");
+    for id in configs {
+        print!(" {:>20}", format!("{id} fail / max"));
+    }
+    println!();
+    let mut json = Vec::new();
+    for (ri, (name, _)) in remedies.iter().enumerate() {
+        print!("{name:<36}");
+        for id in configs {
+            let v: Vec<f64> = results.iter().filter(|r| r.2 == ri && r.3 == id).map(|r| r.4).collect();
+            let fails = v.iter().filter(|w| **w > 4.0).count();
+            let max = v.iter().copied().fold(0.0, f64::max);
+            print!(" {:>20}", format!("{fails}/{} {max:>8.2}", v.len()));
+            json.push(serde_json::json!({"remedy": name, "config": id.as_str(), "runs": v.len(), "failures": fails, "max_ratio": max}));
+        }
+        println!();
+    }
+    for (i, sc) in scenarios.iter().enumerate() {
+        println!("scenario {i}: {}", sc.name);
+    }
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&json).map_err(|e| e.to_string())?;
+        std::fs::write(path, text + "\n").map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    }
     Ok(())
 }
