@@ -1,6 +1,7 @@
 //! Time of one filter period (`Filter::step`: predict + update) in f64, for
-//! M1-pa and M2-ps, with the default options (second-order innovation
-//! covariance) and with a plain EKF.
+//! M1-pa and M2-ps: the first pass of the default estimator (EKF with the
+//! second-order innovation covariance, `default`), its second, linearised
+//! pass about a nominal trajectory (`linearised`), and a plain EKF (`plain`).
 //!
 //! The data are the paper scenario from the host-sim truth simulator (noisy,
 //! Earth rate on, seed 1). Each filter starts cold (zero state, prior σ from
@@ -40,11 +41,16 @@ fn warmed_up<M: Model<N, Z>, const N: usize, const Z: usize>(
     scenario: &Scenario,
     samples: &[PeriodSample],
     options: Options,
+    linearised: bool,
 ) -> Filter<f64, M, N, Z> {
     let cfg = filter_config(scenario, true, options);
     let sigma0 = SVector::<f64, N>::repeat(scenario.prior.sigma_deg * DEG);
     let mut f = Filter::<f64, M, N, Z>::new(cfg, SVector::zeros(), sigma0)
         .expect("filter configuration is valid");
+    if linearised {
+        // The per-period cost does not depend on where the nominal is.
+        f.set_nominal(Some(SVector::zeros()));
+    }
     for s in samples.iter().take(WARM_UP) {
         if let Err(e) = f.step(&s.dtheta_cmd, s.dt, &observation(s)) {
             panic!("warm-up step {} failed: {e:?}", s.k);
@@ -65,8 +71,9 @@ fn bench_period<M: Model<N, Z> + Clone, const N: usize, const Z: usize>(
     scenario: &Scenario,
     samples: &[PeriodSample],
     options: Options,
+    linearised: bool,
 ) {
-    let warm = warmed_up::<M, N, Z>(scenario, samples, options);
+    let warm = warmed_up::<M, N, Z>(scenario, samples, options, linearised);
     let timed = samples
         .get(WARM_UP..)
         .expect("the run is longer than the warm-up");
@@ -113,13 +120,18 @@ fn filter_period(c: &mut Criterion) {
         },
     );
     let samples = &sim.samples;
-    for (label, options) in [("default", Options::default()), ("plain", Options::plain())] {
+    for (label, options, linearised) in [
+        ("default", Options::default(), false),
+        ("linearised", Options::default(), true),
+        ("plain", Options::plain(), false),
+    ] {
         bench_period::<rollcal::models::M1Pa, 12, 3>(
             c,
             &format!("m1pa/{label}"),
             &scenario,
             samples,
             options,
+            linearised,
         );
         bench_period::<rollcal::models::M2Ps, 18, 6>(
             c,
@@ -127,6 +139,7 @@ fn filter_period(c: &mut Criterion) {
             &scenario,
             samples,
             options,
+            linearised,
         );
     }
 }

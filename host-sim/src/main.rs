@@ -371,17 +371,60 @@ fn cmd_remedies(args: &RemediesArgs) -> Result<(), String> {
     }
     let configs = [ConfigId::M1Pa, ConfigId::M4Pa, ConfigId::M2Ps];
     let remedies: Vec<(&str, Estimator)> = vec![
-        ("plain EKF", Estimator { options: Remedy::Plain.options(), passes: 1 }),
-        ("IEKF (first 20 updates)", Estimator { options: Remedy::Iekf.options(), passes: 1 }),
-        ("2nd-order S", Estimator { options: Remedy::SecondOrder.options(), passes: 1 }),
-        ("2nd-order S + mean", Estimator { options: Remedy::SecondOrderMean.options(), passes: 1 }),
-        ("2nd-order S + dynamics", Estimator { options: Remedy::SecondOrderDynamics.options(), passes: 1 }),
-        ("IEKF + 2nd-order S", Estimator { options: Remedy::IekfSecondOrder.options(), passes: 1 }),
-        ("2nd-order S, then linearised pass", Estimator { options: Remedy::SecondOrder.options(), passes: 2 }),
+        (
+            "plain EKF",
+            Estimator {
+                options: Remedy::Plain.options(),
+                passes: 1,
+            },
+        ),
+        (
+            "IEKF (first 20 updates)",
+            Estimator {
+                options: Remedy::Iekf.options(),
+                passes: 1,
+            },
+        ),
+        (
+            "2nd-order S",
+            Estimator {
+                options: Remedy::SecondOrder.options(),
+                passes: 1,
+            },
+        ),
+        (
+            "2nd-order S + mean",
+            Estimator {
+                options: Remedy::SecondOrderMean.options(),
+                passes: 1,
+            },
+        ),
+        (
+            "2nd-order S + dynamics",
+            Estimator {
+                options: Remedy::SecondOrderDynamics.options(),
+                passes: 1,
+            },
+        ),
+        (
+            "IEKF + 2nd-order S",
+            Estimator {
+                options: Remedy::IekfSecondOrder.options(),
+                passes: 1,
+            },
+        ),
+        (
+            "2nd-order S, then linearised pass",
+            Estimator {
+                options: Remedy::SecondOrder.options(),
+                passes: 2,
+            },
+        ),
     ];
     // One job per (scenario, seed): simulate once, run every remedy and configuration.
-    let jobs: Vec<(usize, u64)> =
-        (0..scenarios.len()).flat_map(|i| (1..=args.seeds).map(move |s| (i, s))).collect();
+    let jobs: Vec<(usize, u64)> = (0..scenarios.len())
+        .flat_map(|i| (1..=args.seeds).map(move |s| (i, s)))
+        .collect();
     let next = std::sync::atomic::AtomicUsize::new(0);
     let results = std::sync::Mutex::new(Vec::new());
     let t0 = Instant::now();
@@ -389,24 +432,42 @@ fn cmd_remedies(args: &RemediesArgs) -> Result<(), String> {
         for _ in 0..std::thread::available_parallelism().map_or(2, |n| n.get()) {
             scope.spawn(|| loop {
                 let j = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                let Some(&(si, seed)) = jobs.get(j) else { break };
+                let Some(&(si, seed)) = jobs.get(j) else {
+                    break;
+                };
                 let sc = &scenarios[si];
-                let sim = simulate(sc, SimOptions { seed, noise: true, earth_rate: sc.site.earth_rate });
+                let sim = simulate(
+                    sc,
+                    SimOptions {
+                        seed,
+                        noise: true,
+                        earth_rate: sc.site.earth_rate,
+                    },
+                );
                 for (ri, (_, est)) in remedies.iter().enumerate() {
                     for id in configs {
-                        let worst = match run_filter(id, sc, &sim, sc.site.earth_rate, *est, None, false) {
-                            Ok(r) => r
-                                .states
-                                .iter()
-                                .filter(|s| expected_observable(id, s.name, group_of(s.group)))
-                                .map(|s| s.ratio())
-                                .fold(0.0, f64::max),
-                            Err(_) => f64::INFINITY,
-                        };
-                        results.lock().map(|mut v| v.push((si, seed, ri, id, worst))).ok();
+                        let worst =
+                            match run_filter(id, sc, &sim, sc.site.earth_rate, *est, None, false) {
+                                Ok(r) => r
+                                    .states
+                                    .iter()
+                                    .filter(|s| expected_observable(id, s.name, group_of(s.group)))
+                                    .map(|s| s.ratio())
+                                    .fold(0.0, f64::max),
+                                Err(_) => f64::INFINITY,
+                            };
+                        results
+                            .lock()
+                            .map(|mut v| v.push((si, seed, ri, id, worst)))
+                            .ok();
                     }
                 }
-                eprint!("\r{}/{} runs simulated ({:.0} s)", j + 1, jobs.len(), t0.elapsed().as_secs_f64());
+                eprint!(
+                    "\r{}/{} runs simulated ({:.0} s)",
+                    j + 1,
+                    jobs.len(),
+                    t0.elapsed().as_secs_f64()
+                );
             });
         }
     });
@@ -427,7 +488,11 @@ fn cmd_remedies(args: &RemediesArgs) -> Result<(), String> {
     for (ri, (name, _)) in remedies.iter().enumerate() {
         print!("{name:<36}");
         for id in configs {
-            let v: Vec<f64> = results.iter().filter(|r| r.2 == ri && r.3 == id).map(|r| r.4).collect();
+            let v: Vec<f64> = results
+                .iter()
+                .filter(|r| r.2 == ri && r.3 == id)
+                .map(|r| r.4)
+                .collect();
             let fails = v.iter().filter(|w| **w > 4.0).count();
             let max = v.iter().copied().fold(0.0, f64::max);
             print!(" {:>20}", format!("{fails}/{} {max:>8.2}", v.len()));
@@ -440,7 +505,8 @@ fn cmd_remedies(args: &RemediesArgs) -> Result<(), String> {
     }
     if let Some(path) = &args.json {
         let text = serde_json::to_string_pretty(&json).map_err(|e| e.to_string())?;
-        std::fs::write(path, text + "\n").map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        std::fs::write(path, text + "\n")
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
     }
     Ok(())
 }
