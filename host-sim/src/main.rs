@@ -147,6 +147,14 @@ fn load_scenario(path: Option<&Path>) -> Result<Scenario, String> {
 }
 
 fn main() -> ExitCode {
+    // Die quietly on a closed pipe (`host-sim | head`) like other Unix tools,
+    // instead of panicking in println!.
+    #[cfg(unix)]
+    // SAFETY: called first thing in main, before any thread exists; resets a
+    // signal disposition to its default.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     let result = match cli.command {
         Some(Command::Run(args)) => cmd_run(&args),
@@ -243,23 +251,14 @@ fn write_csv(path: &Path, r: &RunResult) -> std::io::Result<()> {
 }
 
 fn print_table(r: &RunResult) {
+    let _ = ARCSEC;
     println!(
         "{:<11} {:>12} {:>12} {:>10} {:>10} {:>8}  verdict",
         "state", "truth ″", "estimate ″", "error ″", "σ ″", "|err|/σ"
     );
     for s in &r.states {
         let group = group_of(s.group);
-        let verdict = if expected_observable(r.config, s.name, group) {
-            if s.ratio() <= 4.0 {
-                "converged"
-            } else {
-                "FAILED (> 4σ)"
-            }
-        } else if s.sigma_rad > 100.0 * ARCSEC {
-            "not observable"
-        } else {
-            "observable (not claimed)"
-        };
+        let verdict = host_sim::runner::verdict(r.config, s, group, r.prior_sigma_rad).as_str();
         println!(
             "{:<11} {:>12.3} {:>12.3} {:>10.4} {:>10.4} {:>8.2}  {}",
             s.name,
@@ -302,11 +301,12 @@ fn cmd_summary(c: &CommonArgs) -> Result<(), String> {
     let scenario = load_scenario(c.scenario.as_deref())?;
     let earth_rate = !c.no_earth_rate && scenario.site.earth_rate;
     println!(
-        "scenario '{}', seed {}, Earth rate {}, remedy {:?}",
+        "scenario '{}', seed {}, Earth rate {}, first-pass remedy {:?}, {} pass(es)",
         scenario.name,
         c.seed,
         if earth_rate { "on" } else { "off" },
-        c.remedy
+        c.remedy,
+        c.passes
     );
     println!(
         "{:<7} {:>6} {:>12} {:>16} {:>14} {:>9}",

@@ -159,6 +159,8 @@ pub struct RunResult {
     pub history: Vec<(f64, Vec<f64>, Vec<f64>)>,
     /// NIS per period.
     pub nis: Vec<f64>,
+    /// Prior σ of every state (rad).
+    pub prior_sigma_rad: f64,
     /// Updates that failed, with their period index and error.
     pub failures: Vec<(u32, ekf::Error)>,
 }
@@ -244,8 +246,49 @@ pub fn run_filter(
         covariance: f.covariance(),
         history,
         nis,
+        prior_sigma_rad: sigma0,
         failures,
     })
+}
+
+/// What the run says of one state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Verdict {
+    /// Claimed observable (SPEC §3) and within 4σ of the truth.
+    Converged,
+    /// Claimed observable but more than 4σ from the truth.
+    Failed,
+    /// Not claimed; σ below 1 % of the prior (observable in practice, SPEC §5).
+    Observable,
+    /// Not claimed; σ at or above 1 % of the prior.
+    NotObservable,
+}
+
+impl Verdict {
+    /// Stable text used in tables and JSON.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            Verdict::Converged => "converged",
+            Verdict::Failed => "FAILED (> 4 sigma)",
+            Verdict::Observable => "observable",
+            Verdict::NotObservable => "not observable",
+        }
+    }
+}
+
+/// The verdict on state `s` of configuration `id` with prior σ `prior` (rad).
+pub fn verdict(id: ConfigId, s: &StateResult, group: Group, prior: f64) -> Verdict {
+    if expected_observable(id, s.name, group) {
+        if s.ratio() <= 4.0 {
+            Verdict::Converged
+        } else {
+            Verdict::Failed
+        }
+    } else if s.sigma_rad < 0.01 * prior {
+        Verdict::Observable
+    } else {
+        Verdict::NotObservable
+    }
 }
 
 /// Whether a state is expected to converge in configuration `id` (SPEC §3,
