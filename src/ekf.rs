@@ -153,6 +153,31 @@ pub struct Innovation<T: RealField + Copy, const Z: usize> {
     pub nis: T,
 }
 
+/// The period's gyro noise as both process and measurement noise: with unit
+/// noise `u` (3), `x_{k+1} = f(x_k) + G u` and `z = h(x_{k+1}) + D u + v`.
+/// The mean accelerometer output of a period sees the noise of that same
+/// period (≈ half of it, `D ≈ −½ H G`), so the two are correlated:
+/// `C = G Dᵀ` enters the gain and the Joseph form.
+struct Noise<T: RealField + Copy, const N: usize, const Z: usize> {
+    g: SMatrix<T, N, 3>,
+    d: SMatrix<T, Z, 3>,
+}
+
+struct Measured<T: RealField + Copy, const N: usize, const Z: usize> {
+    z: SVector<T, Z>,
+    h: SMatrix<T, Z, N>,
+    noise: Noise<T, N, Z>,
+}
+
+/// One Kalman gain with correlated noise.
+struct Gain<T: RealField + Copy, const N: usize, const Z: usize> {
+    k: SMatrix<T, N, Z>,
+    s: SMatrix<T, Z, Z>,
+    r_eff: SMatrix<T, Z, Z>,
+    c: SMatrix<T, N, Z>,
+    nis: T,
+}
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Pending<T: RealField + Copy, const N: usize> {
     period: Period<T>,
@@ -418,16 +443,13 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         Ok(())
     }
 
-    /// Predicted measurement and its Jacobian (w.r.t. the state at the end of
-    /// the period) for the state `x`, whose period trajectory is `prop`.
-    fn measure(
-        &self,
-        x: &SVector<T, N>,
-        pending: &Pending<T, N>,
-    ) -> (SVector<T, Z>, SMatrix<T, Z, N>) {
+    /// Predicted measurement, its Jacobian (w.r.t. the state at the end of
+    /// the period) for the state `x` whose period trajectory is `prop`, and
+    /// the measurement's share of the period's process noise (see [`Noise`]).
+    fn measure(&self, x: &SVector<T, N>, pending: &Pending<T, N>) -> Measured<T, N, Z> {
         let layout = Self::LAYOUT;
         let m = layout.matrices(x);
-        let (za, ha) = layout.mean_accel(&self.config.env, &m, &pending.prop, &pending.period);
+        let (za, ha, da) = layout.mean_accel(&self.config.env, &m, &pending.prop, &pending.period);
         let mut z = SVector::<T, Z>::zeros();
         let mut h = SMatrix::<T, Z, N>::zeros();
         let accel_row = if layout.gimbal_obs {
@@ -441,7 +463,18 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         };
         z.fixed_rows_mut::<3>(accel_row).copy_from(&za);
         h.fixed_rows_mut::<3>(accel_row).copy_from(&ha);
-        (z, h)
+        // Unit-variance noise w = σ_g u: x_{k+1} gets G u, z gets D u.
+        let sigma_g = self.config.sigma_gyro;
+        let mut g = SMatrix::<T, N, 3>::zeros();
+        g.fixed_rows_mut::<3>(ATT)
+            .copy_from(&(pending.prop.noise_map * (sigma_g * pending.period.dt)));
+        let mut d = SMatrix::<T, Z, 3>::zeros();
+        d.fixed_rows_mut::<3>(accel_row).copy_from(&(da * sigma_g));
+        Measured {
+            z,
+            h,
+            noise: Noise { g, d },
+        }
     }
 
     /// The trajectory over the pending period that ends at state `x`
@@ -542,7 +575,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             if it > 0 {
                 lin = self.retrace(&x_lin, &pending)?;
             }
-            let (zp, h) = self.measure(&x_lin, &lin);
+            let Measured { z: zp, h, noise } = self.measure(&x_lin, &lin);
             let mut nu = z - zp;
             // IEKF: ν = z − h(x_i) − H (x̂ − x_i).
             nu -= h * layout.difference(&x_prior, &x_lin);
@@ -555,23 +588,17 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                     *v = wrap_angle(*v);
                 }
             }
-            let ph = self.p * h.transpose();
-            let mut s = h * ph + r;
+            let mut extra = SMatrix::<T, Z, Z>::zeros();
             if opts.second_order_covariance {
-                let mut blk = s.fixed_view_mut::<3, 3>(accel_row, accel_row);
+                let mut blk = extra.fixed_view_mut::<3, 3>(accel_row, accel_row);
                 blk += cov2;
             }
-            s = (s + s.transpose()) * nalgebra::convert::<f64, T>(0.5);
-            let chol = s.cholesky().ok_or(Error::InnovationNotPositiveDefinite)?;
-            let k = chol.solve(&ph.transpose()).transpose();
-            let x_new = x_prior + k * nu;
-            let s_inv_nu = chol.solve(&nu);
-            let nis = nu.dot(&s_inv_nu);
-            x_lin = x_new;
-            result = Some((k, h, nu, s, nis));
+            let gain = self.gain(&h, &nu, &r, &noise, &extra)?;
+            x_lin = x_prior + gain.k * nu;
+            result = Some((gain, h, nu));
         }
-        let (k, h, nu, s, nis) = result.ok_or(Error::NoPrediction)?;
-        self.commit(x_lin, &k, &h, &r, Innovation { nu, s, nis })
+        let (gain, h, nu) = result.ok_or(Error::NoPrediction)?;
+        self.commit(x_lin, &gain, &h, nu)
     }
 
     /// The update of the linearised filter about the nominal `x_nom`.
@@ -584,7 +611,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         accel_row: usize,
     ) -> Result<Innovation<T, Z>, Error> {
         let layout = Self::LAYOUT;
-        let (z_nom, h) = self.measure(x_nom, pending);
+        let Measured { z: z_nom, h, noise } = self.measure(x_nom, pending);
         let delta = layout.difference(&self.x, x_nom);
         let mut nu = z - z_nom - h * delta;
         if layout.gimbal_obs {
@@ -592,25 +619,53 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 *v = wrap_angle(*v);
             }
         }
-        let ph = self.p * h.transpose();
-        let mut s = h * ph + r;
+        let gain = self.gain(&h, &nu, r, &noise, &SMatrix::zeros())?;
+        let x_new = x_nom + delta + gain.k * nu;
+        self.commit(x_new, &gain, &h, nu)
+    }
+
+    /// Gain with measurement noise `R + D Dᵀ + extra` correlated with the
+    /// process noise by `C = G Dᵀ`: `S = H P Hᵀ + H C + Cᵀ Hᵀ + R_eff`,
+    /// `K = (P Hᵀ + C) S⁻¹`.
+    fn gain(
+        &self,
+        h: &SMatrix<T, Z, N>,
+        nu: &SVector<T, Z>,
+        r: &SMatrix<T, Z, Z>,
+        noise: &Noise<T, N, Z>,
+        extra: &SMatrix<T, Z, Z>,
+    ) -> Result<Gain<T, N, Z>, Error> {
+        let c = noise.g * noise.d.transpose();
+        let r_eff = r + noise.d * noise.d.transpose() + extra;
+        let ph = self.p * h.transpose() + c;
+        let mut s = h * ph + h * c + r_eff;
         s = (s + s.transpose()) * nalgebra::convert::<f64, T>(0.5);
         let chol = s.cholesky().ok_or(Error::InnovationNotPositiveDefinite)?;
         let k = chol.solve(&ph.transpose()).transpose();
-        let nis = nu.dot(&chol.solve(&nu));
-        let x_new = x_nom + delta + k * nu;
-        self.commit(x_new, &k, &h, r, Innovation { nu, s, nis })
+        let nis = nu.dot(&chol.solve(nu));
+        Ok(Gain {
+            k,
+            s,
+            r_eff,
+            c,
+            nis,
+        })
     }
 
     /// Gate, Joseph-form covariance update, and state commit.
     fn commit(
         &mut self,
         x_new: SVector<T, N>,
-        k: &SMatrix<T, N, Z>,
+        gain: &Gain<T, N, Z>,
         h: &SMatrix<T, Z, N>,
-        r: &SMatrix<T, Z, Z>,
-        innovation: Innovation<T, Z>,
+        nu: SVector<T, Z>,
     ) -> Result<Innovation<T, Z>, Error> {
+        let innovation = Innovation {
+            nu,
+            s: gain.s,
+            nis: gain.nis,
+        };
+        let (k, r, c) = (&gain.k, &gain.r_eff, &gain.c);
         let layout = Self::LAYOUT;
         if !all_finite(x_new.iter().copied()) || !innovation.nis.is_finite() {
             return Err(Error::NonFiniteState);
@@ -620,9 +675,11 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             self.pending = None;
             return Err(Error::Gated);
         }
-        // Joseph form: P = (I − K H) P (I − K H)ᵀ + K R Kᵀ.
+        // Joseph form with correlated noise:
+        // P = (I − K H) P (I − K H)ᵀ + K R Kᵀ − (I − K H) C Kᵀ − K Cᵀ (I − K H)ᵀ.
         let ikh = SMatrix::<T, N, N>::identity() - k * h;
-        let mut p = ikh * self.p * ikh.transpose() + k * r * k.transpose();
+        let ick = ikh * c * k.transpose();
+        let mut p = ikh * self.p * ikh.transpose() + k * r * k.transpose() - ick - ick.transpose();
         p = (p + p.transpose()) * nalgebra::convert::<f64, T>(0.5);
         if p.diagonal().iter().any(|v| *v <= T::zero()) || !all_finite(p.iter().copied()) {
             return Err(Error::CovarianceNotPositiveDefinite);
@@ -670,6 +727,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     ) -> Result<(SVector<T, Z>, SMatrix<T, Z, N>), Error> {
         let pending = self.pending.ok_or(Error::NoPrediction)?;
         let lin = self.retrace(x, &pending)?;
-        Ok(self.measure(x, &lin))
+        let m = self.measure(x, &lin);
+        Ok((m.z, m.h))
     }
 }

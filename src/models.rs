@@ -673,22 +673,27 @@ impl Layout {
     }
 
     /// The mean accelerometer output over the period (g) by Simpson's rule
-    /// over the three nodes (error ≈ T⁴|h⁽⁴⁾|/2880 < 1e-15 g at 0.1°/s), and
+    /// over the three nodes (error ≈ T⁴|h⁽⁴⁾|/2880 < 1e-15 g at 0.1°/s);
     /// its Jacobian with respect to the state at the END of the period,
-    /// `∂h̄/∂x_{k+1} = Σ_j w_j H(t_j) Φ(t_j ← t_{k+1})`.
+    /// `∂h̄/∂x_{k+1} = Σ_j w_j H(t_j) Φ(t_j ← t_{k+1})`; and its sensitivity
+    /// `D` (g per rad/s) to a platform-rate noise `w` held over the period
+    /// *given* `x_{k+1}`: the noise moved the attitude by `B w (t − t_k)`
+    /// while the model traces back from an end state that holds all of
+    /// `B w T`, so `D = Σ_j w_j H_att(t_j) (t_j − t_{k+1}) B`.
     pub fn mean_accel<T: RealField + Copy, const N: usize>(
         &self,
         env: &Environment<T>,
         m: &InstallationMatrices<T>,
         prop: &PeriodPropagation<T, N>,
         period: &Period<T>,
-    ) -> (Vector3<T>, SMatrix<T, 3, N>) {
+    ) -> (Vector3<T>, SMatrix<T, 3, N>, Matrix3<T>) {
         let six: T = nalgebra::convert(6.0);
         let four: T = nalgebra::convert(4.0);
         let half: T = nalgebra::convert(0.5);
         let weights = [T::one() / six, four / six, T::one() / six];
         let mut z = Vector3::zeros();
         let mut h = SMatrix::<T, 3, N>::zeros();
+        let mut d = Matrix3::zeros();
         let back = [-period.dt, -period.dt * half, T::zero()];
         // F over [t_j, t_{k+1}]: the midpoint F for the whole period, the mean
         // of the midpoint and end F (centred at 3T/4) for its second half.
@@ -704,8 +709,9 @@ impl Layout {
             z += self.accel_output(env, m, att, c_cn) * w;
             let hj: SMatrix<T, 3, N> = self.accel_jacobian(env, m, att, c_cn);
             h += apply_transition(&hj, &transition_rows(f, tau)) * w;
+            d += hj.fixed_columns::<3>(ATT) * prop.noise_map * (w * tau);
         }
-        (z, h)
+        (z, h, d)
     }
 }
 

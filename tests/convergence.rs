@@ -193,3 +193,30 @@ fn other_scenarios_converge_too() {
         }
     }
 }
+
+#[test]
+fn filter_sigma_is_at_the_cramer_rao_bound() {
+    let scenario = Scenario::paper();
+    for id in [ConfigId::M1Pa, ConfigId::M2Ps] {
+        let sim = simulate(
+            &scenario,
+            SimOptions {
+                seed: 5,
+                noise: true,
+                earth_rate: true,
+            },
+        );
+        let r = run_filter(id, &scenario, &sim, true, Estimator::default(), None, false).unwrap();
+        let crlb = host_sim::runner::crlb_sigma(id, &scenario, &sim, true).unwrap();
+        for (s, c) in r.states.iter().zip(&crlb) {
+            if expected_observable(id, s.name, group(s.group)) {
+                let ratio = s.sigma_rad / c;
+                assert!(
+                    (0.9..=1.1).contains(&ratio),
+                    "{id}: σ/σ_CRLB of {} is {ratio:.3}",
+                    s.name
+                );
+            }
+        }
+    }
+}

@@ -210,7 +210,9 @@ fn cmd_run(args: &RunArgs) -> Result<(), String> {
         args.csv.is_some(),
     )
     .map_err(|e| format!("cannot start the filter: {e}"))?;
-    print_table(&r);
+    let crlb = host_sim::runner::crlb_sigma(args.config, &scenario, &sim, earth_rate)
+        .map_err(|e| format!("Cramér–Rao bound: {e}"))?;
+    print_table(&r, &crlb);
     eprintln!("done in {:.2} s", t0.elapsed().as_secs_f64());
     if let Some(path) = &args.json {
         let json = serde_json::json!({
@@ -250,23 +252,24 @@ fn write_csv(path: &Path, r: &RunResult) -> std::io::Result<()> {
     w.flush()
 }
 
-fn print_table(r: &RunResult) {
-    let _ = ARCSEC;
+fn print_table(r: &RunResult, crlb: &[f64]) {
     println!(
-        "{:<11} {:>12} {:>12} {:>10} {:>10} {:>8}  verdict",
-        "state", "truth ″", "estimate ″", "error ″", "σ ″", "|err|/σ"
+        "{:<11} {:>12} {:>12} {:>10} {:>10} {:>8} {:>10} {:>8}  verdict",
+        "state", "truth ″", "estimate ″", "error ″", "σ ″", "|err|/σ", "σ_CRLB ″", "σ/σ_CRLB"
     );
-    for s in &r.states {
+    for (s, c) in r.states.iter().zip(crlb) {
         let group = group_of(s.group);
         let verdict = host_sim::runner::verdict(r.config, s, group, r.prior_sigma_rad).as_str();
         println!(
-            "{:<11} {:>12.3} {:>12.3} {:>10.4} {:>10.4} {:>8.2}  {}",
+            "{:<11} {:>12.3} {:>12.3} {:>10.4} {:>10.4} {:>8.2} {:>10.4} {:>8.3}  {}",
             s.name,
             s.truth_rad / ARCSEC,
             s.estimate_rad / ARCSEC,
             s.error() / ARCSEC,
             s.sigma_rad / ARCSEC,
             s.ratio(),
+            c / ARCSEC,
+            s.sigma_rad / c,
             verdict
         );
     }

@@ -251,6 +251,26 @@ pub fn run_filter(
     })
 }
 
+/// Posterior Cramér–Rao bound σ (rad) of every state at the end of `sim`:
+/// the covariance of the filter linearised along the true trajectory (its
+/// nominal starts at the true initial state), with the same prior and
+/// process noise (SPEC §5.3).
+pub fn crlb_sigma(
+    id: ConfigId,
+    scenario: &Scenario,
+    sim: &Simulation,
+    earth_rate: bool,
+) -> Result<Vec<f64>, ekf::Error> {
+    let cfg = filter_config(scenario, earth_rate, Options::plain());
+    let truth0 = truth_state(id, &sim.params, &sim.initial);
+    let mut f = new_filter(id, cfg, &truth0, scenario.prior.sigma_deg * DEG)?;
+    f.set_nominal(&truth0);
+    for s in &sim.samples {
+        f.step(s)?;
+    }
+    Ok(f.sigma())
+}
+
 /// What the run says of one state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Verdict {
