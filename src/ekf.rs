@@ -18,6 +18,22 @@
 //! (the Gaussian second-order filter): while `P` is large the update is
 //! weighted down by the linearisation error it would commit, and the term
 //! vanishes on its own (as `P²`) once the filter has converged.
+//!
+//! That first pass never diverges, but weakly observable directions (λy in
+//! M2-ps, seen only through the Earth rate) keep moving the linearisation
+//! point of the well-determined ones, and the filter can end a few σ off.
+//! The estimator of record therefore runs a second pass over the same data:
+//! [`Filter::set_nominal`] turns the filter into a Kalman filter linearised
+//! about a nominal trajectory (the first pass's final estimate integrated
+//! back to the start), whose covariance is then the posterior Cramér–Rao
+//! bound. The same mode with the true initial state as nominal computes that
+//! bound. Measurements of every remedy: README, "The estimator, and the cold
+//! start" (`host-sim remedies`).
+//!
+//! **Correlated noise.** The gyro noise of a period moves the attitude
+//! during the same period whose mean the accelerometers report, so it is
+//! both process and measurement noise; the gain and the Joseph form carry
+//! their cross-covariance.
 
 use core::marker::PhantomData;
 
