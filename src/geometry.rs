@@ -236,7 +236,7 @@ pub fn euler_angles<T: RealField + Copy>(c: &Matrix3<T>) -> Vector3<T> {
 pub fn wrap_angle<T: RealField + Copy>(a: T) -> T {
     let pi = T::pi();
     let two_pi = T::two_pi();
-    if a > -pi && a <= pi {
+    if (a > -pi && a <= pi) || !a.is_finite() {
         return a;
     }
     let mut w = a - two_pi * ((a + pi) / two_pi).floor();
@@ -281,5 +281,6 @@ mod tests {
         assert!((wrap_angle(2.5 * pi) - 0.5 * pi).abs() < 1e-12);
         assert!((wrap_angle(-2.5 * pi) + 0.5 * pi).abs() < 1e-12);
         assert!(wrap_angle(f64::NAN).is_nan());
+        assert_eq!(wrap_angle(f64::INFINITY), f64::INFINITY);
     }
 }
