@@ -238,6 +238,20 @@ impl Group {
         }
     }
 
+    /// The group of a stable name (the inverse of [`Group::as_str`]).
+    pub fn from_name(name: &str) -> Option<Self> {
+        [
+            Group::Attitude,
+            Group::ThetaGC,
+            Group::ThetaGT,
+            Group::ThetaAC,
+            Group::ThetaAT,
+            Group::Lambda,
+        ]
+        .into_iter()
+        .find(|g| g.as_str() == name)
+    }
+
     /// Whether the group is an installation-error parameter (constant).
     pub const fn is_installation(self) -> bool {
         !matches!(self, Group::Attitude | Group::Lambda)

@@ -28,14 +28,7 @@ fn run(id: ConfigId, scenario: &Scenario, seed: u64) -> RunResult {
 }
 
 fn group(name: &str) -> Group {
-    match name {
-        "thgC" => Group::ThetaGC,
-        "thgT" => Group::ThetaGT,
-        "thaC" => Group::ThetaAC,
-        "thaT" => Group::ThetaAT,
-        "lam" => Group::Lambda,
-        _ => Group::Attitude,
-    }
+    Group::from_name(name).unwrap_or(Group::Attitude)
 }
 
 /// The σ bound (″) of issue 2 for a claimed state.

@@ -129,6 +129,15 @@ impl Remedy {
     }
 }
 
+impl CommonArgs {
+    fn estimator(&self) -> host_sim::runner::Estimator {
+        host_sim::runner::Estimator {
+            options: self.remedy.options(),
+            passes: self.passes,
+        }
+    }
+}
+
 fn parse_config(s: &str) -> Result<ConfigId, String> {
     ConfigId::parse(s).ok_or_else(|| {
         let ids: Vec<&str> = ConfigId::ALL.iter().map(|c| c.as_str()).collect();
@@ -202,10 +211,7 @@ fn cmd_run(args: &RunArgs) -> Result<(), String> {
         &scenario,
         &sim,
         earth_rate,
-        host_sim::runner::Estimator {
-            options: c.remedy.options(),
-            passes: c.passes,
-        },
+        c.estimator(),
         None,
         args.csv.is_some(),
     )
@@ -290,14 +296,7 @@ fn print_table(r: &RunResult, crlb: &[f64]) {
 }
 
 fn group_of(name: &str) -> Group {
-    match name {
-        "thgC" => Group::ThetaGC,
-        "thgT" => Group::ThetaGT,
-        "thaC" => Group::ThetaAC,
-        "thaT" => Group::ThetaAT,
-        "lam" => Group::Lambda,
-        _ => Group::Attitude,
-    }
+    Group::from_name(name).unwrap_or(Group::Attitude)
 }
 
 fn cmd_summary(c: &CommonArgs) -> Result<(), String> {
@@ -326,19 +325,8 @@ fn cmd_summary(c: &CommonArgs) -> Result<(), String> {
     );
     for id in ConfigId::ALL {
         let t0 = Instant::now();
-        let r = run_filter(
-            id,
-            &scenario,
-            &sim,
-            earth_rate,
-            host_sim::runner::Estimator {
-                options: c.remedy.options(),
-                passes: c.passes,
-            },
-            None,
-            false,
-        )
-        .map_err(|e| format!("{id}: {e}"))?;
+        let r = run_filter(id, &scenario, &sim, earth_rate, c.estimator(), None, false)
+            .map_err(|e| format!("{id}: {e}"))?;
         let within = r.states.iter().filter(|s| s.ratio() <= 3.0).count();
         let obs: Vec<_> = r
             .states
