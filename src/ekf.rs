@@ -21,12 +21,12 @@
 //!
 //! That first pass never diverges, but weakly observable directions (λy in
 //! M2-ps, seen only through the Earth rate) keep moving the linearisation
-//! point of the well-determined ones, and the filter can end a few σ off.
-//! The estimator of record therefore runs a second pass over the same data:
+//! point of the well-determined ones, and the filter can end many σ off.
+//! The estimator of record therefore runs further passes over the same data:
 //! [`Filter::set_nominal`] turns the filter into a Kalman filter linearised
-//! about a nominal trajectory (the first pass's final estimate integrated
-//! back to the start), whose covariance is then the posterior Cramér–Rao
-//! bound. The same mode with the true initial state as nominal computes that
+//! about a nominal trajectory (the previous pass's final estimate integrated
+//! back to the start; repeated until the estimate stops moving), whose
+//! covariance is then the posterior Cramér–Rao bound. The same mode with the true initial state as nominal computes that
 //! bound. Measurements of every remedy: README, "The estimator, and the cold
 //! start" (`host-sim remedies`).
 //!
@@ -335,8 +335,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// the model's own dynamics; `None` returns to the extended filter.
     ///
     /// Jacobians are then evaluated on the nominal trajectory and the
-    /// innovation is `z − h(x_nom) − H (x̂ ⊟ x_nom)`. This is the second pass
-    /// of the two-pass estimator (the nominal is the first pass's estimate
+    /// innovation is `z − h(x_nom) − H (x̂ − x_nom)`. This is each later pass
+    /// of the multi-pass estimator (the nominal is the previous pass's estimate
     /// propagated back to the start), and, with the true initial state as
     /// nominal, the Riccati recursion of the posterior Cramér–Rao bound.
     pub fn set_nominal(&mut self, x_nominal: Option<SVector<T, N>>) {

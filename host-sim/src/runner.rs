@@ -161,6 +161,8 @@ pub struct RunResult {
     pub nis: Vec<f64>,
     /// Prior σ of every state (rad).
     pub prior_sigma_rad: f64,
+    /// Passes over the data that were run.
+    pub passes: u8,
     /// Updates that failed, with their period index and error.
     pub failures: Vec<(u32, ekf::Error)>,
 }
@@ -170,16 +172,22 @@ pub struct RunResult {
 pub struct Estimator {
     /// Filter options (cold-start remedy of the first pass).
     pub options: Options,
-    /// 1: the extended filter alone; 2: a second, linearised pass about the
-    /// first pass's estimate propagated back to the start.
+    /// At most this many passes over the data. 1: the extended filter alone.
+    /// Each further pass is a filter linearised about the previous pass's
+    /// final estimate propagated back to the start (a Gauss–Newton step on
+    /// the whole run); the passes stop once the final estimate moves by less
+    /// than [`PASS_TOLERANCE`] of its σ.
     pub passes: u8,
 }
+
+/// Passes stop when no final state moves by more than this fraction of its σ.
+pub const PASS_TOLERANCE: f64 = 0.1;
 
 impl Default for Estimator {
     fn default() -> Self {
         Self {
             options: Options::default(),
-            passes: 2,
+            passes: 4,
         }
     }
 }
@@ -200,12 +208,14 @@ pub fn run_filter(
     let sigma0 = scenario.prior.sigma_deg * DEG;
     let mut nominal: Option<Vec<f64>> = None;
     let mut out = None;
+    let mut passes_run = 0;
+    let mut previous: Option<Vec<f64>> = None;
     for pass in 1..=estimator.passes.max(1) {
         let mut f = new_filter(id, cfg, x0, sigma0)?;
         if let Some(xn) = &nominal {
             f.set_nominal(xn);
         }
-        let keep = keep_history && pass == estimator.passes.max(1);
+        let keep = keep_history;
         let mut history = Vec::new();
         let mut nis = Vec::with_capacity(sim.samples.len());
         let mut failures = Vec::new();
@@ -222,7 +232,19 @@ pub fn run_filter(
         if nominal.is_none() {
             return Err(ekf::Error::GimbalLock);
         }
+        passes_run = pass;
+        let (x, sig) = (f.state(), f.sigma());
+        let converged = previous.as_ref().is_some_and(|prev| {
+            x.iter()
+                .zip(prev)
+                .zip(&sig)
+                .all(|((a, b), s)| wrap_angle(a - b).abs() < PASS_TOLERANCE * s)
+        });
+        previous = Some(x);
         out = Some((f, history, nis, failures));
+        if converged {
+            break;
+        }
     }
     let (f, history, nis, failures) = out.ok_or(ekf::Error::NoPrediction)?;
     let last = sim.samples.last().map_or(sim.initial, |s| s.truth);
@@ -247,6 +269,7 @@ pub fn run_filter(
         history,
         nis,
         prior_sigma_rad: sigma0,
+        passes: passes_run,
         failures,
     })
 }
