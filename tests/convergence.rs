@@ -79,7 +79,9 @@ fn check_converged(r: &RunResult, seed: u64, bounds: bool) -> f64 {
 fn firmware_configurations_converge_from_zero_on_the_paper_scenario() {
     let scenario = Scenario::paper();
     for id in [ConfigId::M1Pa, ConfigId::M4Pa, ConfigId::M2Ps] {
-        for seed in 1..=4 {
+        // Seed 6: pass 1 ends 169″ off in M1-pa and one linearised pass is
+        // not enough (it was 24σ off in θaT_3 before the passes iterated).
+        for seed in [1, 2, 3, 4, 6] {
             let r = run(id, &scenario, seed);
             let worst = check_converged(&r, seed, true);
             eprintln!("{id} seed {seed}: worst |error|/σ {worst:.2}");
