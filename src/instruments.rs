@@ -38,9 +38,3 @@ pub fn theta_g_c_pa<T: RealField + Copy>(
 ) -> Vector3<T> {
     rotation_vector(&(dcm(&(-theta_a_c)) * dcm(theta_g_c)))
 }
-
-/// The DCM `C^pa_ps = R(−θaC)` from the cube-defined platform frame ps to the
-/// accelerometer-defined platform frame pa.
-pub fn c_pa_ps<T: RealField + Copy>(theta_a_c: &Vector3<T>) -> Matrix3<T> {
-    dcm(&(-theta_a_c))
-}

@@ -251,11 +251,6 @@ impl Group {
         .into_iter()
         .find(|g| g.as_str() == name)
     }
-
-    /// Whether the group is an installation-error parameter (constant).
-    pub const fn is_installation(self) -> bool {
-        !matches!(self, Group::Attitude | Group::Lambda)
-    }
 }
 
 /// Name, unit and group of one state.

@@ -80,8 +80,8 @@ pub fn filter_config(s: &Scenario, earth_rate: bool, options: Options) -> Filter
     let lat = s.site.latitude_deg * DEG;
     FilterConfig {
         env: Environment {
-            earth_rate_n: Vector3::new(omega * lat.cos(), omega * lat.sin(), 0.0),
-            gravity_n: Vector3::new(0.0, 1.0, 0.0),
+            earth_rate_n: rollcal::geometry::earth_rate_n(omega, lat),
+            gravity_n: rollcal::geometry::gravity_n(),
         },
         sigma_accel: s.noise.accel_g,
         sigma_gyro: s.noise.gyro_deg_h * DEG / 3600.0,

@@ -1,0 +1,117 @@
+//! Bad input to the filter is an error, never a panic, and leaves the filter
+//! as it was; the NIS gate rejects an update.
+
+use host_sim::runner::filter_config;
+use host_sim::scenario::{Scenario, DEG};
+use host_sim::truth::{simulate, SimOptions};
+use nalgebra::{SVector, Vector3};
+use rollcal::ekf::{M2PsFilter, Observation, Options};
+use rollcal::Error;
+
+fn filter(options: Options) -> M2PsFilter<f64> {
+    let cfg = filter_config(&Scenario::paper(), true, options);
+    M2PsFilter::new(cfg, SVector::zeros(), SVector::repeat(DEG)).unwrap()
+}
+
+#[test]
+fn bad_input_is_rejected_and_leaves_the_filter_untouched() {
+    let sim = simulate(
+        &Scenario::paper(),
+        SimOptions {
+            seed: 2,
+            noise: true,
+            earth_rate: true,
+        },
+    );
+    let mut f = filter(Options::default());
+    for s in sim.samples.iter().take(20) {
+        f.step(
+            &s.dtheta_cmd,
+            s.dt,
+            &Observation {
+                accel_mean: s.accel_mean,
+                gimbal: Some(s.gimbal),
+            },
+        )
+        .unwrap();
+    }
+    let before = f.clone();
+    let s = &sim.samples[20];
+    let good = Observation {
+        accel_mean: s.accel_mean,
+        gimbal: Some(s.gimbal),
+    };
+    let nan = Vector3::new(f64::NAN, 0.0, 0.0);
+    let inf = Vector3::new(0.0, f64::INFINITY, 0.0);
+    let cases: [(Vector3<f64>, f64, Observation<f64>, Error); 6] = [
+        (nan, s.dt, good, Error::NonFiniteInput),
+        (s.dtheta_cmd, f64::NAN, good, Error::NonFiniteInput),
+        (s.dtheta_cmd, 0.0, good, Error::InvalidPeriod),
+        (s.dtheta_cmd, -1.0, good, Error::InvalidPeriod),
+        (
+            s.dtheta_cmd,
+            s.dt,
+            Observation {
+                accel_mean: inf,
+                gimbal: Some(s.gimbal),
+            },
+            Error::NonFiniteInput,
+        ),
+        (
+            s.dtheta_cmd,
+            s.dt,
+            Observation {
+                accel_mean: s.accel_mean,
+                gimbal: None,
+            },
+            Error::MissingGimbal,
+        ),
+    ];
+    for (d, dt, obs, expected) in cases {
+        assert_eq!(f.step(&d, dt, &obs).unwrap_err(), expected);
+        assert_eq!(f, before, "a rejected step changed the filter ({expected})");
+    }
+    assert!(f.update(&good).is_err(), "update without predict");
+    f.step(&s.dtheta_cmd, s.dt, &good).unwrap();
+    assert_eq!(f.updates(), before.updates() + 1);
+}
+
+#[test]
+fn nis_gate_rejects_an_outlier() {
+    let sim = simulate(
+        &Scenario::paper(),
+        SimOptions {
+            seed: 2,
+            noise: true,
+            earth_rate: true,
+        },
+    );
+    let mut f = filter(Options {
+        nis_gate: 100.0,
+        ..Options::default()
+    });
+    for s in sim.samples.iter().take(200) {
+        f.step(
+            &s.dtheta_cmd,
+            s.dt,
+            &Observation {
+                accel_mean: s.accel_mean,
+                gimbal: Some(s.gimbal),
+            },
+        )
+        .unwrap();
+    }
+    let s = &sim.samples[200];
+    let outlier = Observation {
+        accel_mean: s.accel_mean + Vector3::new(1e-3, 0.0, 0.0),
+        gimbal: Some(s.gimbal),
+    };
+    let p_before = *f.covariance();
+    assert_eq!(
+        f.step(&s.dtheta_cmd, s.dt, &outlier).unwrap_err(),
+        Error::Gated
+    );
+    assert_eq!(f.updates(), 200, "a gated update is not counted");
+    // The prediction stands (time moved on); the measurement did not enter.
+    assert!(f.covariance()[(0, 0)] >= p_before[(0, 0)]);
+}
