@@ -1,6 +1,6 @@
 //! Runs a configuration's estimator over a simulated (or replayed) run.
 
-use nalgebra::{SVector, Vector3};
+use nalgebra::SVector;
 use rollcal::command::CommandFrame;
 use rollcal::ekf::{self, Filter, FilterConfig, Observation, Options};
 use rollcal::geometry::{wrap_angle, EARTH_RATE};
