@@ -3,8 +3,10 @@
 //! - [`scenario`]: scenario files (TOML), the paper's scenario built in;
 //! - [`truth`]: the truth simulator (physical platform, independent of the
 //!   estimator's models);
-//! - [`runner`]: runs any configuration's estimator over a simulated run.
+//! - [`runner`]: runs any configuration's estimator over a simulated run;
+//! - [`report`]: tables, JSON and CSV of runs.
 
+pub mod report;
 pub mod runner;
 pub mod scenario;
 pub mod truth;

@@ -5,11 +5,12 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::{Parser, Subcommand, ValueEnum};
-use host_sim::runner::{expected_observable, run_filter, RunResult};
-use host_sim::scenario::{Scenario, ARCSEC};
+use host_sim::report::{group_of, print_table, run_json, write_csv, write_json};
+use host_sim::runner::{expected_observable, run_filter};
+use host_sim::scenario::Scenario;
 use host_sim::truth::{simulate, SimOptions};
 use rollcal::ekf::Options;
-use rollcal::models::{ConfigId, Group};
+use rollcal::models::ConfigId;
 
 #[derive(Parser)]
 #[command(
@@ -222,83 +223,13 @@ fn cmd_run(args: &RunArgs) -> Result<(), String> {
     print_table(&r, &crlb);
     eprintln!("done in {:.2} s", t0.elapsed().as_secs_f64());
     if let Some(path) = &args.json {
-        let json = serde_json::json!({
-            "config": r.config.as_str(),
-            "seed": c.seed,
-            "earth_rate": earth_rate,
-            "duration_s": scenario.timing.duration_s,
-            "states": r.states,
-        });
-        let text = serde_json::to_string_pretty(&json).map_err(|e| e.to_string())?;
-        std::fs::write(path, text + "\n")
-            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        let json = run_json(&r, c.seed, earth_rate, scenario.timing.duration_s);
+        write_json(path, &json)?;
     }
     if let Some(path) = &args.csv {
         write_csv(path, &r).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
     }
     Ok(())
-}
-
-fn write_csv(path: &Path, r: &RunResult) -> std::io::Result<()> {
-    use std::io::Write;
-    let mut w = std::io::BufWriter::new(std::fs::File::create(path)?);
-    let mut header = vec!["t_s".to_string()];
-    for s in &r.states {
-        header.push(format!("{}_rad", s.name));
-        header.push(format!("{}_sigma_rad", s.name));
-    }
-    writeln!(w, "{}", header.join(","))?;
-    for (t, x, sig) in &r.history {
-        let mut row = vec![format!("{t}")];
-        for (a, b) in x.iter().zip(sig) {
-            row.push(format!("{a:e}"));
-            row.push(format!("{b:e}"));
-        }
-        writeln!(w, "{}", row.join(","))?;
-    }
-    w.flush()
-}
-
-fn print_table(r: &RunResult, crlb: &[f64]) {
-    println!(
-        "{:<11} {:>12} {:>12} {:>10} {:>10} {:>8} {:>10} {:>8}  verdict",
-        "state", "truth ″", "estimate ″", "error ″", "σ ″", "|err|/σ", "σ_CRLB ″", "σ/σ_CRLB"
-    );
-    for (s, c) in r.states.iter().zip(crlb) {
-        let group = group_of(s.group);
-        let verdict = host_sim::runner::verdict(r.config, s, group, r.prior_sigma_rad).as_str();
-        println!(
-            "{:<11} {:>12.3} {:>12.3} {:>10.4} {:>10.4} {:>8.2} {:>10.4} {:>8.3}  {}",
-            s.name,
-            s.truth_rad / ARCSEC,
-            s.estimate_rad / ARCSEC,
-            s.error() / ARCSEC,
-            s.sigma_rad / ARCSEC,
-            s.ratio(),
-            c / ARCSEC,
-            s.sigma_rad / c,
-            verdict
-        );
-    }
-    if !r.failures.is_empty() {
-        println!(
-            "{} updates failed; first: period {} ({})",
-            r.failures.len(),
-            r.failures[0].0,
-            r.failures[0].1
-        );
-    }
-    let n = r.nis.len().max(1) as f64;
-    println!(
-        "mean NIS {:.3} over {} updates of the last of {} pass(es)",
-        r.nis.iter().sum::<f64>() / n,
-        r.nis.len(),
-        r.passes
-    );
-}
-
-fn group_of(name: &str) -> Group {
-    Group::from_name(name).unwrap_or(Group::Attitude)
 }
 
 fn cmd_summary(c: &CommonArgs) -> Result<(), String> {

@@ -1,0 +1,92 @@
+//! Tables, JSON and CSV of estimator runs (shared by `run`, `calibrate`,
+//! `paper`).
+
+use std::path::Path;
+
+use rollcal::models::Group;
+
+use crate::runner::RunResult;
+use crate::scenario::ARCSEC;
+
+/// The `run` JSON document: configuration, seed, Earth rate, duration and
+/// the final states (names and units are an interface: `*_rad`).
+pub fn run_json(r: &RunResult, seed: u64, earth_rate: bool, duration_s: f64) -> serde_json::Value {
+    serde_json::json!({
+        "config": r.config.as_str(),
+        "seed": seed,
+        "earth_rate": earth_rate,
+        "duration_s": duration_s,
+        "states": r.states,
+    })
+}
+
+/// Writes `value` pretty-printed to `path`, with a message naming the path on failure.
+pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<(), String> {
+    let text = serde_json::to_string_pretty(value).map_err(|e| e.to_string())?;
+    std::fs::write(path, text + "\n").map_err(|e| format!("cannot write {}: {e}", path.display()))
+}
+
+/// Writes the time history (t, then estimate and σ of every state) as CSV.
+pub fn write_csv(path: &Path, r: &RunResult) -> std::io::Result<()> {
+    use std::io::Write;
+    let mut w = std::io::BufWriter::new(std::fs::File::create(path)?);
+    let mut header = vec!["t_s".to_string()];
+    for s in &r.states {
+        header.push(format!("{}_rad", s.name));
+        header.push(format!("{}_sigma_rad", s.name));
+    }
+    writeln!(w, "{}", header.join(","))?;
+    for (t, x, sig) in &r.history {
+        let mut row = vec![format!("{t}")];
+        for (a, b) in x.iter().zip(sig) {
+            row.push(format!("{a:e}"));
+            row.push(format!("{b:e}"));
+        }
+        writeln!(w, "{}", row.join(","))?;
+    }
+    w.flush()
+}
+
+/// Prints the final table of a run with the Cramér–Rao σ of every state.
+pub fn print_table(r: &RunResult, crlb: &[f64]) {
+    println!(
+        "{:<11} {:>12} {:>12} {:>10} {:>10} {:>8} {:>10} {:>8}  verdict",
+        "state", "truth ″", "estimate ″", "error ″", "σ ″", "|err|/σ", "σ_CRLB ″", "σ/σ_CRLB"
+    );
+    for (s, c) in r.states.iter().zip(crlb) {
+        let group = group_of(s.group);
+        let verdict = crate::runner::verdict(r.config, s, group, r.prior_sigma_rad).as_str();
+        println!(
+            "{:<11} {:>12.3} {:>12.3} {:>10.4} {:>10.4} {:>8.2} {:>10.4} {:>8.3}  {}",
+            s.name,
+            s.truth_rad / ARCSEC,
+            s.estimate_rad / ARCSEC,
+            s.error() / ARCSEC,
+            s.sigma_rad / ARCSEC,
+            s.ratio(),
+            c / ARCSEC,
+            s.sigma_rad / c,
+            verdict
+        );
+    }
+    if !r.failures.is_empty() {
+        println!(
+            "{} updates failed; first: period {} ({})",
+            r.failures.len(),
+            r.failures[0].0,
+            r.failures[0].1
+        );
+    }
+    let n = r.nis.len().max(1) as f64;
+    println!(
+        "mean NIS {:.3} over {} updates of the last of {} pass(es)",
+        r.nis.iter().sum::<f64>() / n,
+        r.nis.len(),
+        r.passes
+    );
+}
+
+/// The group of a state from its group name (attitude when unknown).
+pub fn group_of(name: &str) -> Group {
+    Group::from_name(name).unwrap_or(Group::Attitude)
+}
