@@ -4,8 +4,10 @@
 //! - [`truth`]: the truth simulator (physical platform, independent of the
 //!   estimator's models);
 //! - [`runner`]: runs any configuration's estimator over a simulated run;
-//! - [`report`]: tables, JSON and CSV of runs.
+//! - [`report`]: tables, JSON and CSV of runs;
+//! - [`plots`]: PNG figures (error, ±3σ band, σ_CRLB against time).
 
+pub mod plots;
 pub mod report;
 pub mod runner;
 pub mod scenario;
