@@ -8,7 +8,8 @@
 //!   converged level, and how σ compares to σ_CRLB);
 //! - right, **linear zoom** on the converged part: the signed error, the
 //!   shaded ±3σ band and the ±3σ_CRLB lines. The y-range is
-//!   ±1.5 × max(|error|, 3σ, 3σ_CRLB) over the last 80 % of the run; the
+//!   ±1.5 × max(|error|, 3σ, 3σ_CRLB) over the converged part: after 20 % of
+//!   the run and after 3σ has settled within twice its final value; the
 //!   early transient is clipped at the frame (it is visible on the left).
 //!
 //! Text is rendered with the DejaVu Sans font embedded in the binary
@@ -201,7 +202,7 @@ fn draw_header<'a>(area: &Area<'a>, title: &str) -> DrawResult<'a> {
         ("±3σ filter", 1),
         ("±3σ_CRLB", 2),
         (
-            "left: log scale, whole run — right: linear zoom, last 80 %",
+            "left: log scale, whole run — right: linear zoom on the converged part",
             3,
         ),
     ];
@@ -325,6 +326,7 @@ fn draw_log_panel<'a>(
         .configure_mesh()
         .bold_line_style(GRID_BOLD)
         .light_line_style(GRID_LIGHT)
+        .x_max_light_lines(2)
         .x_labels(7)
         .y_labels(12)
         .x_label_formatter(&|v| fmt_tick(*v))
@@ -365,7 +367,7 @@ fn draw_log_panel<'a>(
 }
 
 /// Right panel: signed error in the ±3σ band and between the ±3σ_CRLB
-/// lines, linear axis zoomed on the last 80 % of the run.
+/// lines, linear axis zoomed on the converged part ([`zoom_half_range`]).
 fn draw_zoom_panel<'a>(
     area: &Area<'a>,
     t_s: &[f64],
@@ -382,11 +384,13 @@ fn draw_zoom_panel<'a>(
         .x_label_area_size(34)
         .y_label_area_size(62)
         .build_cartesian_2d(t.clone(), lo..hi)?;
-    let step = r / 3.0;
+    // Approximate tick step of the 7 labels over 2r (sets the decimals).
+    let step = 2.0 * r / 7.0;
     chart
         .configure_mesh()
         .bold_line_style(GRID_BOLD)
         .light_line_style(GRID_LIGHT)
+        .max_light_lines(2)
         .x_labels(7)
         .y_labels(7)
         .x_label_formatter(&|v| fmt_tick(*v))
@@ -427,15 +431,32 @@ fn draw_zoom_panel<'a>(
     Ok(())
 }
 
-/// Start of the "converged part": the last 80 % of the run.
-fn converged_from(t: &Range<f64>) -> f64 {
-    t.start + 0.2 * (t.end - t.start)
+/// Start of the "converged part" of a curve: the later of 20 % into the run
+/// and the time after which 3σ stays within twice its final value (so a
+/// state that converges late is still zoomed on its converged level).
+fn converged_from(t_s: &[f64], t: &Range<f64>, sigma: &[f64]) -> f64 {
+    let fifth = t.start + 0.2 * (t.end - t.start);
+    let finite = || {
+        t_s.iter()
+            .zip(sigma)
+            .filter(|(ti, s)| ti.is_finite() && s.is_finite())
+            .map(|(ti, s)| (*ti, s.abs()))
+    };
+    let Some((_, last)) = finite().next_back() else {
+        return fifth;
+    };
+    let settled = finite()
+        .filter(|&(_, s)| s > 2.0 * last)
+        .map(|(ti, _)| ti)
+        .fold(f64::NEG_INFINITY, f64::max);
+    fifth.max(settled)
 }
 
 /// Half-range of the zoom panel: 1.5 × max(|error|, 3σ, 3σ_CRLB) over the
-/// last 80 % of the run (1 if there is nothing positive and finite).
+/// converged part ([`converged_from`]); 1 if nothing there is positive and
+/// finite.
 fn zoom_half_range(t_s: &[f64], t: Range<f64>, c: &Curve<'_>) -> f64 {
-    let from = converged_from(&t);
+    let from = converged_from(t_s, &t, c.sigma);
     let mut m = 0.0_f64;
     for (i, &ti) in t_s.iter().enumerate() {
         if !(ti.is_finite() && ti >= from) {
@@ -460,7 +481,7 @@ fn zoom_half_range(t_s: &[f64], t: Range<f64>, c: &Curve<'_>) -> f64 {
     }
 }
 
-/// Log axis range: whole decades from below the converged level (3σ_CRLB,
+/// Log axis range: from below the converged level (3σ_CRLB,
 /// 3σ and the 10th percentile of the late |error|) to above the largest
 /// value; the downward spikes of |error| at its zero crossings are clipped.
 fn log_range(t_s: &[f64], t: Range<f64>, abs_err: &[f64], s3: &[f64], c3: &[f64]) -> Range<f64> {
@@ -474,7 +495,7 @@ fn log_range(t_s: &[f64], t: Range<f64>, abs_err: &[f64], s3: &[f64], c3: &[f64]
     let Some((_, max)) = finite_min_max(all.iter().copied()) else {
         return 1e-3..1.0;
     };
-    let from = converged_from(&t);
+    let from = converged_from(t_s, &t, s3);
     let mut late_err: Vec<f64> = t_s
         .iter()
         .zip(abs_err)
@@ -489,10 +510,9 @@ fn log_range(t_s: &[f64], t: Range<f64>, abs_err: &[f64], s3: &[f64], c3: &[f64]
         (Some(a), None) | (None, Some(a)) => a,
         (None, None) => max * 1e-3,
     };
-    let hi = 10f64.powf((max * 1.2).log10().ceil());
-    let lo = 10f64.powf((min / 1.2).log10().floor());
-    // Keep at least one decade and at most 12.
-    let lo = lo.max(hi * 1e-12).min(hi / 10.0);
+    let hi = max * 1.5;
+    // At least one decade (so a decade tick is labelled) and at most 12.
+    let lo = (min / 1.5).max(hi * 1e-12).min(hi / 10.0);
     if lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo {
         lo..hi
     } else {
@@ -521,7 +541,8 @@ fn finite_runs(t_s: &[f64], v: &[f64], keep: impl Fn(f64) -> bool) -> Vec<Vec<(f
 /// The polyline (t, v) clipped to `lo ≤ y ≤ hi` (in log10 space if `log`,
 /// where non-positive values are gaps), split into drawable segments.
 fn clipped(t_s: &[f64], v: &[f64], lo: f64, hi: f64, log: bool) -> Vec<Vec<(f64, f64)>> {
-    let (fwd, inv): (fn(f64) -> f64, fn(f64) -> f64) = if log {
+    type Map = fn(f64) -> f64;
+    let (fwd, inv): (Map, Map) = if log {
         (f64::log10, |y| 10f64.powf(y))
     } else {
         (|y| y, |y| y)
@@ -611,7 +632,7 @@ fn fmt_log_tick(v: f64) -> String {
 /// Linear ticks with as many decimals as the tick step needs.
 fn fmt_linear_tick(v: f64, step: f64) -> String {
     let digits = if step > 0.0 && step.is_finite() {
-        (1 - step.log10().floor() as i32).clamp(0, 8) as usize
+        (-step.log10().floor() as i32).clamp(0, 8) as usize
     } else {
         2
     };
