@@ -20,7 +20,9 @@
 //! - [`instruments`]: installation models `G`, `A` (eqs. 6, 10, 11);
 //! - [`command`]: the computed frame and the commanded rate;
 //! - [`models`]: the seven configurations (paper §1.3);
-//! - [`ekf`]: the filter (SPEC §6).
+//! - [`ekf`]: the filter (SPEC §6);
+//! - [`observability`]: information matrix, null space and Cramér–Rao
+//!   bound along a path (SPEC §5).
 #![no_std]
 #![deny(missing_docs, unsafe_code)]
 #![cfg_attr(
@@ -38,6 +40,7 @@ pub mod ekf;
 pub mod geometry;
 pub mod instruments;
 pub mod models;
+pub mod observability;
 
 pub use ekf::{Error, Filter, FilterConfig, Innovation, Observation, Options};
 pub use models::{ConfigId, Environment, Group, Layout, Model, StateInfo};

@@ -4,8 +4,12 @@
 //! - [`truth`]: the truth simulator (physical platform, independent of the
 //!   estimator's models);
 //! - [`runner`]: runs any configuration's estimator over a simulated run;
-//! - [`report`]: tables, JSON and CSV of runs.
+//! - [`report`]: tables, JSON and CSV of runs;
+//! - [`observe`]: the observability analysis of every configuration;
+//! - [`montecarlo`]: seeded Monte Carlo runs against the Cramér–Rao bound.
 
+pub mod montecarlo;
+pub mod observe;
 pub mod report;
 pub mod runner;
 pub mod scenario;

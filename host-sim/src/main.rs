@@ -35,6 +35,41 @@ enum Command {
     /// Compare the cold-start remedies over seeds and scenarios (the study
     /// behind the default estimator; see README).
     Remedies(RemediesArgs),
+    /// Observability of all seven configurations along the scenario's path:
+    /// rank, unobservable combinations, Cramér–Rao σ and verdict per state.
+    Observability(ObservabilityArgs),
+    /// Seeded Monte Carlo runs of one configuration in parallel: RMS error
+    /// against the Cramér–Rao bound, parameter-block NEES and NIS.
+    Montecarlo(MonteCarloArgs),
+}
+
+#[derive(clap::Args)]
+struct MonteCarloArgs {
+    /// Configuration: M1-pa, M1-ps, M2-ps, M3-pa, M3-ps, M4-pa, M4-ps (case-insensitive).
+    #[arg(long, value_parser = parse_config)]
+    config: ConfigId,
+    /// Number of runs (seeds 1..=N).
+    #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u64).range(2..=100_000))]
+    runs: u64,
+    /// Scenario file (TOML); default: the paper's scenario.
+    #[arg(long, value_name = "FILE")]
+    scenario: Option<PathBuf>,
+    /// Write the statistics as JSON to PATH.
+    #[arg(long, value_name = "PATH")]
+    json: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
+struct ObservabilityArgs {
+    /// Scenario file (TOML); default: the paper's scenario.
+    #[arg(long, value_name = "FILE")]
+    scenario: Option<PathBuf>,
+    /// Switch the Earth rate off (the paper's assumption in its proofs).
+    #[arg(long)]
+    no_earth_rate: bool,
+    /// Write the analysis as JSON to PATH.
+    #[arg(long, value_name = "PATH")]
+    json: Option<PathBuf>,
 }
 
 #[derive(clap::Args)]
@@ -171,6 +206,8 @@ fn main() -> ExitCode {
         Some(Command::Run(args)) => cmd_run(&args),
         Some(Command::Summary(args)) => cmd_summary(&args),
         Some(Command::Remedies(args)) => cmd_remedies(&args),
+        Some(Command::Observability(args)) => cmd_observability(&args),
+        Some(Command::Montecarlo(args)) => cmd_montecarlo(&args),
         None => cmd_summary(&CommonArgs {
             scenario: None,
             seed: 1,
@@ -431,6 +468,102 @@ fn cmd_remedies(args: &RemediesArgs) -> Result<(), String> {
         let text = serde_json::to_string_pretty(&json).map_err(|e| e.to_string())?;
         std::fs::write(path, text + "\n")
             .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    }
+    Ok(())
+}
+
+fn analyse_all(
+    scenario: &Scenario,
+    earth_rate: bool,
+) -> Result<Vec<host_sim::observe::ConfigObs>, String> {
+    let sim = simulate(
+        scenario,
+        SimOptions {
+            seed: 0,
+            noise: false,
+            earth_rate,
+        },
+    );
+    ConfigId::ALL
+        .iter()
+        .map(|&id| {
+            host_sim::observe::analyse(id, scenario, &sim, earth_rate, false)
+                .map_err(|e| format!("{id}: {e}"))
+        })
+        .collect()
+}
+
+fn cmd_observability(args: &ObservabilityArgs) -> Result<(), String> {
+    use host_sim::observe::{changes, print_report, report_json, verdict_matrix_markdown};
+    let scenario = load_scenario(args.scenario.as_deref())?;
+    let earth_rate = !args.no_earth_rate && scenario.site.earth_rate;
+    let t0 = Instant::now();
+    eprintln!(
+        "analysing 7 configurations along '{}' (Earth rate {})…",
+        scenario.name,
+        if earth_rate { "on" } else { "off" }
+    );
+    let configs = analyse_all(&scenario, earth_rate)?;
+    print_report(&configs, earth_rate);
+    println!(
+        "
+Verdicts (x y z per group; yes: observable, weak: σ_CRLB/σ_prior ≥ 0.01, no: in the null space):\n"
+    );
+    print!("{}", verdict_matrix_markdown(&configs));
+    if earth_rate {
+        let off = analyse_all(&scenario, false)?;
+        let lines = changes(&off, &configs);
+        println!("\nWhat the Earth rate changes (against the paper's Earth-off analysis):");
+        if lines.is_empty() {
+            println!("  nothing");
+        }
+        for l in lines {
+            println!("  {l}");
+        }
+    }
+    eprintln!("done in {:.2} s", t0.elapsed().as_secs_f64());
+    if let Some(path) = &args.json {
+        write_json(path, &report_json(earth_rate, &configs))?;
+    }
+    Ok(())
+}
+
+/// A progress bar on stderr (hidden when stderr is not a terminal).
+fn progress_bar(len: u64, what: &str) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(len);
+    let style = indicatif::ProgressStyle::with_template(
+        "{msg} [{bar:40}] {pos}/{len} ({elapsed}, eta {eta})",
+    )
+    .map(|s| s.progress_chars("=> "))
+    .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar());
+    bar.set_style(style);
+    bar.set_message(what.to_string());
+    bar
+}
+
+fn cmd_montecarlo(args: &MonteCarloArgs) -> Result<(), String> {
+    let scenario = load_scenario(args.scenario.as_deref())?;
+    let runs = usize::try_from(args.runs).map_err(|e| e.to_string())?;
+    eprintln!(
+        "{} runs of {} on '{}' with {} threads…",
+        runs,
+        args.config,
+        scenario.name,
+        rayon::current_num_threads()
+    );
+    let bar = progress_bar(args.runs, "runs");
+    let mc = host_sim::montecarlo::monte_carlo(
+        args.config,
+        &scenario,
+        runs,
+        host_sim::runner::Estimator::default(),
+        &|n| bar.set_position(n as u64),
+    )?;
+    bar.finish_and_clear();
+    host_sim::montecarlo::print_monte_carlo(&mc);
+    if let Some(path) = &args.json {
+        let v = serde_json::to_value(&mc).map_err(|e| e.to_string())?;
+        write_json(path, &v)?;
     }
     Ok(())
 }
