@@ -6,10 +6,13 @@
 //! - [`runner`]: runs any configuration's estimator over a simulated run;
 //! - [`report`]: tables, JSON and CSV of runs;
 //! - [`observe`]: the observability analysis of every configuration;
-//! - [`montecarlo`]: seeded Monte Carlo runs against the Cramér–Rao bound.
+//! - [`montecarlo`]: seeded Monte Carlo runs against the Cramér–Rao bound;
+//! - [`paper`]: the whole paper regenerated (tables, runs, figures, summary).
 
 pub mod montecarlo;
 pub mod observe;
+pub mod paper;
+pub mod plots;
 pub mod report;
 pub mod runner;
 pub mod scenario;

@@ -1,0 +1,625 @@
+//! PNG figures of estimator runs (as the paper's figs 1–28): per state, the
+//! estimation error against time, the filter's ±3σ band and the Cramér–Rao
+//! bound σ_CRLB.
+//!
+//! Each state gets one row of two panels sharing the time axis `t [s]`:
+//! - left, **log scale** over the whole run: |error|, 3σ of the filter and
+//!   3σ_CRLB (shows the convergence from the prior, ~3600″, down to the
+//!   converged level, and how σ compares to σ_CRLB);
+//! - right, **linear zoom** on the converged part: the signed error, the
+//!   shaded ±3σ band and the ±3σ_CRLB lines. The y-range is
+//!   ±1.5 × max(|error|, 3σ, 3σ_CRLB) over the last 80 % of the run; the
+//!   early transient is clipped at the frame (it is visible on the left).
+//!
+//! Text is rendered with the DejaVu Sans font embedded in the binary
+//! (`assets/DejaVuSans.ttf`, licence next to it) through plotters'
+//! `ab_glyph` backend: no system font or font library is needed.
+//!
+//! Non-finite values (NaN, ±inf) are skipped (the curve is broken there);
+//! invalid input (empty, mismatched lengths, too many panels) and I/O
+//! failures are returned as `Err(String)`.
+
+use std::ops::Range;
+use std::path::Path;
+use std::sync::OnceLock;
+
+use plotters::coord::Shift;
+use plotters::element::DashedPathElement;
+use plotters::prelude::*;
+use plotters::style::text_anchor;
+
+/// One state's time history, all in the display unit (arcseconds).
+#[derive(Clone, Copy, Debug)]
+pub struct Curve<'a> {
+    /// State name, e.g. `"thaT_1"`: the panel label.
+    pub label: &'a str,
+    /// Estimate − truth per period (″).
+    pub error: &'a [f64],
+    /// Filter σ per period (″): drawn as the ±3σ band.
+    pub sigma: &'a [f64],
+    /// σ_CRLB per period (″): drawn as the ±3σ_CRLB lines.
+    pub crlb: &'a [f64],
+}
+
+/// Figure width (px).
+pub const WIDTH: u32 = 1000;
+/// Height of one state's row of panels (px).
+pub const PANEL_HEIGHT: u32 = 250;
+/// Height of the title and legend strip at the top (px).
+pub const HEADER_HEIGHT: u32 = 64;
+/// Largest number of curves (rows) in one figure.
+pub const MAX_PANELS: usize = 24;
+
+/// Size (width, height) in pixels of the figure [`plot_group`] writes for
+/// `panels` curves.
+pub fn figure_size(panels: usize) -> (u32, u32) {
+    let rows = u32::try_from(panels).unwrap_or(u32::MAX);
+    (
+        WIDTH,
+        HEADER_HEIGHT.saturating_add(PANEL_HEIGHT.saturating_mul(rows)),
+    )
+}
+
+/// The embedded font (DejaVu Sans, Bitstream Vera licence).
+static FONT_TTF: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
+/// Family name the font is registered under (plotters' default family).
+const FAMILY: &str = "sans-serif";
+
+/// Registers the embedded font with plotters (once per process).
+fn ensure_font() -> Result<(), String> {
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    let ok = *REGISTERED.get_or_init(|| {
+        plotters::style::register_font(FAMILY, FontStyle::Normal, FONT_TTF).is_ok()
+    });
+    if ok {
+        Ok(())
+    } else {
+        Err("plots: the embedded font could not be parsed".to_string())
+    }
+}
+
+// Colours (colour-blind-safe pair: blue error, vermilion filter band).
+const ERROR_COLOUR: RGBColor = RGBColor(0, 90, 181);
+const FILTER_COLOUR: RGBColor = RGBColor(213, 94, 0);
+const BAND_COLOUR: RGBColor = RGBColor(250, 215, 190);
+const CRLB_COLOUR: RGBColor = RGBColor(30, 30, 30);
+const GRID_BOLD: RGBColor = RGBColor(215, 215, 215);
+const GRID_LIGHT: RGBColor = RGBColor(238, 238, 238);
+const LOG_COLOUR_BAND: RGBColor = RGBColor(253, 235, 222);
+
+/// Writes one PNG: a figure titled `title` with one panel per curve
+/// (stacked vertically, shared time axis `t_s` in seconds). Every slice of
+/// every curve must have the length of `t_s`; non-finite points are skipped.
+/// The image is [`figure_size`]`(curves.len())` pixels.
+pub fn plot_group(
+    path: &Path,
+    title: &str,
+    t_s: &[f64],
+    curves: &[Curve<'_>],
+) -> Result<(), String> {
+    validate(t_s, curves)?;
+    let t_range = time_range(t_s).ok_or("plots: no finite time value in t_s")?;
+    ensure_font()?;
+    let (w, h) = figure_size(curves.len());
+    let root = BitMapBackend::new(path, (w, h)).into_drawing_area();
+    draw_figure(&root, title, t_s, t_range, curves)
+        .map_err(|e| format!("plots: drawing {}: {e}", path.display()))?;
+    root.present()
+        .map_err(|e| format!("plots: writing {}: {e}", path.display()))?;
+    Ok(())
+}
+
+fn validate(t_s: &[f64], curves: &[Curve<'_>]) -> Result<(), String> {
+    if t_s.is_empty() {
+        return Err("plots: empty time axis".to_string());
+    }
+    if curves.is_empty() {
+        return Err("plots: no curve to draw".to_string());
+    }
+    if curves.len() > MAX_PANELS {
+        return Err(format!(
+            "plots: {} curves, at most {MAX_PANELS} per figure",
+            curves.len()
+        ));
+    }
+    for c in curves {
+        for (what, v) in [("error", c.error), ("sigma", c.sigma), ("crlb", c.crlb)] {
+            if v.len() != t_s.len() {
+                return Err(format!(
+                    "plots: curve {:?}: {what} has {} values, t_s has {}",
+                    c.label,
+                    v.len(),
+                    t_s.len()
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Range of the finite times, widened if degenerate.
+fn time_range(t_s: &[f64]) -> Option<Range<f64>> {
+    let (lo, hi) = finite_min_max(t_s.iter().copied())?;
+    if hi > lo {
+        Some(lo..hi)
+    } else {
+        let pad = if lo.abs() > 0.0 { lo.abs() * 0.5 } else { 1.0 };
+        Some(lo - pad..hi + pad)
+    }
+}
+
+fn finite_min_max(v: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
+    v.filter(|x| x.is_finite()).fold(None, |acc, x| match acc {
+        None => Some((x, x)),
+        Some((lo, hi)) => Some((lo.min(x), hi.max(x))),
+    })
+}
+
+type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
+type DrawResult<'a> =
+    Result<(), DrawingAreaErrorKind<<BitMapBackend<'a> as DrawingBackend>::ErrorType>>;
+
+fn draw_figure<'a>(
+    root: &Area<'a>,
+    title: &str,
+    t_s: &[f64],
+    t_range: Range<f64>,
+    curves: &[Curve<'_>],
+) -> DrawResult<'a> {
+    root.fill(&WHITE)?;
+    let (header, body) = root.split_vertically(HEADER_HEIGHT);
+    draw_header(&header, title)?;
+    let rows = body.split_evenly((curves.len(), 1));
+    for (row, c) in rows.iter().zip(curves) {
+        draw_row(row, t_s, t_range.clone(), c)?;
+    }
+    Ok(())
+}
+
+fn font(size: f64) -> TextStyle<'static> {
+    (FAMILY, size).into_font().color(&BLACK)
+}
+
+/// Title and the legend shared by all panels.
+fn draw_header<'a>(area: &Area<'a>, title: &str) -> DrawResult<'a> {
+    let (w, _) = area.dim_in_pixel();
+    let centre = i32::try_from(w / 2).unwrap_or(0);
+    let title_style = font(22.0).pos(text_anchor::Pos::new(
+        text_anchor::HPos::Center,
+        text_anchor::VPos::Top,
+    ));
+    area.draw(&Text::new(title.to_string(), (centre, 8), title_style))?;
+
+    // Legend: swatches + labels, centred.
+    let y = 48;
+    let label = font(15.0).pos(text_anchor::Pos::new(
+        text_anchor::HPos::Left,
+        text_anchor::VPos::Center,
+    ));
+    let items: [(&str, u8); 4] = [
+        ("error (left: |error|)", 0),
+        ("±3σ filter", 1),
+        ("±3σ_CRLB", 2),
+        (
+            "left: log scale, whole run — right: linear zoom, last 80 %",
+            3,
+        ),
+    ];
+    let mut x = 40;
+    for (text, kind) in items {
+        match kind {
+            0 => area.draw(&PathElement::new(
+                vec![(x, y), (x + 30, y)],
+                ERROR_COLOUR.stroke_width(2),
+            ))?,
+            1 => {
+                area.draw(&Rectangle::new(
+                    [(x, y - 6), (x + 30, y + 6)],
+                    BAND_COLOUR.filled(),
+                ))?;
+                area.draw(&PathElement::new(
+                    vec![(x, y - 6), (x + 30, y - 6)],
+                    FILTER_COLOUR.stroke_width(1),
+                ))?;
+                area.draw(&PathElement::new(
+                    vec![(x, y + 6), (x + 30, y + 6)],
+                    FILTER_COLOUR.stroke_width(1),
+                ))?;
+            }
+            2 => area.draw(&DashedPathElement::new(
+                vec![(x, y), (x + 30, y)],
+                5,
+                3,
+                CRLB_COLOUR.stroke_width(2),
+            ))?,
+            _ => {
+                x += 20;
+                area.draw(&Text::new(text.to_string(), (x, y), label.clone()))?;
+                continue;
+            }
+        }
+        area.draw(&Text::new(text.to_string(), (x + 38, y), label.clone()))?;
+        let advance = area
+            .estimate_text_size(text, &label)
+            .map(|(tw, _)| i32::try_from(tw).unwrap_or(200))
+            .unwrap_or(200);
+        x += 38 + advance + 30;
+    }
+    Ok(())
+}
+
+/// One state's row: label strip, then the log panel and the zoom panel.
+fn draw_row<'a>(area: &Area<'a>, t_s: &[f64], t: Range<f64>, c: &Curve<'_>) -> DrawResult<'a> {
+    let (strip, panels) = area.split_vertically(24);
+    // Separator line and the state's label with its final values.
+    let (w, _) = strip.dim_in_pixel();
+    let w = i32::try_from(w).unwrap_or(1000);
+    strip.draw(&PathElement::new(
+        vec![(8, 1), (w - 8, 1)],
+        RGBColor(170, 170, 170).stroke_width(1),
+    ))?;
+    let style = font(16.0).pos(text_anchor::Pos::new(
+        text_anchor::HPos::Left,
+        text_anchor::VPos::Center,
+    ));
+    strip.draw(&Text::new(c.label.to_string(), (14, 14), style))?;
+    if let Some(summary) = final_summary(c) {
+        let style = font(13.0).pos(text_anchor::Pos::new(
+            text_anchor::HPos::Right,
+            text_anchor::VPos::Center,
+        ));
+        strip.draw(&Text::new(summary, (w - 14, 14), style))?;
+    }
+    let (left, right) = panels.split_horizontally(WIDTH / 2);
+    draw_log_panel(&left, t_s, t.clone(), c)?;
+    draw_zoom_panel(&right, t_s, t, c)
+}
+
+/// "final: error …″, 3σ …″, 3σ_CRLB …″" from the last finite values.
+fn final_summary(c: &Curve<'_>) -> Option<String> {
+    let last = |v: &[f64]| v.iter().rev().copied().find(|x| x.is_finite());
+    let e = last(c.error)?;
+    let mut s = format!("final: error {}″", fmt_value(e));
+    if let Some(sig) = last(c.sigma) {
+        s.push_str(&format!(", 3σ {}″", fmt_value(3.0 * sig)));
+    }
+    if let Some(cr) = last(c.crlb) {
+        s.push_str(&format!(", 3σ_CRLB {}″", fmt_value(3.0 * cr)));
+    }
+    Some(s)
+}
+
+/// Three significant digits, no exponent for ordinary magnitudes.
+fn fmt_value(v: f64) -> String {
+    let a = v.abs();
+    if a == 0.0 {
+        "0".to_string()
+    } else if !(1e-3..1e5).contains(&a) {
+        format!("{v:.2e}")
+    } else {
+        let digits = (2 - a.log10().floor() as i32).clamp(0, 5) as usize;
+        format!("{v:.digits$}")
+    }
+}
+
+/// Left panel: |error|, 3σ and 3σ_CRLB on a log axis over the whole run.
+fn draw_log_panel<'a>(
+    area: &Area<'a>,
+    t_s: &[f64],
+    t: Range<f64>,
+    c: &Curve<'_>,
+) -> DrawResult<'a> {
+    let abs_err: Vec<f64> = c.error.iter().map(|e| e.abs()).collect();
+    let three_sigma: Vec<f64> = c.sigma.iter().map(|s| 3.0 * s.abs()).collect();
+    let three_crlb: Vec<f64> = c.crlb.iter().map(|s| 3.0 * s.abs()).collect();
+    let y = log_range(t_s, t.clone(), &abs_err, &three_sigma, &three_crlb);
+    let mut chart = ChartBuilder::on(area)
+        .margin_left(8)
+        .margin_right(14)
+        .margin_top(6)
+        .margin_bottom(4)
+        .x_label_area_size(34)
+        .y_label_area_size(62)
+        .build_cartesian_2d(t.clone(), y.clone().log_scale())?;
+    chart
+        .configure_mesh()
+        .bold_line_style(GRID_BOLD)
+        .light_line_style(GRID_LIGHT)
+        .x_labels(7)
+        .y_labels(12)
+        .x_label_formatter(&|v| fmt_tick(*v))
+        .y_label_formatter(&|v| fmt_log_tick(*v))
+        .x_desc("t [s]")
+        .y_desc("|error|, 3σ [″]")
+        .label_style(font(12.0))
+        .axis_desc_style(font(13.0))
+        .draw()?;
+    let (lo, hi) = (y.start, y.end);
+    // Light fill under 3σ: the region the |error| should stay in.
+    for run in finite_runs(t_s, &three_sigma, |v| v > 0.0) {
+        let mut poly: Vec<(f64, f64)> = run.iter().map(|&(x, v)| (x, v.clamp(lo, hi))).collect();
+        if let (Some(&(x0, _)), Some(&(x1, _))) = (run.first(), run.last()) {
+            poly.push((x1, lo));
+            poly.push((x0, lo));
+        }
+        chart.draw_series(std::iter::once(Polygon::new(
+            poly,
+            LOG_COLOUR_BAND.filled(),
+        )))?;
+    }
+    for seg in clipped(t_s, &three_crlb, lo, hi, true) {
+        chart.draw_series(DashedLineSeries::new(
+            seg,
+            5,
+            3,
+            CRLB_COLOUR.stroke_width(2),
+        ))?;
+    }
+    for seg in clipped(t_s, &three_sigma, lo, hi, true) {
+        chart.draw_series(LineSeries::new(seg, FILTER_COLOUR.stroke_width(2)))?;
+    }
+    for seg in clipped(t_s, &abs_err, lo, hi, true) {
+        chart.draw_series(LineSeries::new(seg, ERROR_COLOUR.stroke_width(1)))?;
+    }
+    Ok(())
+}
+
+/// Right panel: signed error in the ±3σ band and between the ±3σ_CRLB
+/// lines, linear axis zoomed on the last 80 % of the run.
+fn draw_zoom_panel<'a>(
+    area: &Area<'a>,
+    t_s: &[f64],
+    t: Range<f64>,
+    c: &Curve<'_>,
+) -> DrawResult<'a> {
+    let r = zoom_half_range(t_s, t.clone(), c);
+    let (lo, hi) = (-r, r);
+    let mut chart = ChartBuilder::on(area)
+        .margin_left(8)
+        .margin_right(14)
+        .margin_top(6)
+        .margin_bottom(4)
+        .x_label_area_size(34)
+        .y_label_area_size(62)
+        .build_cartesian_2d(t.clone(), lo..hi)?;
+    let step = r / 3.0;
+    chart
+        .configure_mesh()
+        .bold_line_style(GRID_BOLD)
+        .light_line_style(GRID_LIGHT)
+        .x_labels(7)
+        .y_labels(7)
+        .x_label_formatter(&|v| fmt_tick(*v))
+        .y_label_formatter(&|v| fmt_linear_tick(*v, step))
+        .x_desc("t [s]")
+        .y_desc("error [″]")
+        .label_style(font(12.0))
+        .axis_desc_style(font(13.0))
+        .draw()?;
+    // ±3σ band (clamping a dense band's edges to the frame clips it).
+    let plus: Vec<f64> = c.sigma.iter().map(|s| 3.0 * s.abs()).collect();
+    let minus: Vec<f64> = plus.iter().map(|v| -v).collect();
+    for run in finite_runs(t_s, &plus, |_| true) {
+        let mut poly: Vec<(f64, f64)> = run.iter().map(|&(x, v)| (x, v.clamp(lo, hi))).collect();
+        poly.extend(run.iter().rev().map(|&(x, v)| (x, (-v).clamp(lo, hi))));
+        chart.draw_series(std::iter::once(Polygon::new(poly, BAND_COLOUR.filled())))?;
+    }
+    for v in [&plus, &minus] {
+        for seg in clipped(t_s, v, lo, hi, false) {
+            chart.draw_series(LineSeries::new(seg, FILTER_COLOUR.stroke_width(1)))?;
+        }
+    }
+    let crlb_plus: Vec<f64> = c.crlb.iter().map(|s| 3.0 * s.abs()).collect();
+    let crlb_minus: Vec<f64> = crlb_plus.iter().map(|v| -v).collect();
+    for v in [&crlb_plus, &crlb_minus] {
+        for seg in clipped(t_s, v, lo, hi, false) {
+            chart.draw_series(DashedLineSeries::new(
+                seg,
+                5,
+                3,
+                CRLB_COLOUR.stroke_width(2),
+            ))?;
+        }
+    }
+    for seg in clipped(t_s, c.error, lo, hi, false) {
+        chart.draw_series(LineSeries::new(seg, ERROR_COLOUR.stroke_width(1)))?;
+    }
+    Ok(())
+}
+
+/// Start of the "converged part": the last 80 % of the run.
+fn converged_from(t: &Range<f64>) -> f64 {
+    t.start + 0.2 * (t.end - t.start)
+}
+
+/// Half-range of the zoom panel: 1.5 × max(|error|, 3σ, 3σ_CRLB) over the
+/// last 80 % of the run (1 if there is nothing positive and finite).
+fn zoom_half_range(t_s: &[f64], t: Range<f64>, c: &Curve<'_>) -> f64 {
+    let from = converged_from(&t);
+    let mut m = 0.0_f64;
+    for (i, &ti) in t_s.iter().enumerate() {
+        if !(ti.is_finite() && ti >= from) {
+            continue;
+        }
+        let vals = [
+            c.error.get(i).map(|e| e.abs()),
+            c.sigma.get(i).map(|s| 3.0 * s.abs()),
+            c.crlb.get(i).map(|s| 3.0 * s.abs()),
+        ];
+        for v in vals.into_iter().flatten() {
+            if v.is_finite() {
+                m = m.max(v);
+            }
+        }
+    }
+    let r = 1.5 * m;
+    if r.is_finite() && r > 1e-12 {
+        r
+    } else {
+        1.0
+    }
+}
+
+/// Log axis range: whole decades from below the converged level (3σ_CRLB,
+/// 3σ and the 10th percentile of the late |error|) to above the largest
+/// value; the downward spikes of |error| at its zero crossings are clipped.
+fn log_range(t_s: &[f64], t: Range<f64>, abs_err: &[f64], s3: &[f64], c3: &[f64]) -> Range<f64> {
+    let positive = |v: &[f64]| -> Vec<f64> {
+        v.iter()
+            .copied()
+            .filter(|x| x.is_finite() && *x > 0.0)
+            .collect()
+    };
+    let all: Vec<f64> = [positive(abs_err), positive(s3), positive(c3)].concat();
+    let Some((_, max)) = finite_min_max(all.iter().copied()) else {
+        return 1e-3..1.0;
+    };
+    let from = converged_from(&t);
+    let mut late_err: Vec<f64> = t_s
+        .iter()
+        .zip(abs_err)
+        .filter(|(ti, e)| ti.is_finite() && **ti >= from && e.is_finite() && **e > 0.0)
+        .map(|(_, e)| *e)
+        .collect();
+    late_err.sort_by(f64::total_cmp);
+    let err_floor = late_err.get(late_err.len() / 10).copied();
+    let sig_min = finite_min_max(positive(s3).into_iter().chain(positive(c3))).map(|(lo, _)| lo);
+    let min = match (err_floor, sig_min) {
+        (Some(a), Some(b)) => a.min(b),
+        (Some(a), None) | (None, Some(a)) => a,
+        (None, None) => max * 1e-3,
+    };
+    let hi = 10f64.powf((max * 1.2).log10().ceil());
+    let lo = 10f64.powf((min / 1.2).log10().floor());
+    // Keep at least one decade and at most 12.
+    let lo = lo.max(hi * 1e-12).min(hi / 10.0);
+    if lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo {
+        lo..hi
+    } else {
+        1e-3..1.0
+    }
+}
+
+/// Maximal runs of consecutive points whose t and value are finite and
+/// satisfy `keep`.
+fn finite_runs(t_s: &[f64], v: &[f64], keep: impl Fn(f64) -> bool) -> Vec<Vec<(f64, f64)>> {
+    let mut runs = Vec::new();
+    let mut cur: Vec<(f64, f64)> = Vec::new();
+    for (&t, &y) in t_s.iter().zip(v) {
+        if t.is_finite() && y.is_finite() && keep(y) {
+            cur.push((t, y));
+        } else if !cur.is_empty() {
+            runs.push(std::mem::take(&mut cur));
+        }
+    }
+    if !cur.is_empty() {
+        runs.push(cur);
+    }
+    runs
+}
+
+/// The polyline (t, v) clipped to `lo ≤ y ≤ hi` (in log10 space if `log`,
+/// where non-positive values are gaps), split into drawable segments.
+fn clipped(t_s: &[f64], v: &[f64], lo: f64, hi: f64, log: bool) -> Vec<Vec<(f64, f64)>> {
+    let (fwd, inv): (fn(f64) -> f64, fn(f64) -> f64) = if log {
+        (f64::log10, |y| 10f64.powf(y))
+    } else {
+        (|y| y, |y| y)
+    };
+    let (flo, fhi) = (fwd(lo), fwd(hi));
+    let mut out = Vec::new();
+    for run in finite_runs(t_s, v, |y| !log || y > 0.0) {
+        let mut seg: Vec<(f64, f64)> = Vec::new();
+        let pts: Vec<(f64, f64)> = run.iter().map(|&(t, y)| (t, fwd(y))).collect();
+        let inside = |y: f64| y >= flo && y <= fhi;
+        if let Some(&(t0, y0)) = pts.first() {
+            if inside(y0) {
+                seg.push((t0, y0));
+            }
+        }
+        for w in pts.windows(2) {
+            let (&(ta, ya), &(tb, yb)) = match (w.first(), w.get(1)) {
+                (Some(a), Some(b)) => (a, b),
+                _ => continue,
+            };
+            // Clip segment a→b to the band in y (Liang–Barsky, y only).
+            let (mut u0, mut u1) = (0.0_f64, 1.0_f64);
+            let dy = yb - ya;
+            if dy == 0.0 {
+                if !inside(ya) {
+                    u0 = 2.0;
+                }
+            } else {
+                let (ua, ub) = ((flo - ya) / dy, (fhi - ya) / dy);
+                u0 = u0.max(ua.min(ub));
+                u1 = u1.min(ua.max(ub));
+            }
+            if u0 > u1 {
+                if !seg.is_empty() {
+                    out.push(std::mem::take(&mut seg));
+                }
+                continue;
+            }
+            let at = |u: f64| (ta + u * (tb - ta), ya + u * dy);
+            if u0 > 0.0 {
+                // Entering from outside: start a new segment.
+                if !seg.is_empty() {
+                    out.push(std::mem::take(&mut seg));
+                }
+                seg.push(at(u0));
+            } else if seg.is_empty() {
+                seg.push((ta, ya));
+            }
+            seg.push(at(u1));
+            if u1 < 1.0 {
+                out.push(std::mem::take(&mut seg));
+            }
+        }
+        if !seg.is_empty() {
+            out.push(seg);
+        }
+    }
+    out.into_iter()
+        .map(|s| s.into_iter().map(|(t, y)| (t, inv(y))).collect())
+        .collect()
+}
+
+/// Time tick labels: integers for ordinary ranges.
+fn fmt_tick(v: f64) -> String {
+    if v.abs() >= 10.0 || v == 0.0 {
+        format!("{v:.0}")
+    } else {
+        fmt_value(v)
+    }
+}
+
+/// Log-axis ticks: only decades are labelled ("0.01", "1", "1000", "1e-5").
+fn fmt_log_tick(v: f64) -> String {
+    let e = v.log10();
+    if (e - e.round()).abs() > 1e-6 {
+        return String::new();
+    }
+    let e = e.round() as i32;
+    if (-3..=4).contains(&e) {
+        let digits = (-e).max(0) as usize;
+        format!("{v:.digits$}")
+    } else {
+        format!("1e{e}")
+    }
+}
+
+/// Linear ticks with as many decimals as the tick step needs.
+fn fmt_linear_tick(v: f64, step: f64) -> String {
+    let digits = if step > 0.0 && step.is_finite() {
+        (1 - step.log10().floor() as i32).clamp(0, 8) as usize
+    } else {
+        2
+    };
+    let s = format!("{v:.digits$}");
+    // Avoid "-0.00".
+    if s.starts_with('-') && s.trim_start_matches(['-', '0', '.']).is_empty() {
+        s.trim_start_matches('-').to_string()
+    } else {
+        s
+    }
+}
