@@ -138,6 +138,11 @@ impl From<ekf::Error> for Error {
     }
 }
 
+/// `|d| ≤ tol`, false when either is NaN (a NaN limit rejects).
+fn within(d: f64, tol: f64) -> bool {
+    d.abs() <= tol
+}
+
 fn to_t<T: RealField + Copy>(v: f64) -> T {
     nalgebra::convert(v)
 }
@@ -273,7 +278,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
             return Err(RejectReason::NonFinite);
         }
         let dt = f64::from(s.dt);
-        if !((dt - lim.period_s).abs() <= lim.period_tolerance_s) || dt <= 0.0 {
+        if !within(dt - lim.period_s, lim.period_tolerance_s) || dt <= 0.0 {
             return Err(RejectReason::Period);
         }
         let over = |a: &[f32; 3], max: f64| a.iter().any(|v| f64::from(*v).abs() > max);
@@ -303,7 +308,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         }
         let periods = f64::from(s.seq - last_seq);
         let elapsed = (s.t_us - last_t) as f64 * 1e-6;
-        if !((elapsed - periods * dt).abs() <= periods * lim.period_tolerance_s) {
+        if !within(elapsed - periods * dt, periods * lim.period_tolerance_s) {
             return Err(RejectReason::TimeMismatch);
         }
         let gap = s.seq - last_seq - 1;
@@ -440,7 +445,10 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
             let _ = covariance.push(to_f64(*v));
         }
         let mut c_cn = [0.0; 9];
-        for (o, v) in c_cn.iter_mut().zip(f.command_frame().c_cn.transpose().iter()) {
+        for (o, v) in c_cn
+            .iter_mut()
+            .zip(f.command_frame().c_cn.transpose().iter())
+        {
             *o = to_f64(*v);
         }
         Checkpoint {

@@ -89,8 +89,7 @@ impl core::fmt::Display for Error {
 impl core::error::Error for Error {}
 
 /// Cold-start remedies and gating.
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Options {
     /// Add the second-order terms of the accelerometer measurement to the
     /// innovation covariance (the chosen cold-start remedy).

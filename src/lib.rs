@@ -44,7 +44,7 @@ pub mod instruments;
 pub mod models;
 pub mod wire;
 
-pub use ekf::{Error, Filter, FilterConfig, Innovation, Observation, Options};
 pub use calibrator::{Calibrator, M1PaCalibrator, M2PsCalibrator, M4PaCalibrator, RejectReason};
+pub use ekf::{Error, Filter, FilterConfig, Innovation, Observation, Options};
 pub use models::{ConfigId, Environment, Group, Layout, Model, StateInfo};
 pub use wire::{CalibratorConfig, Checkpoint, Decoder, Estimate, Message, Sample};

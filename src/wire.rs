@@ -742,7 +742,11 @@ impl<const CAP: usize> Decoder<CAP> {
     /// Accepts a chunk of bytes and calls `on_frame` with the outcome of
     /// every frame it completes (rejected frames are also counted in
     /// [`Decoder::stats`]).
-    pub fn feed_results(&mut self, chunk: &[u8], mut on_frame: impl FnMut(Result<Message, FrameError>)) {
+    pub fn feed_results(
+        &mut self,
+        chunk: &[u8],
+        mut on_frame: impl FnMut(Result<Message, FrameError>),
+    ) {
         for b in chunk {
             if let Some(r) = self.push_byte(*b) {
                 on_frame(r);

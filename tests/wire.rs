@@ -497,19 +497,27 @@ fn arb_message() -> impl Strategy<Value = Message> {
             any::<u32>(),
             arb_progress()
         )
-            .prop_map(|(config, state, covariance, nominal, c_cn, updates, progress)| {
-                Message::Checkpoint(Checkpoint {
-                    config,
-                    state,
-                    covariance,
-                    nominal,
-                    c_cn,
-                    updates,
-                    progress,
-                })
-            }),
-        (arb_config(), arb_f64(), any::<u32>(), any::<bool>(), any::<u8>()).prop_map(
-            |(config, x, every, so, it)| {
+            .prop_map(
+                |(config, state, covariance, nominal, c_cn, updates, progress)| {
+                    Message::Checkpoint(Checkpoint {
+                        config,
+                        state,
+                        covariance,
+                        nominal,
+                        c_cn,
+                        updates,
+                        progress,
+                    })
+                }
+            ),
+        (
+            arb_config(),
+            arb_f64(),
+            any::<u32>(),
+            any::<bool>(),
+            any::<u8>()
+        )
+            .prop_map(|(config, x, every, so, it)| {
                 let mut c = CalibratorConfig::paper(config);
                 c.sigma_accel_g = x;
                 c.estimate_every = every;
@@ -520,8 +528,7 @@ fn arb_message() -> impl Strategy<Value = Message> {
                 };
                 c.limits.max_bridge = every;
                 Message::Configure(c)
-            }
-        ),
+            }),
         Just(Message::Reset),
         Just(Message::CheckpointRequest),
         Just(Message::EstimateRequest),
