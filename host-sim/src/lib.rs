@@ -7,7 +7,8 @@
 //! - [`report`]: tables, JSON and CSV of runs;
 //! - [`observe`]: the observability analysis of every configuration;
 //! - [`montecarlo`]: seeded Monte Carlo runs against the Cramér–Rao bound;
-//! - [`paper`]: the whole paper regenerated (tables, runs, figures, summary).
+//! - [`paper`]: the whole paper regenerated (tables, runs, figures, summary);
+//! - [`stream`]: `record` and `calibrate` (wire frames, the calibrator).
 
 pub mod montecarlo;
 pub mod observe;
@@ -16,4 +17,5 @@ pub mod plots;
 pub mod report;
 pub mod runner;
 pub mod scenario;
+pub mod stream;
 pub mod truth;

@@ -42,6 +42,10 @@ enum Command {
     /// Seeded Monte Carlo runs of one configuration in parallel: RMS error
     /// against the Cramér–Rao bound, parameter-block NEES and NIS.
     Montecarlo(MonteCarloArgs),
+    /// Simulate a scenario and write it as a stream of wire frames (docs/wire.md).
+    Record(host_sim::stream::RecordArgs),
+    /// Run the calibrator on a frame stream from a file, stdin or a serial port.
+    Calibrate(host_sim::stream::CalibrateArgs),
     /// The whole paper regenerated (the default): observability tables with
     /// the Earth rate on and off, all seven estimator runs, one PNG figure
     /// per configuration and parameter group, summary.md and summary.json.
@@ -227,6 +231,8 @@ fn main() -> ExitCode {
         Some(Command::Observability(args)) => cmd_observability(&args),
         Some(Command::Montecarlo(args)) => cmd_montecarlo(&args),
         Some(Command::Paper(args)) => cmd_paper(&args),
+        Some(Command::Record(args)) => host_sim::stream::record(&args),
+        Some(Command::Calibrate(args)) => host_sim::stream::calibrate(&args),
         None => cmd_paper(&PaperArgs {
             scenario: None,
             seed: 1,
