@@ -73,6 +73,8 @@ pub struct MonteCarlo {
     pub nis: Consistency,
     /// Worst |error|/σ_filter over the parameter block and the runs.
     pub max_normalised_error: f64,
+    /// Where it occurred: (seed, state name, passes of that run).
+    pub worst: (u64, &'static str, u8),
     /// Wall time (s).
     pub wall_s: f64,
 }
@@ -239,7 +241,8 @@ pub fn monte_carlo(
     let n = names.len();
     let mut nees_sum = 0.0;
     let mut max_ratio: f64 = 0.0;
-    for r in &ok {
+    let mut worst = (0, "", 0);
+    for (r, &seed) in ok.iter().zip(&seeds) {
         let e = nalgebra::DVector::from_iterator(
             block.len(),
             block.iter().map(|&i| r.states[i].error()),
@@ -252,7 +255,10 @@ pub fn monte_carlo(
             .ok_or_else(|| format!("{id}: final covariance not positive definite"))?;
         nees_sum += e.dot(&chol.solve(&e));
         for &i in &block {
-            max_ratio = max_ratio.max(r.states[i].ratio());
+            if r.states[i].ratio() > max_ratio {
+                max_ratio = r.states[i].ratio();
+                worst = (seed, r.states[i].name, r.passes);
+            }
         }
     }
     let nees = band(nees_sum / n_runs, block.len(), ok.len());
@@ -268,6 +274,7 @@ pub fn monte_carlo(
         nees,
         nis,
         max_normalised_error: max_ratio,
+        worst,
         wall_s: t0.elapsed().as_secs_f64(),
     })
 }
@@ -309,7 +316,7 @@ pub fn print_monte_carlo(mc: &MonteCarlo) {
     show("parameter-block NEES", &mc.nees);
     show("NIS (final pass)", &mc.nis);
     println!(
-        "worst |error|/σ over the parameter block: {:.2}",
-        mc.max_normalised_error
+        "worst |error|/σ over the parameter block: {:.2} ({} of seed {}, {} passes)",
+        mc.max_normalised_error, mc.worst.1, mc.worst.0, mc.worst.2
     );
 }
