@@ -5,10 +5,18 @@
 //!   estimator's models);
 //! - [`runner`]: runs any configuration's estimator over a simulated run;
 //! - [`report`]: tables, JSON and CSV of runs;
+//! - [`observe`]: the observability analysis of every configuration;
+//! - [`montecarlo`]: seeded Monte Carlo runs against the Cramér–Rao bound;
+//! - [`paper`]: the whole paper regenerated (tables, runs, figures, summary);
+//! - [`stream`]: `record` and `calibrate` (wire frames, the calibrator);
 //! - [`plots`]: PNG figures (error, ±3σ band, σ_CRLB against time).
 
+pub mod montecarlo;
+pub mod observe;
+pub mod paper;
 pub mod plots;
 pub mod report;
 pub mod runner;
 pub mod scenario;
+pub mod stream;
 pub mod truth;

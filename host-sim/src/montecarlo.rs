@@ -1,0 +1,322 @@
+//! Monte Carlo runs of one configuration: seeded noise, the estimator of
+//! record, and the statistics that compare it with the Cramér–Rao bound
+//! (SPEC §6: RMS error against σ_CRLB, parameter-block NEES and NIS inside
+//! their χ² bands).
+
+use rayon::prelude::*;
+use rollcal::ekf;
+use rollcal::models::{ConfigId, Group};
+
+use crate::observe;
+use crate::runner::{run_filter, Estimator};
+use crate::scenario::Scenario;
+use crate::truth::{simulate, SimOptions};
+
+/// Statistics of one state over the runs.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct StateStats {
+    /// State name.
+    pub name: &'static str,
+    /// Root-mean-square final error (rad).
+    pub rms_error_rad: f64,
+    /// Mean error (rad): a bias shows here.
+    pub mean_error_rad: f64,
+    /// Mean final filter σ (rad).
+    pub mean_sigma_rad: f64,
+    /// Posterior Cramér–Rao σ (rad).
+    pub sigma_crlb_rad: f64,
+    /// RMS error / σ_CRLB.
+    pub rms_over_crlb: f64,
+    /// Whether the state belongs to the parameter block (installation
+    /// errors and λ that the configuration observes).
+    pub in_parameter_block: bool,
+}
+
+/// A χ² consistency statistic averaged over runs, with its two-sided 95 %
+/// band.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct Consistency {
+    /// Average of the statistic.
+    pub mean: f64,
+    /// Degrees of freedom of one sample.
+    pub dof: usize,
+    /// Number of samples averaged.
+    pub samples: usize,
+    /// Lower end of the 95 % band of the average.
+    pub lower: f64,
+    /// Upper end of the 95 % band of the average.
+    pub upper: f64,
+}
+
+impl Consistency {
+    /// Whether the average lies in its band.
+    pub fn inside(&self) -> bool {
+        self.mean >= self.lower && self.mean <= self.upper
+    }
+}
+
+/// The outcome of a Monte Carlo study.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct MonteCarlo {
+    /// Configuration.
+    #[serde(serialize_with = "ser_config")]
+    pub config: ConfigId,
+    /// Runs that completed.
+    pub runs: usize,
+    /// Seeds used (1..=runs).
+    pub seeds: Vec<u64>,
+    /// Per state.
+    pub states: Vec<StateStats>,
+    /// Parameter-block NEES, averaged over the runs.
+    pub nees: Consistency,
+    /// NIS of the final pass, averaged over runs and updates.
+    pub nis: Consistency,
+    /// Worst |error|/σ_filter over the parameter block and the runs.
+    pub max_normalised_error: f64,
+    /// Where it occurred: (seed, state name, passes of that run).
+    pub worst: (u64, &'static str, u8),
+    /// Wall time (s).
+    pub wall_s: f64,
+}
+
+fn ser_config<S: serde::Serializer>(c: &ConfigId, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(c.as_str())
+}
+
+/// Quantile `p` of the χ² distribution with `k` degrees of freedom, by the
+/// Wilson–Hilferty approximation (relative error < 1e-3 for k ≥ 10, and the
+/// averages here have k ≥ 100).
+pub fn chi2_quantile(p: f64, k: f64) -> f64 {
+    let z = normal_quantile(p);
+    let a = 2.0 / (9.0 * k);
+    k * (1.0 - a + z * a.sqrt()).powi(3)
+}
+
+/// Standard normal quantile (Acklam's rational approximation, |error| <
+/// 1.2e-9).
+pub fn normal_quantile(p: f64) -> f64 {
+    const A: [f64; 6] = [
+        -3.969683028665376e1,
+        2.209460984245205e2,
+        -2.759285104469687e2,
+        1.38357751867269e2,
+        -3.066479806614716e1,
+        2.506628277459239,
+    ];
+    const B: [f64; 5] = [
+        -5.447609879822406e1,
+        1.615858368580409e2,
+        -1.556989798598866e2,
+        6.680131188771972e1,
+        -1.328068155288572e1,
+    ];
+    const C: [f64; 6] = [
+        -7.784894002430293e-3,
+        -3.223964580411365e-1,
+        -2.400758277161838,
+        -2.549732539343734,
+        4.374664141464968,
+        2.938163982698783,
+    ];
+    const D: [f64; 4] = [
+        7.784695709041462e-3,
+        3.224671290700398e-1,
+        2.445134137142996,
+        3.754408661907416,
+    ];
+    let lo = 0.02425;
+    if p < lo {
+        let q = (-2.0 * p.ln()).sqrt();
+        (((((C[0] * q + C[1]) * q + C[2]) * q + C[3]) * q + C[4]) * q + C[5])
+            / ((((D[0] * q + D[1]) * q + D[2]) * q + D[3]) * q + 1.0)
+    } else if p <= 1.0 - lo {
+        let q = p - 0.5;
+        let r = q * q;
+        (((((A[0] * r + A[1]) * r + A[2]) * r + A[3]) * r + A[4]) * r + A[5]) * q
+            / (((((B[0] * r + B[1]) * r + B[2]) * r + B[3]) * r + B[4]) * r + 1.0)
+    } else {
+        -normal_quantile(1.0 - p)
+    }
+}
+
+/// The 95 % band of the average of `samples` independent χ²(`dof`) values.
+pub fn band(mean: f64, dof: usize, samples: usize) -> Consistency {
+    let k = (dof * samples) as f64;
+    let n = samples.max(1) as f64;
+    Consistency {
+        mean,
+        dof,
+        samples,
+        lower: chi2_quantile(0.025, k) / n,
+        upper: chi2_quantile(0.975, k) / n,
+    }
+}
+
+/// Whether state `name` of group `group` is in the parameter block of `id`:
+/// the installation errors and base angles the configuration observes
+/// (SPEC §3).
+pub fn in_parameter_block(id: ConfigId, name: &str, group: Group) -> bool {
+    group != Group::Attitude && crate::runner::expected_observable(id, name, group)
+}
+
+/// Runs `runs` seeded Monte Carlo runs (seeds 1..=runs) of configuration
+/// `id` in parallel; `progress` is called after each run with the number
+/// done.
+pub fn monte_carlo(
+    id: ConfigId,
+    scenario: &Scenario,
+    runs: usize,
+    estimator: Estimator,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<MonteCarlo, String> {
+    let t0 = std::time::Instant::now();
+    let earth_rate = scenario.site.earth_rate;
+    // The bound does not depend on the noise: one noise-free trajectory.
+    let clean = simulate(
+        scenario,
+        SimOptions {
+            seed: 0,
+            noise: false,
+            earth_rate,
+        },
+    );
+    let obs = observe::analyse(id, scenario, &clean, earth_rate, false)
+        .map_err(|e| format!("{id}: observability: {e}"))?;
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let seeds: Vec<u64> = (1..=runs as u64).collect();
+    let results: Vec<Result<crate::runner::RunResult, (u64, ekf::Error)>> = seeds
+        .par_iter()
+        .map(|&seed| {
+            let sim = simulate(
+                scenario,
+                SimOptions {
+                    seed,
+                    noise: true,
+                    earth_rate,
+                },
+            );
+            let r = run_filter(id, scenario, &sim, earth_rate, estimator, None, false)
+                .map_err(|e| (seed, e));
+            let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            progress(n);
+            r
+        })
+        .collect();
+    let mut ok = Vec::new();
+    for r in results {
+        match r {
+            Ok(r) => ok.push(r),
+            Err((seed, e)) => return Err(format!("{id}: seed {seed}: {e}")),
+        }
+    }
+    let names = id.states();
+    let block: Vec<usize> = names
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| in_parameter_block(id, s.name, s.group))
+        .map(|(i, _)| i)
+        .collect();
+    let n_runs = ok.len().max(1) as f64;
+    let states = names
+        .iter()
+        .enumerate()
+        .map(|(i, info)| {
+            let errs: Vec<f64> = ok.iter().map(|r| r.states[i].error()).collect();
+            let rms = (errs.iter().map(|e| e * e).sum::<f64>() / n_runs).sqrt();
+            let mean = errs.iter().sum::<f64>() / n_runs;
+            let sig = ok.iter().map(|r| r.states[i].sigma_rad).sum::<f64>() / n_runs;
+            let crlb = obs.states[i].sigma_crlb_rad;
+            StateStats {
+                name: info.name,
+                rms_error_rad: rms,
+                mean_error_rad: mean,
+                mean_sigma_rad: sig,
+                sigma_crlb_rad: crlb,
+                rms_over_crlb: rms / crlb,
+                in_parameter_block: block.contains(&i),
+            }
+        })
+        .collect();
+    // NEES of the parameter block: e_pᵀ P_pp⁻¹ e_p per run.
+    let n = names.len();
+    let mut nees_sum = 0.0;
+    let mut max_ratio: f64 = 0.0;
+    let mut worst = (0, "", 0);
+    for (r, &seed) in ok.iter().zip(&seeds) {
+        let e = nalgebra::DVector::from_iterator(
+            block.len(),
+            block.iter().map(|&i| r.states[i].error()),
+        );
+        let p = nalgebra::DMatrix::from_fn(block.len(), block.len(), |a, b| {
+            r.covariance[block[a] * n + block[b]]
+        });
+        let chol = p
+            .cholesky()
+            .ok_or_else(|| format!("{id}: final covariance not positive definite"))?;
+        nees_sum += e.dot(&chol.solve(&e));
+        for &i in &block {
+            if r.states[i].ratio() > max_ratio {
+                max_ratio = r.states[i].ratio();
+                worst = (seed, r.states[i].name, r.passes);
+            }
+        }
+    }
+    let nees = band(nees_sum / n_runs, block.len(), ok.len());
+    let z = id.layout().z();
+    let nis_count: usize = ok.iter().map(|r| r.nis.len()).sum();
+    let nis_mean = ok.iter().flat_map(|r| r.nis.iter()).sum::<f64>() / nis_count.max(1) as f64;
+    let nis = band(nis_mean, z, nis_count);
+    Ok(MonteCarlo {
+        config: id,
+        runs: ok.len(),
+        seeds,
+        states,
+        nees,
+        nis,
+        max_normalised_error: max_ratio,
+        worst,
+        wall_s: t0.elapsed().as_secs_f64(),
+    })
+}
+
+/// Prints the Monte Carlo table.
+pub fn print_monte_carlo(mc: &MonteCarlo) {
+    use crate::scenario::ARCSEC;
+    println!(
+        "{} Monte Carlo: {} runs (seeds 1..={}), {:.1} s wall",
+        mc.config, mc.runs, mc.runs, mc.wall_s
+    );
+    println!(
+        "{:<10} {:>11} {:>11} {:>11} {:>11} {:>9}  block",
+        "state", "RMS err ″", "mean err ″", "mean σ ″", "σ_CRLB ″", "RMS/CRLB"
+    );
+    for s in &mc.states {
+        println!(
+            "{:<10} {:>11.4} {:>11.4} {:>11.4} {:>11.4} {:>9.3}  {}",
+            s.name,
+            s.rms_error_rad / ARCSEC,
+            s.mean_error_rad / ARCSEC,
+            s.mean_sigma_rad / ARCSEC,
+            s.sigma_crlb_rad / ARCSEC,
+            s.rms_over_crlb,
+            if s.in_parameter_block { "yes" } else { "" }
+        );
+    }
+    let show = |name: &str, c: &Consistency| {
+        println!(
+            "{name}: average {:.3} (dof {} × {} samples), 95 % band [{:.3}, {:.3}]: {}",
+            c.mean,
+            c.dof,
+            c.samples,
+            c.lower,
+            c.upper,
+            if c.inside() { "inside" } else { "OUTSIDE" }
+        );
+    };
+    show("parameter-block NEES", &mc.nees);
+    show("NIS (final pass)", &mc.nis);
+    println!(
+        "worst |error|/σ over the parameter block: {:.2} ({} of seed {}, {} passes)",
+        mc.max_normalised_error, mc.worst.1, mc.worst.0, mc.worst.2
+    );
+}

@@ -1,0 +1,507 @@
+//! `host-sim paper`: the whole paper regenerated — observability tables with
+//! the Earth rate on and off, every configuration's estimator run, one figure
+//! per configuration and parameter group, and `summary.md`/`summary.json`.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+use rollcal::models::{ConfigId, Group};
+
+use crate::observe::{self, ConfigObs, ObsVerdict};
+use crate::plots::{plot_group, Curve};
+use crate::runner::{expected_observable, run_filter, Estimator, RunResult};
+use crate::scenario::{Scenario, ARCSEC};
+use crate::truth::{simulate, truth_state, SimOptions, Simulation};
+
+/// The verdict on one state at the end of the paper's run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StateVerdict {
+    /// Observable (Earth rate as in the run) and within 4σ of the truth.
+    Converged,
+    /// Structurally unobservable, or σ_CRLB/σ_prior ≥ 0.01.
+    NotObservable,
+    /// Observable but more than 4σ from the truth.
+    Failed,
+}
+
+impl StateVerdict {
+    /// Stable text for tables.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            StateVerdict::Converged => "converged",
+            StateVerdict::NotObservable => "not observable",
+            StateVerdict::Failed => "FAILED",
+        }
+    }
+}
+
+/// One state of the summary.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct SummaryState {
+    /// State name (as in the `run` JSON).
+    pub name: &'static str,
+    /// Group name.
+    pub group: &'static str,
+    /// Truth at the end of the run (rad).
+    pub truth_rad: f64,
+    /// Estimate (rad).
+    pub estimate_rad: f64,
+    /// Estimate − truth (rad; wrapped).
+    pub error_rad: f64,
+    /// Final filter σ (rad).
+    pub sigma_filter_rad: f64,
+    /// Posterior Cramér–Rao σ (rad).
+    pub sigma_crlb_rad: f64,
+    /// The verdict of the run.
+    pub verdict: StateVerdict,
+    /// Observable in practice with the Earth rate off (the paper's assumption).
+    pub observable_earth_off: bool,
+    /// Observable in practice with the Earth rate on.
+    pub observable_earth_on: bool,
+    /// The paper's claim (SPEC §3), for installation errors and λ; `null`
+    /// for the attitude states, on which the paper claims nothing per axis.
+    pub paper_observable: Option<bool>,
+    /// Whether the Earth-off analysis agrees with the paper's claim.
+    pub agrees_with_paper: Option<bool>,
+}
+
+/// One configuration of the summary.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct SummaryConfig {
+    /// Configuration id.
+    pub config: &'static str,
+    /// Passes the estimator ran.
+    pub passes: u8,
+    /// Mean NIS of the final pass.
+    pub mean_nis: f64,
+    /// Failed updates.
+    pub failed_updates: usize,
+    /// Per state.
+    pub states: Vec<SummaryState>,
+    /// Figures written (paths relative to the output directory).
+    pub figures: Vec<String>,
+}
+
+/// Everything `paper` computes.
+pub struct Paper {
+    /// Scenario name.
+    pub scenario: String,
+    /// Seed of the noise.
+    pub seed: u64,
+    /// Whether the runs had the Earth rate.
+    pub earth_rate: bool,
+    /// Observability with the Earth rate off.
+    pub obs_off: Vec<ConfigObs>,
+    /// Observability with the Earth rate on (as the runs).
+    pub obs_on: Vec<ConfigObs>,
+    /// Per configuration.
+    pub configs: Vec<SummaryConfig>,
+    /// Wall time of the seven estimator runs (s, in parallel).
+    pub runs_wall_s: f64,
+    /// Total wall time (s).
+    pub wall_s: f64,
+}
+
+/// The groups plotted, in the paper's order, with their file-name stems.
+const GROUPS: [(Group, &str); 6] = [
+    (Group::ThetaAT, "thaT"),
+    (Group::ThetaAC, "thaC"),
+    (Group::ThetaGT, "thgT"),
+    (Group::ThetaGC, "thgC"),
+    (Group::Lambda, "lam"),
+    (Group::Attitude, "attitude"),
+];
+
+fn figure_title(id: ConfigId, g: Group) -> String {
+    let what = match g {
+        Group::ThetaAT => "accelerometer non-orthogonality θaT",
+        Group::ThetaAC => "accelerometer axis rotation θaC",
+        Group::ThetaGT => "gyro non-orthogonality θgT",
+        Group::ThetaGC => "gyro axis rotation θgC",
+        Group::Lambda => "base mounting λ",
+        Group::Attitude => "attitude",
+    };
+    format!("{id}: {what} — estimation error, ±3σ filter, ±3σ_CRLB")
+}
+
+/// Writes the figures of one run; returns their file names.
+fn figures(
+    out: &Path,
+    run: &RunResult,
+    obs: &ConfigObs,
+    truth: &[Vec<f64>],
+) -> Result<Vec<String>, String> {
+    let id = run.config;
+    let t: Vec<f64> = run.history.iter().map(|h| h.0).collect();
+    let mut names = Vec::new();
+    for (g, stem) in GROUPS {
+        let idx: Vec<usize> = id
+            .states()
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.group == g)
+            .map(|(i, _)| i)
+            .collect();
+        if idx.is_empty() {
+            continue;
+        }
+        let series: Vec<(Vec<f64>, Vec<f64>, Vec<f64>)> = idx
+            .iter()
+            .map(|&i| {
+                let err = run
+                    .history
+                    .iter()
+                    .zip(truth)
+                    .map(|(h, tr)| rollcal::geometry::wrap_angle(h.1[i] - tr[i]) / ARCSEC)
+                    .collect();
+                let sig = run.history.iter().map(|h| h.2[i] / ARCSEC).collect();
+                let crlb = obs.crlb_history.iter().map(|c| c[i] / ARCSEC).collect();
+                (err, sig, crlb)
+            })
+            .collect();
+        let curves: Vec<Curve<'_>> = idx
+            .iter()
+            .zip(&series)
+            .map(|(&i, (e, s, c))| Curve {
+                label: id.states()[i].name,
+                error: e,
+                sigma: s,
+                crlb: c,
+            })
+            .collect();
+        let file = format!("{}-{stem}.png", id.as_str());
+        plot_group(&out.join(&file), &figure_title(id, g), &t, &curves)?;
+        names.push(file);
+    }
+    Ok(names)
+}
+
+fn summarise(
+    run: &RunResult,
+    off: &ConfigObs,
+    on: &ConfigObs,
+    earth_rate: bool,
+    figures: Vec<String>,
+) -> SummaryConfig {
+    let id = run.config;
+    let at_run = if earth_rate { on } else { off };
+    let states = run
+        .states
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            let group = Group::from_name(s.group).unwrap_or(Group::Attitude);
+            let observable = at_run.states[i].observable;
+            let verdict = if !observable {
+                StateVerdict::NotObservable
+            } else if s.ratio() <= 4.0 {
+                StateVerdict::Converged
+            } else {
+                StateVerdict::Failed
+            };
+            let paper = (group != Group::Attitude).then(|| expected_observable(id, s.name, group));
+            SummaryState {
+                name: s.name,
+                group: s.group,
+                truth_rad: s.truth_rad,
+                estimate_rad: s.estimate_rad,
+                error_rad: s.error(),
+                sigma_filter_rad: s.sigma_rad,
+                sigma_crlb_rad: at_run.states[i].sigma_crlb_rad,
+                verdict,
+                observable_earth_off: off.states[i].observable,
+                observable_earth_on: on.states[i].observable,
+                paper_observable: paper,
+                agrees_with_paper: paper.map(|p| p == off.states[i].observable),
+            }
+        })
+        .collect();
+    let n = run.nis.len().max(1) as f64;
+    SummaryConfig {
+        config: id.as_str(),
+        passes: run.passes,
+        mean_nis: run.nis.iter().sum::<f64>() / n,
+        failed_updates: run.failures.len(),
+        states,
+        figures,
+    }
+}
+
+/// Runs everything and writes it into `out` (created if missing).
+/// `progress(done, total, what)` is called as tasks finish.
+pub fn paper(
+    scenario: &Scenario,
+    seed: u64,
+    out: &Path,
+    progress: &(dyn Fn(&str) + Sync),
+) -> Result<Paper, String> {
+    let t0 = std::time::Instant::now();
+    std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+    let earth_rate = scenario.site.earth_rate;
+    let sim_for = |seed: u64, noise: bool, er: bool| {
+        simulate(
+            scenario,
+            SimOptions {
+                seed,
+                noise,
+                earth_rate: er,
+            },
+        )
+    };
+    let (sim, (clean_on, clean_off)) = rayon::join(
+        || sim_for(seed, true, earth_rate),
+        || {
+            rayon::join(
+                || sim_for(0, false, earth_rate),
+                || sim_for(0, false, false),
+            )
+        },
+    );
+    progress("simulated the truth");
+    let analyse = |sim: &Simulation, er: bool, hist: bool| -> Result<Vec<ConfigObs>, String> {
+        ConfigId::ALL
+            .par_iter()
+            .map(|&id| {
+                let r =
+                    observe::analyse(id, scenario, sim, er, hist).map_err(|e| format!("{id}: {e}"));
+                progress(&format!(
+                    "observability of {id} (Earth rate {})",
+                    if er { "on" } else { "off" }
+                ));
+                r
+            })
+            .collect()
+    };
+    let obs_on = analyse(&clean_on, earth_rate, true)?;
+    let obs_off = analyse(&clean_off, false, false)?;
+    let t_runs = std::time::Instant::now();
+    let runs: Vec<RunResult> = ConfigId::ALL
+        .par_iter()
+        .map(|&id| {
+            let r = run_filter(
+                id,
+                scenario,
+                &sim,
+                earth_rate,
+                Estimator::default(),
+                None,
+                true,
+            )
+            .map_err(|e| format!("{id}: {e}"));
+            progress(&format!("estimator run of {id}"));
+            r
+        })
+        .collect::<Result<_, _>>()?;
+    let runs_wall_s = t_runs.elapsed().as_secs_f64();
+    let configs: Vec<SummaryConfig> = runs
+        .par_iter()
+        .zip(obs_on.par_iter().zip(obs_off.par_iter()))
+        .map(|(run, (on, off))| {
+            let truth: Vec<Vec<f64>> = sim
+                .samples
+                .iter()
+                .map(|s| truth_state(run.config, &sim.params, &s.truth))
+                .collect();
+            let figs = figures(out, run, on, &truth)?;
+            progress(&format!("figures of {}", run.config));
+            Ok(summarise(run, off, on, earth_rate, figs))
+        })
+        .collect::<Result<_, String>>()?;
+    let paper = Paper {
+        scenario: scenario.name.clone(),
+        seed,
+        earth_rate,
+        obs_off,
+        obs_on,
+        configs,
+        runs_wall_s,
+        wall_s: t0.elapsed().as_secs_f64(),
+    };
+    write_outputs(out, &paper)?;
+    Ok(paper)
+}
+
+/// Number of progress steps [`paper`] reports.
+pub const PROGRESS_STEPS: u64 = 1 + 7 + 7 + 7 + 7;
+
+fn write_outputs(out: &Path, p: &Paper) -> Result<(), String> {
+    let write = |name: &str, text: String| -> Result<PathBuf, String> {
+        let path = out.join(name);
+        std::fs::write(&path, text).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        Ok(path)
+    };
+    let json = serde_json::json!({
+        "scenario": p.scenario,
+        "seed": p.seed,
+        "earth_rate": p.earth_rate,
+        "configs": p.configs,
+    });
+    write(
+        "summary.json",
+        serde_json::to_string_pretty(&json).map_err(|e| e.to_string())? + "\n",
+    )?;
+    for (name, obs, er) in [
+        ("observability-earth-off.json", &p.obs_off, false),
+        ("observability-earth-on.json", &p.obs_on, true),
+    ] {
+        let v = observe::report_json(er, obs);
+        write(
+            name,
+            serde_json::to_string_pretty(&v).map_err(|e| e.to_string())? + "\n",
+        )?;
+    }
+    write("summary.md", summary_markdown(p))?;
+    Ok(())
+}
+
+/// The Markdown summary (also what `paper` prints, without the per-state
+/// tables).
+pub fn summary_markdown(p: &Paper) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "# rollcal: the paper's scenario regenerated\n\nScenario `{}`, seed {}, Earth rate {}. \
+         Generated by `cargo run --release -p host-sim -- paper --seed {}`.\n",
+        p.scenario,
+        p.seed,
+        if p.earth_rate { "on" } else { "off" },
+        p.seed
+    );
+    s.push_str(&overview_markdown(p));
+    let _ = writeln!(
+        s,
+        "\n## Which errors can each model observe?\n\n### Earth rate off (the paper's assumption)\n\n{}",
+        observe::verdict_matrix_markdown(&p.obs_off)
+    );
+    let _ = writeln!(
+        s,
+        "### Earth rate on\n\n{}",
+        observe::verdict_matrix_markdown(&p.obs_on)
+    );
+    let _ = writeln!(s, "Cells: x y z (or 1 2 3) of each group. yes: observable in practice (σ_CRLB/σ_prior < 0.01); weak: outside the null space but above that ratio; no: in the null space of the information matrix.\n");
+    let _ = writeln!(s, "What the Earth rate changes:\n");
+    for l in observe::changes(&p.obs_off, &p.obs_on) {
+        let _ = writeln!(s, "- {l}");
+    }
+    let _ = writeln!(s, "\nUnobservable combinations (Earth rate on / off):\n");
+    for (on, off) in p.obs_on.iter().zip(&p.obs_off) {
+        let fmt = |c: &ConfigObs| {
+            if c.null_space.is_empty() {
+                "none".to_string()
+            } else {
+                c.null_space
+                    .iter()
+                    .map(|t| format!("`{}`", observe::format_combination(t)))
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            }
+        };
+        let _ = writeln!(s, "- **{}** on: {}; off: {}", on.config, fmt(on), fmt(off));
+    }
+    for c in &p.configs {
+        let _ = writeln!(
+            s,
+            "\n## {}\n\n{} pass(es), mean NIS {:.3}, {} failed updates.\n",
+            c.config, c.passes, c.mean_nis, c.failed_updates
+        );
+        let _ = writeln!(
+            s,
+            "| state | truth ″ | estimate ″ | error ″ | σ filter ″ | σ_CRLB ″ | σ/σ_CRLB | verdict | paper | agrees |\n|---|---:|---:|---:|---:|---:|---:|---|---|---|"
+        );
+        for st in &c.states {
+            let paper = match st.paper_observable {
+                Some(true) => "observable",
+                Some(false) => "not observable",
+                None => "—",
+            };
+            let agrees = match st.agrees_with_paper {
+                Some(true) => "yes",
+                Some(false) => "**no**",
+                None => "—",
+            };
+            let _ = writeln!(
+                s,
+                "| {} | {:.3} | {:.3} | {:.4} | {:.4} | {:.4} | {:.3} | {} | {} | {} |",
+                st.name,
+                st.truth_rad / ARCSEC,
+                st.estimate_rad / ARCSEC,
+                st.error_rad / ARCSEC,
+                st.sigma_filter_rad / ARCSEC,
+                st.sigma_crlb_rad / ARCSEC,
+                st.sigma_filter_rad / st.sigma_crlb_rad,
+                st.verdict.as_str(),
+                paper,
+                agrees
+            );
+        }
+        if !c.figures.is_empty() {
+            s.push('\n');
+            for f in &c.figures {
+                let _ = writeln!(s, "![{f}]({f})");
+            }
+        }
+    }
+    s
+}
+
+/// One line per configuration: verdict counts and agreement with the paper.
+pub fn overview_markdown(p: &Paper) -> String {
+    let mut s = String::from(
+        "| config | converged | not observable | failed | agrees with paper | max \\|err\\|/σ (observable) | max σ/σ_CRLB (observable) | mean NIS |\n|---|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for c in &p.configs {
+        let count = |v: StateVerdict| c.states.iter().filter(|s| s.verdict == v).count();
+        let judged: Vec<_> = c
+            .states
+            .iter()
+            .filter(|s| s.agrees_with_paper.is_some())
+            .collect();
+        let agree = judged
+            .iter()
+            .filter(|s| s.agrees_with_paper == Some(true))
+            .count();
+        let obs: Vec<_> = c
+            .states
+            .iter()
+            .filter(|s| s.verdict != StateVerdict::NotObservable)
+            .collect();
+        let max_ratio = obs
+            .iter()
+            .map(|s| s.error_rad.abs() / s.sigma_filter_rad)
+            .fold(0.0, f64::max);
+        let max_eff = obs
+            .iter()
+            .map(|s| s.sigma_filter_rad / s.sigma_crlb_rad)
+            .fold(0.0, f64::max);
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {}/{} | {:.2} | {:.3} | {:.3} |",
+            c.config,
+            count(StateVerdict::Converged),
+            count(StateVerdict::NotObservable),
+            count(StateVerdict::Failed),
+            agree,
+            judged.len(),
+            max_ratio,
+            max_eff,
+            c.mean_nis
+        );
+    }
+    s
+}
+
+/// Whether every state agrees with the paper and none failed.
+pub fn all_good(p: &Paper) -> bool {
+    p.configs.iter().all(|c| {
+        c.states
+            .iter()
+            .all(|s| s.verdict != StateVerdict::Failed && s.agrees_with_paper != Some(false))
+    })
+}
+
+/// The verdict of a state in an observability analysis, for tests.
+pub fn obs_verdict(c: &ConfigObs, name: &str) -> Option<ObsVerdict> {
+    c.states.iter().find(|s| s.name == name).map(|s| s.verdict)
+}

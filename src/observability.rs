@@ -1,0 +1,473 @@
+//! Observability of a configuration along a rolling path (SPEC §5; the
+//! paper's §2 proves by hand what this module computes).
+//!
+//! [`Observability`] follows the *true* trajectory of a configuration (the
+//! model integrated without noise from the true initial state along the
+//! commanded path) and accumulates, period by period:
+//!
+//! - the **information matrix** of the initial state,
+//!   `J = Σ_k Φ(k,0)ᵀ H_kᵀ R⁻¹ H_k Φ(k,0)`, where `Φ(k,0)` is the transition
+//!   of the linearised model from `t_0` to `t_k` and `H_k` the Jacobian of the
+//!   period-`k` measurement with respect to the state at `t_k`; `R` holds the
+//!   measurement noise only (accelerometer σ², gimbal σ²), so `J` is the
+//!   deterministic observability Gramian weighted by the noise. Its null
+//!   space is the set of initial-state changes that leave every noise-free
+//!   measurement unchanged to first order: the structurally unobservable
+//!   combinations;
+//! - the **posterior Cramér–Rao bound**: the covariance recursion of the
+//!   Kalman filter linearised about the true trajectory, with the prior and
+//!   the process noise (the gyro noise, correlated with the accelerometer
+//!   measurement of the same period). Its square-rooted diagonal is
+//!   `σ_CRLB`; `σ_CRLB / σ_prior ≪ 1` says *how well* a parameter is
+//!   observable, which the rank alone does not.
+//!
+//! [`Observability::analyse`] decomposes `J` (scaled by the prior,
+//! `J̃ = S J S`, `S = diag(σ_prior)`, so that its eigenvalues are the
+//! information relative to the prior) with a symmetric eigen-decomposition.
+//! An eigenvalue counts towards the rank when it exceeds
+//! `rel_tol · λ_max` ([`RANK_TOLERANCE`] by default). The null-space basis
+//! is returned in reduced row-echelon form (each basis vector has a leading
+//! state that appears in no other vector), normalised to unit length, with
+//! coefficients below [`COEF_THRESHOLD`] set to zero: this makes the
+//! combinations readable, e.g. `0.577 psi_x + 0.577 thgC_x + 0.577 thaC_x`
+//! (the ps-frame gauge: the cube frame cannot be told from the accelerometer
+//! frame, paper eq. 28).
+//!
+//! A state is *structurally unobservable* when it takes part in the null
+//! space (the norm of its unit vector's projection on the null space exceeds
+//! [`COEF_THRESHOLD`]), and *observable in practice* when in addition
+//! `σ_CRLB / σ_prior <` [`PRACTICAL_RATIO`]. States that share one null
+//! direction come out with ratios below 1 (0.58 for a three-way tie), so the
+//! structural verdict is read from the null space, never from the ratio.
+
+use nalgebra::{RealField, SMatrix, SVector};
+
+use crate::command::CommandFrame;
+use crate::ekf::{Error, Filter, FilterConfig, Observation, Options};
+use crate::models::{Layout, Model, PeriodPropagation};
+
+/// Default relative tolerance of the numerical rank: an eigenvalue of the
+/// prior-scaled information matrix counts when it exceeds `1e-12 · λ_max`.
+///
+/// On the paper's scenario the weakest observable direction sits at
+/// `6e-6 · λ_max` (2e-5 for the azimuth seen through the Earth rate), while
+/// the structurally null directions come out at `≤ 1.3e-14 · λ_max` (the
+/// round-off of the sum over 5400 periods and of the eigen-solver): the
+/// tolerance lies in the gap, six decades below the one side and two above
+/// the other. `host-sim observability --json` prints every eigenvalue.
+pub const RANK_TOLERANCE: f64 = 1e-12;
+
+/// Coefficients of a normalised null-space vector below this magnitude are
+/// dropped (set to zero), and a state takes part in the null space when its
+/// projection on it exceeds this.
+pub const COEF_THRESHOLD: f64 = 1e-6;
+
+/// A parameter is observable in practice when `σ_CRLB / σ_prior` is below
+/// this (SPEC §5).
+pub const PRACTICAL_RATIO: f64 = 0.01;
+
+/// Eigen-decomposition of the prior-scaled information matrix.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Spectrum<T: RealField + Copy, const N: usize> {
+    /// Eigenvalues of `J̃ = S J S` (dimensionless: information relative to
+    /// the prior), in decreasing order.
+    pub eigenvalues: SVector<T, N>,
+    /// Unit eigenvectors (columns), in the order of `eigenvalues`, in the
+    /// scaled coordinates `x̃ = S⁻¹ x` (equal to the state's for a uniform
+    /// prior).
+    pub eigenvectors: SMatrix<T, N, N>,
+    /// The relative tolerance used for the rank.
+    pub rel_tol: T,
+    /// Numerical rank: the eigenvalues above `rel_tol · λ_max`.
+    pub rank: usize,
+}
+
+impl<T: RealField + Copy, const N: usize> Spectrum<T, N> {
+    /// Dimension of the null space, `N − rank`.
+    pub fn nullity(&self) -> usize {
+        N.saturating_sub(self.rank)
+    }
+
+    /// Per state, the norm of the projection of its unit vector on the null
+    /// space (0: fully observable direction, 1: entirely unobservable).
+    pub fn participation(&self) -> SVector<T, N> {
+        let mut out = SVector::<T, N>::zeros();
+        for col in self.eigenvectors.column_iter().skip(self.rank) {
+            for (o, v) in out.iter_mut().zip(col.iter()) {
+                *o += *v * *v;
+            }
+        }
+        out.map(|v| v.sqrt())
+    }
+
+    /// Whether state `i` takes part in the null space (structurally
+    /// unobservable); `false` for an out-of-range index.
+    pub fn in_null_space(&self, i: usize) -> bool {
+        let thr: T = nalgebra::convert(COEF_THRESHOLD);
+        self.participation().get(i).is_some_and(|p| *p > thr)
+    }
+
+    /// A canonical basis of the null space: the first [`Spectrum::nullity`]
+    /// columns of the returned matrix (the rest are zero). It is the reduced
+    /// row-echelon form of the null-space eigenvectors (complete pivoting:
+    /// each vector has a pivot state, with the largest available
+    /// coefficient, that no other vector contains; vectors ordered by their
+    /// pivot state), each vector then
+    /// normalised to unit length with its leading coefficient positive and
+    /// coefficients below [`COEF_THRESHOLD`] set to zero.
+    pub fn null_space_basis(&self) -> SMatrix<T, N, N> {
+        let k = self.nullity();
+        // Rows of `b` are the null-space vectors.
+        let mut b = SMatrix::<T, N, N>::zeros();
+        for (r, col) in self.eigenvectors.column_iter().skip(self.rank).enumerate() {
+            if let Some(mut row) = b.row_iter_mut().nth(r) {
+                row.copy_from(&col.transpose());
+            }
+        }
+        // Gauss–Jordan elimination with complete pivoting on the first k
+        // rows: each step takes the largest remaining entry as pivot, so
+        // that a tiny coefficient never becomes a pivot (which would mix
+        // the combinations with large multiples of each other).
+        let mut pivot_cols = [usize::MAX; N];
+        for step in 0..k {
+            let mut best = (step, 0, T::zero());
+            for r in step..k {
+                for c in 0..N {
+                    let v = b.get((r, c)).map_or(T::zero(), |v| v.abs());
+                    if v > best.2 {
+                        best = (r, c, v);
+                    }
+                }
+            }
+            let (br, c, val) = best;
+            if val <= T::zero() {
+                break;
+            }
+            b.swap_rows(step, br);
+            let p = b.get((step, c)).copied().unwrap_or(T::one());
+            let scaled = b.row(step) / p;
+            b.set_row(step, &scaled);
+            for r in 0..k {
+                if r != step {
+                    let f = b.get((r, c)).copied().unwrap_or(T::zero());
+                    if f != T::zero() {
+                        let new = b.row(r) - scaled * f;
+                        b.set_row(r, &new);
+                    }
+                }
+            }
+            if let Some(pc) = pivot_cols.get_mut(step) {
+                *pc = c;
+            }
+        }
+        // Order the vectors by their pivot state.
+        let mut order = [0usize; N];
+        for (i, o) in order.iter_mut().enumerate() {
+            *o = i;
+        }
+        if let Some(head) = order.get_mut(..k) {
+            head.sort_unstable_by_key(|&r| pivot_cols.get(r).copied().unwrap_or(usize::MAX));
+        }
+        let mut sorted = SMatrix::<T, N, N>::zeros();
+        for (dst, &src) in order.iter().enumerate().take(k) {
+            sorted.set_row(dst, &b.row(src));
+        }
+        let b = sorted;
+        let thr: T = nalgebra::convert(COEF_THRESHOLD);
+        let mut out = SMatrix::<T, N, N>::zeros();
+        for r in 0..k {
+            let mut v = b.row(r).transpose();
+            let norm = v.norm();
+            if norm > T::zero() {
+                v /= norm;
+            }
+            let lead = v.iter().copied().find(|c| c.abs() > thr);
+            if lead.is_some_and(|l| l < T::zero()) {
+                v = -v;
+            }
+            for c in v.iter_mut() {
+                if c.abs() <= thr {
+                    *c = T::zero();
+                }
+            }
+            out.set_column(r, &v);
+        }
+        out
+    }
+}
+
+/// Information matrix and posterior Cramér–Rao bound of configuration `M`
+/// along the true trajectory, accumulated one filter period at a time.
+#[derive(Clone, Debug)]
+pub struct Observability<T: RealField + Copy, M, const N: usize, const Z: usize> {
+    /// The Kalman filter linearised about the true trajectory: its
+    /// covariance is the posterior Cramér–Rao bound.
+    crlb: Filter<T, M, N, Z>,
+    /// The true (noise-free model) state at the current time.
+    x_true: SVector<T, N>,
+    /// The computed frame, advanced by the commands.
+    command: CommandFrame<T>,
+    /// `Φ(k,0)`.
+    phi: SMatrix<T, N, N>,
+    /// `J` (rad⁻²).
+    info: SMatrix<T, N, N>,
+    sigma_prior: SVector<T, N>,
+    periods: u32,
+}
+
+impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>
+    Observability<T, M, N, Z>
+{
+    const LAYOUT: Layout = M::LAYOUT;
+
+    /// Starts at the true initial state `x_true0` (rad) with prior σ
+    /// `sigma_prior` (rad) of every state. The filter options of `config`
+    /// are ignored: the bound is the plain linearised recursion.
+    pub fn new(
+        config: FilterConfig<T>,
+        x_true0: SVector<T, N>,
+        sigma_prior: SVector<T, N>,
+    ) -> Result<Self, Error> {
+        let config = FilterConfig {
+            options: Options::plain(),
+            ..config
+        };
+        let mut crlb = Filter::new(config, x_true0, sigma_prior)?;
+        crlb.set_nominal(Some(x_true0));
+        Ok(Self {
+            crlb,
+            x_true: x_true0,
+            command: CommandFrame::aligned(config.env.earth_rate_n),
+            phi: SMatrix::identity(),
+            info: SMatrix::zeros(),
+            sigma_prior,
+            periods: 0,
+        })
+    }
+
+    /// One filter period of length `dt` (s) with commanded angle increment
+    /// `dtheta_c` (rad, c frame): propagates the true state and the bound,
+    /// and adds the period's measurement to `J`. On error nothing changes.
+    pub fn step(&mut self, dtheta_c: &nalgebra::Vector3<T>, dt: T) -> Result<(), Error> {
+        let layout = Self::LAYOUT;
+        if !dtheta_c.iter().chain([dt].iter()).all(|v| v.is_finite()) {
+            return Err(Error::NonFiniteInput);
+        }
+        if dt <= T::zero() {
+            return Err(Error::InvalidPeriod);
+        }
+        let env = self.crlb.config().env;
+        let period = self.command.period(dtheta_c, dt);
+        let m = layout.matrices(&self.x_true);
+        let prop: PeriodPropagation<T, N> = layout
+            .propagate(&env, &m, &layout.attitude(&self.x_true), &period)
+            .ok_or(Error::GimbalLock)?;
+        let [_, _, att_end] = prop.att;
+        let mut x_end = self.x_true;
+        x_end
+            .fixed_rows_mut::<3>(crate::models::ATT)
+            .copy_from(&att_end);
+        let (z_accel, h_accel, _) = layout.mean_accel(&env, &m, &prop, &period);
+
+        // Φ_k: identity with the attitude rows from the propagation.
+        let mut phi_k = SMatrix::<T, N, N>::identity();
+        phi_k
+            .fixed_rows_mut::<3>(crate::models::ATT)
+            .copy_from(&prop.phi_att);
+        let phi = phi_k * self.phi;
+
+        // H_k Φ(k,0) and R⁻¹ (diagonal).
+        let cfg = self.crlb.config();
+        let mut h = SMatrix::<T, Z, N>::zeros();
+        let mut r_inv = SVector::<T, Z>::zeros();
+        let accel_row = if layout.gimbal_obs {
+            h.fixed_view_mut::<3, 3>(0, crate::models::ATT)
+                .copy_from(&nalgebra::Matrix3::identity());
+            r_inv
+                .fixed_rows_mut::<3>(0)
+                .fill(T::one() / (cfg.sigma_gimbal * cfg.sigma_gimbal));
+            3
+        } else {
+            0
+        };
+        h.fixed_rows_mut::<3>(accel_row).copy_from(&h_accel);
+        r_inv
+            .fixed_rows_mut::<3>(accel_row)
+            .fill(T::one() / (cfg.sigma_accel * cfg.sigma_accel));
+        let hphi = h * phi;
+        let weighted = SMatrix::<T, Z, Z>::from_diagonal(&r_inv) * hphi;
+        let info = self.info + hphi.transpose() * weighted;
+        if !info.iter().chain(phi.iter()).all(|v| v.is_finite()) {
+            return Err(Error::NonFiniteState);
+        }
+
+        // The bound: the linearised filter fed the noise-free measurement.
+        let obs = Observation {
+            accel_mean: z_accel,
+            gimbal: Some(layout.attitude(&x_end)),
+        };
+        // Filter::step leaves the filter untouched on error.
+        self.crlb.step(dtheta_c, dt, &obs)?;
+
+        self.x_true = x_end;
+        self.command.advance(&period);
+        self.phi = phi;
+        self.info = info;
+        self.periods = self.periods.saturating_add(1);
+        Ok(())
+    }
+
+    /// The information matrix `J` of the initial state (rad⁻²).
+    pub fn information(&self) -> &SMatrix<T, N, N> {
+        &self.info
+    }
+
+    /// Periods processed.
+    pub fn periods(&self) -> u32 {
+        self.periods
+    }
+
+    /// The true (noise-free model) state at the current time (rad).
+    pub fn true_state(&self) -> &SVector<T, N> {
+        &self.x_true
+    }
+
+    /// Posterior Cramér–Rao covariance at the current time (rad²).
+    pub fn crlb_covariance(&self) -> &SMatrix<T, N, N> {
+        self.crlb.covariance()
+    }
+
+    /// Posterior Cramér–Rao σ of every state at the current time (rad).
+    pub fn crlb_sigma(&self) -> SVector<T, N> {
+        self.crlb.sigma()
+    }
+
+    /// The degree of observability `σ_CRLB / σ_prior` of every state.
+    pub fn ratio(&self) -> SVector<T, N> {
+        self.crlb.sigma().component_div(&self.sigma_prior)
+    }
+
+    /// Eigen-decomposition of the prior-scaled information matrix with the
+    /// relative rank tolerance `rel_tol` (see [`RANK_TOLERANCE`]).
+    pub fn analyse(&self, rel_tol: T) -> Result<Spectrum<T, N>, Error> {
+        let s = SMatrix::<T, N, N>::from_diagonal(&self.sigma_prior);
+        let mut j = s * self.info * s;
+        j = (j + j.transpose()) * nalgebra::convert::<f64, T>(0.5);
+        let (values, vectors) = jacobi_eigen(j).ok_or(Error::NonFiniteState)?;
+        // Sort by decreasing eigenvalue.
+        let mut order = [0usize; N];
+        for (i, o) in order.iter_mut().enumerate() {
+            *o = i;
+        }
+        let val = |i: usize| values.get(i).copied().unwrap_or(T::zero());
+        order.sort_unstable_by(|&a, &b| {
+            val(b)
+                .partial_cmp(&val(a))
+                .unwrap_or(core::cmp::Ordering::Equal)
+        });
+        let mut eigenvalues = SVector::<T, N>::zeros();
+        let mut eigenvectors = SMatrix::<T, N, N>::zeros();
+        for (dst, &src) in order.iter().enumerate() {
+            if let Some(v) = eigenvalues.get_mut(dst) {
+                *v = val(src);
+            }
+            if let Some(col) = vectors.column_iter().nth(src) {
+                eigenvectors.set_column(dst, &col);
+            }
+        }
+        let max = eigenvalues.get(0).copied().unwrap_or(T::zero());
+        let rank = eigenvalues
+            .iter()
+            .filter(|v| **v > rel_tol * max && max > T::zero())
+            .count();
+        Ok(Spectrum {
+            eigenvalues,
+            eigenvectors,
+            rel_tol,
+            rank,
+        })
+    }
+}
+
+/// Eigenvalues and unit eigenvectors (columns) of the symmetric matrix `a`
+/// by cyclic Jacobi rotations, swept until the off-diagonal part is below
+/// `1e-15 ×` the Frobenius norm (Jacobi keeps small eigenvalues accurate
+/// relative to the norm, which the rank decision needs). `None` on
+/// non-finite input or if 100 sweeps do not converge.
+pub fn jacobi_eigen<T: RealField + Copy, const N: usize>(
+    mut a: SMatrix<T, N, N>,
+) -> Option<(SVector<T, N>, SMatrix<T, N, N>)> {
+    if !a.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let mut v = SMatrix::<T, N, N>::identity();
+    let norm = a.norm();
+    let tol = norm * nalgebra::convert::<f64, T>(1e-15);
+    let two: T = nalgebra::convert(2.0);
+    let at = |m: &SMatrix<T, N, N>, i: usize, j: usize| m.get((i, j)).copied().unwrap_or(T::zero());
+    for _sweep in 0..100 {
+        let mut off = T::zero();
+        for i in 0..N {
+            for j in 0..N {
+                if i != j {
+                    off += at(&a, i, j) * at(&a, i, j);
+                }
+            }
+        }
+        if off.sqrt() <= tol {
+            return Some((a.diagonal(), v));
+        }
+        for p in 0..N {
+            for q in (p + 1)..N {
+                let apq = at(&a, p, q);
+                if apq == T::zero() {
+                    continue;
+                }
+                let app = at(&a, p, p);
+                let aqq = at(&a, q, q);
+                // Rotation angle: tan 2φ = 2 a_pq / (a_qq − a_pp).
+                let theta = (aqq - app) / (two * apq);
+                let sign = if theta >= T::zero() {
+                    T::one()
+                } else {
+                    -T::one()
+                };
+                let t = sign / (theta.abs() + (theta * theta + T::one()).sqrt());
+                let c = T::one() / (t * t + T::one()).sqrt();
+                let s = t * c;
+                // A ← Jᵀ A J with J the rotation in the (p, q) plane.
+                for k in 0..N {
+                    let akp = at(&a, k, p);
+                    let akq = at(&a, k, q);
+                    if let Some(x) = a.get_mut((k, p)) {
+                        *x = c * akp - s * akq;
+                    }
+                    if let Some(x) = a.get_mut((k, q)) {
+                        *x = s * akp + c * akq;
+                    }
+                }
+                for k in 0..N {
+                    let apk = at(&a, p, k);
+                    let aqk = at(&a, q, k);
+                    if let Some(x) = a.get_mut((p, k)) {
+                        *x = c * apk - s * aqk;
+                    }
+                    if let Some(x) = a.get_mut((q, k)) {
+                        *x = s * apk + c * aqk;
+                    }
+                }
+                for k in 0..N {
+                    let vkp = at(&v, k, p);
+                    let vkq = at(&v, k, q);
+                    if let Some(x) = v.get_mut((k, p)) {
+                        *x = c * vkp - s * vkq;
+                    }
+                    if let Some(x) = v.get_mut((k, q)) {
+                        *x = s * vkp + c * vkq;
+                    }
+                }
+            }
+        }
+    }
+    None
+}
