@@ -325,8 +325,8 @@ fn draw_log_panel<'a>(
     chart
         .configure_mesh()
         .bold_line_style(GRID_BOLD)
-        .light_line_style(GRID_LIGHT)
-        .x_max_light_lines(2)
+        // plotters' light lines on a log axis bunch up into grey bands.
+        .light_line_style(TRANSPARENT)
         .x_labels(7)
         .y_labels(12)
         .x_label_formatter(&|v| fmt_tick(*v))
@@ -349,6 +349,10 @@ fn draw_log_panel<'a>(
             LOG_COLOUR_BAND.filled(),
         )))?;
     }
+    for seg in clipped(t_s, &three_sigma, lo, hi, true) {
+        chart.draw_series(LineSeries::new(seg, FILTER_COLOUR.stroke_width(2)))?;
+    }
+    // σ_CRLB over σ: visible (dashed) where the filter reaches the bound.
     for seg in clipped(t_s, &three_crlb, lo, hi, true) {
         chart.draw_series(DashedLineSeries::new(
             seg,
@@ -356,9 +360,6 @@ fn draw_log_panel<'a>(
             3,
             CRLB_COLOUR.stroke_width(2),
         ))?;
-    }
-    for seg in clipped(t_s, &three_sigma, lo, hi, true) {
-        chart.draw_series(LineSeries::new(seg, FILTER_COLOUR.stroke_width(2)))?;
     }
     for seg in clipped(t_s, &abs_err, lo, hi, true) {
         chart.draw_series(LineSeries::new(seg, ERROR_COLOUR.stroke_width(1)))?;
