@@ -177,7 +177,7 @@ fn firmware_configurations_reach_the_cramer_rao_bound() {
             }
             let ratio = s.sigma_rad / o.sigma_crlb_rad;
             assert!(
-                ratio <= 1.5 && ratio >= 0.5,
+                (0.5..=1.5).contains(&ratio),
                 "{id} {}: σ_filter/σ_CRLB = {ratio:.3}",
                 s.name
             );
