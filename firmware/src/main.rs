@@ -1,0 +1,165 @@
+//! rollcal on a Cortex-M under QEMU.
+//!
+//! Two builds (see `firmware/run-qemu.sh`): Cortex-M4F with the estimator in
+//! `f32` (feature `f32`, the default, board `mps2-an386`) and Cortex-M7 with
+//! `f64` (feature `f64`, `RUSTFLAGS="-C target-cpu=cortex-m7"`, board
+//! `mps2-an500`). Logging is defmt over semihosting; a panic or a HardFault
+//! exits QEMU with a non-zero status through semihosting.
+//!
+//! The run is chosen by the semihosting command line (`qemu -append "…"`),
+//! words `key=value`: see [`Args`].
+#![no_std]
+#![no_main]
+
+mod marks;
+mod stack;
+mod synthetic;
+mod uart;
+
+use core::mem::size_of;
+
+use cortex_m_rt::{entry, exception, ExceptionFrame};
+use cortex_m_semihosting::debug::{self, EXIT_FAILURE, EXIT_SUCCESS};
+use defmt_semihosting as _;
+
+/// The estimator's scalar in this build.
+#[cfg(not(feature = "f64"))]
+pub type Real = f32;
+/// The estimator's scalar in this build.
+#[cfg(feature = "f64")]
+pub type Real = f64;
+
+#[cfg(all(feature = "f64", not(target_feature = "fp64")))]
+compile_error!("the f64 build is for the Cortex-M7: RUSTFLAGS=\"-C target-cpu=cortex-m7\"");
+
+/// Which filter to run.
+#[derive(Clone, Copy, PartialEq, Eq, defmt::Format)]
+pub enum Config {
+    /// M2-ps (18 states, accelerometers and gimbal angles).
+    M2Ps,
+    /// M1-pa (12 states, accelerometers).
+    M1Pa,
+}
+
+/// Filter variant, for instruction counts.
+#[derive(Clone, Copy, PartialEq, Eq, defmt::Format)]
+pub enum Mode {
+    /// `Options::default()`: EKF with the second-order innovation covariance.
+    Default,
+    /// `Options::plain()`: plain EKF.
+    Plain,
+    /// Linearised Kalman filter about a nominal (`Filter::set_nominal`).
+    Linearised,
+}
+
+/// Run arguments from the semihosting command line.
+#[derive(Clone, Copy, defmt::Format)]
+pub struct Args {
+    /// `config=M2-ps|M1-pa` (synthetic runs).
+    pub config: Config,
+    /// `mode=default|plain|linearised`.
+    pub mode: Mode,
+    /// `periods=N` of synthetic motion.
+    pub periods: u32,
+}
+
+impl Args {
+    fn parse(line: &[u8]) -> Self {
+        let mut a = Args {
+            config: Config::M2Ps,
+            mode: Mode::Default,
+            periods: 200,
+        };
+        for word in line.split(|&b| b == b' ') {
+            let mut kv = word.splitn(2, |&b| b == b'=');
+            let (Some(k), Some(v)) = (kv.next(), kv.next()) else {
+                continue;
+            };
+            match (k, v) {
+                (b"config", b"M2-ps") => a.config = Config::M2Ps,
+                (b"config", b"M1-pa") => a.config = Config::M1Pa,
+                (b"mode", b"default") => a.mode = Mode::Default,
+                (b"mode", b"plain") => a.mode = Mode::Plain,
+                (b"mode", b"linearised") => a.mode = Mode::Linearised,
+                (b"periods", n) => {
+                    if let Some(n) = parse_u32(n) {
+                        a.periods = n;
+                    }
+                }
+                _ => defmt::warn!("ignored argument {=[u8]:a}", word),
+            }
+        }
+        a
+    }
+}
+
+fn parse_u32(s: &[u8]) -> Option<u32> {
+    let mut n: u32 = 0;
+    for &c in s {
+        if !c.is_ascii_digit() {
+            return None;
+        }
+        n = n.checked_mul(10)?.checked_add(u32::from(c - b'0'))?;
+    }
+    Some(n)
+}
+
+/// The semihosting command line (SYS_GET_CMDLINE), NUL-terminated in `buf`.
+fn cmdline(buf: &mut [u8; 256]) -> &[u8] {
+    let block = [buf.as_mut_ptr() as usize, buf.len() - 1];
+    // SAFETY: SYS_GET_CMDLINE (0x15) writes at most `len` bytes into `buf`.
+    let r = unsafe {
+        cortex_m_semihosting::syscall1(
+            cortex_m_semihosting::nr::GET_CMDLINE,
+            block.as_ptr() as usize,
+        )
+    };
+    if r != 0 {
+        return &[];
+    }
+    let n = buf.iter().position(|&b| b == 0).unwrap_or(0);
+    &buf[..n]
+}
+
+#[entry]
+fn main() -> ! {
+    stack::paint();
+    let mut line = [0u8; 256];
+    let args = Args::parse(cmdline(&mut line));
+    defmt::info!(
+        "rollcal firmware: {=str}, {} bytes per M2-ps filter, {} per M1-pa filter; {}",
+        if size_of::<Real>() == 8 { "f64" } else { "f32" },
+        size_of::<rollcal::ekf::M2PsFilter<Real>>(),
+        size_of::<rollcal::ekf::M1PaFilter<Real>>(),
+        args
+    );
+    let ok = synthetic::run(&args);
+    let (peak, region) = stack::peak();
+    defmt::info!("peak stack {} bytes of {}", peak, region);
+    debug::exit(if ok { EXIT_SUCCESS } else { EXIT_FAILURE });
+    loop {
+        cortex_m::asm::bkpt();
+    }
+}
+
+#[exception]
+unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
+    defmt::error!("HardFault at pc={=u32:#x}", ef.pc());
+    debug::exit(EXIT_FAILURE);
+    loop {
+        cortex_m::asm::bkpt();
+    }
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    if let Some(l) = info.location() {
+        defmt::error!("panic at {=str}:{=u32}", l.file(), l.line());
+    } else {
+        defmt::error!("panic");
+    }
+    debug::exit(EXIT_FAILURE);
+    loop {
+        cortex_m::asm::bkpt();
+    }
+}
