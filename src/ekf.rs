@@ -89,8 +89,7 @@ impl core::fmt::Display for Error {
 impl core::error::Error for Error {}
 
 /// Cold-start remedies and gating.
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Options {
     /// Add the second-order terms of the accelerometer measurement to the
     /// innovation covariance (the chosen cold-start remedy).
@@ -328,6 +327,42 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             updates: 0,
             _model: PhantomData,
         })
+    }
+
+    /// Rebuilds a filter between two periods from its parts, as saved by a
+    /// checkpoint ([`crate::calibrator::Calibrator::checkpoint`]): state `x`
+    /// (rad), covariance `p` (rad², used as given, so a restored filter
+    /// continues bit-identically), computed frame `c_cn` (`C^c_n`), nominal
+    /// of the linearised mode and the update counter. The Earth rate of the
+    /// computed frame is the one of `config`.
+    pub fn from_parts(
+        config: FilterConfig<T>,
+        x: SVector<T, N>,
+        p: SMatrix<T, N, N>,
+        c_cn: Matrix3<T>,
+        nominal: Option<SVector<T, N>>,
+        updates: u32,
+    ) -> Result<Self, Error> {
+        let mut f = Self::new(config, SVector::zeros(), SVector::repeat(T::one()))?;
+        let nominal_values = nominal.iter().flat_map(|v| v.iter().copied());
+        if !all_finite(
+            x.iter()
+                .chain(p.iter())
+                .chain(c_cn.iter())
+                .copied()
+                .chain(nominal_values),
+        ) {
+            return Err(Error::NonFiniteInput);
+        }
+        if p.diagonal().iter().any(|v| *v <= T::zero()) {
+            return Err(Error::CovarianceNotPositiveDefinite);
+        }
+        f.x = x;
+        f.p = p;
+        f.command.c_cn = c_cn;
+        f.reference = nominal;
+        f.updates = updates;
+        Ok(f)
     }
 
     /// Switches to a linearised Kalman filter about a nominal trajectory

@@ -20,7 +20,10 @@
 //! - [`instruments`]: installation models `G`, `A` (eqs. 6, 10, 11);
 //! - [`command`]: the computed frame and the commanded rate;
 //! - [`models`]: the seven configurations (paper §1.3);
-//! - [`ekf`]: the filter (SPEC §6).
+//! - [`ekf`]: the filter (SPEC §6);
+//! - [`wire`]: the serial protocol (SPEC §7): messages, frames, decoder;
+//! - [`calibrator`]: the front end that validates samples, runs a filter,
+//!   emits estimates and checkpoints.
 #![no_std]
 #![deny(missing_docs, unsafe_code)]
 #![cfg_attr(
@@ -33,11 +36,15 @@
     )
 )]
 
+pub mod calibrator;
 pub mod command;
 pub mod ekf;
 pub mod geometry;
 pub mod instruments;
 pub mod models;
+pub mod wire;
 
+pub use calibrator::{Calibrator, M1PaCalibrator, M2PsCalibrator, M4PaCalibrator, RejectReason};
 pub use ekf::{Error, Filter, FilterConfig, Innovation, Observation, Options};
 pub use models::{ConfigId, Environment, Group, Layout, Model, StateInfo};
+pub use wire::{CalibratorConfig, Checkpoint, Decoder, Estimate, Message, Sample};

@@ -116,7 +116,7 @@ impl Layout {
 /// The seven configurations of SPEC §3.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[derive(serde::Serialize, serde::Deserialize)]
 pub enum ConfigId {
     /// Misalignment dynamics, accelerometer observations, pa frame (12 states).
     M1Pa,

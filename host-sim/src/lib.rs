@@ -4,9 +4,11 @@
 //! - [`truth`]: the truth simulator (physical platform, independent of the
 //!   estimator's models);
 //! - [`runner`]: runs any configuration's estimator over a simulated run;
-//! - [`report`]: tables, JSON and CSV of runs.
+//! - [`report`]: tables, JSON and CSV of runs;
+//! - [`stream`]: `record` and `calibrate` (wire frames, the calibrator).
 
 pub mod report;
 pub mod runner;
 pub mod scenario;
+pub mod stream;
 pub mod truth;

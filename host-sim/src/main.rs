@@ -35,6 +35,10 @@ enum Command {
     /// Compare the cold-start remedies over seeds and scenarios (the study
     /// behind the default estimator; see README).
     Remedies(RemediesArgs),
+    /// Simulate a scenario and write it as a stream of wire frames (docs/wire.md).
+    Record(host_sim::stream::RecordArgs),
+    /// Run the calibrator on a frame stream from a file, stdin or a serial port.
+    Calibrate(host_sim::stream::CalibrateArgs),
 }
 
 #[derive(clap::Args)]
@@ -171,6 +175,8 @@ fn main() -> ExitCode {
         Some(Command::Run(args)) => cmd_run(&args),
         Some(Command::Summary(args)) => cmd_summary(&args),
         Some(Command::Remedies(args)) => cmd_remedies(&args),
+        Some(Command::Record(args)) => host_sim::stream::record(&args),
+        Some(Command::Calibrate(args)) => host_sim::stream::calibrate(&args),
         None => cmd_summary(&CommonArgs {
             scenario: None,
             seed: 1,

@@ -192,6 +192,78 @@ impl Default for Estimator {
     }
 }
 
+/// The outcome of [`run_passes`]: the last pass's filter and records.
+pub struct Passes {
+    /// The filter after the last pass.
+    pub filter: Box<dyn DynFilter>,
+    /// Time history of the last pass (when kept).
+    pub history: Vec<(f64, Vec<f64>, Vec<f64>)>,
+    /// NIS per period of the last pass.
+    pub nis: Vec<f64>,
+    /// Failed updates of the last pass.
+    pub failures: Vec<(u32, ekf::Error)>,
+    /// Passes run.
+    pub passes: u8,
+}
+
+/// The multi-pass estimator of configuration `id` over `samples` (only
+/// their increments, periods, accelerometer means and gimbal angles are
+/// used; `truth.t` labels the history), from `x0` with prior σ `sigma0`.
+pub fn run_passes(
+    id: ConfigId,
+    cfg: FilterConfig<f64>,
+    sigma0: f64,
+    samples: &[PeriodSample],
+    estimator: Estimator,
+    x0: &[f64],
+    keep_history: bool,
+) -> Result<Passes, ekf::Error> {
+    let mut nominal: Option<Vec<f64>> = None;
+    let mut out = None;
+    let mut previous: Option<Vec<f64>> = None;
+    for pass in 1..=estimator.passes.max(1) {
+        let mut f = new_filter(id, cfg, x0, sigma0)?;
+        if let Some(xn) = &nominal {
+            f.set_nominal(xn);
+        }
+        let mut history = Vec::new();
+        let mut nis = Vec::with_capacity(samples.len());
+        let mut failures = Vec::new();
+        for s in samples {
+            match f.step(s) {
+                Ok(v) => nis.push(v),
+                Err(e) => failures.push((s.k, e)),
+            }
+            if keep_history {
+                history.push((s.truth.t, f.state(), f.sigma()));
+            }
+        }
+        nominal = f.back_propagate(samples);
+        if nominal.is_none() {
+            return Err(ekf::Error::GimbalLock);
+        }
+        let (x, sig) = (f.state(), f.sigma());
+        let converged = previous.as_ref().is_some_and(|prev| {
+            x.iter()
+                .zip(prev)
+                .zip(&sig)
+                .all(|((a, b), s)| wrap_angle(a - b).abs() < PASS_TOLERANCE * s)
+        });
+        previous = Some(x);
+        out = Some(Passes {
+            filter: f,
+            history,
+            nis,
+            failures,
+            passes: pass,
+        });
+        if converged {
+            break;
+        }
+    }
+    out.ok_or(ekf::Error::NoPrediction)
+}
+
 /// Runs configuration `id` from `x0` (zeros: cold start) over `sim`.
 pub fn run_filter(
     id: ConfigId,
@@ -206,49 +278,16 @@ pub fn run_filter(
     let zeros = vec![0.0; id.layout().n()];
     let x0 = x0.unwrap_or(&zeros);
     let sigma0 = scenario.prior.sigma_deg * DEG;
-    let mut nominal: Option<Vec<f64>> = None;
-    let mut out = None;
-    let mut passes_run = 0;
-    let mut previous: Option<Vec<f64>> = None;
-    for pass in 1..=estimator.passes.max(1) {
-        let mut f = new_filter(id, cfg, x0, sigma0)?;
-        if let Some(xn) = &nominal {
-            f.set_nominal(xn);
-        }
-        let keep = keep_history;
-        let mut history = Vec::new();
-        let mut nis = Vec::with_capacity(sim.samples.len());
-        let mut failures = Vec::new();
-        for s in &sim.samples {
-            match f.step(s) {
-                Ok(v) => nis.push(v),
-                Err(e) => failures.push((s.k, e)),
-            }
-            if keep {
-                history.push((s.truth.t, f.state(), f.sigma()));
-            }
-        }
-        nominal = f.back_propagate(&sim.samples);
-        if nominal.is_none() {
-            return Err(ekf::Error::GimbalLock);
-        }
-        passes_run = pass;
-        let (x, sig) = (f.state(), f.sigma());
-        let converged = previous.as_ref().is_some_and(|prev| {
-            x.iter()
-                .zip(prev)
-                .zip(&sig)
-                .all(|((a, b), s)| wrap_angle(a - b).abs() < PASS_TOLERANCE * s)
-        });
-        previous = Some(x);
-        out = Some((f, history, nis, failures));
-        if converged {
-            break;
-        }
-    }
-    let (f, history, nis, failures) = out.ok_or(ekf::Error::NoPrediction)?;
+    let p = run_passes(id, cfg, sigma0, &sim.samples, estimator, x0, keep_history)?;
     let last = sim.samples.last().map_or(sim.initial, |s| s.truth);
     let truth = truth_state(id, &sim.params, &last);
+    Ok(result(id, &p, &truth, sigma0))
+}
+
+/// A [`RunResult`] from the outcome of [`run_passes`] and the true final
+/// state `truth` (NaN where unknown).
+pub fn result(id: ConfigId, p: &Passes, truth: &[f64], sigma0: f64) -> RunResult {
+    let f = &p.filter;
     let (est, sig) = (f.state(), f.sigma());
     let states = id
         .states()
@@ -262,16 +301,16 @@ pub fn run_filter(
             sigma_rad: sig.get(i).copied().unwrap_or(f64::NAN),
         })
         .collect();
-    Ok(RunResult {
+    RunResult {
         config: id,
         states,
         covariance: f.covariance(),
-        history,
-        nis,
+        history: p.history.clone(),
+        nis: p.nis.clone(),
         prior_sigma_rad: sigma0,
-        passes: passes_run,
-        failures,
-    })
+        passes: p.passes,
+        failures: p.failures.clone(),
+    }
 }
 
 /// Posterior Cramér–Rao bound σ (rad) of every state at the end of `sim`:

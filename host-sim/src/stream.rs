@@ -1,0 +1,677 @@
+//! `record` and `calibrate`: a scenario as a stream of wire frames
+//! (`docs/wire.md`), and the calibrator run on such a stream from a file,
+//! stdin or a serial port.
+//!
+//! `record` writes a `Configure` message (the scenario's noise levels,
+//! Earth rate, prior) and then one `Sample` per period, with f32 fields as
+//! the firmware would send them. The stream carries no truth; `--truth PATH`
+//! writes it to a JSON sidecar (true final states and Cramér–Rao σ of the
+//! recorded configuration) that `calibrate --truth PATH` reads to fill the
+//! truth and σ_CRLB columns (NaN without it).
+//!
+//! `calibrate` decodes the stream, validates and processes every sample
+//! with the no_std [`rollcal::calibrator::Calibrator`] (f64) — pass 1,
+//! exactly what the firmware computes — and then, like `run`, runs the
+//! further linearised passes over the accepted samples (`--passes 1` gives
+//! the firmware's answer). The table and JSON are those of `run`, plus a
+//! `stream` object (frame and sample counters) and `pass1` (the
+//! calibrator's final estimate and σ, full f64 precision).
+
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant as Clock};
+
+use nalgebra::{Matrix3, Vector3};
+use rollcal::calibrator::{self, Calibrator, RejectReason};
+use rollcal::ekf::{self, FilterConfig, Options};
+use rollcal::models::{ConfigId, Environment, Model};
+use rollcal::wire::{
+    encode, CalibratorConfig, Checkpoint, DecoderStats, Estimate, FrameDecoder, Message, Sample,
+    MAX_FRAME_LEN,
+};
+
+use crate::report::{print_table, run_json, write_json};
+use crate::runner::{self, Estimator, Passes, RunResult};
+use crate::scenario::{Scenario, DEG};
+use crate::truth::{simulate, truth_state, Instant, PeriodSample, SimOptions};
+
+/// Arguments of `host-sim record`.
+#[derive(clap::Args, Clone, Debug)]
+pub struct RecordArgs {
+    /// Configuration named in the stream's `Configure` message (and of the
+    /// truth sidecar): M1-pa, M1-ps, M2-ps, M3-pa, M3-ps, M4-pa, M4-ps.
+    #[arg(long, value_parser = parse_config)]
+    pub config: ConfigId,
+    /// Scenario file (TOML); default: the paper's scenario.
+    #[arg(long, value_name = "FILE")]
+    pub scenario: Option<PathBuf>,
+    /// RNG seed of the noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Switch the Earth rate off.
+    #[arg(long)]
+    pub no_earth_rate: bool,
+    /// Output file, or `-` for stdout.
+    #[arg(long, value_name = "FILE|-", default_value = "-")]
+    pub out: String,
+    /// Also write the truth (final true states, Cramér–Rao σ) as JSON to PATH.
+    #[arg(long, value_name = "PATH")]
+    pub truth: Option<PathBuf>,
+    /// Estimate cadence written into the `Configure` message (samples).
+    #[arg(long, default_value_t = 60)]
+    pub estimate_every: u32,
+}
+
+/// Arguments of `host-sim calibrate`.
+#[derive(clap::Args, Clone, Debug)]
+pub struct CalibrateArgs {
+    /// Configuration to run (overrides the stream's `Configure` message).
+    #[arg(long, value_parser = parse_config)]
+    pub config: ConfigId,
+    /// Input: a file, `-` for stdin, or a serial device (e.g. /dev/ttyUSB0).
+    #[arg(long, value_name = "FILE|-|SERIAL_DEVICE", default_value = "-")]
+    pub input: String,
+    /// Baud rate of a serial device.
+    #[arg(long, default_value_t = 115_200)]
+    pub baud: u32,
+    /// A serial stream ends after this many seconds without a byte.
+    #[arg(long, default_value_t = 5.0)]
+    pub idle_timeout: f64,
+    /// Settings used when the stream has no `Configure` message (default:
+    /// the paper's scenario).
+    #[arg(long, value_name = "FILE")]
+    pub scenario: Option<PathBuf>,
+    /// Truth sidecar written by `record --truth`.
+    #[arg(long, value_name = "PATH")]
+    pub truth: Option<PathBuf>,
+    /// At most this many passes: 1 = the calibrator alone (the firmware's
+    /// answer); more = further linearised passes as in `run`.
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(1..=8))]
+    pub passes: u8,
+    /// Write the final states as JSON (as `run --json`) to PATH.
+    #[arg(long, value_name = "PATH")]
+    pub json: Option<PathBuf>,
+}
+
+fn parse_config(s: &str) -> Result<ConfigId, String> {
+    ConfigId::parse(s).ok_or_else(|| {
+        let ids: Vec<&str> = ConfigId::ALL.iter().map(|c| c.as_str()).collect();
+        format!(
+            "unknown configuration '{s}' (expected one of {})",
+            ids.join(", ")
+        )
+    })
+}
+
+/// Calibrator settings equal to `runner::filter_config` of the scenario
+/// (so that the stream's filter is `run`'s filter).
+pub fn calibrator_config(sc: &Scenario, id: ConfigId, earth_rate: bool) -> CalibratorConfig {
+    let f = runner::filter_config(sc, earth_rate, Options::default());
+    let mut c = CalibratorConfig::paper(id);
+    c.sigma_accel_g = f.sigma_accel;
+    c.sigma_gyro_rad_s = f.sigma_gyro;
+    c.sigma_gimbal_rad = f.sigma_gimbal;
+    c.earth_rate_n = f.env.earth_rate_n.into();
+    c.gravity_n = f.env.gravity_n.into();
+    c.prior_sigma_rad = sc.prior.sigma_deg * DEG;
+    c.limits.period_s = sc.timing.period_s;
+    c
+}
+
+/// The filter settings of a calibrator configuration (f64).
+pub fn filter_config(c: &CalibratorConfig) -> FilterConfig<f64> {
+    FilterConfig {
+        env: Environment {
+            earth_rate_n: c.earth_rate_n.into(),
+            gravity_n: c.gravity_n.into(),
+        },
+        sigma_accel: c.sigma_accel_g,
+        sigma_gyro: c.sigma_gyro_rad_s,
+        sigma_gimbal: c.sigma_gimbal_rad,
+        options: c.options,
+    }
+}
+
+/// A simulated period as the platform would send it (f32 fields; the
+/// timestamp is the end of the period in µs).
+pub fn to_sample(s: &PeriodSample) -> Sample {
+    let f = |v: &Vector3<f64>| [v.x as f32, v.y as f32, v.z as f32];
+    Sample {
+        seq: s.k,
+        t_us: (s.truth.t * 1e6).round() as u64,
+        dt: s.dt as f32,
+        dtheta_cmd: f(&s.dtheta_cmd),
+        accel_mean: f(&s.accel_mean),
+        gimbal: Some(f(&s.gimbal)),
+    }
+}
+
+/// A received sample as the runner's input (f32 → f64 exactly); the truth
+/// fields are unknown (NaN) except the time.
+pub fn to_period_sample(s: &Sample) -> PeriodSample {
+    let v = |a: [f32; 3]| Vector3::new(f64::from(a[0]), f64::from(a[1]), f64::from(a[2]));
+    let nan3 = Vector3::repeat(f64::NAN);
+    PeriodSample {
+        k: s.seq,
+        dt: f64::from(s.dt),
+        dtheta_cmd: v(s.dtheta_cmd),
+        accel_mean: v(s.accel_mean),
+        gimbal: s.gimbal.map_or(nan3, v),
+        accel_mean_clean: nan3,
+        truth: Instant {
+            t: s.t_us as f64 * 1e-6,
+            c_ps_n: Matrix3::repeat(f64::NAN),
+            c_c_n: Matrix3::repeat(f64::NAN),
+            accel_at_t: nan3,
+            gimbal: nan3,
+        },
+    }
+}
+
+/// Appends the frame of `m` to `out`.
+pub fn push_frame(out: &mut Vec<u8>, m: &Message) -> Result<(), String> {
+    let mut buf = [0u8; MAX_FRAME_LEN];
+    let n = encode(m, &mut buf).map_err(|e| e.to_string())?;
+    out.extend_from_slice(buf.get(..n).unwrap_or_default());
+    Ok(())
+}
+
+fn load_scenario(path: Option<&Path>) -> Result<Scenario, String> {
+    match path {
+        Some(p) => Scenario::from_file(p).map_err(|e| e.to_string()),
+        None => Ok(Scenario::paper()),
+    }
+}
+
+/// `host-sim record`.
+pub fn record(args: &RecordArgs) -> Result<(), String> {
+    let sc = load_scenario(args.scenario.as_deref())?;
+    let earth_rate = !args.no_earth_rate && sc.site.earth_rate;
+    eprintln!(
+        "recording '{}' ({} periods, seed {}) for {}…",
+        sc.name,
+        sc.periods(),
+        args.seed,
+        args.config
+    );
+    let sim = simulate(
+        &sc,
+        SimOptions {
+            seed: args.seed,
+            noise: true,
+            earth_rate,
+        },
+    );
+    let mut settings = calibrator_config(&sc, args.config, earth_rate);
+    settings.estimate_every = args.estimate_every;
+    let mut bytes = Vec::with_capacity(sim.samples.len() * 64);
+    push_frame(&mut bytes, &Message::Configure(settings))?;
+    for s in &sim.samples {
+        push_frame(&mut bytes, &Message::Sample(to_sample(s)))?;
+    }
+    if args.out == "-" {
+        let mut out = std::io::stdout().lock();
+        out.write_all(&bytes)
+            .and_then(|()| out.flush())
+            .map_err(|e| format!("cannot write to stdout: {e}"))?;
+    } else {
+        std::fs::write(&args.out, &bytes).map_err(|e| format!("cannot write {}: {e}", args.out))?;
+    }
+    eprintln!("{} frames, {} bytes", sim.samples.len() + 1, bytes.len());
+    if let Some(path) = &args.truth {
+        let last = sim.samples.last().map_or(sim.initial, |s| s.truth);
+        let truth = truth_state(args.config, &sim.params, &last);
+        let crlb = runner::crlb_sigma(args.config, &sc, &sim, earth_rate)
+            .map_err(|e| format!("Cramér–Rao bound: {e}"))?;
+        let json = serde_json::json!({
+            "config": args.config.as_str(),
+            "scenario": sc.name,
+            "seed": args.seed,
+            "earth_rate": earth_rate,
+            "duration_s": sc.timing.duration_s,
+            "names": args.config.states().iter().map(|s| s.name).collect::<Vec<_>>(),
+            "truth_rad": truth,
+            "crlb_sigma_rad": crlb,
+        });
+        write_json(path, &json)?;
+    }
+    Ok(())
+}
+
+/// Object-safe view of an f64 calibrator of any configuration.
+trait DynCalibrator {
+    fn push(&mut self, s: &Sample) -> Result<Option<Estimate>, RejectReason>;
+    fn estimate(&self) -> Estimate;
+    fn checkpoint(&self) -> Checkpoint;
+    fn reset(&mut self) -> Result<(), calibrator::Error>;
+    fn restore(&mut self, cp: &Checkpoint) -> Result<(), calibrator::Error>;
+    fn set_frame_errors(&mut self, n: u32);
+}
+
+impl<M: Model<N, Z> + Clone, const N: usize, const Z: usize> DynCalibrator
+    for Calibrator<f64, M, N, Z>
+{
+    fn push(&mut self, s: &Sample) -> Result<Option<Estimate>, RejectReason> {
+        Calibrator::push(self, s)
+    }
+    fn estimate(&self) -> Estimate {
+        Calibrator::estimate(self)
+    }
+    fn checkpoint(&self) -> Checkpoint {
+        Calibrator::checkpoint(self)
+    }
+    fn reset(&mut self) -> Result<(), calibrator::Error> {
+        Calibrator::reset(self)
+    }
+    fn restore(&mut self, cp: &Checkpoint) -> Result<(), calibrator::Error> {
+        *self = Calibrator::restore(*self.settings(), cp)?;
+        Ok(())
+    }
+    fn set_frame_errors(&mut self, n: u32) {
+        Calibrator::set_frame_errors(self, n);
+    }
+}
+
+fn new_calibrator(c: CalibratorConfig) -> Result<Box<dyn DynCalibrator>, calibrator::Error> {
+    use rollcal::models::*;
+    fn make<M: Model<N, Z> + Clone + 'static, const N: usize, const Z: usize>(
+        c: CalibratorConfig,
+    ) -> Result<Box<dyn DynCalibrator>, calibrator::Error> {
+        Ok(Box::new(Calibrator::<f64, M, N, Z>::new(c)?))
+    }
+    match c.config {
+        ConfigId::M1Pa => make::<M1Pa, 12, 3>(c),
+        ConfigId::M1Ps => make::<M1Ps, 15, 3>(c),
+        ConfigId::M2Ps => make::<M2Ps, 18, 6>(c),
+        ConfigId::M3Pa => make::<M3Pa, 15, 3>(c),
+        ConfigId::M3Ps => make::<M3Ps, 18, 3>(c),
+        ConfigId::M4Pa => make::<M4Pa, 12, 3>(c),
+        ConfigId::M4Ps => make::<M4Ps, 15, 3>(c),
+    }
+}
+
+/// The calibrator and what it was fed.
+struct Session {
+    config: ConfigId,
+    fallback: CalibratorConfig,
+    settings: Option<CalibratorConfig>,
+    cal: Option<Box<dyn DynCalibrator>>,
+    /// Accepted samples since the last (re)start, for the further passes.
+    accepted: Vec<PeriodSample>,
+    /// NIS of every accepted update since the last (re)start.
+    nis: Vec<f64>,
+    /// Filter failures (sequence number, error).
+    failures: Vec<(u32, ekf::Error)>,
+    /// Further passes are impossible (a gap was bridged, or a checkpoint
+    /// was restored: the accepted samples are not the whole run).
+    pass1_only: Option<&'static str>,
+    other_messages: u32,
+    restarts: u32,
+}
+
+impl Session {
+    fn start(&mut self, settings: CalibratorConfig) -> Result<(), String> {
+        let cal = new_calibrator(settings).map_err(|e| format!("calibrator: {e}"))?;
+        self.settings = Some(settings);
+        self.cal = Some(cal);
+        self.accepted.clear();
+        self.nis.clear();
+        self.failures.clear();
+        self.pass1_only = None;
+        Ok(())
+    }
+
+    fn handle(&mut self, m: Message) -> Result<(), String> {
+        match m {
+            Message::Configure(mut c) => {
+                if c.config != self.config {
+                    eprintln!(
+                        "\nnote: the stream configures {}, running {} (--config)",
+                        c.config, self.config
+                    );
+                    c.config = self.config;
+                }
+                if self.cal.is_some() {
+                    eprintln!("\nnote: Configure mid-stream: restarting the calibrator");
+                    self.restarts += 1;
+                }
+                self.start(c)?;
+            }
+            Message::Sample(s) => {
+                if self.cal.is_none() {
+                    eprintln!(
+                        "note: the stream has no Configure message; using the scenario's settings"
+                    );
+                    self.start(self.fallback)?;
+                }
+                let Some(cal) = self.cal.as_mut() else {
+                    return Ok(());
+                };
+                let bridged = cal.estimate().progress.bridged;
+                match cal.push(&s) {
+                    Ok(_) => {
+                        let e = cal.estimate();
+                        if e.progress.bridged != bridged {
+                            self.pass1_only = Some("a gap was bridged");
+                        }
+                        self.nis.push(e.progress.last_nis);
+                        self.accepted.push(to_period_sample(&s));
+                    }
+                    Err(RejectReason::Filter(e)) => self.failures.push((s.seq, e)),
+                    Err(_) => {}
+                }
+            }
+            Message::Reset => {
+                if let Some(cal) = self.cal.as_mut() {
+                    cal.reset().map_err(|e| format!("reset: {e}"))?;
+                }
+                self.accepted.clear();
+                self.nis.clear();
+                self.failures.clear();
+                self.restarts += 1;
+            }
+            Message::Checkpoint(cp) => {
+                if self.cal.is_none() {
+                    self.start(self.fallback)?;
+                }
+                if let Some(cal) = self.cal.as_mut() {
+                    cal.restore(&cp)
+                        .map_err(|e| format!("restore from checkpoint: {e}"))?;
+                }
+                self.pass1_only = Some("the stream restored a checkpoint");
+            }
+            _ => self.other_messages += 1,
+        }
+        Ok(())
+    }
+}
+
+/// Reads an input until its end (or, for a serial port, until it has been
+/// idle for `idle`), feeding `on_bytes`.
+fn read_input(
+    input: &str,
+    baud: u32,
+    idle: Duration,
+    mut on_bytes: impl FnMut(&[u8]) -> Result<(), String>,
+) -> Result<(), String> {
+    let mut buf = vec![0u8; 4096];
+    let mut drain = |r: &mut dyn Read, serial: bool| -> Result<(), String> {
+        let mut last = Clock::now();
+        loop {
+            match r.read(&mut buf) {
+                Ok(0) if !serial => return Ok(()),
+                Ok(n) => {
+                    if n > 0 {
+                        last = Clock::now();
+                    }
+                    on_bytes(buf.get(..n).unwrap_or_default())?;
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) if serial && e.kind() == std::io::ErrorKind::TimedOut => {}
+                Err(e) => return Err(format!("cannot read {input}: {e}")),
+            }
+            if serial && last.elapsed() > idle {
+                eprintln!("\nno data for {:.1} s: end of stream", idle.as_secs_f64());
+                return Ok(());
+            }
+        }
+    };
+    if input == "-" {
+        return drain(&mut std::io::stdin().lock(), false);
+    }
+    let meta = std::fs::metadata(input).map_err(|e| format!("cannot open {input}: {e}"))?;
+    #[cfg(unix)]
+    let is_device = {
+        use std::os::unix::fs::FileTypeExt;
+        meta.file_type().is_char_device()
+    };
+    #[cfg(not(unix))]
+    let is_device = !meta.is_file();
+    if is_device {
+        let mut port = serialport::new(input, baud)
+            .timeout(Duration::from_millis(100))
+            .open()
+            .map_err(|e| format!("cannot open serial device {input} at {baud} Bd: {e}"))?;
+        drain(&mut port, true)
+    } else {
+        let mut f = std::fs::File::open(input).map_err(|e| format!("cannot open {input}: {e}"))?;
+        drain(&mut f, false)
+    }
+}
+
+/// The truth sidecar written by `record --truth`.
+struct Sidecar {
+    truth: Vec<f64>,
+    crlb: Vec<f64>,
+    seed: Option<u64>,
+    duration_s: Option<f64>,
+}
+
+fn read_sidecar(path: &Path, id: ConfigId) -> Result<Sidecar, String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let v: serde_json::Value = serde_json::from_str(&text)
+        .map_err(|e| format!("{} is not a truth sidecar: {e}", path.display()))?;
+    if v["config"].as_str() != Some(id.as_str()) {
+        return Err(format!(
+            "{} holds the truth of {}, not {id}",
+            path.display(),
+            v["config"]
+        ));
+    }
+    let floats = |key: &str| -> Result<Vec<f64>, String> {
+        v[key]
+            .as_array()
+            .map(|a| a.iter().map(|x| x.as_f64().unwrap_or(f64::NAN)).collect())
+            .ok_or_else(|| format!("{}: no '{key}' array", path.display()))
+    };
+    Ok(Sidecar {
+        truth: floats("truth_rad")?,
+        crlb: floats("crlb_sigma_rad")?,
+        seed: v["seed"].as_u64(),
+        duration_s: v["duration_s"].as_f64(),
+    })
+}
+
+fn reject_json(c: &rollcal::wire::RejectCounts) -> serde_json::Value {
+    serde_json::to_value(c).unwrap_or_default()
+}
+
+fn frames_json(s: &DecoderStats) -> serde_json::Value {
+    serde_json::to_value(s).unwrap_or_default()
+}
+
+/// `host-sim calibrate`.
+pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
+    let t0 = Clock::now();
+    let id = args.config;
+    let sc = load_scenario(args.scenario.as_deref())?;
+    let mut session = Session {
+        config: id,
+        fallback: calibrator_config(&sc, id, sc.site.earth_rate),
+        settings: None,
+        cal: None,
+        accepted: Vec::new(),
+        nis: Vec::new(),
+        failures: Vec::new(),
+        pass1_only: None,
+        other_messages: 0,
+        restarts: 0,
+    };
+    let mut decoder = FrameDecoder::new();
+    let mut shown = 0usize;
+    eprintln!("calibrating {id} from {}…", args.input);
+    let idle = Duration::from_secs_f64(args.idle_timeout.max(0.1));
+    read_input(&args.input, args.baud, idle, |bytes| {
+        let mut result = Ok(());
+        decoder.feed(bytes, |m| {
+            if result.is_ok() {
+                result = session.handle(m);
+            }
+        });
+        if session.accepted.len() >= shown + 500 {
+            shown = session.accepted.len();
+            let rejected = session
+                .cal
+                .as_ref()
+                .map_or(0, |c| c.estimate().progress.rejects.total());
+            eprint!(
+                "\r{shown} samples accepted, {rejected} rejected, {} bad frames",
+                decoder.stats().errors()
+            );
+        }
+        result
+    })?;
+    eprintln!();
+    let stats = *decoder.stats();
+    // Read after the stream: `record --truth T | calibrate --truth T` works.
+    let sidecar = args
+        .truth
+        .as_deref()
+        .map(|p| read_sidecar(p, id))
+        .transpose()?;
+    if decoder.pending() > 0 {
+        eprintln!(
+            "note: {} bytes of an unfinished frame at the end of the stream",
+            decoder.pending()
+        );
+    }
+    let (Some(cal), Some(settings)) = (session.cal.as_mut(), session.settings) else {
+        return Err(format!(
+            "no samples in the stream ({} frames decoded, {} rejected)",
+            stats.ok,
+            stats.errors()
+        ));
+    };
+    cal.set_frame_errors(stats.errors());
+    let est = cal.estimate();
+    let cp = cal.checkpoint();
+    let p = est.progress;
+    if p.accepted == 0 {
+        return Err(format!(
+            "no sample accepted ({} rejected, {} bad frames)",
+            p.rejects.total(),
+            stats.errors()
+        ));
+    }
+    let sigma0 = settings.prior_sigma_rad;
+    let nan = vec![f64::NAN; id.layout().n()];
+    let truth = sidecar.as_ref().map_or(&nan, |s| &s.truth);
+    let crlb = sidecar.as_ref().map_or(&nan, |s| &s.crlb);
+    let mut passes = args.passes;
+    if let (Some(why), true) = (session.pass1_only, passes > 1) {
+        eprintln!("note: {why}: only the calibrator's pass is available");
+        passes = 1;
+    }
+    let r: RunResult = if passes > 1 {
+        let estimator = Estimator {
+            options: settings.options,
+            passes,
+        };
+        let x0 = vec![0.0; id.layout().n()];
+        let pr = runner::run_passes(
+            id,
+            filter_config(&settings),
+            sigma0,
+            &session.accepted,
+            estimator,
+            &x0,
+            false,
+        )
+        .map_err(|e| format!("further passes: {e}"))?;
+        runner::result(id, &pr, truth, sigma0)
+    } else {
+        let single = Passes {
+            filter: Box::new(CalibratorView {
+                state: est.state.to_vec(),
+                sigma: est.sigma.to_vec(),
+                covariance: cp.covariance.to_vec(),
+            }),
+            history: Vec::new(),
+            nis: session.nis.clone(),
+            failures: session.failures.clone(),
+            passes: 1,
+        };
+        runner::result(id, &single, truth, sigma0)
+    };
+    print_table(&r, crlb);
+    let rj = reject_json(&p.rejects);
+    println!(
+        "stream: {} frames ok, {} rejected {}; samples: {} accepted, {} bridged, {} rejected {}",
+        stats.ok,
+        stats.errors(),
+        frames_json(&stats),
+        p.accepted,
+        p.bridged,
+        p.rejects.total(),
+        rj
+    );
+    if p.halted {
+        println!(
+            "the calibrator HALTED at an unbridgeable gap after sequence number {}",
+            est.seq
+        );
+    }
+    eprintln!("done in {:.2} s", t0.elapsed().as_secs_f64());
+    if let Some(path) = &args.json {
+        let earth_rate = settings.earth_rate_n.iter().any(|v| *v != 0.0);
+        let duration = sidecar
+            .as_ref()
+            .and_then(|s| s.duration_s)
+            .unwrap_or(p.accepted as f64 * settings.limits.period_s);
+        let mut json = run_json(
+            &r,
+            sidecar.as_ref().and_then(|s| s.seed).unwrap_or(0),
+            earth_rate,
+            duration,
+        );
+        if sidecar.as_ref().and_then(|s| s.seed).is_none() {
+            json["seed"] = serde_json::Value::Null;
+        }
+        json["passes"] = r.passes.into();
+        json["pass1"] = serde_json::json!({
+            "seq": est.seq,
+            "updates": est.updates,
+            "estimate_rad": est.state.to_vec(),
+            "sigma_rad": est.sigma.to_vec(),
+        });
+        json["stream"] = serde_json::json!({
+            "frames": frames_json(&stats),
+            "accepted": p.accepted,
+            "bridged": p.bridged,
+            "gated": p.gated,
+            "rejects": rj,
+            "halted": p.halted,
+            "restarts": session.restarts,
+            "other_messages": session.other_messages,
+        });
+        write_json(path, &json)?;
+    }
+    Ok(())
+}
+
+/// The calibrator's final values as a [`runner::DynFilter`], for the report.
+struct CalibratorView {
+    state: Vec<f64>,
+    sigma: Vec<f64>,
+    covariance: Vec<f64>,
+}
+
+impl runner::DynFilter for CalibratorView {
+    fn step(&mut self, _: &PeriodSample) -> Result<f64, ekf::Error> {
+        Err(ekf::Error::NoPrediction)
+    }
+    fn state(&self) -> Vec<f64> {
+        self.state.clone()
+    }
+    fn sigma(&self) -> Vec<f64> {
+        self.sigma.clone()
+    }
+    fn covariance(&self) -> Vec<f64> {
+        self.covariance.clone()
+    }
+    fn set_nominal(&mut self, _: &[f64]) {}
+    fn back_propagate(&self, _: &[PeriodSample]) -> Option<Vec<f64>> {
+        None
+    }
+}

@@ -1,0 +1,564 @@
+//! The wire protocol: frames round-trip, the byte layout matches an
+//! independent reference encoder (and `docs/wire.md`), and the decoder
+//! counts and skips every kind of bad input without panicking.
+
+use proptest::prelude::*;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rollcal::ekf::Options;
+use rollcal::models::ConfigId;
+use rollcal::wire::{
+    crc32, decode_frame, encode, CalibratorConfig, Checkpoint, Decoder, DecoderStats, Estimate,
+    FrameDecoder, FrameError, Message, Progress, RejectCounts, Sample, MAX_COVARIANCE,
+    MAX_FRAME_LEN, MAX_STATES, VERSION,
+};
+
+fn frame(msg: &Message) -> Vec<u8> {
+    let mut buf = vec![0u8; MAX_FRAME_LEN];
+    let n = encode(msg, &mut buf).unwrap();
+    buf.truncate(n);
+    buf
+}
+
+/// Reference COBS encoder, written from the textbook definition (not the
+/// crate's streaming one): blocks of ≤ 254 non-zero bytes, each prefixed by
+/// its length + 1.
+fn cobs_reference(data: &[u8]) -> Vec<u8> {
+    let mut out = vec![0u8];
+    let mut code_idx = 0;
+    let mut code = 1u8;
+    for &b in data {
+        if b == 0 {
+            out[code_idx] = code;
+            code_idx = out.len();
+            out.push(0);
+            code = 1;
+        } else {
+            out.push(b);
+            code += 1;
+            if code == 0xFF {
+                out[code_idx] = code;
+                code_idx = out.len();
+                out.push(0);
+                code = 1;
+            }
+        }
+    }
+    out[code_idx] = code;
+    out
+}
+
+/// A frame built as `docs/wire.md` describes it, from postcard and the CRC.
+fn reference_frame(version: u8, payload: &[u8]) -> Vec<u8> {
+    let mut raw = vec![version];
+    raw.extend_from_slice(payload);
+    let crc = crc32(&raw);
+    raw.extend_from_slice(&crc.to_le_bytes());
+    let mut f = cobs_reference(&raw);
+    f.push(0);
+    f
+}
+
+fn sample(seq: u32) -> Sample {
+    Sample {
+        seq,
+        t_us: u64::from(seq) * 1_000_000,
+        dt: 1.0,
+        dtheta_cmd: [-1.745_329_3e-3, 3.1e-9, 7.2e-7],
+        accel_mean: [0.001_234, 0.999_998_8, -0.003_5],
+        gimbal: Some([0.003_665, -0.001_396, 0.002_269]),
+    }
+}
+
+fn big_checkpoint() -> Checkpoint {
+    let v: heapless::Vec<f64, MAX_STATES> = (0..MAX_STATES).map(|i| -1e-3 * i as f64).collect();
+    Checkpoint {
+        config: ConfigId::M2Ps,
+        state: v.clone(),
+        covariance: (0..MAX_COVARIANCE).map(|i| 1e-300 * i as f64).collect(),
+        nominal: Some(v),
+        c_cn: [f64::MAX; 9],
+        updates: u32::MAX,
+        progress: Progress {
+            last_seq: Some(u32::MAX),
+            last_t_us: Some(u64::MAX),
+            last_increment: [f64::MIN; 3],
+            last_nis: 1.5,
+            accepted: u32::MAX,
+            bridged: u32::MAX,
+            gated: u32::MAX,
+            since_estimate: u32::MAX,
+            rejects: RejectCounts {
+                non_finite: u32::MAX,
+                period: u32::MAX,
+                accel_range: u32::MAX,
+                increment_range: u32::MAX,
+                gimbal_range: u32::MAX,
+                missing_gimbal: u32::MAX,
+                duplicate: u32::MAX,
+                out_of_order: u32::MAX,
+                time_backwards: u32::MAX,
+                time_mismatch: u32::MAX,
+                gap: u32::MAX,
+                halted: u32::MAX,
+                filter: u32::MAX,
+            },
+            halted: true,
+        },
+    }
+}
+
+fn all_messages() -> Vec<Message> {
+    let est = Estimate {
+        config: ConfigId::M1Pa,
+        seq: 77,
+        updates: 76,
+        state: (0..12).map(|i| i as f64 * 1e-5).collect(),
+        sigma: (0..12).map(|i| i as f64 * 1e-7 + 1e-9).collect(),
+        progress: Progress {
+            last_nis: 0.5, // the default NaN would defeat PartialEq
+            ..Progress::default()
+        },
+        frame_errors: 3,
+    };
+    vec![
+        Message::Sample(sample(1)),
+        Message::Sample(Sample {
+            gimbal: None,
+            ..sample(u32::MAX)
+        }),
+        Message::Estimate(est),
+        Message::Checkpoint(big_checkpoint()),
+        Message::Configure(CalibratorConfig::paper(ConfigId::M2Ps)),
+        Message::Reset,
+        Message::CheckpointRequest,
+        Message::EstimateRequest,
+    ]
+}
+
+fn decode_all<const CAP: usize>(
+    dec: &mut Decoder<CAP>,
+    bytes: &[u8],
+) -> Vec<Result<Message, FrameError>> {
+    let mut out = Vec::new();
+    dec.feed_results(bytes, |r| out.push(r));
+    out
+}
+
+/// Equality through the encoding (NaN-safe: compares bit patterns).
+fn same(a: &Message, b: &Message) -> bool {
+    frame(a) == frame(b)
+}
+
+#[test]
+fn crc_is_crc32_iso_hdlc() {
+    assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+    assert_eq!(crc32(b""), 0);
+}
+
+#[test]
+fn frames_match_the_documented_layout_and_round_trip() {
+    let mut dec = FrameDecoder::new();
+    for m in all_messages() {
+        let f = frame(&m);
+        let mut payload = vec![0u8; MAX_FRAME_LEN];
+        let p = postcard::to_slice(&m, &mut payload).unwrap();
+        assert_eq!(f, reference_frame(VERSION, p), "{m:?}");
+        assert!(f.len() <= MAX_FRAME_LEN);
+        assert_eq!(f.iter().filter(|b| **b == 0).count(), 1);
+        assert_eq!(*f.last().unwrap(), 0);
+        let got = decode_all(&mut dec, &f);
+        assert_eq!(got, vec![Ok(m)]);
+    }
+    assert_eq!(dec.stats().ok, all_messages().len() as u32);
+    assert_eq!(dec.stats().errors(), 0);
+    // The largest message fits the documented bound with room to spare.
+    let n = frame(&Message::Checkpoint(big_checkpoint())).len();
+    assert!(n > 3000 && n < MAX_FRAME_LEN, "{n}");
+}
+
+#[test]
+fn encode_reports_a_small_buffer() {
+    let m = Message::Sample(sample(5));
+    let n = frame(&m).len();
+    for len in 0..n {
+        let mut buf = vec![0u8; len];
+        assert!(encode(&m, &mut buf).is_err(), "len {len}");
+    }
+}
+
+/// The worked example of docs/wire.md is what the encoder produces.
+#[test]
+fn docs_worked_example_is_current() {
+    let m = Message::Sample(Sample {
+        seq: 1,
+        t_us: 1_000_000,
+        dt: 1.0,
+        dtheta_cmd: [-1.745_329_3e-3, 0.0, 0.0],
+        accel_mean: [0.0, 1.0, 0.0],
+        gimbal: None,
+    });
+    let hex: Vec<String> = frame(&m).iter().map(|b| format!("{b:02x}")).collect();
+    let hex = hex.join(" ");
+    let doc = include_str!("../docs/wire.md");
+    assert!(
+        doc.contains(&hex),
+        "docs/wire.md lacks the example frame:\n{hex}"
+    );
+}
+
+#[test]
+fn any_chunking_gives_the_same_messages() {
+    let msgs = all_messages();
+    let stream: Vec<u8> = msgs.iter().flat_map(frame).collect();
+    let mut expect_stats = None;
+    for chunk in 1..=stream.len() / 4 {
+        let mut dec = FrameDecoder::new();
+        let mut got = Vec::new();
+        for c in stream.chunks(chunk) {
+            dec.feed(c, |m| got.push(m));
+        }
+        assert_eq!(got, msgs, "chunk {chunk}");
+        assert_eq!(dec.pending(), 0);
+        let s = *dec.stats();
+        assert_eq!(*expect_stats.get_or_insert(s), s);
+    }
+    // And a few large/odd chunkings including the whole stream.
+    for chunk in [stream.len() - 1, stream.len(), stream.len() + 10] {
+        let mut dec = FrameDecoder::new();
+        let mut got = Vec::new();
+        for c in stream.chunks(chunk) {
+            dec.feed(c, |m| got.push(m));
+        }
+        assert_eq!(got, msgs);
+    }
+}
+
+#[test]
+fn every_single_bit_flip_is_detected_and_resynchronised() {
+    let (a, b, c) = (sample(10), sample(11), sample(12));
+    let fb = frame(&Message::Sample(b));
+    let (fa, fc) = (frame(&Message::Sample(a)), frame(&Message::Sample(c)));
+    for byte in 0..fb.len() {
+        for bit in 0..8 {
+            let mut bad = fb.clone();
+            bad[byte] ^= 1 << bit;
+            let stream = [fa.clone(), bad, fc.clone()].concat();
+            let mut dec = FrameDecoder::new();
+            let got = decode_all(&mut dec, &stream);
+            let msgs: Vec<Message> = got.iter().filter_map(|r| r.clone().ok()).collect();
+            // CRC-32 detects every single-bit error: b never comes out,
+            // and nothing else but a and c does.
+            assert!(msgs.contains(&Message::Sample(a)), "{byte}.{bit}");
+            assert!(
+                msgs.iter()
+                    .all(|m| *m == Message::Sample(a) || *m == Message::Sample(c)),
+                "{byte}.{bit}: {msgs:?}"
+            );
+            assert!(dec.stats().errors() >= 1, "{byte}.{bit}");
+            let last = byte == fb.len() - 1;
+            if !last {
+                // The delimiter survived: resynchronised, c decoded.
+                assert_eq!(msgs.len(), 2, "{byte}.{bit}");
+            }
+        }
+    }
+}
+
+#[test]
+fn truncated_frames_are_counted_and_skipped() {
+    let full = frame(&Message::Configure(CalibratorConfig::paper(ConfigId::M1Pa)));
+    let next = frame(&Message::Sample(sample(3)));
+    let mut stats = DecoderStats::default();
+    for cut in 1..full.len() - 1 {
+        let mut stream = full[..cut].to_vec();
+        stream.push(0);
+        stream.extend_from_slice(&next);
+        let mut dec = FrameDecoder::new();
+        let got = decode_all(&mut dec, &stream);
+        assert_eq!(got.len(), 2, "cut {cut}");
+        assert!(
+            matches!(got[0], Err(FrameError::Truncated | FrameError::Corrupt)),
+            "cut {cut}: {:?}",
+            got[0]
+        );
+        assert_eq!(got[1], Ok(Message::Sample(sample(3))));
+        stats.truncated += dec.stats().truncated;
+        stats.corrupt += dec.stats().corrupt;
+    }
+    // Short cuts are caught by COBS or the minimum length.
+    assert!(stats.truncated > 0 && stats.corrupt > 0, "{stats:?}");
+    // A stream that starts mid-frame: the partial frame is skipped.
+    let stream = [&next[5..], &next[..]].concat();
+    let mut dec = FrameDecoder::new();
+    assert_eq!(
+        decode_all(&mut dec, &stream).last(),
+        Some(&Ok(Message::Sample(sample(3))))
+    );
+    assert_eq!(dec.stats().errors(), 1);
+}
+
+#[test]
+fn oversized_frames_are_counted_and_skipped() {
+    let big = frame(&Message::Checkpoint(big_checkpoint()));
+    let small = frame(&Message::Sample(sample(9)));
+    let mut dec = Decoder::<64>::new();
+    let got = decode_all(&mut dec, &[big.clone(), small.clone(), big, small].concat());
+    assert_eq!(
+        got,
+        vec![
+            Err(FrameError::Oversized),
+            Ok(Message::Sample(sample(9))),
+            Err(FrameError::Oversized),
+            Ok(Message::Sample(sample(9)))
+        ]
+    );
+    assert_eq!(dec.stats().oversized, 2);
+    assert_eq!(dec.stats().ok, 2);
+    // A capacity that exactly fits the frame's bytes (without delimiter).
+    let mut dec = Decoder::<64>::new();
+    let small = frame(&Message::Sample(sample(9)));
+    assert!(small.len() - 1 <= 64);
+    assert_eq!(decode_all(&mut dec, &small).len(), 1);
+}
+
+#[test]
+fn wrong_version_and_malformed_frames_are_counted() {
+    let m = Message::Sample(sample(4));
+    let mut payload = vec![0u8; 256];
+    let p = postcard::to_slice(&m, &mut payload).unwrap().to_vec();
+    let wrong = reference_frame(VERSION + 1, &p);
+    // Unknown enum tag 99, and a valid message followed by a stray byte.
+    let unknown = reference_frame(VERSION, &[99, 0, 0]);
+    let trailing = reference_frame(VERSION, &[p.clone(), vec![7]].concat());
+    let good = reference_frame(VERSION, &p);
+    let mut dec = FrameDecoder::new();
+    let got = decode_all(&mut dec, &[wrong, unknown, trailing, good].concat());
+    assert_eq!(
+        got,
+        vec![
+            Err(FrameError::WrongVersion(VERSION + 1)),
+            Err(FrameError::Malformed),
+            Err(FrameError::Malformed),
+            Ok(m)
+        ]
+    );
+    assert_eq!(dec.stats().wrong_version, 1);
+    assert_eq!(dec.stats().malformed, 2);
+    // Empty frames (runs of delimiters) are not errors.
+    let mut dec = FrameDecoder::new();
+    assert!(decode_all(&mut dec, &[0, 0, 0]).is_empty());
+    assert_eq!(dec.stats().empty, 3);
+    assert_eq!(dec.stats().errors(), 0);
+}
+
+#[test]
+fn random_bytes_never_panic_and_the_decoder_recovers() {
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let good = frame(&Message::Sample(sample(8)));
+    for round in 0..200 {
+        let len = rng.gen_range(0..4000);
+        // Mostly random bytes; some rounds with few zeros (long frames).
+        let zero_odds = if round % 2 == 0 { 256 } else { 5000 };
+        let bytes: Vec<u8> = (0..len)
+            .map(|_| {
+                if rng.gen_range(0..zero_odds) == 0 {
+                    0
+                } else {
+                    rng.gen_range(1..=255)
+                }
+            })
+            .collect();
+        let mut dec = Decoder::<512>::new();
+        let mut got = Vec::new();
+        for c in bytes.chunks(rng.gen_range(1..64)) {
+            dec.feed(c, |m| got.push(m));
+        }
+        // A delimiter, then a good frame: recovered.
+        dec.feed(&[0], |m| got.push(m));
+        let before = got.len();
+        dec.feed(&good, |m| got.push(m));
+        assert_eq!(got.len(), before + 1);
+        assert_eq!(got.last(), Some(&Message::Sample(sample(8))));
+        let s = dec.stats();
+        let frames = bytes.iter().filter(|b| **b == 0).count() as u32 + 2;
+        assert_eq!(s.ok + s.errors() + s.empty, frames, "round {round}");
+    }
+    // Every decode_frame input of a few bytes, exhaustively for length ≤ 2.
+    for a in 0..=255u8 {
+        for b in 0..=255u8 {
+            let _ = decode_frame(&mut [a, b]);
+        }
+    }
+}
+
+fn arb_f32() -> impl Strategy<Value = f32> {
+    any::<u32>().prop_map(f32::from_bits)
+}
+
+fn arb_f64() -> impl Strategy<Value = f64> {
+    any::<u64>().prop_map(f64::from_bits)
+}
+
+fn arb_config() -> impl Strategy<Value = ConfigId> {
+    (0..ConfigId::ALL.len()).prop_map(|i| ConfigId::ALL[i])
+}
+
+fn arb_sample() -> impl Strategy<Value = Sample> {
+    (
+        any::<u32>(),
+        any::<u64>(),
+        arb_f32(),
+        [arb_f32(), arb_f32(), arb_f32()],
+        [arb_f32(), arb_f32(), arb_f32()],
+        proptest::option::of([arb_f32(), arb_f32(), arb_f32()]),
+    )
+        .prop_map(|(seq, t_us, dt, dtheta_cmd, accel_mean, gimbal)| Sample {
+            seq,
+            t_us,
+            dt,
+            dtheta_cmd,
+            accel_mean,
+            gimbal,
+        })
+}
+
+fn arb_progress() -> impl Strategy<Value = Progress> {
+    (
+        proptest::option::of(any::<u32>()),
+        proptest::option::of(any::<u64>()),
+        [arb_f64(), arb_f64(), arb_f64()],
+        arb_f64(),
+        any::<[u32; 4]>(),
+        any::<[u32; 13]>(),
+        any::<bool>(),
+    )
+        .prop_map(|(last_seq, last_t_us, inc, nis, c, r, halted)| Progress {
+            last_seq,
+            last_t_us,
+            last_increment: inc,
+            last_nis: nis,
+            accepted: c[0],
+            bridged: c[1],
+            gated: c[2],
+            since_estimate: c[3],
+            rejects: RejectCounts {
+                non_finite: r[0],
+                period: r[1],
+                accel_range: r[2],
+                increment_range: r[3],
+                gimbal_range: r[4],
+                missing_gimbal: r[5],
+                duplicate: r[6],
+                out_of_order: r[7],
+                time_backwards: r[8],
+                time_mismatch: r[9],
+                gap: r[10],
+                halted: r[11],
+                filter: r[12],
+            },
+            halted,
+        })
+}
+
+fn arb_vec<const C: usize>(max: usize) -> impl Strategy<Value = heapless::Vec<f64, C>> {
+    proptest::collection::vec(arb_f64(), 0..=max).prop_map(|v| v.into_iter().collect())
+}
+
+fn arb_message() -> impl Strategy<Value = Message> {
+    prop_oneof![
+        arb_sample().prop_map(Message::Sample),
+        (
+            arb_config(),
+            any::<u32>(),
+            any::<u32>(),
+            arb_vec::<MAX_STATES>(MAX_STATES),
+            arb_vec::<MAX_STATES>(MAX_STATES),
+            arb_progress(),
+            any::<u32>()
+        )
+            .prop_map(|(config, seq, updates, state, sigma, progress, fe)| {
+                Message::Estimate(Estimate {
+                    config,
+                    seq,
+                    updates,
+                    state,
+                    sigma,
+                    progress,
+                    frame_errors: fe,
+                })
+            }),
+        (
+            arb_config(),
+            arb_vec::<MAX_STATES>(MAX_STATES),
+            arb_vec::<MAX_COVARIANCE>(MAX_COVARIANCE),
+            proptest::option::of(arb_vec::<MAX_STATES>(MAX_STATES)),
+            proptest::array::uniform9(arb_f64()),
+            any::<u32>(),
+            arb_progress()
+        )
+            .prop_map(
+                |(config, state, covariance, nominal, c_cn, updates, progress)| {
+                    Message::Checkpoint(Checkpoint {
+                        config,
+                        state,
+                        covariance,
+                        nominal,
+                        c_cn,
+                        updates,
+                        progress,
+                    })
+                }
+            ),
+        (
+            arb_config(),
+            arb_f64(),
+            any::<u32>(),
+            any::<bool>(),
+            any::<u8>()
+        )
+            .prop_map(|(config, x, every, so, it)| {
+                let mut c = CalibratorConfig::paper(config);
+                c.sigma_accel_g = x;
+                c.estimate_every = every;
+                c.options = Options {
+                    second_order_mean: so,
+                    iterations: it,
+                    ..Options::default()
+                };
+                c.limits.max_bridge = every;
+                Message::Configure(c)
+            }),
+        Just(Message::Reset),
+        Just(Message::CheckpointRequest),
+        Just(Message::EstimateRequest),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+
+    /// encode → decode is the identity (bit for bit, NaN payloads included),
+    /// through a decoder fed in random chunks, with garbage between frames.
+    #[test]
+    fn round_trip(msgs in proptest::collection::vec(arb_message(), 1..4),
+                  chunk in 1usize..300,
+                  garbage in proptest::collection::vec(1u8..=255, 0..40)) {
+        let mut stream = Vec::new();
+        for m in &msgs {
+            stream.extend_from_slice(&garbage);
+            stream.push(0);
+            stream.extend_from_slice(&frame(m));
+        }
+        let mut dec = FrameDecoder::new();
+        let mut got = Vec::new();
+        for c in stream.chunks(chunk) {
+            dec.feed(c, |m| got.push(m));
+        }
+        prop_assert_eq!(got.len(), msgs.len());
+        for (a, b) in got.iter().zip(&msgs) {
+            prop_assert!(same(a, b));
+        }
+        prop_assert_eq!(dec.stats().ok, msgs.len() as u32);
+    }
+}
