@@ -12,8 +12,10 @@
 
 use core::ptr::{read_volatile, write_volatile};
 
-/// UART0 of the mps2-an386/an500 boards.
+/// UART0 of the mps2-an386/an500 boards (QEMU's first `-serial`).
 pub const UART0_BASE: usize = 0x4000_4000;
+/// UART1 of the mps2-an386/an500 boards (QEMU's second `-serial`).
+pub const UART1_BASE: usize = 0x4000_5000;
 
 const DATA: usize = 0x00;
 const STATE: usize = 0x04;
