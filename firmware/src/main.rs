@@ -20,7 +20,6 @@ mod uart;
 use core::mem::size_of;
 
 use cortex_m_rt::{entry, exception, ExceptionFrame};
-use cortex_m_semihosting::debug::{self, EXIT_FAILURE, EXIT_SUCCESS};
 use defmt_semihosting as _;
 
 /// The estimator's scalar in this build.
@@ -150,6 +149,27 @@ fn cmdline(buf: &mut [u8; 256]) -> &[u8] {
     &buf[..n]
 }
 
+/// Exit status of the run: all samples accepted.
+pub const EXIT_OK: u32 = 0;
+/// Exit status: the run completed but samples were rejected (or a
+/// synthetic step failed).
+pub const EXIT_REJECTS: u32 = 2;
+/// Exit status after a panic or a HardFault.
+pub const EXIT_CRASH: u32 = 101;
+
+/// Ends the QEMU process with exit status `code` (semihosting
+/// SYS_EXIT_EXTENDED, reason ADP_Stopped_ApplicationExit).
+pub fn exit(code: u32) -> ! {
+    let block = [0x2_0026u32, code];
+    // SAFETY: SYS_EXIT_EXTENDED (0x20) reads the two-word block.
+    unsafe {
+        cortex_m_semihosting::syscall1(0x20, block.as_ptr() as usize);
+    }
+    loop {
+        cortex_m::asm::bkpt();
+    }
+}
+
 #[entry]
 fn main() -> ! {
     stack::paint();
@@ -172,19 +192,13 @@ fn main() -> ! {
     };
     let (peak, region) = stack::peak();
     defmt::info!("peak stack {} bytes of {}", peak, region);
-    debug::exit(if ok { EXIT_SUCCESS } else { EXIT_FAILURE });
-    loop {
-        cortex_m::asm::bkpt();
-    }
+    exit(if ok { EXIT_OK } else { EXIT_REJECTS })
 }
 
 #[exception]
 unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
     defmt::error!("HardFault at pc={=u32:#x}", ef.pc());
-    debug::exit(EXIT_FAILURE);
-    loop {
-        cortex_m::asm::bkpt();
-    }
+    exit(EXIT_CRASH)
 }
 
 #[panic_handler]
@@ -194,8 +208,5 @@ fn panic(info: &core::panic::PanicInfo) -> ! {
     } else {
         defmt::error!("panic");
     }
-    debug::exit(EXIT_FAILURE);
-    loop {
-        cortex_m::asm::bkpt();
-    }
+    exit(EXIT_CRASH)
 }

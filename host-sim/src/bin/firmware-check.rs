@@ -104,19 +104,20 @@ fn compare(
         ));
     }
     let (mut max_rad, mut max_sigma, mut worst) = (0.0f64, 0.0f64, "");
-    for (s, (x, sig_fw)) in states.iter().zip(est.state.iter().zip(&est.sigma)) {
+    for (s, x) in states.iter().zip(est.state.iter()) {
         let name = s["name"].as_str().unwrap_or("?");
         let host_x = s["estimate_rad"]
             .as_f64()
             .ok_or("state without estimate_rad")?;
         let host_sig = s["sigma_rad"].as_f64().ok_or("state without sigma_rad")?;
+        // A NaN on either side counts as an infinite difference.
         let d = (x - host_x).abs();
-        if !(d <= max_rad) {
+        let d = if d.is_nan() { f64::INFINITY } else { d };
+        if d > max_rad || worst.is_empty() {
             max_rad = d;
             worst = name;
         }
         max_sigma = max_sigma.max(d / host_sig);
-        let _ = sig_fw;
     }
     let within = tol.map(|t| max_rad <= t);
     println!(
