@@ -80,6 +80,10 @@ pub struct Args {
     pub mode: Mode,
     /// `periods=N` of synthetic motion.
     pub periods: u32,
+    /// `noise_scale=K`: multiply the synthetic run's accelerometer and
+    /// gimbal noise by K (f32 needs K ≈ 1000 to keep S positive definite
+    /// at every step, so that the counts are of complete periods).
+    pub noise_scale: u32,
 }
 
 impl Args {
@@ -91,6 +95,7 @@ impl Args {
             config: Config::M2Ps,
             mode: Mode::Default,
             periods: 200,
+            noise_scale: 1,
         };
         for word in line.split(|&b| b == b' ') {
             let mut kv = word.splitn(2, |&b| b == b'=');
@@ -109,6 +114,11 @@ impl Args {
                 (b"mode", b"default") => a.mode = Mode::Default,
                 (b"mode", b"plain") => a.mode = Mode::Plain,
                 (b"mode", b"linearised") => a.mode = Mode::Linearised,
+                (b"noise_scale", n) => {
+                    if let Some(n) = parse_u32(n) {
+                        a.noise_scale = n.max(1);
+                    }
+                }
                 (b"periods", n) => {
                     if let Some(n) = parse_u32(n) {
                         a.periods = n;

@@ -17,16 +17,17 @@ const EARTH_RATE: f64 = 7.292_115e-5;
 const DEG: f64 = core::f64::consts::PI / 180.0;
 
 /// The paper scenario's noise levels and site (SPEC §4).
-pub fn filter_config(options: Options) -> FilterConfig<Real> {
+pub fn filter_config(options: Options, noise_scale: u32) -> FilterConfig<Real> {
+    let k = f64::from(noise_scale);
     let c = |v: f64| v as Real;
     FilterConfig {
         env: Environment {
             earth_rate_n: earth_rate_n(c(EARTH_RATE), c(34.25 * DEG)),
             gravity_n: gravity_n(),
         },
-        sigma_accel: c(1e-6),
+        sigma_accel: c(1e-6 * k),
         sigma_gyro: c(0.1 * DEG / 3600.0),
-        sigma_gimbal: c(10.0 * DEG / 3600.0),
+        sigma_gimbal: c(10.0 * k * DEG / 3600.0),
         options,
     }
 }
@@ -37,7 +38,7 @@ fn run_model<M: Model<N, Z>, const N: usize, const Z: usize>(args: &Args) -> boo
         _ => Options::default(),
     };
     let sigma0 = SVector::<Real, N>::repeat((1.0 * DEG) as Real);
-    let Ok(mut f) = Filter::<Real, M, N, Z>::new(filter_config(options), SVector::zeros(), sigma0)
+    let Ok(mut f) = Filter::<Real, M, N, Z>::new(filter_config(options, args.noise_scale), SVector::zeros(), sigma0)
     else {
         defmt::error!("invalid filter configuration");
         return false;

@@ -121,7 +121,7 @@ fn compare(
     }
     let within = tol.map(|t| max_rad <= t);
     println!(
-        "{label}: {count} Estimate frames, final seq {} after {} updates; max |Δ| vs host = {max_rad:.3e} rad = {:.4}″ = {max_sigma:.3}σ (worst {worst}){}",
+        "{label}: {count} Estimate frames, final seq {} after {} updates; max |Δ| vs host = {max_rad:.3e} rad = {:.3e}″ = {max_sigma:.2e}σ (worst {worst}){}",
         est.seq,
         est.updates,
         max_rad / ARCSEC,
