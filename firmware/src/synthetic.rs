@@ -38,8 +38,11 @@ fn run_model<M: Model<N, Z>, const N: usize, const Z: usize>(args: &Args) -> boo
         _ => Options::default(),
     };
     let sigma0 = SVector::<Real, N>::repeat((1.0 * DEG) as Real);
-    let Ok(mut f) = Filter::<Real, M, N, Z>::new(filter_config(options, args.noise_scale), SVector::zeros(), sigma0)
-    else {
+    let Ok(mut f) = Filter::<Real, M, N, Z>::new(
+        filter_config(options, args.noise_scale),
+        SVector::zeros(),
+        sigma0,
+    ) else {
         defmt::error!("invalid filter configuration");
         return false;
     };
