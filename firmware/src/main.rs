@@ -7,7 +7,9 @@
 //! exits QEMU with a non-zero status through semihosting.
 //!
 //! The run is chosen by the semihosting command line (`qemu -append "…"`),
-//! words `key=value`: see [`Args`].
+//! words `key=value`: see [`Args`]. QEMU's exit status is the firmware's:
+//! 0 all samples accepted, 2 some rejected (or a synthetic step failed),
+//! 101 panic or HardFault ([`EXIT_OK`], [`EXIT_REJECTS`], [`EXIT_CRASH`]).
 #![no_std]
 #![no_main]
 
