@@ -1,0 +1,90 @@
+//! A synthetic workload for instruction counts without input: the platform
+//! rolls about South at 0.1°/s in 1 s periods and the instruments report
+//! what an error-free platform would (gravity in the computed frame, zero
+//! gimbal angles). The numbers are not a calibration, only a load of the
+//! same shape as the recorded stream.
+
+use nalgebra::{SVector, Vector3};
+use rollcal::ekf::{Filter, FilterConfig, Observation, Options};
+use rollcal::geometry::{earth_rate_n, gravity_n};
+use rollcal::models::{Environment, Model};
+
+use crate::marks::{rollcal_mark_period_end, rollcal_mark_period_start};
+use crate::{Args, Config, Mode, Real};
+
+/// Earth rate (rad/s).
+const EARTH_RATE: f64 = 7.292_115e-5;
+const DEG: f64 = core::f64::consts::PI / 180.0;
+
+/// The paper scenario's noise levels and site (SPEC §4).
+pub fn filter_config(options: Options, noise_scale: u32) -> FilterConfig<Real> {
+    let k = f64::from(noise_scale);
+    let c = |v: f64| v as Real;
+    FilterConfig {
+        env: Environment {
+            earth_rate_n: earth_rate_n(c(EARTH_RATE), c(34.25 * DEG)),
+            gravity_n: gravity_n(),
+        },
+        sigma_accel: c(1e-6 * k),
+        sigma_gyro: c(0.1 * DEG / 3600.0),
+        sigma_gimbal: c(10.0 * k * DEG / 3600.0),
+        options,
+    }
+}
+
+fn run_model<M: Model<N, Z>, const N: usize, const Z: usize>(args: &Args) -> bool {
+    let options = match args.mode {
+        Mode::Plain => Options::plain(),
+        _ => Options::default(),
+    };
+    let sigma0 = SVector::<Real, N>::repeat((1.0 * DEG) as Real);
+    let Ok(mut f) = Filter::<Real, M, N, Z>::new(
+        filter_config(options, args.noise_scale),
+        SVector::zeros(),
+        sigma0,
+    ) else {
+        defmt::error!("invalid filter configuration");
+        return false;
+    };
+    if args.mode == Mode::Linearised {
+        f.set_nominal(Some(SVector::zeros()));
+    }
+    let dt: Real = 1.0;
+    let dtheta = Vector3::new(0.0, 0.0, (-0.1 * DEG) as Real);
+    let mut failures = 0u32;
+    for k in 0..args.periods {
+        let period = f.command_frame().period(&dtheta, dt);
+        let [_, _, c_end] = period.c_cn;
+        let obs = Observation {
+            accel_mean: c_end * f.config().env.gravity_n,
+            gimbal: Some(Vector3::zeros()),
+        };
+        rollcal_mark_period_start();
+        let r = f.step(&dtheta, dt, &obs);
+        rollcal_mark_period_end();
+        if let Err(e) = r {
+            failures += 1;
+            if failures <= 5 {
+                defmt::warn!("period {}: {}", k, e);
+            }
+        }
+        if (k + 1) % 100 == 0 {
+            defmt::info!("period {}: {} updates", k + 1, f.updates());
+        }
+    }
+    defmt::info!(
+        "synthetic run done: {} periods, {} updates, {} failed",
+        args.periods,
+        f.updates(),
+        failures
+    );
+    failures == 0
+}
+
+/// Runs the synthetic workload of `args`; true if every step succeeded.
+pub fn run(args: &Args) -> bool {
+    match args.config {
+        Config::M2Ps => run_model::<rollcal::models::M2Ps, 18, 6>(args),
+        Config::M1Pa => run_model::<rollcal::models::M1Pa, 12, 3>(args),
+    }
+}
