@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 use rollcal::models::{ConfigId, Group};
 
-use crate::observe::{self, ConfigObs, ObsVerdict};
+use crate::observe::{self, ConfigObs};
 use crate::plots::{plot_group, Curve};
 use crate::runner::{expected_observable, run_filter, Estimator, RunResult};
 use crate::scenario::{Scenario, ARCSEC};
@@ -499,9 +499,4 @@ pub fn all_good(p: &Paper) -> bool {
             .iter()
             .all(|s| s.verdict != StateVerdict::Failed && s.agrees_with_paper != Some(false))
     })
-}
-
-/// The verdict of a state in an observability analysis, for tests.
-pub fn obs_verdict(c: &ConfigObs, name: &str) -> Option<ObsVerdict> {
-    c.states.iter().find(|s| s.name == name).map(|s| s.verdict)
 }
