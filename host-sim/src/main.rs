@@ -602,7 +602,7 @@ fn cmd_paper(args: &PaperArgs) -> Result<(), String> {
         rayon::current_num_threads()
     );
     let bar = progress_bar(PROGRESS_STEPS, "paper");
-    let p = paper(&scenario, args.seed, &args.out, &|what| {
+    let p = paper(&scenario, args.scenario.as_deref(), args.seed, &args.out, &|what| {
         bar.inc(1);
         bar.set_message(what.to_string());
     })?;
