@@ -10,23 +10,32 @@
 //! repeats or goes backwards, its timestamp does not advance, or the
 //! timestamp difference disagrees with the number of elapsed periods.
 //!
-//! **Gaps.** A missing sample loses its period's commanded increment, which
-//! the computed frame `C^c_n` (and the model's attitude) must be propagated
-//! with. The calibrator therefore bridges a gap only when it cannot be
-//! wrong by more than the Earth-rate drift of the increment: at most
-//! [`Limits::max_bridge`] missing periods, and the commanded increments of
-//! the samples on both sides agree within [`Limits::bridge_tolerance_rad`]
-//! (the platform stayed on one constant-rate path segment). The missing
-//! periods are then predicted, without measurement, with the mean of the two
-//! increments (the increment drifts by ≈ 1e-7 rad per period at 0.1°/s, so
-//! the mean is off by a second-order amount), and counted in
-//! [`Progress::bridged`]. Any other gap (e.g. across a path-segment switch,
-//! where guessing the increment would turn `C^c_n` by up to 0.1° per missing
-//! period) is rejected as [`RejectReason::Gap`] and **halts** the
-//! calibrator: every further sample is rejected as [`RejectReason::Halted`]
-//! until [`Calibrator::reset`] or a restore from a checkpoint taken before
-//! the gap. The estimate reached so far stays available. A rejected sample
-//! (e.g. NaN) also leaves a gap of one period, bridged by the same rule.
+//! **Lost data loses only itself.** A lost sample loses its period's
+//! commanded increment, which the computed frame `C^c_n` (and the model's
+//! attitude) must be propagated with. Every [`Sample`] therefore also
+//! reports `C^c_n` at the end of its period. Across a gap of `m` missing
+//! periods the calibrator searches the commanded motion (at most
+//! [`Limits::max_bridge`] periods): the last sample's constant path rate for
+//! `j` periods and the new sample's path rate for the others, for every
+//! `j` (a rolling path changes rate only at period boundaries, so this is
+//! exact for a gap inside one path segment and for one that contains one
+//! segment switch). A hypothesis is accepted when it carries `C^c_n` to the
+//! reported frame within [`Limits::frame_tolerance_rad`]; the missing periods
+//! are then predicted along it without measurement and counted in
+//! [`Progress::bridged`]. When no hypothesis fits (a longer gap, or several
+//! switches), the motion is not known: the missing periods are predicted
+//! along the shortest rotation to the reported frame, the computed frame is
+//! set from the report, and the attitude states are **re-acquired**
+//! ([`crate::ekf::Filter::reacquire_attitude`]: their covariance re-opened to
+//! the prior, the parameters' information kept), counted in
+//! [`Progress::reacquired`]. Nothing halts the calibrator.
+//!
+//! **Clock steps.** A sample whose timestamp disagrees with the last
+//! accepted one is rejected ([`RejectReason::TimeMismatch`] or
+//! [`RejectReason::TimeBackwards`]) and remembered; when the next sample's
+//! timestamp agrees with it, the clock stepped: the time is re-anchored
+//! there ([`Progress::clock_steps`]) and the rejected period is bridged like
+//! any lost one.
 //!
 //! **Checkpoints.** [`Calibrator::checkpoint`] captures the filter state,
 //! covariance, nominal, computed frame and update counter, plus the
@@ -38,11 +47,14 @@ use core::marker::PhantomData;
 
 use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3};
 
+use crate::command::CommandFrame;
 use crate::ekf::{self, Filter, FilterConfig, Observation};
+use crate::geometry::{angle_between, dcm_from_quaternion, rotation_vector};
 use crate::models::{ConfigId, Environment, Model};
 use crate::wire::{CalibratorConfig, Checkpoint, Estimate, Limits, Progress, Sample};
 
-/// Why a sample was rejected. A rejected sample leaves the filter untouched.
+/// Why a sample was rejected. A rejected sample leaves the filter untouched
+/// and loses only its own period (bridged with the next accepted sample).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[non_exhaustive]
@@ -67,10 +79,9 @@ pub enum RejectReason {
     TimeBackwards,
     /// Timestamp difference disagrees with `dt` × elapsed periods.
     TimeMismatch,
-    /// A sequence gap that cannot be bridged; the calibrator is now halted.
-    Gap,
-    /// The calibrator is halted by an earlier unbridgeable gap.
-    Halted,
+    /// The computed-frame quaternion is not a unit quaternion (within
+    /// [`Limits::frame_tolerance_rad`]).
+    FrameAttitude,
     /// The filter refused the period (its state was restored).
     Filter(ekf::Error),
 }
@@ -88,8 +99,9 @@ impl core::fmt::Display for RejectReason {
             RejectReason::OutOfOrder => f.write_str("sequence number out of order"),
             RejectReason::TimeBackwards => f.write_str("timestamp does not advance"),
             RejectReason::TimeMismatch => f.write_str("timestamp disagrees with the period"),
-            RejectReason::Gap => f.write_str("sequence gap cannot be bridged; calibrator halted"),
-            RejectReason::Halted => f.write_str("calibrator halted by an earlier gap"),
+            RejectReason::FrameAttitude => {
+                f.write_str("computed-frame quaternion is not a unit quaternion")
+            }
             RejectReason::Filter(e) => write!(f, "filter refused the period: {e}"),
         }
     }
@@ -161,6 +173,30 @@ fn vec3_f32<T: RealField + Copy>(a: &[f32; 3]) -> Vector3<T> {
         to_t(f64::from(a[1])),
         to_t(f64::from(a[2])),
     )
+}
+
+/// A sample that passed validation.
+#[derive(Clone, Copy, Debug)]
+struct Validated {
+    /// Missing periods before it.
+    gap: u32,
+    /// Its timestamp re-anchors the time after a clock step.
+    reanchored: bool,
+}
+
+/// The commanded motion across a gap.
+#[derive(Clone, Copy, Debug)]
+enum Motion<T: RealField + Copy> {
+    /// `old` periods at the last sample's path rate `u_old`, the rest at
+    /// the new sample's `u_new` (rad/s, c frame).
+    Found {
+        old: u32,
+        u_old: Vector3<T>,
+        u_new: Vector3<T>,
+    },
+    /// Not found: `start` is `C^c_n` at the start of the new sample's
+    /// period, from its report.
+    Unknown { start: Matrix3<T> },
 }
 
 /// Validates samples and runs configuration `M`'s filter over them (see the
@@ -251,18 +287,13 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         &self.progress
     }
 
-    /// Whether an unbridgeable gap halted the calibrator.
-    pub fn halted(&self) -> bool {
-        self.progress.halted
-    }
-
     /// Records the receiver's count of rejected frames, reported in
     /// [`Estimate::frame_errors`].
     pub fn set_frame_errors(&mut self, n: u32) {
         self.frame_errors = n;
     }
 
-    fn validate(&self, s: &Sample) -> Result<u32, RejectReason> {
+    fn validate(&self, s: &Sample) -> Result<Validated, RejectReason> {
         let lim: &Limits = &self.settings.limits;
         let gimbal_obs = M::LAYOUT.gimbal_obs;
         let gimbal = if gimbal_obs { s.gimbal } else { None };
@@ -270,6 +301,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
             s.dtheta_cmd
                 .iter()
                 .chain(s.accel_mean.iter())
+                .chain(s.c_cn_quat.iter())
                 .chain(gimbal.iter().flatten())
                 .chain(core::iter::once(&s.dt))
                 .map(|v| f64::from(*v))
@@ -293,9 +325,21 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
             None if gimbal_obs => return Err(RejectReason::MissingGimbal),
             _ => {}
         }
+        let norm = libm::sqrt(
+            s.c_cn_quat
+                .iter()
+                .map(|v| f64::from(*v) * f64::from(*v))
+                .sum::<f64>(),
+        );
+        if !within(norm - 1.0, lim.frame_tolerance_rad) {
+            return Err(RejectReason::FrameAttitude);
+        }
         let (Some(last_seq), Some(last_t)) = (self.progress.last_seq, self.progress.last_t_us)
         else {
-            return Ok(0);
+            return Ok(Validated {
+                gap: 0,
+                reanchored: false,
+            });
         };
         if s.seq == last_seq {
             return Err(RejectReason::Duplicate);
@@ -303,27 +347,100 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         if s.seq < last_seq {
             return Err(RejectReason::OutOfOrder);
         }
-        if s.t_us <= last_t {
+        // The time elapsed since (seq0, t0) agrees with the elapsed periods.
+        let agrees = |seq0: u32, t0: u64| {
+            s.seq > seq0
+                && s.t_us > t0
+                && within(
+                    (s.t_us - t0) as f64 * 1e-6 - f64::from(s.seq - seq0) * dt,
+                    f64::from(s.seq - seq0) * lim.period_tolerance_s,
+                )
+        };
+        let reanchored = if agrees(last_seq, last_t) {
+            false
+        } else if self
+            .progress
+            .clock_candidate
+            .is_some_and(|(seq0, t0)| agrees(seq0, t0))
+        {
+            true
+        } else if s.t_us <= last_t {
             return Err(RejectReason::TimeBackwards);
-        }
-        let periods = f64::from(s.seq - last_seq);
-        let elapsed = (s.t_us - last_t) as f64 * 1e-6;
-        if !within(elapsed - periods * dt, periods * lim.period_tolerance_s) {
+        } else {
             return Err(RejectReason::TimeMismatch);
-        }
-        let gap = s.seq - last_seq - 1;
-        if gap > 0 {
-            let last = self.progress.last_increment;
-            let agree = s
-                .dtheta_cmd
-                .iter()
-                .zip(last)
-                .all(|(a, b)| (f64::from(*a) - b).abs() <= lim.bridge_tolerance_rad);
-            if gap > lim.max_bridge || !agree {
-                return Err(RejectReason::Gap);
+        };
+        Ok(Validated {
+            gap: s.seq - last_seq - 1,
+            reanchored,
+        })
+    }
+
+    /// The commanded motion across the `gap` missing periods before sample
+    /// `s` (see the module docs, "Lost data").
+    fn motion_across(&self, s: &Sample, gap: u32) -> Motion<T> {
+        let lim = &self.settings.limits;
+        let dt: T = to_t(f64::from(s.dt));
+        let dtheta: Vector3<T> = vec3_f32(&s.dtheta_cmd);
+        let q = s.c_cn_quat.map(|v| to_t::<T>(f64::from(v)));
+        let tol: T = to_t(lim.frame_tolerance_rad);
+        let frame = *self.filter.command_frame();
+        let er = frame.earth_rate_n;
+        // Validated: a unit quaternion within the tolerance.
+        let reported = dcm_from_quaternion(&q, tol).unwrap_or(frame.c_cn);
+        let at = |c_cn: Matrix3<T>| CommandFrame {
+            c_cn,
+            earth_rate_n: er,
+        };
+        if gap <= lim.max_bridge {
+            let last = vec3::<T>(self.progress.last_increment);
+            let u_old = CommandFrame::preceding(&frame.c_cn, &last, dt, er).path_rate(&last, dt);
+            for old in (0..=gap).rev() {
+                let c_switch = frame.after(&u_old, dt, old);
+                // The new path rate, at the start of the sample's own period
+                // (it enters only through the small Earth-rate term).
+                let mut u_new = at(c_switch).path_rate(&dtheta, dt);
+                let mut start = c_switch;
+                for _ in 0..2 {
+                    start = at(c_switch).after(&u_new, dt, gap - old);
+                    u_new = at(start).path_rate(&dtheta, dt);
+                }
+                let end = at(start).after(&u_new, dt, 1);
+                if angle_between(&end, &reported) <= tol {
+                    return Motion::Found { old, u_old, u_new };
+                }
             }
         }
-        Ok(gap)
+        Motion::Unknown {
+            start: CommandFrame::preceding(&reported, &dtheta, dt, er).c_cn,
+        }
+    }
+
+    /// Predicts the `gap` missing periods along `motion`; re-acquires the
+    /// attitude when the motion is unknown.
+    fn bridge(&mut self, gap: u32, dt: T, motion: &Motion<T>) -> Result<(), ekf::Error> {
+        match motion {
+            Motion::Found { old, u_old, u_new } => {
+                for i in 0..gap {
+                    let u = if i < *old { u_old } else { u_new };
+                    let inc = self.filter.command_frame().increment(u, dt);
+                    self.filter.predict(&inc, dt)?;
+                }
+                Ok(())
+            }
+            Motion::Unknown { start } => {
+                if gap > 0 {
+                    let c0 = self.filter.command_frame().c_cn;
+                    let periods: T = to_t(f64::from(gap));
+                    let u = rotation_vector(&(start * c0.transpose())) / (dt * periods);
+                    for _ in 0..gap {
+                        let inc = self.filter.command_frame().increment(&u, dt);
+                        self.filter.predict(&inc, dt)?;
+                    }
+                }
+                self.filter
+                    .reacquire_attitude(start, to_t(self.settings.prior_sigma_rad))
+            }
+        }
     }
 
     fn reject(&mut self, r: RejectReason) -> RejectReason {
@@ -339,43 +456,40 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
             RejectReason::OutOfOrder => &mut c.out_of_order,
             RejectReason::TimeBackwards => &mut c.time_backwards,
             RejectReason::TimeMismatch => &mut c.time_mismatch,
-            RejectReason::Gap => &mut c.gap,
-            RejectReason::Halted => &mut c.halted,
+            RejectReason::FrameAttitude => &mut c.frame_attitude,
             RejectReason::Filter(_) => &mut c.filter,
         };
         *slot = slot.saturating_add(1);
-        if r == RejectReason::Gap {
-            self.progress.halted = true;
-        }
         r
     }
 
-    /// Processes one sample: validates it, bridges a short gap before it if
-    /// allowed, and runs one filter period. Returns an [`Estimate`] when the
-    /// cadence ([`CalibratorConfig::estimate_every`]) says so. On `Err` the
-    /// sample was counted by reason and the filter is untouched.
+    /// Processes one sample: validates it, bridges the gap before it along
+    /// the commanded motion (or re-acquires the attitude), and runs one
+    /// filter period. Returns an [`Estimate`] when the cadence
+    /// ([`CalibratorConfig::estimate_every`]) says so. On `Err` the sample
+    /// was counted by reason and the filter is untouched.
     pub fn push(&mut self, s: &Sample) -> Result<Option<Estimate>, RejectReason> {
-        if self.progress.halted {
-            return Err(self.reject(RejectReason::Halted));
-        }
-        let gap = match self.validate(s) {
-            Ok(g) => g,
-            Err(r) => return Err(self.reject(r)),
+        let checked = match self.validate(s) {
+            Ok(v) => v,
+            Err(r) => {
+                if matches!(r, RejectReason::TimeMismatch | RejectReason::TimeBackwards) {
+                    self.progress.clock_candidate = Some((s.seq, s.t_us));
+                }
+                return Err(self.reject(r));
+            }
         };
+        let gap = checked.gap;
         let dt: T = to_t(f64::from(s.dt));
         let dtheta: Vector3<T> = vec3_f32(&s.dtheta_cmd);
         let obs = Observation {
             accel_mean: vec3_f32(&s.accel_mean),
             gimbal: s.gimbal.as_ref().map(vec3_f32),
         };
-        let saved = (gap > 0).then(|| self.filter.clone());
+        let motion = (gap > 0).then(|| self.motion_across(s, gap));
+        let saved = motion.is_some().then(|| self.filter.clone());
         let result = (|| {
-            if gap > 0 {
-                let half: T = to_t(0.5);
-                let mean = (dtheta + vec3::<T>(self.progress.last_increment)) * half;
-                for _ in 0..gap {
-                    self.filter.predict(&mean, dt)?;
-                }
+            if let Some(m) = &motion {
+                self.bridge(gap, dt, m)?;
             }
             self.filter.step(&dtheta, dt, &obs)
         })();
@@ -394,11 +508,22 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
             Some(v) => p.last_nis = v,
             None => p.gated = p.gated.saturating_add(1),
         }
+        match motion {
+            Some(Motion::Found { .. }) => p.bridged = p.bridged.saturating_add(gap),
+            Some(Motion::Unknown { .. }) => {
+                p.reacquired = p.reacquired.saturating_add(1);
+                p.reacquired_periods = p.reacquired_periods.saturating_add(gap);
+            }
+            None => {}
+        }
+        if checked.reanchored {
+            p.clock_steps = p.clock_steps.saturating_add(1);
+        }
+        p.clock_candidate = None;
         p.last_seq = Some(s.seq);
         p.last_t_us = Some(s.t_us);
         p.last_increment = s.dtheta_cmd.map(f64::from);
         p.accepted = p.accepted.saturating_add(1);
-        p.bridged = p.bridged.saturating_add(gap);
         p.since_estimate = p.since_estimate.saturating_add(1);
         let every = self.settings.estimate_every;
         if every > 0 && p.since_estimate >= every {

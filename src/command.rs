@@ -62,10 +62,11 @@ impl<T: RealField + Copy> CommandFrame<T> {
         }
     }
 
-    /// The commanded motion over the next period of length `dt` (s) whose
-    /// commanded angle increment is `dtheta_c` (rad, c frame), without
-    /// advancing the frame.
-    pub fn period(&self, dtheta_c: &Vector3<T>, dt: T) -> Period<T> {
+    /// The constant path rate `u = ω^c_nc` (rad/s, c frame) of a period of
+    /// length `dt` (s) starting at this frame whose commanded angle
+    /// increment is `dtheta_c` (rad, c frame): the solution of
+    /// `Δθc = u T + T J_r(u T) C^c_n(t_k) ω^n_ie`.
+    pub fn path_rate(&self, dtheta_c: &Vector3<T>, dt: T) -> Vector3<T> {
         let e = self.c_cn * self.earth_rate_n;
         let rate = dtheta_c / dt;
         // Fixed point u = Δθ/T − J_r(uT) e; contraction factor ≈ |e| T / 2 < 1e-4.
@@ -73,6 +74,56 @@ impl<T: RealField + Copy> CommandFrame<T> {
         for _ in 0..3 {
             u = rate - right_jacobian(&(u * dt)) * e;
         }
+        u
+    }
+
+    /// The commanded angle increment `Δθc = u T + T J_r(u T) C^c_n ω^n_ie`
+    /// (rad, c frame) of a period of length `dt` (s) at the constant path
+    /// rate `path_rate` (rad/s, c frame) starting at this frame: the inverse
+    /// of [`CommandFrame::path_rate`].
+    pub fn increment(&self, path_rate: &Vector3<T>, dt: T) -> Vector3<T> {
+        let e = self.c_cn * self.earth_rate_n;
+        (path_rate + right_jacobian(&(path_rate * dt)) * e) * dt
+    }
+
+    /// `C^c_n` after `periods` periods of length `dt` (s) at the constant
+    /// path rate `path_rate` (rad/s, c frame): `R(u T n) C^c_n` (the rotation
+    /// is about a fixed c-frame axis, so its powers add).
+    pub fn after(&self, path_rate: &Vector3<T>, dt: T, periods: u32) -> Matrix3<T> {
+        let n: T = nalgebra::convert(f64::from(periods));
+        dcm(&(path_rate * (dt * n))) * self.c_cn
+    }
+
+    /// The frame at the start of the period of length `dt` (s) with
+    /// commanded increment `dtheta_c` (rad, c frame) that ends at `c_end`
+    /// (`C^c_n` at the end of the period): the inverse of
+    /// [`CommandFrame::period`] followed by [`CommandFrame::advance`], by a
+    /// fixed point (the start frame enters only through the Earth-rate term,
+    /// contraction ≈ |ω_ie| T < 1e-4).
+    pub fn preceding(c_end: &Matrix3<T>, dtheta_c: &Vector3<T>, dt: T, earth_rate_n: Vector3<T>) -> Self {
+        let mut start = Self {
+            c_cn: *c_end,
+            earth_rate_n,
+        };
+        for _ in 0..4 {
+            let u = start.path_rate(dtheta_c, dt);
+            start.c_cn = dcm(&(u * dt)).transpose() * c_end;
+        }
+        start
+    }
+
+    /// The commanded motion over the next period of length `dt` (s) whose
+    /// commanded angle increment is `dtheta_c` (rad, c frame), without
+    /// advancing the frame.
+    pub fn period(&self, dtheta_c: &Vector3<T>, dt: T) -> Period<T> {
+        let u = self.path_rate(dtheta_c, dt);
+        self.period_at_rate(&u, dt)
+    }
+
+    /// The commanded motion over the next period of length `dt` (s) at the
+    /// constant path rate `u` (rad/s, c frame), without advancing the frame.
+    pub fn period_at_rate(&self, u: &Vector3<T>, dt: T) -> Period<T> {
+        let e = self.c_cn * self.earth_rate_n;
         let half: T = nalgebra::convert(0.5);
         let c_mid = dcm(&(u * (dt * half))) * self.c_cn;
         let c_end = dcm(&(u * dt)) * self.c_cn;

@@ -378,6 +378,41 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         self.reference = x_nominal;
     }
 
+    /// Re-acquires the attitude after a gap across which the commanded
+    /// motion is not known: the computed frame is set to `c_cn` (`C^c_n` at
+    /// the start of the next period), and the attitude states' covariance
+    /// is re-opened to `sigma` (rad) on each of them with no correlation to
+    /// the parameters, whose covariance (their information) is kept. The
+    /// attitude estimate is left as it is (the caller predicts it across the
+    /// gap). In linearised mode the nominal's attitude follows the estimate,
+    /// so the nominal stays a trajectory of the model.
+    ///
+    /// # Errors
+    /// [`Error::NonFiniteInput`] or [`Error::CovarianceNotPositiveDefinite`]
+    /// for a non-finite frame or a `sigma` that is not strictly positive; the
+    /// filter is then left untouched.
+    pub fn reacquire_attitude(&mut self, c_cn: &Matrix3<T>, sigma: T) -> Result<(), Error> {
+        if !all_finite(c_cn.iter().copied().chain([sigma])) {
+            return Err(Error::NonFiniteInput);
+        }
+        if sigma <= T::zero() {
+            return Err(Error::CovarianceNotPositiveDefinite);
+        }
+        let zeros = SMatrix::<T, 3, N>::zeros();
+        self.p.fixed_rows_mut::<3>(ATT).copy_from(&zeros);
+        self.p.fixed_columns_mut::<3>(ATT).copy_from(&zeros.transpose());
+        self.p
+            .fixed_view_mut::<3, 3>(ATT, ATT)
+            .copy_from(&(Matrix3::identity() * (sigma * sigma)));
+        self.command.c_cn = *c_cn;
+        if let Some(nominal) = self.reference.as_mut() {
+            let att = self.x.fixed_rows::<3>(ATT).clone_owned();
+            nominal.fixed_rows_mut::<3>(ATT).copy_from(&att);
+        }
+        self.pending = None;
+        Ok(())
+    }
+
     /// The nominal state at the current time, in linearised mode.
     pub fn nominal(&self) -> Option<&SVector<T, N>> {
         self.reference.as_ref()

@@ -90,6 +90,45 @@ pub fn rotation_vector<T: RealField + Copy>(c: &Matrix3<T>) -> Vector3<T> {
     w * (angle / sin)
 }
 
+/// The unit quaternion `[w, x, y, z]` of the DCM `c`: with `θ` the rotation
+/// vector of `c` ([`rotation_vector`], `c = R(θ)`), `q = [cos(|θ|/2),
+/// sin(|θ|/2) θ/|θ|]`. The wire carries the computed frame `C^c_n` this
+/// way (`docs/wire.md`).
+pub fn quaternion_from_dcm<T: RealField + Copy>(c: &Matrix3<T>) -> [T; 4] {
+    let theta = rotation_vector(c);
+    let half: T = nalgebra::convert(0.5);
+    let angle = theta.norm();
+    // sin(|θ|/2)/|θ|, with its series below 1e-4 rad (error < 1e-18).
+    let k = if angle < nalgebra::convert(1e-4) {
+        let forty_eight: T = nalgebra::convert(48.0);
+        half - angle * angle / forty_eight
+    } else {
+        (angle * half).sin() / angle
+    };
+    [(angle * half).cos(), theta.x * k, theta.y * k, theta.z * k]
+}
+
+/// The DCM `R(θ)` of the quaternion `q = [w, x, y, z]` (see
+/// [`quaternion_from_dcm`]): `I − 2w[v×] + 2[v×]²` of `q/|q|`. `None` when
+/// `q` is not finite or `| |q| − 1 |` exceeds `tolerance`.
+pub fn dcm_from_quaternion<T: RealField + Copy>(q: &[T; 4], tolerance: T) -> Option<Matrix3<T>> {
+    let [w, x, y, z] = *q;
+    let norm = (w * w + x * x + y * y + z * z).sqrt();
+    if !norm.is_finite() || (norm - T::one()).abs() > tolerance {
+        return None;
+    }
+    let (w, v) = (w / norm, Vector3::new(x, y, z) / norm);
+    let k = skew(&v);
+    let two: T = nalgebra::convert(2.0);
+    Some(Matrix3::identity() - k * (two * w) + k * k * two)
+}
+
+/// The angle (rad, in `[0, π]`) of the rotation from the DCM `b` to the DCM
+/// `a`: `|θ|` of `R(θ) = a bᵀ`.
+pub fn angle_between<T: RealField + Copy>(a: &Matrix3<T>, b: &Matrix3<T>) -> T {
+    rotation_vector(&(a * b.transpose())).norm()
+}
+
 /// Right Jacobian of the rotation vector, `J_r(θ)`, for the convention
 /// `R(θ) = exp(−[θ×])`: `R(θ + δ) ≈ (I − [(J_r(θ) δ)×]) R(θ)`.
 pub fn right_jacobian<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T> {

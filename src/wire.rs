@@ -32,7 +32,7 @@ use crate::ekf::Options;
 use crate::models::ConfigId;
 
 /// Protocol version carried in the first byte of every frame.
-pub const VERSION: u8 = 1;
+pub const VERSION: u8 = 2;
 
 /// Largest state dimension of any configuration (M2-ps, M3-ps).
 pub const MAX_STATES: usize = 18;
@@ -68,6 +68,12 @@ pub struct Sample {
     pub dt: f32,
     /// Commanded angle increment `Δθc = ∫ωc dt` over the period (rad, c frame).
     pub dtheta_cmd: [f32; 3],
+    /// The computed frame at the end of the period, `C^c_n(t_k)`, as the unit
+    /// quaternion `[w, x, y, z]` of its rotation vector θ (`C^c_n = R(θ)`,
+    /// [`crate::geometry::quaternion_from_dcm`]). It makes the commanded
+    /// motion across lost samples known (see [`crate::calibrator`], "Lost
+    /// data"); f32 resolves it to 6e-8 rad (0.012″).
+    pub c_cn_quat: [f32; 4],
     /// Mean accelerometer output over the period (g, instrument axes).
     pub accel_mean: [f32; 3],
     /// Gimbal angles `(α, β, γ)` at the end of the period (rad); required by
@@ -89,18 +95,21 @@ pub struct Limits {
     pub max_increment_rad: f64,
     /// Largest accepted |gimbal angle| (rad).
     pub max_gimbal_rad: f64,
-    /// Longest sequence gap (missing periods) that may be bridged; 0 = a gap
-    /// always halts the calibrator.
+    /// Longest gap (missing periods) across which the calibrator searches
+    /// for the commanded motion (the last path rate, then one switch to the
+    /// new sample's path rate at any period boundary of the gap). A longer
+    /// gap, or one whose motion is not found, re-acquires the attitude.
     pub max_bridge: u32,
-    /// A gap is bridged only if the commanded increments on both of its
-    /// sides agree within this (rad, per component): the platform was on one
-    /// constant-rate path segment throughout.
-    pub bridge_tolerance_rad: f64,
+    /// The motion across a gap is accepted as found when it carries the
+    /// computed frame to the sample's reported `C^c_n` within this angle
+    /// (rad); also the accepted norm error of the reported quaternion.
+    pub frame_tolerance_rad: f64,
 }
 
 impl Default for Limits {
-    /// 1 s period ± 1 ms, |f| ≤ 2 g, |Δθc| ≤ 0.1 rad, |θA| ≤ 2π, gaps of up
-    /// to 10 periods bridged within 1e-5 rad.
+    /// 1 s period ± 1 ms, |f| ≤ 2 g, |Δθc| ≤ 0.1 rad, |θA| ≤ 2π, the motion
+    /// across gaps of up to 7200 periods searched, frame tolerance 1e-5 rad
+    /// (2″).
     fn default() -> Self {
         Self {
             period_s: 1.0,
@@ -108,8 +117,8 @@ impl Default for Limits {
             max_accel_g: 2.0,
             max_increment_rad: 0.1,
             max_gimbal_rad: 2.0 * core::f64::consts::PI,
-            max_bridge: 10,
-            bridge_tolerance_rad: 1e-5,
+            max_bridge: 7200,
+            frame_tolerance_rad: 1e-5,
         }
     }
 }
@@ -187,12 +196,11 @@ pub struct RejectCounts {
     pub out_of_order: u32,
     /// Timestamp not after the last accepted one.
     pub time_backwards: u32,
-    /// Timestamp difference disagrees with `dt` × elapsed periods.
+    /// Timestamp difference disagrees with `dt` × elapsed periods (a clock
+    /// step is re-anchored once the next sample confirms it).
     pub time_mismatch: u32,
-    /// A sequence gap that could not be bridged (halts the calibrator).
-    pub gap: u32,
-    /// Samples refused because the calibrator is halted.
-    pub halted: u32,
+    /// The computed-frame quaternion is not a unit quaternion.
+    pub frame_attitude: u32,
     /// The filter refused the period (state left untouched).
     pub filter: u32,
 }
@@ -211,8 +219,7 @@ impl RejectCounts {
             self.out_of_order,
             self.time_backwards,
             self.time_mismatch,
-            self.gap,
-            self.halted,
+            self.frame_attitude,
             self.filter,
         ]
         .iter()
@@ -228,23 +235,33 @@ pub struct Progress {
     /// Timestamp of the last accepted sample (µs).
     pub last_t_us: Option<u64>,
     /// Commanded increment of the last accepted sample (rad, c frame), for
-    /// bridging gaps.
+    /// finding the motion across a gap.
     pub last_increment: [f64; 3],
+    /// A sample whose timestamp disagreed with the last accepted one:
+    /// `(seq, t_us)`. If the next sample's timestamp agrees with it, the
+    /// clock stepped and the time is re-anchored there.
+    pub clock_candidate: Option<(u32, u64)>,
     /// NIS of the last update (NaN before the first).
     pub last_nis: f64,
     /// Samples accepted.
     pub accepted: u32,
-    /// Missing periods bridged by prediction without measurement.
+    /// Missing periods bridged by prediction without measurement, along the
+    /// commanded motion found across the gap.
     pub bridged: u32,
+    /// Gaps across which the motion was not found: the computed frame was
+    /// set from the reported `C^c_n` and the attitude states re-acquired
+    /// (their covariance re-opened to the prior, the parameters' kept).
+    pub reacquired: u32,
+    /// Missing periods of those gaps (predicted along the shortest rotation).
+    pub reacquired_periods: u32,
+    /// Clock steps re-anchored.
+    pub clock_steps: u32,
     /// Accepted samples whose update failed the NIS gate (predicted only).
     pub gated: u32,
     /// Accepted samples since the last emitted estimate.
     pub since_estimate: u32,
     /// Rejected samples by reason.
     pub rejects: RejectCounts,
-    /// A gap could not be bridged: every further sample is rejected until a
-    /// reset or restore.
-    pub halted: bool,
 }
 
 impl Default for Progress {
@@ -253,13 +270,16 @@ impl Default for Progress {
             last_seq: None,
             last_t_us: None,
             last_increment: [0.0; 3],
+            clock_candidate: None,
             last_nis: f64::NAN,
             accepted: 0,
             bridged: 0,
+            reacquired: 0,
+            reacquired_periods: 0,
+            clock_steps: 0,
             gated: 0,
             since_estimate: 0,
             rejects: RejectCounts::default(),
-            halted: false,
         }
     }
 }
@@ -278,7 +298,8 @@ pub struct Estimate {
     pub state: Vec<f64, MAX_STATES>,
     /// Their σ, `√P_ii` (rad).
     pub sigma: Vec<f64, MAX_STATES>,
-    /// Calibrator bookkeeping: last NIS, accepted, rejected by reason, halted.
+    /// Calibrator bookkeeping: last NIS, accepted, bridged, re-acquired,
+    /// rejected by reason.
     pub progress: Progress,
     /// Frames the receiver's decoder rejected so far (as told to the
     /// calibrator by [`crate::calibrator::Calibrator::set_frame_errors`]).

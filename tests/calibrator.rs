@@ -1,5 +1,6 @@
 //! The calibrator front end: rejects bad samples by reason without touching
-//! the filter, bridges or halts on gaps, emits estimates at its cadence, and
+//! the filter, bridges gaps along the commanded motion or re-acquires the
+//! attitude, emits estimates at its cadence, and
 //! continues bit-identically from a checkpoint taken at any sample.
 
 use host_sim::runner::filter_config;
@@ -35,6 +36,7 @@ fn samples(periods: usize, seed: u64) -> (Scenario, Vec<Sample>) {
             dtheta_cmd: s.dtheta_cmd.map(|v| v as f32).into(),
             accel_mean: s.accel_mean.map(|v| v as f32).into(),
             gimbal: Some(s.gimbal.map(|v| v as f32).into()),
+            c_cn_quat: rollcal::geometry::quaternion_from_dcm(&s.truth.c_c_n).map(|v| v as f32),
         })
         .collect();
     (sc, out)
@@ -310,79 +312,166 @@ fn bad_samples_are_rejected_by_reason_and_leave_the_filter_untouched() {
     assert_eq!(pa.progress().accepted, 2);
 }
 
-#[test]
-fn short_gaps_are_bridged_and_others_halt() {
-    let (sc, data) = samples(300, 4);
-    let cfg = settings(&sc, ConfigId::M1Pa, 0);
-    // Reference: the filter itself, told the true increments of the lost
-    // periods (prediction without measurement).
-    let fc = filter_config(&sc, true, Options::default());
+/// A filter told the true commanded increments of every period, lost ones
+/// predicted without measurement: what bridging a gap should reproduce.
+fn reference_m1pa(sc: &Scenario, data: &[Sample], lost: impl Fn(usize) -> bool) -> M1PaFilter<f64> {
+    let fc = filter_config(sc, true, Options::default());
     let s0 = nalgebra::SVector::<f64, 12>::repeat(sc.prior.sigma_deg * DEG);
-    let mut reference = M1PaFilter::<f64>::new(fc, nalgebra::SVector::zeros(), s0).unwrap();
+    let mut f = M1PaFilter::<f64>::new(fc, nalgebra::SVector::zeros(), s0).unwrap();
     let v = |a: [f32; 3]| nalgebra::Vector3::new(a[0] as f64, a[1] as f64, a[2] as f64);
-    // A NaN sample and three lost ones, mid-segment: bridged.
-    let mut cal = M1PaCalibrator::<f64>::new(cfg).unwrap();
     for (i, s) in data.iter().enumerate() {
-        let lost = i == 100 || (200..=202).contains(&i);
-        if lost {
-            reference.predict(&v(s.dtheta_cmd), s.dt as f64).unwrap();
+        if lost(i) {
+            f.predict(&v(s.dtheta_cmd), s.dt as f64).unwrap();
         } else {
             let obs = Observation {
                 accel_mean: v(s.accel_mean),
                 gimbal: None,
             };
-            reference.step(&v(s.dtheta_cmd), s.dt as f64, &obs).unwrap();
+            f.step(&v(s.dtheta_cmd), s.dt as f64, &obs).unwrap();
         }
+    }
+    f
+}
+
+fn assert_same_estimate(e: &rollcal::wire::Estimate, f: &M1PaFilter<f64>, tol_sigma: f64) {
+    let sig = f.sigma();
+    for i in 0..12 {
+        let d = (e.state[i] - f.state()[i]).abs();
+        assert!(d < tol_sigma * sig[i], "state {i}: {d:e} vs σ {:e}", sig[i]);
+        assert!((e.sigma[i] / sig[i] - 1.0).abs() < 1e-6, "σ of state {i}");
+    }
+}
+
+#[test]
+fn the_reported_frame_is_the_integrated_one() {
+    let (sc, data) = samples(300, 4);
+    let mut cal = M1PaCalibrator::<f64>::new(settings(&sc, ConfigId::M1Pa, 0)).unwrap();
+    for s in &data {
+        cal.push(s).unwrap();
+        let q = s.c_cn_quat.map(f64::from);
+        let reported = rollcal::geometry::dcm_from_quaternion(&q, 1e-6).unwrap();
+        let angle = rollcal::geometry::angle_between(&reported, &cal.filter().command_frame().c_cn);
+        assert!(angle < 2e-7, "seq {}: {angle:e} rad", s.seq);
+    }
+}
+
+#[test]
+fn gaps_inside_a_segment_are_bridged_along_the_commanded_motion() {
+    let (sc, data) = samples(600, 4);
+    let cfg = settings(&sc, ConfigId::M1Pa, 0);
+    // A NaN sample, three lost ones and a burst of 250, all inside the first
+    // path segment.
+    let lost = |i: usize| i == 100 || (200..=202).contains(&i) || (300..550).contains(&i);
+    let reference = reference_m1pa(&sc, &data, lost);
+    let mut cal = M1PaCalibrator::<f64>::new(cfg).unwrap();
+    for (i, s) in data.iter().enumerate() {
         let r = match i {
-            100 => cal
-                .push(&Sample {
-                    accel_mean: [f32::NAN; 3],
-                    ..*s
-                })
-                .map(|_| ()),
-            200..=202 => continue,
-            _ => cal.push(s).map(|_| ()),
+            100 => cal.push(&Sample {
+                accel_mean: [f32::NAN; 3],
+                ..*s
+            }),
+            _ if lost(i) => continue,
+            _ => cal.push(s),
         };
         assert_eq!(r.is_ok(), i != 100, "{i}");
     }
     let e = cal.estimate();
-    assert_eq!(e.progress.bridged, 4);
+    assert_eq!(e.progress.bridged, 254);
+    assert_eq!(e.progress.reacquired, 0);
     assert_eq!(e.progress.rejects.non_finite, 1);
-    assert_eq!(e.progress.accepted, 300 - 4);
-    assert!(!e.progress.halted);
-    // Guessing the increments (mean of the neighbours) costs < 1e-3 σ.
-    let sig = reference.sigma();
-    for i in 0..12 {
-        let d = (e.state[i] - reference.state()[i]).abs();
-        assert!(d < 1e-3 * sig[i], "state {i}: {d:e} vs σ {:e}", sig[i]);
-        assert!((e.sigma[i] / sig[i] - 1.0).abs() < 1e-6);
+    assert_eq!(e.progress.accepted, 600 - 254);
+    // The motion found is the commanded one: the same answer as the filter
+    // told the true increments (to f32 rounding of the samples).
+    assert_same_estimate(&e, &reference, 1e-4);
+}
+
+#[test]
+fn a_gap_at_a_segment_switch_is_bridged_and_an_unknown_motion_reacquires() {
+    // The paper's path turns from South to East at 1800 s and back at 2700 s.
+    let (sc, data) = samples(3000, 6);
+    let cfg = settings(&sc, ConfigId::M1Pa, 0);
+    // One frame lost on each side of the first switch, and a burst of 20
+    // that contains it.
+    for lost_range in [1799..1800, 1800..1801, 1790..1810] {
+        let lost = |i: usize| lost_range.contains(&i);
+        let reference = reference_m1pa(&sc, &data[..1900], lost);
+        let mut cal = M1PaCalibrator::<f64>::new(cfg).unwrap();
+        for (i, s) in data[..1900].iter().enumerate() {
+            if !lost(i) {
+                cal.push(s).unwrap();
+            }
+        }
+        let e = cal.estimate();
+        assert_eq!(e.progress.bridged as usize, lost_range.len(), "{lost_range:?}");
+        assert_eq!(e.progress.reacquired, 0, "{lost_range:?}");
+        assert_same_estimate(&e, &reference, 1e-4);
     }
-    // A gap longer than max_bridge halts until a reset.
+    // A gap over both switches: the motion is not one switch; the attitude
+    // is re-acquired, the calibration goes on and keeps the parameters.
     let mut cal = M1PaCalibrator::<f64>::new(cfg).unwrap();
-    for s in &data[..50] {
+    for s in &data[..1700] {
         cal.push(s).unwrap();
     }
-    let before = cal.clone();
-    assert_eq!(cal.push(&data[70]), Err(RejectReason::Gap));
-    assert_eq!(cal.filter(), before.filter());
-    assert!(cal.halted());
-    assert_eq!(cal.push(&data[71]), Err(RejectReason::Halted));
-    assert_eq!(cal.progress().rejects.gap, 1);
-    assert_eq!(cal.progress().rejects.halted, 1);
-    // A restore from a checkpoint taken before the gap resumes.
-    let mut resumed = M1PaCalibrator::<f64>::restore(cfg, &before.checkpoint()).unwrap();
-    assert!(resumed.push(&data[50]).is_ok());
-    cal.reset().unwrap();
-    assert!(cal.push(&data[71]).is_ok());
-    assert_eq!(cal.progress().accepted, 1);
-    // A gap whose sides disagree (the commanded increment changed) halts.
-    let mut cal = M1PaCalibrator::<f64>::new(cfg).unwrap();
-    for s in &data[..50] {
+    let before = cal.estimate();
+    cal.push(&data[2800]).unwrap();
+    let after = cal.estimate();
+    assert_eq!(after.progress.reacquired, 1);
+    assert_eq!(after.progress.reacquired_periods, 1100);
+    assert_eq!(after.progress.bridged, 0);
+    let prior = cfg.prior_sigma_rad;
+    // ψ re-opened to the prior: one update after it, gravity has pinned the
+    // two level directions but not the azimuth, whose σ stays near the
+    // prior; the parameters' σ are kept.
+    let psi_max = after.sigma[..3].iter().fold(0.0f64, |a, b| a.max(*b));
+    assert!(psi_max > 0.5 * prior, "ψ σ {:?}", &after.sigma[..3]);
+    // (Before the gap the azimuth had converged to ≈ 0.18° of the 1° prior.)
+    let psi_before = before.sigma[..3].iter().fold(0.0f64, |a, b| a.max(*b));
+    assert!(psi_before < 0.25 * prior, "ψ σ before {:?}", &before.sigma[..3]);
+    for i in 3..12 {
+        assert!(after.sigma[i] <= before.sigma[i] * (1.0 + 1e-9), "σ of state {i} grew");
+    }
+    for s in &data[2801..] {
         cal.push(s).unwrap();
     }
-    let mut turned = data[52];
-    turned.dtheta_cmd = [0.0, 0.0, turned.dtheta_cmd[0]];
-    assert_eq!(cal.push(&turned), Err(RejectReason::Gap));
+    let end = cal.estimate();
+    assert_eq!(end.progress.accepted, 1700 + 200);
+    assert_eq!(end.progress.rejects.total(), 0);
+    // The reported frame was adopted: the integrated one still matches it.
+    let q = data[2999].c_cn_quat.map(f64::from);
+    let reported = rollcal::geometry::dcm_from_quaternion(&q, 1e-6).unwrap();
+    let angle = rollcal::geometry::angle_between(&reported, &cal.filter().command_frame().c_cn);
+    assert!(angle < 1e-6, "{angle:e}");
+}
+
+#[test]
+fn a_clock_step_is_reanchored_once_confirmed() {
+    let (sc, data) = samples(300, 4);
+    let cfg = settings(&sc, ConfigId::M1Pa, 0);
+    let stepped: Vec<Sample> = data
+        .iter()
+        .map(|s| Sample {
+            t_us: if s.seq > 150 { s.t_us + 2_000_000 } else { s.t_us },
+            ..*s
+        })
+        .collect();
+    let mut cal = M1PaCalibrator::<f64>::new(cfg).unwrap();
+    let outcomes: Vec<_> = stepped.iter().map(|s| cal.push(s).map(|_| ())).collect();
+    // The first sample after the step is rejected and remembered; the next
+    // one confirms the new time base. Only the first is lost (and bridged).
+    assert_eq!(outcomes[150], Err(RejectReason::TimeMismatch));
+    assert!(outcomes.iter().enumerate().all(|(i, r)| i == 150 || r.is_ok()));
+    let p = *cal.progress();
+    assert_eq!((p.clock_steps, p.bridged, p.accepted), (1, 1, 299));
+    let reference = reference_m1pa(&sc, &data, |i| i == 150);
+    assert_same_estimate(&cal.estimate(), &reference, 1e-4);
+    // A single wrong timestamp is not a clock step: it loses only itself.
+    let mut glitch = data.clone();
+    glitch[100].t_us += 500_000;
+    let mut cal = M1PaCalibrator::<f64>::new(cfg).unwrap();
+    let outcomes: Vec<_> = glitch.iter().map(|s| cal.push(s).map(|_| ())).collect();
+    assert_eq!(outcomes[100], Err(RejectReason::TimeMismatch));
+    assert!(outcomes.iter().enumerate().all(|(i, r)| i == 100 || r.is_ok()));
+    assert_eq!(cal.progress().clock_steps, 0);
 }
 
 #[test]

@@ -67,6 +67,7 @@ fn sample(seq: u32) -> Sample {
         dtheta_cmd: [-1.745_329_3e-3, 3.1e-9, 7.2e-7],
         accel_mean: [0.001_234, 0.999_998_8, -0.003_5],
         gimbal: Some([0.003_665, -0.001_396, 0.002_269]),
+        c_cn_quat: [0.999_999_6, -8.726_6e-4, 1.5e-9, 3.6e-7],
     }
 }
 
@@ -83,9 +84,13 @@ fn big_checkpoint() -> Checkpoint {
             last_seq: Some(u32::MAX),
             last_t_us: Some(u64::MAX),
             last_increment: [f64::MIN; 3],
+            clock_candidate: Some((u32::MAX, u64::MAX)),
             last_nis: 1.5,
             accepted: u32::MAX,
             bridged: u32::MAX,
+            reacquired: u32::MAX,
+            reacquired_periods: u32::MAX,
+            clock_steps: u32::MAX,
             gated: u32::MAX,
             since_estimate: u32::MAX,
             rejects: RejectCounts {
@@ -99,11 +104,9 @@ fn big_checkpoint() -> Checkpoint {
                 out_of_order: u32::MAX,
                 time_backwards: u32::MAX,
                 time_mismatch: u32::MAX,
-                gap: u32::MAX,
-                halted: u32::MAX,
+                frame_attitude: u32::MAX,
                 filter: u32::MAX,
             },
-            halted: true,
         },
     }
 }
@@ -197,6 +200,7 @@ fn docs_worked_example_is_current() {
         dtheta_cmd: [-1.745_329_3e-3, 0.0, 0.0],
         accel_mean: [0.0, 1.0, 0.0],
         gimbal: None,
+        c_cn_quat: [0.999_999_6, -8.726_6e-4, 0.0, 0.0],
     });
     let hex: Vec<String> = frame(&m).iter().map(|b| format!("{b:02x}")).collect();
     let hex = hex.join(" ");
@@ -302,7 +306,8 @@ fn truncated_frames_are_counted_and_skipped() {
 fn oversized_frames_are_counted_and_skipped() {
     let big = frame(&Message::Checkpoint(big_checkpoint()));
     let small = frame(&Message::Sample(sample(9)));
-    let mut dec = Decoder::<64>::new();
+    assert!(small.len() <= 96);
+    let mut dec = Decoder::<96>::new();
     let got = decode_all(&mut dec, &[big.clone(), small.clone(), big, small].concat());
     assert_eq!(
         got,
@@ -316,9 +321,9 @@ fn oversized_frames_are_counted_and_skipped() {
     assert_eq!(dec.stats().oversized, 2);
     assert_eq!(dec.stats().ok, 2);
     // A capacity that exactly fits the frame's bytes (without delimiter).
-    let mut dec = Decoder::<64>::new();
+    let mut dec = Decoder::<69>::new();
     let small = frame(&Message::Sample(sample(9)));
-    assert!(small.len() - 1 <= 64);
+    assert_eq!(small.len() - 1, 69);
     assert_eq!(decode_all(&mut dec, &small).len(), 1);
 }
 
@@ -412,15 +417,19 @@ fn arb_sample() -> impl Strategy<Value = Sample> {
         [arb_f32(), arb_f32(), arb_f32()],
         [arb_f32(), arb_f32(), arb_f32()],
         proptest::option::of([arb_f32(), arb_f32(), arb_f32()]),
+        [arb_f32(), arb_f32(), arb_f32(), arb_f32()],
     )
-        .prop_map(|(seq, t_us, dt, dtheta_cmd, accel_mean, gimbal)| Sample {
-            seq,
-            t_us,
-            dt,
-            dtheta_cmd,
-            accel_mean,
-            gimbal,
-        })
+        .prop_map(
+            |(seq, t_us, dt, dtheta_cmd, accel_mean, gimbal, c_cn_quat)| Sample {
+                seq,
+                t_us,
+                dt,
+                dtheta_cmd,
+                accel_mean,
+                gimbal,
+                c_cn_quat,
+            },
+        )
 }
 
 fn arb_progress() -> impl Strategy<Value = Progress> {
@@ -429,17 +438,21 @@ fn arb_progress() -> impl Strategy<Value = Progress> {
         proptest::option::of(any::<u64>()),
         [arb_f64(), arb_f64(), arb_f64()],
         arb_f64(),
-        any::<[u32; 4]>(),
-        any::<[u32; 13]>(),
-        any::<bool>(),
+        any::<[u32; 7]>(),
+        any::<[u32; 12]>(),
+        proptest::option::of(any::<(u32, u64)>()),
     )
-        .prop_map(|(last_seq, last_t_us, inc, nis, c, r, halted)| Progress {
+        .prop_map(|(last_seq, last_t_us, inc, nis, c, r, candidate)| Progress {
             last_seq,
             last_t_us,
             last_increment: inc,
+            clock_candidate: candidate,
             last_nis: nis,
             accepted: c[0],
             bridged: c[1],
+            reacquired: c[4],
+            reacquired_periods: c[5],
+            clock_steps: c[6],
             gated: c[2],
             since_estimate: c[3],
             rejects: RejectCounts {
@@ -453,11 +466,9 @@ fn arb_progress() -> impl Strategy<Value = Progress> {
                 out_of_order: r[7],
                 time_backwards: r[8],
                 time_mismatch: r[9],
-                gap: r[10],
-                halted: r[11],
-                filter: r[12],
+                frame_attitude: r[10],
+                filter: r[11],
             },
-            halted,
         })
 }
 

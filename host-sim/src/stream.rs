@@ -143,6 +143,7 @@ pub fn to_sample(s: &PeriodSample) -> Sample {
         dtheta_cmd: f(&s.dtheta_cmd),
         accel_mean: f(&s.accel_mean),
         gimbal: Some(f(&s.gimbal)),
+        c_cn_quat: rollcal::geometry::quaternion_from_dcm(&s.truth.c_c_n).map(|v| v as f32),
     }
 }
 
@@ -347,12 +348,15 @@ impl Session {
                 let Some(cal) = self.cal.as_mut() else {
                     return Ok(());
                 };
-                let bridged = cal.estimate().progress.bridged;
+                let before = cal.estimate().progress;
                 match cal.push(&s) {
                     Ok(_) => {
                         let e = cal.estimate();
-                        if e.progress.bridged != bridged {
+                        if e.progress.bridged != before.bridged {
                             self.pass1_only = Some("a gap was bridged");
+                        }
+                        if e.progress.reacquired != before.reacquired {
+                            self.pass1_only = Some("the attitude was re-acquired after a gap");
                         }
                         self.nis.push(e.progress.last_nis);
                         self.accepted.push(to_period_sample(&s));
@@ -606,10 +610,10 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
         p.rejects.total(),
         rj
     );
-    if p.halted {
+    if p.reacquired > 0 || p.clock_steps > 0 {
         println!(
-            "the calibrator HALTED at an unbridgeable gap after sequence number {}",
-            est.seq
+            "lost data: {} gap(s) with unknown motion re-acquired the attitude ({} periods), {} clock step(s) re-anchored",
+            p.reacquired, p.reacquired_periods, p.clock_steps
         );
     }
     eprintln!("done in {:.2} s", t0.elapsed().as_secs_f64());
@@ -641,7 +645,9 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
             "bridged": p.bridged,
             "gated": p.gated,
             "rejects": rj,
-            "halted": p.halted,
+            "reacquired": p.reacquired,
+            "reacquired_periods": p.reacquired_periods,
+            "clock_steps": p.clock_steps,
             "restarts": session.restarts,
             "other_messages": session.other_messages,
         });
