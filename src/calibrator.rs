@@ -396,13 +396,20 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
             let u_old = CommandFrame::preceding(&frame.c_cn, &last, dt, er).path_rate(&last, dt);
             for old in (0..=gap).rev() {
                 let c_switch = frame.after(&u_old, dt, old);
-                // The new path rate, at the start of the sample's own period
-                // (it enters only through the small Earth-rate term).
+                // The new path rate, at the start of the sample's own period:
+                // a fixed point, as the start frame enters only through the
+                // Earth-rate term (contraction ≈ |ω_ie| T × missing periods
+                // at the new rate, < 0.5 up to 7200 periods).
                 let mut u_new = at(c_switch).path_rate(&dtheta, dt);
                 let mut start = c_switch;
-                for _ in 0..2 {
-                    start = at(c_switch).after(&u_new, dt, gap - old);
+                for _ in 0..8 {
+                    let next = at(c_switch).after(&u_new, dt, gap - old);
+                    let moved = angle_between(&next, &start);
+                    start = next;
                     u_new = at(start).path_rate(&dtheta, dt);
+                    if moved < tol * nalgebra::convert(1e-3) {
+                        break;
+                    }
                 }
                 let end = at(start).after(&u_new, dt, 1);
                 if angle_between(&end, &reported) <= tol {

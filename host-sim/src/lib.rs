@@ -9,8 +9,11 @@
 //! - [`montecarlo`]: seeded Monte Carlo runs against the Cramér–Rao bound;
 //! - [`paper`]: the whole paper regenerated (tables, runs, figures, summary);
 //! - [`stream`]: `record` and `calibrate` (wire frames, the calibrator);
+//! - [`impair`]: lost frames, clock steps, bit flips and outliers injected
+//!   into a recorded stream;
 //! - [`plots`]: PNG figures (error, ±3σ band, σ_CRLB against time).
 
+pub mod impair;
 pub mod montecarlo;
 pub mod observe;
 pub mod paper;

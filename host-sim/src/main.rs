@@ -162,7 +162,11 @@ enum Remedy {
 
 impl Remedy {
     fn options(self) -> Options {
-        let plain = Options::plain();
+        // Every remedy runs with the default NIS gate, as the default estimator.
+        let plain = Options {
+            nis_gate: rollcal::ekf::DEFAULT_NIS_GATE,
+            ..Options::plain()
+        };
         match self {
             Remedy::SecondOrder => Options::default(),
             Remedy::SecondOrderMean => Options {

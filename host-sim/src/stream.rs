@@ -60,6 +60,10 @@ pub struct RecordArgs {
     /// Estimate cadence written into the `Configure` message (samples).
     #[arg(long, default_value_t = 60)]
     pub estimate_every: u32,
+    /// Impairments of the link and the platform (lost frames, clock steps,
+    /// bit flips, outliers), applied after the simulation.
+    #[command(flatten)]
+    pub impair: crate::impair::Impairments,
 }
 
 /// Arguments of `host-sim calibrate`.
@@ -205,10 +209,21 @@ pub fn record(args: &RecordArgs) -> Result<(), String> {
     );
     let mut settings = calibrator_config(&sc, args.config, earth_rate);
     settings.estimate_every = args.estimate_every;
-    let mut bytes = Vec::with_capacity(sim.samples.len() * 64);
+    let mut samples: Vec<Sample> = sim.samples.iter().map(to_sample).collect();
+    let mut applied = crate::impair::Applied::default();
+    let imp = &args.impair;
+    imp.apply_to_samples(&mut samples, settings.sigma_accel_g, args.seed, &mut applied);
+    let mut bytes = Vec::with_capacity(samples.len() * 80);
     push_frame(&mut bytes, &Message::Configure(settings))?;
-    for s in &sim.samples {
-        push_frame(&mut bytes, &Message::Sample(to_sample(s)))?;
+    for s in &samples {
+        push_frame(&mut bytes, &Message::Sample(*s))?;
+    }
+    imp.apply_to_bytes(&mut bytes, args.seed, &mut applied);
+    if imp.any() {
+        eprintln!(
+            "impaired: {} sample frames dropped, {} outliers, {} timestamps shifted, {} bits flipped",
+            applied.dropped, applied.outliers, applied.shifted, applied.bit_flips
+        );
     }
     if args.out == "-" {
         let mut out = std::io::stdout().lock();
@@ -218,7 +233,7 @@ pub fn record(args: &RecordArgs) -> Result<(), String> {
     } else {
         std::fs::write(&args.out, &bytes).map_err(|e| format!("cannot write {}: {e}", args.out))?;
     }
-    eprintln!("{} frames, {} bytes", sim.samples.len() + 1, bytes.len());
+    eprintln!("{} frames, {} bytes", samples.len() + 1, bytes.len());
     if let Some(path) = &args.truth {
         let last = sim.samples.last().map_or(sim.initial, |s| s.truth);
         let truth = truth_state(args.config, &sim.params, &last);

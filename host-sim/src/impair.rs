@@ -1,0 +1,232 @@
+//! What a lossy serial link and a misbehaving platform do to a recorded
+//! stream (`host-sim record --drop-burst … --bit-flips …`), to measure that
+//! lost data loses only itself.
+//!
+//! Applied in this order, each with its own seeded random stream (so one
+//! impairment does not change where another strikes):
+//! 1. accelerometer outliers on a fraction of the samples (a spike of `k σ`
+//!    on one random axis, random sign);
+//! 2. clock steps (every timestamp from a sequence number on shifted);
+//! 3. lost sample frames: bursts of consecutive ones, and each one at random
+//!    with a probability;
+//! 4. bit flips in the encoded byte stream (each byte, with a probability,
+//!    gets one random bit flipped), after framing.
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rollcal::wire::Sample;
+
+/// Impairments of a recorded stream (all off by default).
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct Impairments {
+    /// Drop LEN consecutive sample frames from sequence number START on
+    /// (START:LEN; repeatable).
+    #[arg(long = "drop-burst", value_name = "START:LEN", value_parser = parse_burst)]
+    pub drop_bursts: Vec<(u32, u32)>,
+    /// Drop each sample frame with this probability (0..1).
+    #[arg(long, value_name = "P", default_value_t = 0.0, value_parser = parse_probability)]
+    pub drop_random: f64,
+    /// Shift every timestamp from sequence number SEQ on by SECONDS (SEQ:SECONDS;
+    /// repeatable): a clock step of the platform computer.
+    #[arg(long = "clock-step", value_name = "SEQ:SECONDS", value_parser = parse_clock_step)]
+    pub clock_steps: Vec<(u32, f64)>,
+    /// Flip one random bit of each byte of the encoded stream with this
+    /// probability (0..1), after framing.
+    #[arg(long, value_name = "P", default_value_t = 0.0, value_parser = parse_probability)]
+    pub bit_flips: f64,
+    /// Give this fraction of samples (0..1) an accelerometer outlier.
+    #[arg(long, value_name = "P", default_value_t = 0.0, value_parser = parse_probability)]
+    pub outliers: f64,
+    /// Size of an outlier, in accelerometer σ.
+    #[arg(long, value_name = "K", default_value_t = 100.0)]
+    pub outlier_sigma: f64,
+}
+
+/// What [`Impairments`] did, for the log line and the tests.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Applied {
+    /// Sample frames dropped.
+    pub dropped: usize,
+    /// Samples given an outlier.
+    pub outliers: usize,
+    /// Samples whose timestamp was shifted.
+    pub shifted: usize,
+    /// Bits flipped in the byte stream.
+    pub bit_flips: usize,
+}
+
+fn parse_probability(s: &str) -> Result<f64, String> {
+    let p: f64 = s.parse().map_err(|_| format!("'{s}' is not a number"))?;
+    if (0.0..=1.0).contains(&p) {
+        Ok(p)
+    } else {
+        Err(format!("{p} is not a probability in [0, 1]"))
+    }
+}
+
+fn parse_pair<A: std::str::FromStr, B: std::str::FromStr>(
+    s: &str,
+    what: &str,
+) -> Result<(A, B), String> {
+    let (a, b) = s
+        .split_once(':')
+        .ok_or_else(|| format!("'{s}' is not {what}"))?;
+    match (a.trim().parse(), b.trim().parse()) {
+        (Ok(a), Ok(b)) => Ok((a, b)),
+        _ => Err(format!("'{s}' is not {what}")),
+    }
+}
+
+fn parse_burst(s: &str) -> Result<(u32, u32), String> {
+    parse_pair(s, "START:LEN (two unsigned integers)")
+}
+
+fn parse_clock_step(s: &str) -> Result<(u32, f64), String> {
+    let (seq, dt): (u32, f64) = parse_pair(s, "SEQ:SECONDS")?;
+    if dt.is_finite() && dt.abs() < 1e6 {
+        Ok((seq, dt))
+    } else {
+        Err(format!("clock step {dt} s is not a finite number below 1e6 s"))
+    }
+}
+
+impl Impairments {
+    /// Whether any impairment is on.
+    pub fn any(&self) -> bool {
+        !self.drop_bursts.is_empty()
+            || self.drop_random > 0.0
+            || !self.clock_steps.is_empty()
+            || self.bit_flips > 0.0
+            || self.outliers > 0.0
+    }
+
+    /// Steps 1–3 on the samples of a run (accelerometer noise σ `sigma_accel`
+    /// g), seeded by `seed`.
+    pub fn apply_to_samples(
+        &self,
+        samples: &mut Vec<Sample>,
+        sigma_accel: f64,
+        seed: u64,
+        applied: &mut Applied,
+    ) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x6f75_746c_6965_7273);
+        if self.outliers > 0.0 {
+            for s in samples.iter_mut() {
+                if rng.gen_bool(self.outliers) {
+                    let axis = rng.gen_range(0..3);
+                    let sign = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+                    if let Some(a) = s.accel_mean.get_mut(axis) {
+                        *a = (f64::from(*a) + sign * self.outlier_sigma * sigma_accel) as f32;
+                    }
+                    applied.outliers += 1;
+                }
+            }
+        }
+        for (from, dt) in &self.clock_steps {
+            let shift_us = (dt * 1e6).round() as i64;
+            for s in samples.iter_mut().filter(|s| s.seq >= *from) {
+                s.t_us = s.t_us.saturating_add_signed(shift_us);
+                applied.shifted += 1;
+            }
+        }
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x6472_6f70_7065_6421);
+        let before = samples.len();
+        samples.retain(|s| {
+            let in_burst = self
+                .drop_bursts
+                .iter()
+                .any(|(start, len)| s.seq >= *start && s.seq - start < *len);
+            let random = self.drop_random > 0.0 && rng.gen_bool(self.drop_random);
+            !(in_burst || random)
+        });
+        applied.dropped += before - samples.len();
+    }
+
+    /// Step 4 on the encoded stream, seeded by `seed`.
+    pub fn apply_to_bytes(&self, bytes: &mut [u8], seed: u64, applied: &mut Applied) {
+        if self.bit_flips <= 0.0 {
+            return;
+        }
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x6269_7466_6c69_7073);
+        for b in bytes.iter_mut() {
+            if rng.gen_bool(self.bit_flips) {
+                *b ^= 1 << rng.gen_range(0..8);
+                applied.bit_flips += 1;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn samples(n: u32) -> Vec<Sample> {
+        (1..=n)
+            .map(|seq| Sample {
+                seq,
+                t_us: u64::from(seq) * 1_000_000,
+                dt: 1.0,
+                dtheta_cmd: [0.0; 3],
+                accel_mean: [0.0, 1.0, 0.0],
+                gimbal: None,
+                c_cn_quat: [1.0, 0.0, 0.0, 0.0],
+            })
+            .collect()
+    }
+
+    #[test]
+    fn bursts_clock_steps_and_outliers_do_what_they_say() {
+        let imp = Impairments {
+            drop_bursts: vec![(10, 5)],
+            clock_steps: vec![(50, 2.0)],
+            outliers: 0.1,
+            ..Impairments::default()
+        };
+        let mut s = samples(100);
+        let mut applied = Applied::default();
+        imp.apply_to_samples(&mut s, 1e-6, 1, &mut applied);
+        assert_eq!(applied.dropped, 5);
+        assert!(s.iter().all(|x| !(10..15).contains(&x.seq)));
+        assert_eq!(applied.shifted, 51);
+        let at = |seq: u32| s.iter().find(|x| x.seq == seq).map(|x| x.t_us);
+        assert_eq!(at(50), Some(52_000_000));
+        assert_eq!(at(49), Some(49_000_000));
+        let spiked = s
+            .iter()
+            .filter(|x| x.accel_mean != [0.0, 1.0, 0.0])
+            .count();
+        assert_eq!(spiked, applied.outliers);
+        assert!((3..=20).contains(&spiked), "{spiked}");
+    }
+
+    #[test]
+    fn random_loss_and_bit_flips_hit_their_rate() {
+        let imp = Impairments {
+            drop_random: 0.5,
+            bit_flips: 1e-3,
+            ..Impairments::default()
+        };
+        let mut s = samples(10_000);
+        let mut applied = Applied::default();
+        imp.apply_to_samples(&mut s, 1e-6, 2, &mut applied);
+        assert!((4_700..5_300).contains(&applied.dropped), "{applied:?}");
+        let mut bytes = vec![0u8; 100_000];
+        imp.apply_to_bytes(&mut bytes, 2, &mut applied);
+        assert!((80..120).contains(&applied.bit_flips), "{applied:?}");
+        assert_eq!(
+            bytes.iter().map(|b| b.count_ones() as usize).sum::<usize>(),
+            applied.bit_flips
+        );
+    }
+
+    #[test]
+    fn bad_arguments_are_refused() {
+        assert!(parse_probability("1.5").is_err());
+        assert!(parse_probability("x").is_err());
+        assert!(parse_burst("10").is_err());
+        assert!(parse_burst("10:-1").is_err());
+        assert!(parse_clock_step("5:inf").is_err());
+        assert_eq!(parse_clock_step("1801:2.5"), Ok((1801, 2.5)));
+    }
+}
