@@ -602,10 +602,16 @@ fn cmd_paper(args: &PaperArgs) -> Result<(), String> {
         rayon::current_num_threads()
     );
     let bar = progress_bar(PROGRESS_STEPS, "paper");
-    let p = paper(&scenario, args.scenario.as_deref(), args.seed, &args.out, &|what| {
-        bar.inc(1);
-        bar.set_message(what.to_string());
-    })?;
+    let p = paper(
+        &scenario,
+        args.scenario.as_deref(),
+        args.seed,
+        &args.out,
+        &|what| {
+            bar.inc(1);
+            bar.set_message(what.to_string());
+        },
+    )?;
     bar.finish_and_clear();
     println!(
         "Scenario '{}', seed {}, Earth rate {}: {} periods; the seven estimator runs took {:.2} s \
