@@ -21,6 +21,8 @@
 //! - [`command`]: the computed frame and the commanded rate;
 //! - [`models`]: the seven configurations (paper §1.3);
 //! - [`ekf`]: the filter (SPEC §6);
+//! - [`estimator`]: the estimator of record, the multi-pass filter over a
+//!   whole run kept in a caller-provided [`estimator::SampleLog`];
 //! - [`observability`]: information matrix, null space and Cramér–Rao
 //!   bound along a path (SPEC §5);
 //! - [`wire`]: the serial protocol (SPEC §7): messages, frames, decoder;
@@ -41,6 +43,7 @@
 pub mod calibrator;
 pub mod command;
 pub mod ekf;
+pub mod estimator;
 pub mod geometry;
 pub mod instruments;
 pub mod models;
@@ -49,5 +52,6 @@ pub mod wire;
 
 pub use calibrator::{Calibrator, M1PaCalibrator, M2PsCalibrator, M4PaCalibrator, RejectReason};
 pub use ekf::{Error, Filter, FilterConfig, Innovation, Observation, Options};
+pub use estimator::{EstimatorOptions, LogRecord, SampleLog, SliceLog};
 pub use models::{ConfigId, Environment, Group, Layout, Model, StateInfo};
 pub use wire::{CalibratorConfig, Checkpoint, Decoder, Estimate, Message, Sample};

@@ -1,8 +1,13 @@
 //! Runs a configuration's estimator over a simulated (or replayed) run.
+//!
+//! The estimator itself (the multi-pass filter) is the library's
+//! [`rollcal::estimator::estimate`]; this module only puts a run's samples
+//! into a [`SliceLog`], dispatches on the configuration and collects the
+//! time history, NIS and failures of the last pass for the reports.
 
 use nalgebra::SVector;
-use rollcal::command::CommandFrame;
 use rollcal::ekf::{self, Filter, FilterConfig, Observation, Options};
+use rollcal::estimator::{self, EstimatorError, EstimatorOptions, LogRecord, SliceLog};
 use rollcal::geometry::{wrap_angle, EARTH_RATE};
 use rollcal::models::{ConfigId, Environment, Group, Model};
 
@@ -21,17 +26,11 @@ pub trait DynFilter: Send {
     fn covariance(&self) -> Vec<f64>;
     /// Switch to the linearised filter about the nominal starting at `x`.
     fn set_nominal(&mut self, x: &[f64]);
-    /// The model state propagated backwards over the periods of `samples`
-    /// from the current estimate, to the start of the first one.
-    fn back_propagate(&self, samples: &[PeriodSample]) -> Option<Vec<f64>>;
 }
 
 impl<M: Model<N, Z> + Send, const N: usize, const Z: usize> DynFilter for Filter<f64, M, N, Z> {
     fn step(&mut self, s: &PeriodSample) -> Result<f64, ekf::Error> {
-        let obs = Observation {
-            accel_mean: s.accel_mean,
-            gimbal: Some(s.gimbal),
-        };
+        let obs = observation(s);
         Filter::step(self, &s.dtheta_cmd, s.dt, &obs).map(|i| i.nis)
     }
     fn state(&self) -> Vec<f64> {
@@ -50,24 +49,19 @@ impl<M: Model<N, Z> + Send, const N: usize, const Z: usize> DynFilter for Filter
     fn set_nominal(&mut self, x: &[f64]) {
         Filter::set_nominal(self, Some(SVector::from_iterator(x.iter().copied())));
     }
-    fn back_propagate(&self, samples: &[PeriodSample]) -> Option<Vec<f64>> {
-        let layout = self.layout();
-        let env = self.config().env;
-        let mut frame = CommandFrame::aligned(env.earth_rate_n);
-        let periods: Vec<_> = samples
-            .iter()
-            .map(|s| {
-                let p = frame.period(&s.dtheta_cmd, s.dt);
-                frame.advance(&p);
-                p
-            })
-            .collect();
-        let mut x = *Filter::state(self);
-        for p in periods.iter().rev() {
-            x = layout.propagate_state(&env, &x, &p.reversed())?;
-        }
-        Some(x.iter().copied().collect())
+}
+
+/// The measurement of a simulated period (accelerometer mean, gimbal angles).
+fn observation(s: &PeriodSample) -> Observation<f64> {
+    Observation {
+        accel_mean: s.accel_mean,
+        gimbal: Some(s.gimbal),
     }
+}
+
+/// A simulated period as the library's estimator replays it.
+pub fn log_record(s: &PeriodSample) -> LogRecord<f64> {
+    LogRecord::measured(s.dt, s.dtheta_cmd, observation(s))
 }
 
 /// Filter settings derived from a scenario.
@@ -90,13 +84,17 @@ pub fn filter_config(s: &Scenario, earth_rate: bool, options: Options) -> Filter
     }
 }
 
+fn initial<const N: usize>(x0: &[f64], sigma0: f64) -> (SVector<f64, N>, SVector<f64, N>) {
+    let x = SVector::<f64, N>::from_iterator(x0.iter().copied().chain(std::iter::repeat(0.0)));
+    (x, SVector::<f64, N>::repeat(sigma0))
+}
+
 fn make<M: Model<N, Z> + Send + 'static, const N: usize, const Z: usize>(
     cfg: FilterConfig<f64>,
     x0: &[f64],
     sigma0: f64,
 ) -> Result<Box<dyn DynFilter>, ekf::Error> {
-    let x = SVector::<f64, N>::from_iterator(x0.iter().copied().chain(std::iter::repeat(0.0)));
-    let s = SVector::<f64, N>::repeat(sigma0);
+    let (x, s) = initial::<N>(x0, sigma0);
     Ok(Box::new(Filter::<f64, M, N, Z>::new(cfg, x, s)?))
 }
 
@@ -176,18 +174,16 @@ pub struct Estimator {
     /// Each further pass is a filter linearised about the previous pass's
     /// final estimate propagated back to the start (a Gauss–Newton step on
     /// the whole run); the passes stop once the final estimate moves by less
-    /// than [`PASS_TOLERANCE`] of its σ.
+    /// than [`estimator::DEFAULT_TOLERANCE`] of its σ
+    /// ([`rollcal::estimator`]).
     pub passes: u8,
 }
-
-/// Passes stop when no final state moves by more than this fraction of its σ.
-pub const PASS_TOLERANCE: f64 = 0.1;
 
 impl Default for Estimator {
     fn default() -> Self {
         Self {
             options: Options::default(),
-            passes: 4,
+            passes: estimator::DEFAULT_MAX_PASSES,
         }
     }
 }
@@ -206,9 +202,59 @@ pub struct Passes {
     pub passes: u8,
 }
 
-/// The multi-pass estimator of configuration `id` over `samples` (only
-/// their increments, periods, accelerometer means and gimbal angles are
-/// used; `truth.t` labels the history), from `x0` with prior σ `sigma0`.
+/// What the observer keeps of the last pass.
+#[derive(Default)]
+struct LastPass {
+    pass: u8,
+    history: Vec<(f64, Vec<f64>, Vec<f64>)>,
+    nis: Vec<f64>,
+    failures: Vec<(u32, ekf::Error)>,
+}
+
+fn passes_of<M: Model<N, Z> + Send + 'static, const N: usize, const Z: usize>(
+    cfg: FilterConfig<f64>,
+    sigma0: f64,
+    samples: &[PeriodSample],
+    log: &mut SliceLog<'_, f64>,
+    options: &EstimatorOptions,
+    x0: &[f64],
+    keep_history: bool,
+) -> Result<Passes, EstimatorError> {
+    let (x, s) = initial::<N>(x0, sigma0);
+    let mut last = LastPass::default();
+    let out = estimator::estimate::<f64, M, N, Z, _, _>(&cfg, &x, &s, log, options, |ev| {
+        if ev.pass != last.pass {
+            last = LastPass {
+                pass: ev.pass,
+                nis: Vec::with_capacity(samples.len()),
+                ..LastPass::default()
+            };
+        }
+        let sample = samples.get(ev.index);
+        match ev.result {
+            Ok(Some(i)) => last.nis.push(i.nis),
+            Ok(None) => {}
+            Err(e) => last.failures.push((sample.map_or(0, |s| s.k), e)),
+        }
+        if keep_history {
+            let t = sample.map_or(f64::NAN, |s| s.truth.t);
+            last.history
+                .push((t, DynFilter::state(ev.filter), DynFilter::sigma(ev.filter)));
+        }
+    })?;
+    Ok(Passes {
+        filter: Box::new(out.filter),
+        history: last.history,
+        nis: last.nis,
+        failures: last.failures,
+        passes: out.report.passes,
+    })
+}
+
+/// The multi-pass estimator ([`rollcal::estimator::estimate`]) of
+/// configuration `id` over `samples` (only their increments, periods,
+/// accelerometer means and gimbal angles are used; `truth.t` labels the
+/// history), from `x0` with prior σ `sigma0`.
 pub fn run_passes(
     id: ConfigId,
     cfg: FilterConfig<f64>,
@@ -218,50 +264,28 @@ pub fn run_passes(
     x0: &[f64],
     keep_history: bool,
 ) -> Result<Passes, ekf::Error> {
-    let mut nominal: Option<Vec<f64>> = None;
-    let mut out = None;
-    let mut previous: Option<Vec<f64>> = None;
-    for pass in 1..=estimator.passes.max(1) {
-        let mut f = new_filter(id, cfg, x0, sigma0)?;
-        if let Some(xn) = &nominal {
-            f.set_nominal(xn);
-        }
-        let mut history = Vec::new();
-        let mut nis = Vec::with_capacity(samples.len());
-        let mut failures = Vec::new();
-        for s in samples {
-            match f.step(s) {
-                Ok(v) => nis.push(v),
-                Err(e) => failures.push((s.k, e)),
-            }
-            if keep_history {
-                history.push((s.truth.t, f.state(), f.sigma()));
-            }
-        }
-        nominal = f.back_propagate(samples);
-        if nominal.is_none() {
-            return Err(ekf::Error::GimbalLock);
-        }
-        let (x, sig) = (f.state(), f.sigma());
-        let converged = previous.as_ref().is_some_and(|prev| {
-            x.iter()
-                .zip(prev)
-                .zip(&sig)
-                .all(|((a, b), s)| wrap_angle(a - b).abs() < PASS_TOLERANCE * s)
-        });
-        previous = Some(x);
-        out = Some(Passes {
-            filter: f,
-            history,
-            nis,
-            failures,
-            passes: pass,
-        });
-        if converged {
-            break;
-        }
-    }
-    out.ok_or(ekf::Error::NoPrediction)
+    use rollcal::models::*;
+    let mut storage: Vec<LogRecord<f64>> = samples.iter().map(log_record).collect();
+    let mut log = SliceLog::from_records(&mut storage);
+    let options = EstimatorOptions {
+        max_passes: estimator.passes,
+        ..EstimatorOptions::default()
+    };
+    let (l, o, h) = (&mut log, &options, keep_history);
+    let out = match id {
+        ConfigId::M1Pa => passes_of::<M1Pa, 12, 3>(cfg, sigma0, samples, l, o, x0, h),
+        ConfigId::M1Ps => passes_of::<M1Ps, 15, 3>(cfg, sigma0, samples, l, o, x0, h),
+        ConfigId::M2Ps => passes_of::<M2Ps, 18, 6>(cfg, sigma0, samples, l, o, x0, h),
+        ConfigId::M3Pa => passes_of::<M3Pa, 15, 3>(cfg, sigma0, samples, l, o, x0, h),
+        ConfigId::M3Ps => passes_of::<M3Ps, 18, 3>(cfg, sigma0, samples, l, o, x0, h),
+        ConfigId::M4Pa => passes_of::<M4Pa, 12, 3>(cfg, sigma0, samples, l, o, x0, h),
+        ConfigId::M4Ps => passes_of::<M4Ps, 15, 3>(cfg, sigma0, samples, l, o, x0, h),
+    };
+    out.map_err(|e| match e {
+        EstimatorError::Filter(e) => e,
+        EstimatorError::BackPropagation { .. } => ekf::Error::GimbalLock,
+        _ => ekf::Error::NoPrediction,
+    })
 }
 
 /// Runs configuration `id` from `x0` (zeros: cold start) over `sim`.

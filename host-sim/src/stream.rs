@@ -692,7 +692,4 @@ impl runner::DynFilter for CalibratorView {
         self.covariance.clone()
     }
     fn set_nominal(&mut self, _: &[f64]) {}
-    fn back_propagate(&self, _: &[PeriodSample]) -> Option<Vec<f64>> {
-        None
-    }
 }
