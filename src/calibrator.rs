@@ -393,7 +393,8 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         };
         if gap <= lim.max_bridge {
             let last = vec3::<T>(self.progress.last_increment);
-            let u_old = CommandFrame::preceding(&frame.c_cn, &last, dt, er).path_rate(&last, dt);
+            let [last_start, _, _] = frame.period_before(&last, dt).c_cn;
+            let u_old = at(last_start).path_rate(&last, dt);
             for old in (0..=gap).rev() {
                 let c_switch = frame.after(&u_old, dt, old);
                 // The new path rate, at the start of the sample's own period:
@@ -417,9 +418,8 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
                 }
             }
         }
-        Motion::Unknown {
-            start: CommandFrame::preceding(&reported, &dtheta, dt, er).c_cn,
-        }
+        let [start, _, _] = at(reported).period_before(&dtheta, dt).c_cn;
+        Motion::Unknown { start }
     }
 
     /// Predicts the `gap` missing periods along `motion`; re-acquires the
@@ -590,6 +590,8 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
             nominal: f.nominal().map(collect),
             c_cn,
             updates: f.updates(),
+            gated_run: f.gate_state().0,
+            gate_open: f.gate_state().1,
             progress: self.progress,
         }
     }
@@ -620,6 +622,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
             c_cn,
             nominal,
             cp.updates,
+            (cp.gated_run, cp.gate_open),
         )?;
         Ok(Self {
             filter,

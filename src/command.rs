@@ -94,24 +94,6 @@ impl<T: RealField + Copy> CommandFrame<T> {
         dcm(&(path_rate * (dt * n))) * self.c_cn
     }
 
-    /// The frame at the start of the period of length `dt` (s) with
-    /// commanded increment `dtheta_c` (rad, c frame) that ends at `c_end`
-    /// (`C^c_n` at the end of the period): the inverse of
-    /// [`CommandFrame::period`] followed by [`CommandFrame::advance`], by a
-    /// fixed point (the start frame enters only through the Earth-rate term,
-    /// contraction ≈ |ω_ie| T < 1e-4).
-    pub fn preceding(c_end: &Matrix3<T>, dtheta_c: &Vector3<T>, dt: T, earth_rate_n: Vector3<T>) -> Self {
-        let mut start = Self {
-            c_cn: *c_end,
-            earth_rate_n,
-        };
-        for _ in 0..4 {
-            let u = start.path_rate(dtheta_c, dt);
-            start.c_cn = dcm(&(u * dt)).transpose() * c_end;
-        }
-        start
-    }
-
     /// The commanded motion over the next period of length `dt` (s) whose
     /// commanded angle increment is `dtheta_c` (rad, c frame), without
     /// advancing the frame.

@@ -108,6 +108,16 @@ pub struct Options {
     pub nis_gate: f64,
 }
 
+/// After this many consecutive gated updates the next one is accepted
+/// whatever its NIS. Outliers come alone, while a run of large innovations
+/// means the estimate itself is off (pass 1 from a cold start can be
+/// overconfident where the path turns onto a new axis, with NIS in the
+/// hundreds for tens of periods): gating them all would lock the filter out
+/// of its own correction. Once an update above the gate has been accepted,
+/// the gate stays open until an update falls below it again, so such a
+/// stretch costs at most this many samples.
+pub const MAX_GATED_RUN: u32 = 2;
+
 /// The default NIS gate: 30. A clean update's NIS is χ² with `Z` degrees of
 /// freedom (3 or 6), which exceeds 30 with probability 1.4e-6 (Z = 3) or
 /// 3.9e-5 (Z = 6); a 100σ accelerometer outlier has a NIS near 1e4.
@@ -217,6 +227,8 @@ pub struct Filter<T: RealField + Copy, M, const N: usize, const Z: usize> {
     pending: Option<Pending<T, N>>,
     reference: Option<SVector<T, N>>,
     updates: u32,
+    gated_run: u32,
+    gate_open: bool,
     _model: PhantomData<M>,
 }
 
@@ -332,6 +344,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             pending: None,
             reference: None,
             updates: 0,
+            gated_run: 0,
+            gate_open: false,
             _model: PhantomData,
         })
     }
@@ -340,8 +354,9 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// checkpoint ([`crate::calibrator::Calibrator::checkpoint`]): state `x`
     /// (rad), covariance `p` (rad², used as given, so a restored filter
     /// continues bit-identically), computed frame `c_cn` (`C^c_n`), nominal
-    /// of the linearised mode and the update counter. The Earth rate of the
-    /// computed frame is the one of `config`.
+    /// of the linearised mode, the update counter and the state of the NIS
+    /// gate ([`Filter::gate_state`]). The Earth rate of the computed frame is
+    /// the one of `config`.
     pub fn from_parts(
         config: FilterConfig<T>,
         x: SVector<T, N>,
@@ -349,6 +364,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         c_cn: Matrix3<T>,
         nominal: Option<SVector<T, N>>,
         updates: u32,
+        gate_state: (u32, bool),
     ) -> Result<Self, Error> {
         let mut f = Self::new(config, SVector::zeros(), SVector::repeat(T::one()))?;
         let nominal_values = nominal.iter().flat_map(|v| v.iter().copied());
@@ -369,6 +385,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         f.command.c_cn = c_cn;
         f.reference = nominal;
         f.updates = updates;
+        (f.gated_run, f.gate_open) = gate_state;
         Ok(f)
     }
 
@@ -407,7 +424,9 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         }
         let zeros = SMatrix::<T, 3, N>::zeros();
         self.p.fixed_rows_mut::<3>(ATT).copy_from(&zeros);
-        self.p.fixed_columns_mut::<3>(ATT).copy_from(&zeros.transpose());
+        self.p
+            .fixed_columns_mut::<3>(ATT)
+            .copy_from(&zeros.transpose());
         self.p
             .fixed_view_mut::<3, 3>(ATT, ATT)
             .copy_from(&(Matrix3::identity() * (sigma * sigma)));
@@ -453,6 +472,13 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// Number of updates processed.
     pub fn updates(&self) -> u32 {
         self.updates
+    }
+
+    /// The NIS gate's state: consecutive updates it refused just before now
+    /// (at most [`MAX_GATED_RUN`]: the next one is then accepted), and
+    /// whether it is held open because the last accepted update was above it.
+    pub fn gate_state(&self) -> (u32, bool) {
+        (self.gated_run, self.gate_open)
     }
 
     /// The configuration's layout.
@@ -764,7 +790,9 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             return Err(Error::NonFiniteState);
         }
         let gate = self.config.options.nis_gate;
-        if gate > 0.0 && innovation.nis > nalgebra::convert(gate) {
+        let above = gate > 0.0 && innovation.nis > nalgebra::convert(gate);
+        if above && !self.gate_open && self.gated_run < MAX_GATED_RUN {
+            self.gated_run += 1;
             self.pending = None;
             return Err(Error::Gated);
         }
@@ -788,6 +816,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         self.p = p;
         self.pending = None;
         self.updates = self.updates.saturating_add(1);
+        self.gated_run = 0;
+        self.gate_open = above;
         Ok(innovation)
     }
 

@@ -322,6 +322,11 @@ pub struct Checkpoint {
     pub c_cn: [f64; 9],
     /// Filter updates processed.
     pub updates: u32,
+    /// Consecutive updates refused by the NIS gate just before the
+    /// checkpoint ([`crate::ekf::Filter::gate_state`]).
+    pub gated_run: u32,
+    /// The NIS gate is held open (the last accepted update was above it).
+    pub gate_open: bool,
     /// Calibrator bookkeeping.
     pub progress: Progress,
 }

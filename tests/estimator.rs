@@ -229,10 +229,18 @@ fn run<M: Model<N, Z>, const N: usize, const Z: usize>(
     log: &[LogRecord<f64>],
     opts: EstimatorOptions,
 ) -> rollcal::estimator::Outcome<f64, M, N, Z> {
+    run_with::<M, N, Z>(log, opts, Options::default())
+}
+
+fn run_with<M: Model<N, Z>, const N: usize, const Z: usize>(
+    log: &[LogRecord<f64>],
+    opts: EstimatorOptions,
+    filter_options: Options,
+) -> rollcal::estimator::Outcome<f64, M, N, Z> {
     let mut copy = log.to_vec();
     let mut l = SliceLog::from_records(&mut copy);
     estimate::<f64, M, N, Z, _, _>(
-        &config(Options::default()),
+        &config(filter_options),
         &SVector::zeros(),
         &SVector::repeat(SIGMA0),
         &mut l,
@@ -732,7 +740,21 @@ fn bad_records_are_counted_not_fatal() {
         LogRecord::predicted(nan, Vector3::repeat(nan)),
     ];
     log.splice(10..10, bad);
-    let o = run::<M2Ps, 18, 6>(&log, EstimatorOptions::default());
+    let ungated = Options {
+        nis_gate: 0.0,
+        ..Options::default()
+    };
+    let o = run_with::<M2Ps, 18, 6>(&log, EstimatorOptions::default(), ungated);
+    // With the default gate the same log runs through too: the gate refuses
+    // at most MAX_GATED_RUN updates at the onset of a stretch of large NIS
+    // (here the turn of the synthetic path) and then stays open.
+    let gated = run::<M2Ps, 18, 6>(&log, EstimatorOptions::default()).report;
+    assert_eq!(gated.failures, 7 + gated.gated, "{gated:?}");
+    assert!(
+        gated.gated <= 3 * rollcal::ekf::MAX_GATED_RUN * u32::from(gated.passes),
+        "{gated:?}"
+    );
+    assert!(gated.converged, "{gated:?}");
     assert_eq!(o.report.failures, 7, "{:?}", o.report);
     assert_eq!(o.report.gated, 0);
     let first = o.report.first_failure.unwrap();

@@ -80,6 +80,8 @@ fn big_checkpoint() -> Checkpoint {
         nominal: Some(v),
         c_cn: [f64::MAX; 9],
         updates: u32::MAX,
+        gated_run: u32::MAX,
+        gate_open: true,
         progress: Progress {
             last_seq: Some(u32::MAX),
             last_t_us: Some(u64::MAX),
@@ -442,34 +444,36 @@ fn arb_progress() -> impl Strategy<Value = Progress> {
         any::<[u32; 12]>(),
         proptest::option::of(any::<(u32, u64)>()),
     )
-        .prop_map(|(last_seq, last_t_us, inc, nis, c, r, candidate)| Progress {
-            last_seq,
-            last_t_us,
-            last_increment: inc,
-            clock_candidate: candidate,
-            last_nis: nis,
-            accepted: c[0],
-            bridged: c[1],
-            reacquired: c[4],
-            reacquired_periods: c[5],
-            clock_steps: c[6],
-            gated: c[2],
-            since_estimate: c[3],
-            rejects: RejectCounts {
-                non_finite: r[0],
-                period: r[1],
-                accel_range: r[2],
-                increment_range: r[3],
-                gimbal_range: r[4],
-                missing_gimbal: r[5],
-                duplicate: r[6],
-                out_of_order: r[7],
-                time_backwards: r[8],
-                time_mismatch: r[9],
-                frame_attitude: r[10],
-                filter: r[11],
+        .prop_map(
+            |(last_seq, last_t_us, inc, nis, c, r, candidate)| Progress {
+                last_seq,
+                last_t_us,
+                last_increment: inc,
+                clock_candidate: candidate,
+                last_nis: nis,
+                accepted: c[0],
+                bridged: c[1],
+                reacquired: c[4],
+                reacquired_periods: c[5],
+                clock_steps: c[6],
+                gated: c[2],
+                since_estimate: c[3],
+                rejects: RejectCounts {
+                    non_finite: r[0],
+                    period: r[1],
+                    accel_range: r[2],
+                    increment_range: r[3],
+                    gimbal_range: r[4],
+                    missing_gimbal: r[5],
+                    duplicate: r[6],
+                    out_of_order: r[7],
+                    time_backwards: r[8],
+                    time_mismatch: r[9],
+                    frame_attitude: r[10],
+                    filter: r[11],
+                },
             },
-        })
+        )
 }
 
 fn arb_vec<const C: usize>(max: usize) -> impl Strategy<Value = heapless::Vec<f64, C>> {
@@ -517,6 +521,8 @@ fn arb_message() -> impl Strategy<Value = Message> {
                         nominal,
                         c_cn,
                         updates,
+                        gated_run: updates.rotate_left(7),
+                        gate_open: updates % 2 == 1,
                         progress,
                     })
                 }

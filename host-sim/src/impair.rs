@@ -86,7 +86,9 @@ fn parse_clock_step(s: &str) -> Result<(u32, f64), String> {
     if dt.is_finite() && dt.abs() < 1e6 {
         Ok((seq, dt))
     } else {
-        Err(format!("clock step {dt} s is not a finite number below 1e6 s"))
+        Err(format!(
+            "clock step {dt} s is not a finite number below 1e6 s"
+        ))
     }
 }
 
@@ -192,10 +194,7 @@ mod tests {
         let at = |seq: u32| s.iter().find(|x| x.seq == seq).map(|x| x.t_us);
         assert_eq!(at(50), Some(52_000_000));
         assert_eq!(at(49), Some(49_000_000));
-        let spiked = s
-            .iter()
-            .filter(|x| x.accel_mean != [0.0, 1.0, 0.0])
-            .count();
+        let spiked = s.iter().filter(|x| x.accel_mean != [0.0, 1.0, 0.0]).count();
         assert_eq!(spiked, applied.outliers);
         assert!((3..=20).contains(&spiked), "{spiked}");
     }

@@ -212,7 +212,12 @@ pub fn record(args: &RecordArgs) -> Result<(), String> {
     let mut samples: Vec<Sample> = sim.samples.iter().map(to_sample).collect();
     let mut applied = crate::impair::Applied::default();
     let imp = &args.impair;
-    imp.apply_to_samples(&mut samples, settings.sigma_accel_g, args.seed, &mut applied);
+    imp.apply_to_samples(
+        &mut samples,
+        settings.sigma_accel_g,
+        args.seed,
+        &mut applied,
+    );
     let mut bytes = Vec::with_capacity(samples.len() * 80);
     push_frame(&mut bytes, &Message::Configure(settings))?;
     for s in &samples {
