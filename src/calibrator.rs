@@ -49,9 +49,13 @@ use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3};
 
 use crate::command::CommandFrame;
 use crate::ekf::{self, Filter, FilterConfig, Observation};
+use crate::estimator::{self, EstimatorOptions, LogError, LogRecord, PassEvent, SampleLog};
 use crate::geometry::{angle_between, dcm_from_quaternion, rotation_vector};
 use crate::models::{ConfigId, Environment, Model};
-use crate::wire::{CalibratorConfig, Checkpoint, Estimate, Limits, Progress, Sample};
+use crate::wire::{
+    CalibratorConfig, Checkpoint, Estimate, EstimateKind, Limits, Progress, Sample,
+    SinglePassReason,
+};
 
 /// Why a sample was rejected. A rejected sample leaves the filter untouched
 /// and loses only its own period (bridged with the next accepted sample).
@@ -422,15 +426,23 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         Motion::Unknown { start }
     }
 
-    /// Predicts the `gap` missing periods along `motion`; re-acquires the
-    /// attitude when the motion is unknown.
-    fn bridge(&mut self, gap: u32, dt: T, motion: &Motion<T>) -> Result<(), ekf::Error> {
+    /// Predicts the `gap` missing periods along `motion` (and logs them as
+    /// predicted periods); re-acquires the attitude when the motion is
+    /// unknown.
+    fn bridge(
+        &mut self,
+        gap: u32,
+        dt: T,
+        motion: &Motion<T>,
+        mut log: Option<&mut (dyn SampleLog<T> + '_)>,
+    ) -> Result<(), ekf::Error> {
         match motion {
             Motion::Found { old, u_old, u_new } => {
                 for i in 0..gap {
                     let u = if i < *old { u_old } else { u_new };
                     let inc = self.filter.command_frame().increment(u, dt);
                     self.filter.predict(&inc, dt)?;
+                    self.append(log.as_deref_mut(), &LogRecord::predicted(dt, inc));
                 }
                 Ok(())
             }
@@ -444,9 +456,34 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
                         self.filter.predict(&inc, dt)?;
                     }
                 }
+                self.log_broken(SinglePassReason::Reacquired);
                 self.filter
                     .reacquire_attitude(start, to_t(self.settings.prior_sigma_rad))
             }
+        }
+    }
+
+    /// Marks the log as no longer holding the whole run (the first reason
+    /// stays).
+    fn log_broken(&mut self, reason: SinglePassReason) {
+        if self.progress.log_incomplete.is_none() {
+            self.progress.log_incomplete = Some(reason);
+        }
+    }
+
+    /// Appends `r` to the log, while it still holds the whole run.
+    fn append(&mut self, log: Option<&mut (dyn SampleLog<T> + '_)>, r: &LogRecord<T>) {
+        let Some(log) = log else {
+            self.log_broken(SinglePassReason::NoLog);
+            return;
+        };
+        if self.progress.log_incomplete.is_some() {
+            return;
+        }
+        match log.append(r) {
+            Ok(()) => self.progress.logged = self.progress.logged.saturating_add(1),
+            Err(LogError::Full) => self.log_broken(SinglePassReason::LogFull),
+            Err(_) => self.log_broken(SinglePassReason::LogStorage),
         }
     }
 
@@ -475,7 +512,31 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     /// filter period. Returns an [`Estimate`] when the cadence
     /// ([`CalibratorConfig::estimate_every`]) says so. On `Err` the sample
     /// was counted by reason and the filter is untouched.
+    ///
+    /// Without a sample log the final answer ([`Calibrator::finish`]) can
+    /// only be pass 1: use [`Calibrator::push_logged`] for the estimator of
+    /// record.
     pub fn push(&mut self, s: &Sample) -> Result<Option<Estimate>, RejectReason> {
+        self.push_inner(s, None)
+    }
+
+    /// [`Calibrator::push`], and the sample (and the periods bridged before
+    /// it) appended to `log` for the final passes of
+    /// [`Calibrator::finish`]. A rejected sample is not logged. The caller
+    /// clears the log when it resets or reconfigures the calibrator.
+    pub fn push_logged(
+        &mut self,
+        s: &Sample,
+        log: &mut (dyn SampleLog<T> + '_),
+    ) -> Result<Option<Estimate>, RejectReason> {
+        self.push_inner(s, Some(log))
+    }
+
+    fn push_inner(
+        &mut self,
+        s: &Sample,
+        mut log: Option<&mut (dyn SampleLog<T> + '_)>,
+    ) -> Result<Option<Estimate>, RejectReason> {
         let checked = match self.validate(s) {
             Ok(v) => v,
             Err(r) => {
@@ -494,12 +555,12 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         };
         let motion = (gap > 0).then(|| self.motion_across(s, gap));
         let saved = motion.is_some().then(|| self.filter.clone());
-        let result = (|| {
-            if let Some(m) = &motion {
-                self.bridge(gap, dt, m)?;
-            }
-            self.filter.step(&dtheta, dt, &obs)
-        })();
+        let logged_before = self.progress.logged;
+        let result = match &motion {
+            Some(m) => self.bridge(gap, dt, m, log.as_deref_mut()),
+            None => Ok(()),
+        }
+        .and_then(|()| self.filter.step(&dtheta, dt, &obs));
         let nis = match result {
             Ok(innovation) => Some(to_f64(innovation.nis)),
             Err(ekf::Error::Gated) => None,
@@ -507,9 +568,13 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
                 if let Some(f) = saved {
                     self.filter = f;
                 }
+                if self.progress.logged != logged_before {
+                    self.log_broken(SinglePassReason::FilterFailed);
+                }
                 return Err(self.reject(RejectReason::Filter(e)));
             }
         };
+        self.append(log, &LogRecord::measured(dt, dtheta, obs));
         let p = &mut self.progress;
         match nis {
             Some(v) => p.last_nis = v,
@@ -540,11 +605,69 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         Ok(None)
     }
 
-    /// The current estimate and health.
+    /// The current (running) estimate and health.
     pub fn estimate(&self) -> Estimate {
+        self.estimate_of(&self.filter, EstimateKind::Running)
+    }
+
+    /// The final answer: the estimator of record ([`crate::estimator`]: pass
+    /// 1, back-propagation, linearised passes until no state moves by more
+    /// than `passes.tolerance` σ) over `log`, which must hold what
+    /// [`Calibrator::push_logged`] appended. When it does not (no log, full,
+    /// a re-acquired attitude, a mismatch) the answer is the running
+    /// estimate, marked [`EstimateKind::SinglePass`] with the reason. The
+    /// calibrator itself is unchanged: more samples may follow. Also returns
+    /// the final filter when the passes ran. `observer` sees every step of
+    /// every pass ([`PassEvent`]; `|_| {}` when not needed).
+    pub fn finish<F: FnMut(&PassEvent<'_, T, M, N, Z>)>(
+        &self,
+        log: &mut (dyn SampleLog<T> + '_),
+        passes: &EstimatorOptions,
+        observer: F,
+    ) -> (Estimate, Option<Filter<T, M, N, Z>>) {
+        let logged = self.progress.logged;
+        let single = |reason| EstimateKind::SinglePass { reason, logged };
+        let reason = match self.progress.log_incomplete {
+            Some(r) => Some(r),
+            None if u32::try_from(log.len()).ok() != Some(logged) => {
+                Some(SinglePassReason::LogMismatch)
+            }
+            None => None,
+        };
+        if let Some(r) = reason {
+            return (self.estimate_of(&self.filter, single(r)), None);
+        }
+        let sigma0 = SVector::repeat(to_t(self.settings.prior_sigma_rad));
+        let config = Self::filter_config(&self.settings);
+        match estimator::estimate::<T, M, N, Z, _, _>(
+            &config,
+            &SVector::zeros(),
+            &sigma0,
+            log,
+            passes,
+            observer,
+        ) {
+            Ok(outcome) => {
+                let kind = EstimateKind::Final {
+                    passes: outcome.report.passes,
+                    converged: outcome.report.converged,
+                };
+                (
+                    self.estimate_of(&outcome.filter, kind),
+                    Some(outcome.filter),
+                )
+            }
+            Err(_) => (
+                self.estimate_of(&self.filter, single(SinglePassReason::Estimator)),
+                None,
+            ),
+        }
+    }
+
+    fn estimate_of(&self, filter: &Filter<T, M, N, Z>, kind: EstimateKind) -> Estimate {
         let mut state = heapless::Vec::new();
         let mut sigma = heapless::Vec::new();
-        for (x, s) in self.filter.state().iter().zip(self.filter.sigma().iter()) {
+        for (x, s) in filter.state().iter().zip(filter.sigma().iter()) {
             // N ≤ MAX_STATES for every configuration: the pushes cannot fail.
             let _ = state.push(to_f64(*x));
             let _ = sigma.push(to_f64(*s));
@@ -552,11 +675,12 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         Estimate {
             config: M::ID,
             seq: self.progress.last_seq.unwrap_or(0),
-            updates: self.filter.updates(),
+            updates: filter.updates(),
             state,
             sigma,
             progress: self.progress,
             frame_errors: self.frame_errors,
+            kind,
         }
     }
 

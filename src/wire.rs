@@ -256,6 +256,12 @@ pub struct Progress {
     pub reacquired_periods: u32,
     /// Clock steps re-anchored.
     pub clock_steps: u32,
+    /// Records appended to the sample log (measured samples and bridged
+    /// periods), for the final passes.
+    pub logged: u32,
+    /// Why the log no longer holds the whole run (then [`Message::Finish`]
+    /// can only answer with pass 1); `None` while it does.
+    pub log_incomplete: Option<SinglePassReason>,
     /// Accepted samples whose update failed the NIS gate (predicted only).
     pub gated: u32,
     /// Accepted samples since the last emitted estimate.
@@ -277,11 +283,76 @@ impl Default for Progress {
             reacquired: 0,
             reacquired_periods: 0,
             clock_steps: 0,
+            logged: 0,
+            log_incomplete: None,
             gated: 0,
             since_estimate: 0,
             rejects: RejectCounts::default(),
         }
     }
+}
+
+/// Why a final answer is pass 1 only, not the estimator of record over the
+/// whole run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum SinglePassReason {
+    /// The calibrator was fed without a sample log.
+    NoLog,
+    /// The sample log filled up.
+    LogFull,
+    /// The sample log's storage failed.
+    LogStorage,
+    /// The log holds a different number of records than the calibrator
+    /// appended (e.g. after a restore without the matching log).
+    LogMismatch,
+    /// A gap's motion was not found and the attitude was re-acquired: the
+    /// later passes cannot yet linearise across it.
+    Reacquired,
+    /// A period whose gap had been bridged was then refused by the filter.
+    FilterFailed,
+    /// The multi-pass estimator refused the log (an empty log, or the
+    /// back-propagation hit gimbal lock).
+    Estimator,
+}
+
+impl core::fmt::Display for SinglePassReason {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            SinglePassReason::NoLog => "no sample log",
+            SinglePassReason::LogFull => "the sample log is full",
+            SinglePassReason::LogStorage => "the sample log's storage failed",
+            SinglePassReason::LogMismatch => "the sample log does not match the calibrator",
+            SinglePassReason::Reacquired => "the attitude was re-acquired after a gap",
+            SinglePassReason::FilterFailed => "the filter refused a period after a bridged gap",
+            SinglePassReason::Estimator => "the multi-pass estimator refused the log",
+        })
+    }
+}
+
+/// What an [`Estimate`] is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum EstimateKind {
+    /// The running estimate of pass 1, while samples arrive.
+    Running,
+    /// The answer of record: the multi-pass estimator over the whole logged
+    /// run, after `passes` passes (`converged`: the last moved < 0.1σ).
+    Final {
+        /// Passes run.
+        passes: u8,
+        /// The last pass moved no state by more than the tolerance.
+        converged: bool,
+    },
+    /// The final answer, but pass 1 only (the running estimate at the end of
+    /// the stream), because of `reason`; `logged` records were in the log.
+    SinglePass {
+        /// Why the later passes could not run.
+        reason: SinglePassReason,
+        /// Records in the log.
+        logged: u32,
+    },
 }
 
 /// The running estimate (SPEC §7). `f64` even from an f32 build (exact), so
@@ -304,6 +375,8 @@ pub struct Estimate {
     /// Frames the receiver's decoder rejected so far (as told to the
     /// calibrator by [`crate::calibrator::Calibrator::set_frame_errors`]).
     pub frame_errors: u32,
+    /// A running estimate, or the final answer (and how it was reached).
+    pub kind: EstimateKind,
 }
 
 /// Everything a calibrator needs to continue bit-identically after a reset.
@@ -333,7 +406,7 @@ pub struct Checkpoint {
 
 /// Every message of the protocol. The postcard tag is the variant's index
 /// (a varint): `Sample` 0, `Estimate` 1, `Checkpoint` 2, `Configure` 3,
-/// `Reset` 4, `CheckpointRequest` 5, `EstimateRequest` 6. New variants are
+/// `Reset` 4, `CheckpointRequest` 5, `EstimateRequest` 6, `Finish` 7. New variants are
 /// only ever appended.
 // A large variant is the price of no heap (a Checkpoint is ~3 KB).
 #[allow(clippy::large_enum_variant)]
@@ -353,6 +426,9 @@ pub enum Message {
     CheckpointRequest,
     /// Host → calibrator: reply with an `Estimate` now.
     EstimateRequest,
+    /// Host → calibrator: the run is over; run the final passes over the
+    /// sample log and reply with the final `Estimate`.
+    Finish,
 }
 
 // ---------------------------------------------------------------- CRC-32

@@ -9,8 +9,8 @@ use rollcal::ekf::Options;
 use rollcal::models::ConfigId;
 use rollcal::wire::{
     crc32, decode_frame, encode, CalibratorConfig, Checkpoint, Decoder, DecoderStats, Estimate,
-    FrameDecoder, FrameError, Message, Progress, RejectCounts, Sample, MAX_COVARIANCE,
-    MAX_FRAME_LEN, MAX_STATES, VERSION,
+    EstimateKind, FrameDecoder, FrameError, Message, Progress, RejectCounts, Sample,
+    SinglePassReason, MAX_COVARIANCE, MAX_FRAME_LEN, MAX_STATES, VERSION,
 };
 
 fn frame(msg: &Message) -> Vec<u8> {
@@ -93,6 +93,8 @@ fn big_checkpoint() -> Checkpoint {
             reacquired: u32::MAX,
             reacquired_periods: u32::MAX,
             clock_steps: u32::MAX,
+            logged: u32::MAX,
+            log_incomplete: Some(SinglePassReason::LogMismatch),
             gated: u32::MAX,
             since_estimate: u32::MAX,
             rejects: RejectCounts {
@@ -125,6 +127,10 @@ fn all_messages() -> Vec<Message> {
             ..Progress::default()
         },
         frame_errors: 3,
+        kind: EstimateKind::SinglePass {
+            reason: SinglePassReason::Reacquired,
+            logged: 1699,
+        },
     };
     vec![
         Message::Sample(sample(1)),
@@ -138,6 +144,7 @@ fn all_messages() -> Vec<Message> {
         Message::Reset,
         Message::CheckpointRequest,
         Message::EstimateRequest,
+        Message::Finish,
     ]
 }
 
@@ -456,6 +463,8 @@ fn arb_progress() -> impl Strategy<Value = Progress> {
                 reacquired: c[4],
                 reacquired_periods: c[5],
                 clock_steps: c[6],
+                logged: c[0].rotate_left(3),
+                log_incomplete: (c[1] % 3 == 0).then_some(SinglePassReason::LogFull),
                 gated: c[2],
                 since_estimate: c[3],
                 rejects: RejectCounts {
@@ -501,6 +510,14 @@ fn arb_message() -> impl Strategy<Value = Message> {
                     sigma,
                     progress,
                     frame_errors: fe,
+                    kind: if updates % 2 == 0 {
+                        EstimateKind::Running
+                    } else {
+                        EstimateKind::Final {
+                            passes: (seq % 5) as u8,
+                            converged: seq % 3 == 0,
+                        }
+                    },
                 })
             }),
         (
@@ -549,6 +566,7 @@ fn arb_message() -> impl Strategy<Value = Message> {
         Just(Message::Reset),
         Just(Message::CheckpointRequest),
         Just(Message::EstimateRequest),
+        Just(Message::Finish),
     ]
 }
 

@@ -215,6 +215,20 @@ pub fn run(args: &Args) -> Totals {
                     defmt::error!("reset failed: {}", e);
                 }
             }
+            Message::Finish => {
+                // No sample log in this firmware yet: the final answer is
+                // the running estimate, marked as pass 1 only.
+                if let Some(est) = with_cal!(&cal, c => c.estimate()) {
+                    let logged = est.progress.logged;
+                    link.send(&Message::Estimate(rollcal::wire::Estimate {
+                        kind: rollcal::wire::EstimateKind::SinglePass {
+                            reason: rollcal::wire::SinglePassReason::NoLog,
+                            logged,
+                        },
+                        ..est
+                    }));
+                }
+            }
             Message::Estimate(_) => {}
         }
     }

@@ -17,7 +17,7 @@ use rand_chacha::ChaCha8Rng;
 use rollcal::wire::Sample;
 
 /// Impairments of a recorded stream (all off by default).
-#[derive(clap::Args, Clone, Debug, Default)]
+#[derive(clap::Args, Clone, Debug)]
 pub struct Impairments {
     /// Drop LEN consecutive sample frames from sequence number START on
     /// (START:LEN; repeatable).
@@ -40,6 +40,20 @@ pub struct Impairments {
     /// Size of an outlier, in accelerometer σ.
     #[arg(long, value_name = "K", default_value_t = 100.0)]
     pub outlier_sigma: f64,
+}
+
+impl Default for Impairments {
+    /// All off; outliers, when switched on, of 100σ (as the CLI's default).
+    fn default() -> Self {
+        Self {
+            drop_bursts: Vec::new(),
+            drop_random: 0.0,
+            clock_steps: Vec::new(),
+            bit_flips: 0.0,
+            outliers: 0.0,
+            outlier_sigma: 100.0,
+        }
+    }
 }
 
 /// What [`Impairments`] did, for the log line and the tests.
@@ -195,7 +209,8 @@ mod tests {
         assert_eq!(at(50), Some(52_000_000));
         assert_eq!(at(49), Some(49_000_000));
         let spiked = s.iter().filter(|x| x.accel_mean != [0.0, 1.0, 0.0]).count();
-        assert_eq!(spiked, applied.outliers);
+        // (Outliers are drawn before the burst drops its 5 samples.)
+        assert!(spiked <= applied.outliers && applied.outliers - spiked <= 5);
         assert!((3..=20).contains(&spiked), "{spiked}");
     }
 

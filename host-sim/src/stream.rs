@@ -24,14 +24,15 @@ use std::time::{Duration, Instant as Clock};
 use nalgebra::{Matrix3, Vector3};
 use rollcal::calibrator::{self, Calibrator, RejectReason};
 use rollcal::ekf::{self, FilterConfig, Options};
+use rollcal::estimator::{EstimatorOptions, LogError, LogRecord, SampleLog};
 use rollcal::models::{ConfigId, Environment, Model};
 use rollcal::wire::{
-    encode, CalibratorConfig, Checkpoint, DecoderStats, Estimate, FrameDecoder, Message, Sample,
-    MAX_FRAME_LEN,
+    encode, CalibratorConfig, Checkpoint, DecoderStats, Estimate, EstimateKind, FrameDecoder,
+    Message, Sample, MAX_FRAME_LEN,
 };
 
 use crate::report::{print_table, run_json, write_json};
-use crate::runner::{self, Estimator, Passes, RunResult};
+use crate::runner::{self, Passes, RunResult};
 use crate::scenario::{Scenario, DEG};
 use crate::truth::{simulate, truth_state, Instant, PeriodSample, SimOptions};
 
@@ -242,6 +243,7 @@ pub fn record(args: &RecordArgs) -> Result<(), String> {
     if let Some(path) = &args.truth {
         let last = sim.samples.last().map_or(sim.initial, |s| s.truth);
         let truth = truth_state(args.config, &sim.params, &last);
+        let truth0 = truth_state(args.config, &sim.params, &sim.initial);
         let crlb = runner::crlb_sigma(args.config, &sc, &sim, earth_rate)
             .map_err(|e| format!("Cramér–Rao bound: {e}"))?;
         let json = serde_json::json!({
@@ -252,6 +254,7 @@ pub fn record(args: &RecordArgs) -> Result<(), String> {
             "duration_s": sc.timing.duration_s,
             "names": args.config.states().iter().map(|s| s.name).collect::<Vec<_>>(),
             "truth_rad": truth,
+            "truth0_rad": truth0,
             "crlb_sigma_rad": crlb,
         });
         write_json(path, &json)?;
@@ -259,9 +262,41 @@ pub fn record(args: &RecordArgs) -> Result<(), String> {
     Ok(())
 }
 
+/// The host's sample log: a vector that grows as needed.
+#[derive(Default)]
+pub struct VecLog(pub Vec<LogRecord<f64>>);
+
+impl SampleLog<f64> for VecLog {
+    fn append(&mut self, r: &LogRecord<f64>) -> Result<(), LogError> {
+        self.0.push(*r);
+        Ok(())
+    }
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+    fn get(&mut self, k: usize) -> Option<LogRecord<f64>> {
+        self.0.get(k).copied()
+    }
+}
+
+/// The final answer of [`DynCalibrator::finish`].
+struct Final {
+    estimate: Estimate,
+    /// Row-major covariance of the final filter, when the passes ran.
+    covariance: Option<Vec<f64>>,
+    /// NIS of every update of the last pass.
+    nis: Vec<f64>,
+    /// Failed updates of the last pass (record index, error).
+    failures: Vec<(u32, ekf::Error)>,
+}
+
 /// Object-safe view of an f64 calibrator of any configuration.
 trait DynCalibrator {
-    fn push(&mut self, s: &Sample) -> Result<Option<Estimate>, RejectReason>;
+    fn push(&mut self, s: &Sample, log: &mut VecLog) -> Result<Option<Estimate>, RejectReason>;
+    fn finish(&self, log: &mut VecLog, passes: u8) -> Final;
+    /// σ of the filter linearised at the truth (initial state `truth0`) over
+    /// the logged records: the Cramér–Rao bound of the samples received.
+    fn bound(&self, log: &VecLog, truth0: &[f64]) -> Result<Vec<f64>, ekf::Error>;
     fn estimate(&self) -> Estimate;
     fn checkpoint(&self) -> Checkpoint;
     fn reset(&mut self) -> Result<(), calibrator::Error>;
@@ -272,8 +307,49 @@ trait DynCalibrator {
 impl<M: Model<N, Z> + Clone, const N: usize, const Z: usize> DynCalibrator
     for Calibrator<f64, M, N, Z>
 {
-    fn push(&mut self, s: &Sample) -> Result<Option<Estimate>, RejectReason> {
-        Calibrator::push(self, s)
+    fn push(&mut self, s: &Sample, log: &mut VecLog) -> Result<Option<Estimate>, RejectReason> {
+        Calibrator::push_logged(self, s, log)
+    }
+    fn bound(&self, log: &VecLog, truth0: &[f64]) -> Result<Vec<f64>, ekf::Error> {
+        let settings = self.settings();
+        let mut cfg = filter_config(settings);
+        cfg.options = Options::plain();
+        let x0 = nalgebra::SVector::<f64, N>::from_iterator(
+            truth0.iter().copied().chain(std::iter::repeat(0.0)),
+        );
+        let sigma0 = nalgebra::SVector::<f64, N>::repeat(settings.prior_sigma_rad);
+        let mut f = rollcal::Filter::<f64, M, N, Z>::new(cfg, x0, sigma0)?;
+        f.set_nominal(Some(x0));
+        for r in &log.0 {
+            match &r.observation {
+                Some(obs) => f.step(&r.dtheta_cmd, r.dt, obs).map(|_| ())?,
+                None => f.predict(&r.dtheta_cmd, r.dt)?,
+            }
+        }
+        Ok(f.sigma().iter().copied().collect())
+    }
+    fn finish(&self, log: &mut VecLog, passes: u8) -> Final {
+        let opts = EstimatorOptions {
+            max_passes: passes,
+            ..EstimatorOptions::default()
+        };
+        let (mut nis, mut failures, mut pass) = (Vec::new(), Vec::new(), 0);
+        let (estimate, filter) = Calibrator::finish(self, log, &opts, |e| {
+            if e.pass != pass {
+                (pass, nis, failures) = (e.pass, Vec::new(), Vec::new());
+            }
+            match &e.result {
+                Ok(Some(i)) => nis.push(i.nis),
+                Ok(None) => {}
+                Err(err) => failures.push((e.index as u32, *err)),
+            }
+        });
+        Final {
+            estimate,
+            covariance: filter.map(|f| f.covariance().transpose().iter().copied().collect()),
+            nis,
+            failures,
+        }
     }
     fn estimate(&self) -> Estimate {
         Calibrator::estimate(self)
@@ -317,15 +393,12 @@ struct Session {
     fallback: CalibratorConfig,
     settings: Option<CalibratorConfig>,
     cal: Option<Box<dyn DynCalibrator>>,
-    /// Accepted samples since the last (re)start, for the further passes.
-    accepted: Vec<PeriodSample>,
+    /// The sample log since the last (re)start, for the final passes.
+    log: VecLog,
     /// NIS of every accepted update since the last (re)start.
     nis: Vec<f64>,
     /// Filter failures (sequence number, error).
     failures: Vec<(u32, ekf::Error)>,
-    /// Further passes are impossible (a gap was bridged, or a checkpoint
-    /// was restored: the accepted samples are not the whole run).
-    pass1_only: Option<&'static str>,
     other_messages: u32,
     restarts: u32,
 }
@@ -335,10 +408,9 @@ impl Session {
         let cal = new_calibrator(settings).map_err(|e| format!("calibrator: {e}"))?;
         self.settings = Some(settings);
         self.cal = Some(cal);
-        self.accepted.clear();
+        self.log.0.clear();
         self.nis.clear();
         self.failures.clear();
-        self.pass1_only = None;
         Ok(())
     }
 
@@ -368,19 +440,8 @@ impl Session {
                 let Some(cal) = self.cal.as_mut() else {
                     return Ok(());
                 };
-                let before = cal.estimate().progress;
-                match cal.push(&s) {
-                    Ok(_) => {
-                        let e = cal.estimate();
-                        if e.progress.bridged != before.bridged {
-                            self.pass1_only = Some("a gap was bridged");
-                        }
-                        if e.progress.reacquired != before.reacquired {
-                            self.pass1_only = Some("the attitude was re-acquired after a gap");
-                        }
-                        self.nis.push(e.progress.last_nis);
-                        self.accepted.push(to_period_sample(&s));
-                    }
+                match cal.push(&s, &mut self.log) {
+                    Ok(_) => self.nis.push(cal.estimate().progress.last_nis),
                     Err(RejectReason::Filter(e)) => self.failures.push((s.seq, e)),
                     Err(_) => {}
                 }
@@ -389,7 +450,7 @@ impl Session {
                 if let Some(cal) = self.cal.as_mut() {
                     cal.reset().map_err(|e| format!("reset: {e}"))?;
                 }
-                self.accepted.clear();
+                self.log.0.clear();
                 self.nis.clear();
                 self.failures.clear();
                 self.restarts += 1;
@@ -402,7 +463,6 @@ impl Session {
                     cal.restore(&cp)
                         .map_err(|e| format!("restore from checkpoint: {e}"))?;
                 }
-                self.pass1_only = Some("the stream restored a checkpoint");
             }
             _ => self.other_messages += 1,
         }
@@ -466,6 +526,8 @@ fn read_input(
 /// The truth sidecar written by `record --truth`.
 struct Sidecar {
     truth: Vec<f64>,
+    /// True initial state (rad), for the bound of the samples received.
+    truth0: Option<Vec<f64>>,
     crlb: Vec<f64>,
     seed: Option<u64>,
     duration_s: Option<f64>,
@@ -491,6 +553,7 @@ fn read_sidecar(path: &Path, id: ConfigId) -> Result<Sidecar, String> {
     };
     Ok(Sidecar {
         truth: floats("truth_rad")?,
+        truth0: floats("truth0_rad").ok(),
         crlb: floats("crlb_sigma_rad")?,
         seed: v["seed"].as_u64(),
         duration_s: v["duration_s"].as_f64(),
@@ -515,10 +578,9 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
         fallback: calibrator_config(&sc, id, sc.site.earth_rate),
         settings: None,
         cal: None,
-        accepted: Vec::new(),
+        log: VecLog::default(),
         nis: Vec::new(),
         failures: Vec::new(),
-        pass1_only: None,
         other_messages: 0,
         restarts: 0,
     };
@@ -533,12 +595,11 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
                 result = session.handle(m);
             }
         });
-        if session.accepted.len() >= shown + 500 {
-            shown = session.accepted.len();
-            let rejected = session
-                .cal
-                .as_ref()
-                .map_or(0, |c| c.estimate().progress.rejects.total());
+        let progress = session.cal.as_ref().map(|c| c.estimate().progress);
+        let accepted = progress.map_or(0, |p| p.accepted as usize);
+        if accepted >= shown + 500 {
+            shown = accepted;
+            let rejected = progress.map_or(0, |p| p.rejects.total());
             eprint!(
                 "\r{shown} samples accepted, {rejected} rejected, {} bad frames",
                 decoder.stats().errors()
@@ -581,43 +642,74 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
     let sigma0 = settings.prior_sigma_rad;
     let nan = vec![f64::NAN; id.layout().n()];
     let truth = sidecar.as_ref().map_or(&nan, |s| &s.truth);
-    let crlb = sidecar.as_ref().map_or(&nan, |s| &s.crlb);
-    let mut passes = args.passes;
-    if let (Some(why), true) = (session.pass1_only, passes > 1) {
-        eprintln!("note: {why}: only the calibrator's pass is available");
-        passes = 1;
+    // The bound of the samples actually received: the filter linearised at
+    // the truth over the same log (with the bridged periods predicted);
+    // the full run's bound when the log is not the whole run.
+    let received_bound = match (
+        sidecar.as_ref().and_then(|s| s.truth0.as_ref()),
+        p.log_incomplete,
+    ) {
+        (Some(t0), None) => Some(
+            cal.bound(&session.log, t0)
+                .map_err(|e| format!("Cramér–Rao bound of the received samples: {e}"))?,
+        ),
+        _ => None,
+    };
+    let crlb = received_bound
+        .as_ref()
+        .or(sidecar.as_ref().map(|s| &s.crlb))
+        .unwrap_or(&nan);
+    // The final answer: the calibrator's own estimator of record over its
+    // log (pass 1 alone with --passes 1, or when the log is incomplete).
+    let fin = (args.passes > 1).then(|| cal.finish(&mut session.log, args.passes));
+    if let Some(EstimateKind::SinglePass { reason, .. }) = fin.as_ref().map(|f| f.estimate.kind) {
+        eprintln!("note: {reason}: the final answer is the calibrator's pass 1");
     }
-    let r: RunResult = if passes > 1 {
-        let estimator = Estimator {
-            options: settings.options,
-            passes,
-        };
-        let x0 = vec![0.0; id.layout().n()];
-        let pr = runner::run_passes(
-            id,
-            filter_config(&settings),
-            sigma0,
-            &session.accepted,
-            estimator,
-            &x0,
-            false,
-        )
-        .map_err(|e| format!("further passes: {e}"))?;
-        runner::result(id, &pr, truth, sigma0)
-    } else {
-        let single = Passes {
+    let (state, sigma, covariance, nis, failures, passes) = match &fin {
+        Some(Final {
+            estimate,
+            covariance: Some(c),
+            nis,
+            failures,
+        }) => {
+            let passes = match estimate.kind {
+                EstimateKind::Final { passes, .. } => passes,
+                _ => 1,
+            };
+            (
+                &estimate.state,
+                &estimate.sigma,
+                c.clone(),
+                nis.clone(),
+                failures.clone(),
+                passes,
+            )
+        }
+        _ => (
+            &est.state,
+            &est.sigma,
+            cp.covariance.to_vec(),
+            session.nis.clone(),
+            session.failures.clone(),
+            1,
+        ),
+    };
+    let r: RunResult = runner::result(
+        id,
+        &Passes {
             filter: Box::new(CalibratorView {
-                state: est.state.to_vec(),
-                sigma: est.sigma.to_vec(),
-                covariance: cp.covariance.to_vec(),
+                state: state.to_vec(),
+                sigma: sigma.to_vec(),
+                covariance,
             }),
             history: Vec::new(),
-            nis: session.nis.clone(),
-            failures: session.failures.clone(),
-            passes: 1,
-        };
-        runner::result(id, &single, truth, sigma0)
-    };
+            nis,
+            failures,
+            passes,
+        },
+        truth,
+        sigma0,
+    );
     print_table(&r, crlb);
     let rj = reject_json(&p.rejects);
     println!(
@@ -653,6 +745,24 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
             json["seed"] = serde_json::Value::Null;
         }
         json["passes"] = r.passes.into();
+        json["crlb_sigma_rad"] = serde_json::json!(crlb);
+        json["crlb_of"] = if received_bound.is_some() {
+            "received samples"
+        } else if sidecar.is_some() {
+            "full run"
+        } else {
+            "none"
+        }
+        .into();
+        json["answer"] = match fin.as_ref().map(|f| f.estimate.kind) {
+            Some(EstimateKind::Final { passes, converged }) => {
+                serde_json::json!({"kind": "final", "passes": passes, "converged": converged})
+            }
+            Some(EstimateKind::SinglePass { reason, logged }) => serde_json::json!({
+                "kind": "single_pass", "reason": reason.to_string(), "logged": logged
+            }),
+            _ => serde_json::json!({"kind": "single_pass", "reason": "--passes 1"}),
+        };
         json["pass1"] = serde_json::json!({
             "seq": est.seq,
             "updates": est.updates,

@@ -283,7 +283,8 @@ fn calibrate_reports_bad_streams_cleanly() {
     assert!(bad >= 3, "{frames}");
     assert_eq!(v["stream"]["accepted"].as_u64().unwrap(), 5400 - bad);
     assert_eq!(v["stream"]["bridged"].as_u64().unwrap(), bad);
-    assert_eq!(v["passes"], 1);
-    assert!(err.contains("gap was bridged"), "{err}");
+    // Bridged periods are in the log: the answer is still the estimator of record.
+    assert_eq!(v["answer"]["kind"], "final", "{}", v["answer"]);
+    assert!(v["passes"].as_u64().unwrap() >= 2);
     std::fs::remove_dir_all(&dir).ok();
 }

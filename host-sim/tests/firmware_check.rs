@@ -34,6 +34,7 @@ fn estimate(x: &[f64]) -> Estimate {
         sigma: Default::default(),
         progress: Progress::default(),
         frame_errors: 0,
+        kind: rollcal::wire::EstimateKind::Running,
     };
     for v in x {
         e.state.push(*v).unwrap();
