@@ -8,8 +8,14 @@
 //!
 //! The run is chosen by the semihosting command line (`qemu -append "…"`),
 //! words `key=value`: see [`Args`]. QEMU's exit status is the firmware's:
-//! 0 all samples accepted, 2 some rejected (or a synthetic step failed),
-//! 101 panic or HardFault ([`EXIT_OK`], [`EXIT_REJECTS`], [`EXIT_CRASH`]).
+//! 0 all samples accepted (and, on a stream, `Finish` answered with the
+//! estimator of record), 2 some rejected (or a synthetic step failed), 3 no
+//! final estimate of record (samples dropped before any `Configure`, or the
+//! final answer was a single pass), 101 panic or HardFault ([`EXIT_OK`],
+//! [`EXIT_REJECTS`], [`EXIT_NO_FINAL`], [`EXIT_CRASH`]).
+//!
+//! The sample log of the estimator of record is a static in the linker
+//! section `.log`, the `LOG` region of `memory.x` (see [`stream`]).
 #![no_std]
 #![no_main]
 
@@ -69,8 +75,8 @@ pub enum Source {
 pub struct Args {
     /// `source=uart|synthetic`.
     pub source: Source,
-    /// `exit=request`: end the run after answering an `EstimateRequest`
-    /// (default `exit=never`, as on a device).
+    /// `exit=request`: end the run after answering a `Finish` (default
+    /// `exit=never`, as on a device).
     pub exit_on_request: bool,
     /// `reply=uart1`: send replies on UART1 instead of UART0 (under QEMU,
     /// UART0 then reads stdin while the replies go to a file).
@@ -86,6 +92,12 @@ pub struct Args {
     /// gimbal noise by K (f32 needs K ≈ 1000 to keep S positive definite
     /// at every step, so that the counts are of complete periods).
     pub noise_scale: u32,
+    /// `selftest=checkpoint-at=N` (stream runs): after the N-th `Sample`
+    /// frame, take a checkpoint (encoded as a wire frame, as a device would
+    /// store it), handle a `Reset`, and restore from the decoded frame, as
+    /// if the host had sent `CheckpointRequest`, `Reset`, `Checkpoint`. The
+    /// log stays in RAM. 0: off.
+    pub checkpoint_at: u32,
 }
 
 impl Args {
@@ -98,6 +110,7 @@ impl Args {
             mode: Mode::Default,
             periods: 200,
             noise_scale: 1,
+            checkpoint_at: 0,
         };
         for word in line.split(|&b| b == b' ') {
             let mut kv = word.splitn(2, |&b| b == b'=');
@@ -119,6 +132,12 @@ impl Args {
                 (b"noise_scale", n) => {
                     if let Some(n) = parse_u32(n) {
                         a.noise_scale = n.max(1);
+                    }
+                }
+                (b"selftest", t) if t.starts_with(b"checkpoint-at=") => {
+                    match parse_u32(t.get(14..).unwrap_or(&[])) {
+                        Some(n) if n > 0 => a.checkpoint_at = n,
+                        _ => defmt::warn!("ignored argument {=[u8]:a}", word),
                     }
                 }
                 (b"periods", n) => {
@@ -166,6 +185,10 @@ pub const EXIT_OK: u32 = 0;
 /// Exit status: the run completed but samples were rejected (or a
 /// synthetic step failed).
 pub const EXIT_REJECTS: u32 = 2;
+/// Exit status: no final estimate of record (samples arrived before any
+/// `Configure` and were dropped, or `Finish` was answered with a single pass
+/// or not at all).
+pub const EXIT_NO_FINAL: u32 = 3;
 /// Exit status after a panic or a HardFault.
 pub const EXIT_CRASH: u32 = 101;
 
@@ -194,17 +217,29 @@ fn main() -> ! {
         size_of::<rollcal::ekf::M1PaFilter<Real>>(),
         args
     );
-    let ok = match args.source {
-        Source::Synthetic => synthetic::run(&args),
+    let code = match args.source {
+        Source::Synthetic => {
+            if synthetic::run(&args) {
+                EXIT_OK
+            } else {
+                EXIT_REJECTS
+            }
+        }
         Source::Uart => {
             let t = stream::run(&args);
             defmt::info!("stream done: {}", t);
-            t.samples > 0 && t.rejected == 0
+            if t.rejected > 0 {
+                EXIT_REJECTS
+            } else if t.samples == 0 || t.dropped > 0 || t.finals == 0 {
+                EXIT_NO_FINAL
+            } else {
+                EXIT_OK
+            }
         }
     };
     let (peak, region) = stack::peak();
     defmt::info!("peak stack {} bytes of {}", peak, region);
-    exit(if ok { EXIT_OK } else { EXIT_REJECTS })
+    exit(code)
 }
 
 #[exception]

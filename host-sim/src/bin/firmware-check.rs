@@ -1,33 +1,71 @@
 //! Helper of the firmware's QEMU script (`firmware/run-qemu.sh`).
 //!
-//! - `firmware-check end-frame`: writes one `EstimateRequest` frame to
-//!   stdout. Appended to a recorded stream it marks the end of the input for
-//!   firmware started with `exit=request` (a UART has no end of file).
+//! - `firmware-check end-frame`: writes an `EstimateRequest` frame and a
+//!   `Finish` frame to stdout. Appended to a recorded stream they end the
+//!   input for firmware started with `exit=request` (a UART has no end of
+//!   file): the firmware replies with its running estimate (pass 1), then
+//!   runs the estimator of record over its sample log and replies with the
+//!   final estimate, and exits.
 //! - `firmware-check compare --firmware OUT --host JSON [--tol RAD]`: decodes
 //!   the `Estimate` frames the firmware wrote to its UART, takes the last one
 //!   and compares it state by state with `host-sim calibrate --json`'s final
 //!   estimates. Prints max |Δ| (rad, arcsec, and in units of the host's σ);
 //!   with `--tol`, exits non-zero when a state differs by more than `tol`
-//!   rad (or when no estimate was found).
+//!   rad, when the last estimate is not the estimator of record's
+//!   (`Final`) or ran another number of passes than the host, when `--rc`
+//!   (QEMU's exit status) is not 0, or when no estimate was found. With
+//!   `--build`, also prints one `summary build=… config=… passes=…
+//!   max_dabs_rad=… max_dsigma=… limit=… ok|FAIL` line.
+//! - `firmware-check identical --firmware OUT --reference OUT2`: every
+//!   `Estimate` of two firmware runs (the running ones and the final one)
+//!   must be the same message, every state and σ bit for bit, and the last
+//!   one the estimator of record's (a checkpoint → reset → restore run
+//!   against the uninterrupted one). Same `--build`/`--rc` summary line.
+//! - `firmware-check garble-first-frame --input IN --out OUT`: copies a
+//!   stream with one byte of its first frame changed (a frame the decoder
+//!   rejects: a lost `Configure`), and checks that the copy has one frame
+//!   error more and no `Configure` message left.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use rollcal::wire::{encode, Estimate, FrameDecoder, Message, MAX_FRAME_LEN};
+use rollcal::wire::{encode, Estimate, EstimateKind, FrameDecoder, Message, MAX_FRAME_LEN};
 
 const ARCSEC: f64 = std::f64::consts::PI / 180.0 / 3600.0;
 
 #[derive(Parser)]
-#[command(about = "Helpers of firmware/run-qemu.sh: end-of-stream frame, estimate comparison")]
+#[command(
+    about = "Helpers of firmware/run-qemu.sh: end-of-stream frames, estimate comparison, a garbled stream"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Cmd,
 }
 
+/// How a run is named in the summary line.
+#[derive(clap::Args)]
+struct RunInfo {
+    /// Build name for the summary line (e.g. M7/f64); no summary without it.
+    #[arg(long)]
+    build: Option<String>,
+    /// Configuration label of the summary line (default: the estimate's).
+    #[arg(long)]
+    config: Option<String>,
+    /// QEMU's exit status of the run: not 0 fails the check.
+    #[arg(long)]
+    rc: Option<i32>,
+    /// Wall time of the QEMU run (s), printed in the summary.
+    #[arg(long)]
+    seconds: Option<u64>,
+    /// Text appended to the summary line.
+    #[arg(long)]
+    note: Option<String>,
+}
+
 #[derive(Subcommand)]
 enum Cmd {
-    /// Write one EstimateRequest frame to stdout.
+    /// Write an EstimateRequest and a Finish frame to stdout.
     EndFrame,
     /// Compare the firmware's last Estimate with host-sim calibrate's JSON.
     Compare {
@@ -37,33 +75,58 @@ enum Cmd {
         /// `host-sim calibrate --json` output on the same stream.
         #[arg(long)]
         host: PathBuf,
-        /// Fail when any state differs by more than this (rad).
+        /// Fail when any state differs by more than this (rad), or when the
+        /// answer is not the estimator of record's with the host's passes.
         #[arg(long)]
         tol: Option<f64>,
         /// Name printed with the result.
         #[arg(long, default_value = "firmware")]
         label: String,
+        #[command(flatten)]
+        run: RunInfo,
+    },
+    /// Check that two firmware runs end with bit-identical estimates.
+    Identical {
+        /// The firmware's UART output (wire frames).
+        #[arg(long)]
+        firmware: PathBuf,
+        /// The reference run's UART output.
+        #[arg(long)]
+        reference: PathBuf,
+        /// What the reference is, for the summary (e.g. uninterrupted).
+        #[arg(long, default_value = "reference")]
+        against: String,
+        #[command(flatten)]
+        run: RunInfo,
+    },
+    /// Copy a stream with its first frame garbled.
+    GarbleFirstFrame {
+        #[arg(long)]
+        input: PathBuf,
+        #[arg(long)]
+        out: PathBuf,
     },
 }
 
 fn end_frame() -> Result<(), String> {
     use std::io::Write;
-    let mut buf = [0u8; MAX_FRAME_LEN];
-    let n = encode(&Message::EstimateRequest, &mut buf).map_err(|e| e.to_string())?;
-    std::io::stdout()
-        .write_all(buf.get(..n).ok_or("encoder overran its buffer")?)
-        .map_err(|e| e.to_string())
+    let mut out = Vec::new();
+    for m in [Message::EstimateRequest, Message::Finish] {
+        let mut buf = [0u8; MAX_FRAME_LEN];
+        let n = encode(&m, &mut buf).map_err(|e| e.to_string())?;
+        out.extend_from_slice(buf.get(..n).ok_or("encoder overran its buffer")?);
+    }
+    std::io::stdout().write_all(&out).map_err(|e| e.to_string())
 }
 
-fn last_estimate(path: &PathBuf) -> Result<(Estimate, usize), String> {
+/// Every `Estimate` frame of a firmware's output, in order.
+fn estimates(path: &Path) -> Result<Vec<Estimate>, String> {
     let bytes = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
     let mut decoder = FrameDecoder::new();
-    let mut last = None;
-    let mut count = 0;
+    let mut all = Vec::new();
     decoder.feed(&bytes, |m| {
         if let Message::Estimate(e) = m {
-            count += 1;
-            last = Some(e);
+            all.push(e);
         }
     });
     if decoder.stats().errors() > 0 {
@@ -74,15 +137,63 @@ fn last_estimate(path: &PathBuf) -> Result<(Estimate, usize), String> {
             decoder.stats()
         ));
     }
-    last.map(|e| (e, count))
+    Ok(all)
+}
+
+/// The last `Estimate` of a firmware's output and how many there were.
+fn last_estimate(path: &Path) -> Result<(Estimate, usize), String> {
+    let mut all = estimates(path)?;
+    let count = all.len();
+    all.pop()
+        .map(|e| (e, count))
         .ok_or_else(|| format!("{}: no Estimate frame", path.display()))
 }
 
+fn kind_str(kind: &EstimateKind) -> String {
+    match kind {
+        EstimateKind::Final { passes, .. } => passes.to_string(),
+        EstimateKind::SinglePass { reason, .. } => format!("1(single-pass: {reason})"),
+        EstimateKind::Running => "running".to_string(),
+    }
+}
+
+/// Prints the summary line (when `run.build` is set) and returns `ok`.
+fn summary(run: &RunInfo, config: &str, fields: &str, ok: bool, why: &[String]) -> bool {
+    let rc_ok = run.rc.is_none_or(|rc| rc == 0);
+    let ok = ok && rc_ok;
+    if let Some(build) = &run.build {
+        let mut line = format!(
+            "summary build={build} config={} {fields}",
+            run.config.as_deref().unwrap_or(config)
+        );
+        if let Some(rc) = run.rc {
+            line += &format!(" exit={rc}");
+        }
+        if let Some(s) = run.seconds {
+            line += &format!(" qemu={s}s");
+        }
+        line += if ok { " ok" } else { " FAIL" };
+        let mut why = why.to_vec();
+        if !rc_ok {
+            why.push(format!("QEMU exit status {}", run.rc.unwrap_or(0)));
+        }
+        if !ok && !why.is_empty() {
+            line += &format!(" ({})", why.join("; "));
+        }
+        if let Some(n) = &run.note {
+            line += &format!(" {n}");
+        }
+        println!("{line}");
+    }
+    ok
+}
+
 fn compare(
-    firmware: &PathBuf,
-    host: &PathBuf,
+    firmware: &Path,
+    host: &Path,
     tol: Option<f64>,
     label: &str,
+    run: &RunInfo,
 ) -> Result<bool, String> {
     let (est, count) = last_estimate(firmware)?;
     let text = std::fs::read_to_string(host)
@@ -119,37 +230,213 @@ fn compare(
         }
         max_sigma = max_sigma.max(d / host_sig);
     }
-    let within = tol.map(|t| max_rad <= t);
+    let host_passes = json["answer"]["passes"].as_u64();
+    let fw_passes = match est.kind {
+        EstimateKind::Final { passes, .. } => Some(u64::from(passes)),
+        _ => None,
+    };
+    let mut why = Vec::new();
+    if tol.is_some_and(|t| max_rad > t) {
+        why.push(format!(
+            "max |Δ| {max_rad:.3e} rad > {:e}",
+            tol.unwrap_or(0.0)
+        ));
+    }
+    if tol.is_some() {
+        match (fw_passes, host_passes) {
+            (None, _) => why.push(format!(
+                "the firmware's last estimate is not the estimator of record's ({})",
+                kind_str(&est.kind)
+            )),
+            (Some(f), Some(h)) if f != h => {
+                why.push(format!("{f} passes on the firmware, {h} on the host"))
+            }
+            (Some(_), None) => why.push("the host JSON has no final answer".to_string()),
+            _ => {}
+        }
+    }
+    let within = why.is_empty();
     println!(
-        "{label}: {count} Estimate frames, final seq {} after {} updates; max |Δ| vs host = {max_rad:.3e} rad = {:.3e}″ = {max_sigma:.2e}σ (worst {worst}){}",
+        "{label}: {count} Estimate frames, final seq {} after {} updates, passes {} (host {}); max |Δ| vs host = {max_rad:.3e} rad = {:.3e}″ = {max_sigma:.2e}σ (worst {worst}){}",
         est.seq,
         est.updates,
+        kind_str(&est.kind),
+        host_passes.map_or("?".to_string(), |p| p.to_string()),
         max_rad / ARCSEC,
-        match (tol, within) {
-            (Some(t), Some(true)) => format!(" — PASS (≤ {t:e} rad)"),
-            (Some(t), _) => format!(" — FAIL (> {t:e} rad)"),
-            _ => String::new(),
+        match tol {
+            Some(t) if within => format!(" — PASS (≤ {t:e} rad)"),
+            Some(t) => format!(" — FAIL (> {t:e} rad or not the answer of record)"),
+            None => String::new(),
         }
     );
-    Ok(within.unwrap_or(true))
+    let fields = format!(
+        "passes={} max_dabs_rad={max_rad:.3e} max_dsigma={max_sigma:.3e} limit={}",
+        kind_str(&est.kind),
+        tol.map_or("none".to_string(), |t| format!("{t:e}"))
+    );
+    Ok(summary(run, est.config.as_str(), &fields, within, &why))
+}
+
+fn identical(
+    firmware: &Path,
+    reference: &Path,
+    against: &str,
+    run: &RunInfo,
+) -> Result<bool, String> {
+    let all_a = estimates(firmware)?;
+    let all_b = estimates(reference)?;
+    let (Some(a), Some(b)) = (all_a.last(), all_b.last()) else {
+        return Err("no Estimate frame in one of the runs".into());
+    };
+    let bits = |e: &Estimate| -> Vec<u64> {
+        e.state
+            .iter()
+            .chain(e.sigma.iter())
+            .map(|v| v.to_bits())
+            .collect()
+    };
+    let max_rad = a
+        .state
+        .iter()
+        .zip(b.state.iter())
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0f64, f64::max);
+    let same_bits = bits(a) == bits(b);
+    let same_message = a == b;
+    // Every estimate (the running ones too), bit for bit.
+    let differing = all_a
+        .iter()
+        .zip(all_b.iter())
+        .position(|(x, y)| x != y || bits(x) != bits(y));
+    let mut why = Vec::new();
+    if all_a.len() != all_b.len() {
+        why.push(format!(
+            "{} Estimate frames, {} in the {against} run",
+            all_a.len(),
+            all_b.len()
+        ));
+    }
+    if let Some(k) = differing {
+        why.push(format!(
+            "Estimate frame {k} (seq {}) differs from the {against} run's",
+            all_a[k].seq
+        ));
+    }
+    if !same_bits {
+        why.push(format!("states or σ differ (max |Δ| {max_rad:.3e} rad)"));
+    }
+    if same_bits && !same_message {
+        why.push("the estimates' bookkeeping differs".to_string());
+    }
+    if !matches!(a.kind, EstimateKind::Final { .. }) {
+        why.push(format!(
+            "not the estimator of record's ({})",
+            kind_str(&a.kind)
+        ));
+    }
+    println!(
+        "{}: {} Estimate frames, the last seq {} passes {}; {against}: {}, seq {} passes {}: {}",
+        firmware.display(),
+        all_a.len(),
+        a.seq,
+        kind_str(&a.kind),
+        all_b.len(),
+        b.seq,
+        kind_str(&b.kind),
+        if why.is_empty() {
+            "bit-identical".to_string()
+        } else {
+            why.join("; ")
+        }
+    );
+    let all_same = same_bits && same_message && differing.is_none() && all_a.len() == all_b.len();
+    let fields = format!(
+        "passes={} vs={against} estimates={} max_dabs_rad={max_rad:.3e} bit_identical={}",
+        kind_str(&a.kind),
+        all_a.len(),
+        if all_same { "yes" } else { "no" }
+    );
+    Ok(summary(
+        run,
+        a.config.as_str(),
+        &fields,
+        why.is_empty(),
+        &why,
+    ))
+}
+
+/// Frames decoded from `bytes`: (Configure messages, Sample messages, frame errors).
+fn census(bytes: &[u8]) -> (usize, usize, u32) {
+    let mut d = FrameDecoder::new();
+    let (mut configure, mut samples) = (0, 0);
+    d.feed(bytes, |m| match m {
+        Message::Configure(_) => configure += 1,
+        Message::Sample(_) => samples += 1,
+        _ => {}
+    });
+    (configure, samples, d.stats().errors())
+}
+
+fn garble_first_frame(input: &Path, out: &Path) -> Result<(), String> {
+    let mut bytes =
+        std::fs::read(input).map_err(|e| format!("cannot read {}: {e}", input.display()))?;
+    let end = bytes
+        .iter()
+        .position(|&b| b == 0)
+        .ok_or("no frame delimiter in the stream")?;
+    if end < 2 {
+        return Err("the first frame is empty".into());
+    }
+    // A byte in the middle of the first frame, changed to another non-zero
+    // byte (a zero would split the frame instead).
+    let at = end / 2;
+    let old = bytes[at];
+    bytes[at] = if old ^ 0xFF == 0 { 0x7F } else { old ^ 0xFF };
+    let (c0, s0, e0) = census(&std::fs::read(input).map_err(|e| e.to_string())?);
+    let (c1, s1, e1) = census(&bytes);
+    if c0 == 0 || c1 != 0 || s1 != s0 || e1 != e0 + 1 {
+        return Err(format!(
+            "garbling byte {at} of the first frame: Configure {c0} → {c1}, samples {s0} → {s1}, frame errors {e0} → {e1} (want 1 → 0, unchanged, +1)"
+        ));
+    }
+    std::fs::write(out, &bytes).map_err(|e| format!("cannot write {}: {e}", out.display()))?;
+    eprintln!(
+        "{}: byte {at} of the first frame (of {} bytes) changed: no Configure left, {s1} samples, {e1} frame error(s)",
+        out.display(),
+        end + 1
+    );
+    Ok(())
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let r = match cli.command {
-        Cmd::EndFrame => end_frame().map(|()| true),
+    let (r, run) = match &cli.command {
+        Cmd::EndFrame => (end_frame().map(|()| true), None),
         Cmd::Compare {
             firmware,
             host,
             tol,
             label,
-        } => compare(&firmware, &host, tol, &label),
+            run,
+        } => (compare(firmware, host, *tol, label, run), Some(run)),
+        Cmd::Identical {
+            firmware,
+            reference,
+            against,
+            run,
+        } => (identical(firmware, reference, against, run), Some(run)),
+        Cmd::GarbleFirstFrame { input, out } => {
+            (garble_first_frame(input, out).map(|()| true), None)
+        }
     };
     match r {
         Ok(true) => ExitCode::SUCCESS,
         Ok(false) => ExitCode::FAILURE,
         Err(e) => {
             eprintln!("firmware-check: error: {e}");
+            if let Some(run) = run {
+                summary(run, "?", "no estimate", false, &[e]);
+            }
             ExitCode::FAILURE
         }
     }
