@@ -56,7 +56,8 @@ build_plugin() {
 }
 
 # Records the paper scenario for CONFIG (seed 1) and appends the end-of-stream
-# frame: $OUT/<config>.bin (stream) and $OUT/<config>-in.bin (firmware input).
+# frames (EstimateRequest, Finish): $OUT/<config>.bin (stream) and
+# $OUT/<config>-in.bin (firmware input).
 record_stream() {
     local config=$1
     "$HOST_SIM" record --config "$config" --seed 1 --out "$OUT/$config.bin" 2>/dev/null
@@ -67,7 +68,9 @@ record_stream() {
 marker() { arm-none-eabi-nm "$1" | awk -v s="$2" '$3 == s { print "0x" $1 }'; }
 
 # run_qemu VARIANT INPUT REPLY_FILE DEFMT_FILE APPEND [PLUGIN_ARGS]
-# VARIANT m4f (mps2-an386, cortex-m4) or m7 (mps2-an500, cortex-m7). UART0
+# VARIANT m4f (mps2-an386, cortex-m4) or m7 (mps2-an500, cortex-m7). With
+# PLUGIN_ARGS, the plugin counts between the markers rollcal_mark_${MARK}_start
+# and _end (MARK=period by default; MARK=finish: the estimator of record). UART0
 # reads INPUT (stdin), UART1 writes REPLY_FILE, defmt (semihosting) goes to
 # DEFMT_FILE, the plugin's report to stderr. Returns QEMU's exit status (the
 # firmware's semihosting exit code; 124 on timeout).
@@ -81,7 +84,8 @@ run_qemu() {
     esac
     local plugin=()
     if [ -n "$plugin_args" ]; then
-        plugin=(-plugin "$PLUGIN,start=$(marker "$elf" rollcal_mark_period_start),end=$(marker "$elf" rollcal_mark_period_end),$plugin_args" -d plugin)
+        local m=${MARK:-period}
+        plugin=(-plugin "$PLUGIN,start=$(marker "$elf" "rollcal_mark_${m}_start"),end=$(marker "$elf" "rollcal_mark_${m}_end"),$plugin_args" -d plugin)
     fi
     timeout "${QEMU_TIMEOUT:-600}" qemu-system-arm -machine "$machine" -cpu "$cpu" \
         -nographic -monitor none \

@@ -24,3 +24,5 @@ macro_rules! marker {
 
 marker!(rollcal_mark_period_start, 1);
 marker!(rollcal_mark_period_end, 2);
+marker!(rollcal_mark_finish_start, 3);
+marker!(rollcal_mark_finish_end, 4);

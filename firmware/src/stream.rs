@@ -42,7 +42,10 @@ use rollcal::wire::{
 };
 use rollcal::Options;
 
-use crate::marks::{rollcal_mark_period_end, rollcal_mark_period_start};
+use crate::marks::{
+    rollcal_mark_finish_end, rollcal_mark_finish_start, rollcal_mark_period_end,
+    rollcal_mark_period_start,
+};
 use crate::uart::Uart;
 use crate::{Args, Mode, Real};
 
@@ -280,7 +283,9 @@ impl Stream<'_> {
     fn finish(&mut self) -> Flow {
         let opts = EstimatorOptions::default();
         let log = &mut self.log;
+        rollcal_mark_finish_start();
         let answer = with_cal!(&self.cal, c => c.finish(log, &opts, |_| {}).0);
+        rollcal_mark_finish_end();
         match answer {
             Some(est) => {
                 match est.kind {

@@ -12,7 +12,8 @@
 //!   estimates. Prints max |Δ| (rad, arcsec, and in units of the host's σ);
 //!   with `--tol`, exits non-zero when a state differs by more than `tol`
 //!   rad, when the last estimate is not the estimator of record's
-//!   (`Final`) or ran another number of passes than the host, when `--rc`
+//!   (`Final`) or ran another number of passes than the host, when the
+//!   calibrator rejected samples, when `--rc`
 //!   (QEMU's exit status) is not 0, or when no estimate was found. With
 //!   `--build`, also prints one `summary build=… config=… passes=…
 //!   max_dabs_rad=… max_dsigma=… limit=… ok|FAIL` line.
@@ -255,6 +256,10 @@ fn compare(
             _ => {}
         }
     }
+    let rejected = est.progress.rejects.total();
+    if tol.is_some() && rejected > 0 {
+        why.push(format!("{rejected} samples rejected"));
+    }
     let within = why.is_empty();
     println!(
         "{label}: {count} Estimate frames, final seq {} after {} updates, passes {} (host {}); max |Δ| vs host = {max_rad:.3e} rad = {:.3e}″ = {max_sigma:.2e}σ (worst {worst}){}",
@@ -435,7 +440,7 @@ fn main() -> ExitCode {
         Err(e) => {
             eprintln!("firmware-check: error: {e}");
             if let Some(run) = run {
-                summary(run, "?", "no estimate", false, &[e]);
+                summary(run, "?", "no comparison", false, &[e]);
             }
             ExitCode::FAILURE
         }
