@@ -370,21 +370,12 @@ impl<M: Model<N, Z> + Clone, const N: usize, const Z: usize> DynCalibrator
 }
 
 fn new_calibrator(c: CalibratorConfig) -> Result<Box<dyn DynCalibrator>, calibrator::Error> {
-    use rollcal::models::*;
     fn make<M: Model<N, Z> + Clone + 'static, const N: usize, const Z: usize>(
         c: CalibratorConfig,
     ) -> Result<Box<dyn DynCalibrator>, calibrator::Error> {
         Ok(Box::new(Calibrator::<f64, M, N, Z>::new(c)?))
     }
-    match c.config {
-        ConfigId::M1Pa => make::<M1Pa, 12, 3>(c),
-        ConfigId::M1Ps => make::<M1Ps, 15, 3>(c),
-        ConfigId::M2Ps => make::<M2Ps, 18, 6>(c),
-        ConfigId::M3Pa => make::<M3Pa, 15, 3>(c),
-        ConfigId::M3Ps => make::<M3Ps, 18, 3>(c),
-        ConfigId::M4Pa => make::<M4Pa, 12, 3>(c),
-        ConfigId::M4Ps => make::<M4Ps, 15, 3>(c),
-    }
+    rollcal::with_config!(c.config, |M, N, Z| make::<M, N, Z>(c))
 }
 
 /// The calibrator and what it was fed.
