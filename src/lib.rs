@@ -26,8 +26,12 @@
 //! - [`observability`]: information matrix, null space and Cramér–Rao
 //!   bound along a path (SPEC §5);
 //! - [`wire`]: the serial protocol (SPEC §7): messages, frames, decoder;
-//! - [`calibrator`]: the front end that validates samples, runs a filter,
-//!   emits estimates and checkpoints.
+//! - [`calibrator`]: the front end that validates samples, bridges lost data
+//!   along the commanded motion (or re-acquires the attitude), runs pass 1,
+//!   logs the run, answers `Finish` with the estimator of record, emits
+//!   estimates and checkpoints.
+//!
+//! [`with_config!`] is the one `ConfigId` → configuration-type dispatch.
 #![no_std]
 #![deny(missing_docs, unsafe_code)]
 #![cfg_attr(
