@@ -522,14 +522,36 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
 
     /// [`Calibrator::push`], and the sample (and the periods bridged before
     /// it) appended to `log` for the final passes of
-    /// [`Calibrator::finish`]. A rejected sample is not logged. The caller
-    /// clears the log when it resets or reconfigures the calibrator.
+    /// [`Calibrator::finish`]. A rejected sample is not logged.
+    ///
+    /// The calibrator counts what it logged ([`Progress::logged`]) and
+    /// treats the log's first that many records as its own: a longer log
+    /// (after a reset, a new configuration, or a restore from a checkpoint
+    /// taken earlier) is truncated to them, so a log that survives a device
+    /// reset (FRAM) continues a restored calibration; a shorter one cannot
+    /// hold the run and makes the final answer pass 1 only
+    /// ([`SinglePassReason::LogMismatch`]).
     pub fn push_logged(
         &mut self,
         s: &Sample,
         log: &mut (dyn SampleLog<T> + '_),
     ) -> Result<Option<Estimate>, RejectReason> {
+        self.sync_log(log);
         self.push_inner(s, Some(log))
+    }
+
+    /// Takes `log` back to the records this calibrator logged (see
+    /// [`Calibrator::push_logged`]).
+    fn sync_log(&mut self, log: &mut (dyn SampleLog<T> + '_)) {
+        if self.progress.log_incomplete.is_some() {
+            return;
+        }
+        let logged = self.progress.logged as usize;
+        match log.len() {
+            n if n > logged => log.truncate(logged),
+            n if n < logged => self.log_broken(SinglePassReason::LogMismatch),
+            _ => {}
+        }
     }
 
     fn push_inner(
@@ -626,6 +648,9 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         observer: F,
     ) -> (Estimate, Option<Filter<T, M, N, Z>>) {
         let logged = self.progress.logged;
+        if log.len() > logged as usize && self.progress.log_incomplete.is_none() {
+            log.truncate(logged as usize);
+        }
         let single = |reason| EstimateKind::SinglePass { reason, logged };
         let reason = match self.progress.log_incomplete {
             Some(r) => Some(r),

@@ -31,6 +31,9 @@
 //!   logs the run, answers `Finish` with the estimator of record, emits
 //!   estimates and checkpoints.
 //!
+//! - [`session`]: the protocol once: message → effect and reply, driven by
+//!   the firmware and by `host-sim calibrate`.
+//!
 //! [`with_config!`] is the one `ConfigId` → configuration-type dispatch.
 #![no_std]
 #![deny(missing_docs, unsafe_code)]
@@ -52,6 +55,7 @@ pub mod geometry;
 pub mod instruments;
 pub mod models;
 pub mod observability;
+pub mod session;
 pub mod wire;
 
 pub use calibrator::{Calibrator, M1PaCalibrator, M2PsCalibrator, M4PaCalibrator, RejectReason};

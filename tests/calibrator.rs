@@ -611,3 +611,79 @@ fn finish_is_the_estimator_of_record_over_the_log_or_says_why_not() {
         }
     );
 }
+
+#[test]
+fn the_session_checkpoints_resets_restores_and_finishes_as_if_uninterrupted() {
+    use rollcal::estimator::{EstimatorOptions, LogRecord, SliceLog};
+    use rollcal::session::{Reply, Session, SessionError};
+    use rollcal::wire::EstimateKind;
+    let (sc, data) = samples(300, 8);
+    let cfg = settings(&sc, ConfigId::M2Ps, 0);
+    let blank = LogRecord::predicted(1.0, nalgebra::Vector3::zeros());
+    let run = |interrupt: bool| {
+        let mut storage = vec![blank; 300];
+        let mut log = SliceLog::new(&mut storage);
+        let mut session = Session::<f64>::new(Some(ConfigId::M2Ps), EstimatorOptions::default());
+        // Samples before Configure are counted and dropped.
+        let early = session.handle(&Message::Sample(data[0]), &mut log);
+        assert_eq!(early, Reply::Error(SessionError::NotConfigured));
+        assert_eq!(
+            session.handle(&Message::Configure(cfg), &mut log),
+            Reply::Nothing
+        );
+        let mut saved = None;
+        for (i, s) in data.iter().enumerate() {
+            if interrupt && i == 120 {
+                let Reply::Send(Message::Checkpoint(cp)) =
+                    session.handle(&Message::CheckpointRequest, &mut log)
+                else {
+                    panic!("no checkpoint")
+                };
+                saved = Some(cp);
+            }
+            if interrupt && i == 180 {
+                // A reset loses everything since; the restore brings back the
+                // state of sample 120, and the log is taken back with it.
+                assert_eq!(session.handle(&Message::Reset, &mut log), Reply::Nothing);
+                let cp = over_the_wire(saved.take().unwrap());
+                assert_eq!(
+                    session.handle(&Message::Checkpoint(cp), &mut log),
+                    Reply::Nothing
+                );
+                for s in &data[120..180] {
+                    session.handle(&Message::Sample(*s), &mut log);
+                }
+            }
+            assert!(!matches!(
+                session.handle(&Message::Sample(*s), &mut log),
+                Reply::Error(_) | Reply::Rejected(_)
+            ));
+        }
+        let Reply::Send(Message::Estimate(fin)) = session.handle(&Message::Finish, &mut log) else {
+            panic!("no final estimate")
+        };
+        (fin, session.stats().unconfigured)
+    };
+    let (plain, unconfigured) = run(false);
+    let (interrupted, _) = run(true);
+    assert_eq!(unconfigured, 1);
+    assert!(
+        matches!(plain.kind, EstimateKind::Final { .. }),
+        "{:?}",
+        plain.kind
+    );
+    assert_eq!(plain.state, interrupted.state);
+    assert_eq!(plain.sigma, interrupted.sigma);
+    assert_eq!(plain.kind, interrupted.kind);
+    // A Configure for another configuration than the session runs is refused.
+    let mut storage = vec![blank; 1];
+    let mut log = SliceLog::new(&mut storage);
+    let mut session = Session::<f64>::new(Some(ConfigId::M1Pa), EstimatorOptions::default());
+    assert_eq!(
+        session.handle(&Message::Configure(cfg), &mut log),
+        Reply::Error(SessionError::ConfigMismatch {
+            expected: ConfigId::M1Pa,
+            found: ConfigId::M2Ps
+        })
+    );
+}
