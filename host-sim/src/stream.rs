@@ -21,7 +21,7 @@ use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant as Clock};
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 use rollcal::calibrator::RejectReason;
 use rollcal::ekf::{self, FilterConfig, Options};
 use rollcal::estimator::{EstimatorOptions, LogError, LogRecord, SampleLog};
@@ -35,7 +35,7 @@ use rollcal::wire::{
 use crate::report::{print_table, run_json, write_json};
 use crate::runner::{self, Passes, RunResult};
 use crate::scenario::{Scenario, DEG};
-use crate::truth::{simulate, truth_state, Instant, PeriodSample, SimOptions};
+use crate::truth::{simulate, truth_state, PeriodSample, SimOptions};
 
 /// Arguments of `host-sim record`.
 #[derive(clap::Args, Clone, Debug)]
@@ -150,28 +150,6 @@ pub fn to_sample(s: &PeriodSample) -> Sample {
         accel_mean: f(&s.accel_mean),
         gimbal: Some(f(&s.gimbal)),
         c_cn_quat: rollcal::geometry::quaternion_from_dcm(&s.truth.c_c_n).map(|v| v as f32),
-    }
-}
-
-/// A received sample as the runner's input (f32 → f64 exactly); the truth
-/// fields are unknown (NaN) except the time.
-pub fn to_period_sample(s: &Sample) -> PeriodSample {
-    let v = |a: [f32; 3]| Vector3::new(f64::from(a[0]), f64::from(a[1]), f64::from(a[2]));
-    let nan3 = Vector3::repeat(f64::NAN);
-    PeriodSample {
-        k: s.seq,
-        dt: f64::from(s.dt),
-        dtheta_cmd: v(s.dtheta_cmd),
-        accel_mean: v(s.accel_mean),
-        gimbal: s.gimbal.map_or(nan3, v),
-        accel_mean_clean: nan3,
-        truth: Instant {
-            t: s.t_us as f64 * 1e-6,
-            c_ps_n: Matrix3::repeat(f64::NAN),
-            c_c_n: Matrix3::repeat(f64::NAN),
-            accel_at_t: nan3,
-            gimbal: nan3,
-        },
     }
 }
 
@@ -350,10 +328,7 @@ impl Host {
             }
             Message::Configure(_) | Message::Reset => {
                 if self.session.calibrator().is_some() {
-                    eprintln!(
-                        "\nnote: {:?} mid-stream: restarting the calibrator",
-                        tag(&m)
-                    );
+                    eprintln!("\nnote: {} mid-stream: restarting the calibrator", tag(&m));
                 }
                 self.nis.clear();
                 self.failures.clear();
