@@ -435,7 +435,8 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         dt: T,
         motion: &Motion<T>,
         mut log: Option<&mut (dyn SampleLog<T> + '_)>,
-    ) -> Result<(), ekf::Error> {
+    ) -> Result<Vector3<T>, ekf::Error> {
+        let mut last = Vector3::zeros();
         match motion {
             Motion::Found { old, u_old, u_new } => {
                 for i in 0..gap {
@@ -443,8 +444,9 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
                     let inc = self.filter.command_frame().increment(u, dt);
                     self.filter.predict(&inc, dt)?;
                     self.append(log.as_deref_mut(), &LogRecord::predicted(dt, inc));
+                    last = inc;
                 }
-                Ok(())
+                Ok(last)
             }
             Motion::Unknown { start } => {
                 if gap > 0 {
@@ -454,11 +456,13 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
                     for _ in 0..gap {
                         let inc = self.filter.command_frame().increment(&u, dt);
                         self.filter.predict(&inc, dt)?;
+                        last = inc;
                     }
                 }
                 self.log_broken(SinglePassReason::Reacquired);
                 self.filter
-                    .reacquire_attitude(start, to_t(self.settings.prior_sigma_rad))
+                    .reacquire_attitude(start, to_t(self.settings.prior_sigma_rad))?;
+                Ok(last)
             }
         }
     }
@@ -522,14 +526,36 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
 
     /// [`Calibrator::push`], and the sample (and the periods bridged before
     /// it) appended to `log` for the final passes of
-    /// [`Calibrator::finish`]. A rejected sample is not logged. The caller
-    /// clears the log when it resets or reconfigures the calibrator.
+    /// [`Calibrator::finish`]. A rejected sample is not logged.
+    ///
+    /// The calibrator counts what it logged ([`Progress::logged`]) and
+    /// treats the log's first that many records as its own: a longer log
+    /// (after a reset, a new configuration, or a restore from a checkpoint
+    /// taken earlier) is truncated to them, so a log that survives a device
+    /// reset (FRAM) continues a restored calibration; a shorter one cannot
+    /// hold the run and makes the final answer pass 1 only
+    /// ([`SinglePassReason::LogMismatch`]).
     pub fn push_logged(
         &mut self,
         s: &Sample,
         log: &mut (dyn SampleLog<T> + '_),
     ) -> Result<Option<Estimate>, RejectReason> {
+        self.sync_log(log);
         self.push_inner(s, Some(log))
+    }
+
+    /// Takes `log` back to the records this calibrator logged (see
+    /// [`Calibrator::push_logged`]).
+    fn sync_log(&mut self, log: &mut (dyn SampleLog<T> + '_)) {
+        if self.progress.log_incomplete.is_some() {
+            return;
+        }
+        let logged = self.progress.logged as usize;
+        match log.len() {
+            n if n > logged => log.truncate(logged),
+            n if n < logged => self.log_broken(SinglePassReason::LogMismatch),
+            _ => {}
+        }
     }
 
     fn push_inner(
@@ -553,43 +579,54 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
             accel_mean: vec3_f32(&s.accel_mean),
             gimbal: s.gimbal.as_ref().map(vec3_f32),
         };
-        let motion = (gap > 0).then(|| self.motion_across(s, gap));
-        let saved = motion.is_some().then(|| self.filter.clone());
-        let logged_before = self.progress.logged;
-        let result = match &motion {
-            Some(m) => self.bridge(gap, dt, m, log.as_deref_mut()),
-            None => Ok(()),
+        if gap > 0 {
+            let motion = self.motion_across(s, gap);
+            let saved = self.filter.clone();
+            let logged_before = self.progress.logged;
+            match self.bridge(gap, dt, &motion, log.as_deref_mut()) {
+                Ok(last) => {
+                    // The bridged periods are consumed whatever the sample's
+                    // own period does: a refused sample leaves a gap of one
+                    // period, not one that grows with every refusal.
+                    let p = &mut self.progress;
+                    match motion {
+                        Motion::Found { .. } => p.bridged = p.bridged.saturating_add(gap),
+                        Motion::Unknown { .. } => {
+                            p.reacquired = p.reacquired.saturating_add(1);
+                            p.reacquired_periods = p.reacquired_periods.saturating_add(gap);
+                        }
+                    }
+                    if checked.reanchored {
+                        p.clock_steps = p.clock_steps.saturating_add(1);
+                    }
+                    p.clock_candidate = None;
+                    let dt_us = libm::round(f64::from(s.dt) * 1e6) as u64;
+                    p.last_seq = Some(s.seq - 1);
+                    p.last_t_us = Some(s.t_us.saturating_sub(dt_us));
+                    p.last_increment = [to_f64(last.x), to_f64(last.y), to_f64(last.z)];
+                }
+                Err(e) => {
+                    self.filter = saved;
+                    if self.progress.logged != logged_before {
+                        self.log_broken(SinglePassReason::FilterFailed);
+                    }
+                    return Err(self.reject(RejectReason::Filter(e)));
+                }
+            }
+        } else if checked.reanchored {
+            self.progress.clock_steps = self.progress.clock_steps.saturating_add(1);
         }
-        .and_then(|()| self.filter.step(&dtheta, dt, &obs));
-        let nis = match result {
+        // The filter leaves itself as it was when the step fails.
+        let nis = match self.filter.step(&dtheta, dt, &obs) {
             Ok(innovation) => Some(to_f64(innovation.nis)),
             Err(ekf::Error::Gated) => None,
-            Err(e) => {
-                if let Some(f) = saved {
-                    self.filter = f;
-                }
-                if self.progress.logged != logged_before {
-                    self.log_broken(SinglePassReason::FilterFailed);
-                }
-                return Err(self.reject(RejectReason::Filter(e)));
-            }
+            Err(e) => return Err(self.reject(RejectReason::Filter(e))),
         };
         self.append(log, &LogRecord::measured(dt, dtheta, obs));
         let p = &mut self.progress;
         match nis {
             Some(v) => p.last_nis = v,
             None => p.gated = p.gated.saturating_add(1),
-        }
-        match motion {
-            Some(Motion::Found { .. }) => p.bridged = p.bridged.saturating_add(gap),
-            Some(Motion::Unknown { .. }) => {
-                p.reacquired = p.reacquired.saturating_add(1);
-                p.reacquired_periods = p.reacquired_periods.saturating_add(gap);
-            }
-            None => {}
-        }
-        if checked.reanchored {
-            p.clock_steps = p.clock_steps.saturating_add(1);
         }
         p.clock_candidate = None;
         p.last_seq = Some(s.seq);
@@ -626,6 +663,9 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         observer: F,
     ) -> (Estimate, Option<Filter<T, M, N, Z>>) {
         let logged = self.progress.logged;
+        if log.len() > logged as usize && self.progress.log_incomplete.is_none() {
+            log.truncate(logged as usize);
+        }
         let single = |reason| EstimateKind::SinglePass { reason, logged };
         let reason = match self.progress.log_incomplete {
             Some(r) => Some(r),

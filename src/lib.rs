@@ -26,8 +26,15 @@
 //! - [`observability`]: information matrix, null space and Cramér–Rao
 //!   bound along a path (SPEC §5);
 //! - [`wire`]: the serial protocol (SPEC §7): messages, frames, decoder;
-//! - [`calibrator`]: the front end that validates samples, runs a filter,
-//!   emits estimates and checkpoints.
+//! - [`calibrator`]: the front end that validates samples, bridges lost data
+//!   along the commanded motion (or re-acquires the attitude), runs pass 1,
+//!   logs the run, answers `Finish` with the estimator of record, emits
+//!   estimates and checkpoints.
+//!
+//! - [`session`]: the protocol once: message → effect and reply, driven by
+//!   the firmware and by `host-sim calibrate`.
+//!
+//! [`with_config!`] is the one `ConfigId` → configuration-type dispatch.
 #![no_std]
 #![deny(missing_docs, unsafe_code)]
 #![cfg_attr(
@@ -48,6 +55,7 @@ pub mod geometry;
 pub mod instruments;
 pub mod models;
 pub mod observability;
+pub mod session;
 pub mod wire;
 
 pub use calibrator::{Calibrator, M1PaCalibrator, M2PsCalibrator, M4PaCalibrator, RejectReason};

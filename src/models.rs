@@ -134,6 +134,42 @@ pub enum ConfigId {
     M4Ps,
 }
 
+/// The one `ConfigId` → configuration-type dispatch: evaluates `body` with
+/// `M` the configuration's model type and `N`, `Z` its state and measurement
+/// dimensions as `const`s, for the configuration `id` names.
+///
+/// ```
+/// use rollcal::models::{ConfigId, Model};
+/// fn states<M: Model<N, Z>, const N: usize, const Z: usize>() -> usize {
+///     N
+/// }
+/// let n = rollcal::with_config!(ConfigId::M2Ps, |M, N, Z| states::<M, N, Z>());
+/// assert_eq!(n, 18);
+/// ```
+#[macro_export]
+macro_rules! with_config {
+    ($id:expr, |$m:ident, $n:ident, $z:ident| $body:expr) => {
+        match $id {
+            $crate::models::ConfigId::M1Pa => $crate::with_config!(@arm M1Pa, 12, 3, $m, $n, $z, $body),
+            $crate::models::ConfigId::M1Ps => $crate::with_config!(@arm M1Ps, 15, 3, $m, $n, $z, $body),
+            $crate::models::ConfigId::M2Ps => $crate::with_config!(@arm M2Ps, 18, 6, $m, $n, $z, $body),
+            $crate::models::ConfigId::M3Pa => $crate::with_config!(@arm M3Pa, 15, 3, $m, $n, $z, $body),
+            $crate::models::ConfigId::M3Ps => $crate::with_config!(@arm M3Ps, 18, 3, $m, $n, $z, $body),
+            $crate::models::ConfigId::M4Pa => $crate::with_config!(@arm M4Pa, 12, 3, $m, $n, $z, $body),
+            $crate::models::ConfigId::M4Ps => $crate::with_config!(@arm M4Ps, 15, 3, $m, $n, $z, $body),
+        }
+    };
+    (@arm $ty:ident, $nv:literal, $zv:literal, $m:ident, $n:ident, $z:ident, $body:expr) => {{
+        #[allow(non_camel_case_types, dead_code)]
+        type $m = $crate::models::$ty;
+        #[allow(non_upper_case_globals, dead_code)]
+        const $n: usize = $nv;
+        #[allow(non_upper_case_globals, dead_code)]
+        const $z: usize = $zv;
+        $body
+    }};
+}
+
 impl ConfigId {
     /// All seven, in SPEC order.
     pub const ALL: [ConfigId; 7] = [

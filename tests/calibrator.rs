@@ -521,3 +521,169 @@ fn estimates_come_at_the_cadence() {
     // Settings for another configuration are refused.
     assert!(M1PaCalibrator::<f64>::new(settings(&sc, ConfigId::M2Ps, 2)).is_err());
 }
+
+#[test]
+fn finish_is_the_estimator_of_record_over_the_log_or_says_why_not() {
+    use rollcal::estimator::{estimate, EstimatorOptions, LogRecord, SliceLog};
+    use rollcal::wire::{EstimateKind, SinglePassReason};
+    let (sc, data) = samples(400, 7);
+    let cfg = settings(&sc, ConfigId::M1Pa, 0);
+    let blank = LogRecord::predicted(1.0, nalgebra::Vector3::zeros());
+    // Complete log, with a lost sample and a bridged gap in it.
+    let mut storage = vec![blank; 400];
+    let mut log = SliceLog::new(&mut storage);
+    let mut cal = M1PaCalibrator::<f64>::new(cfg).unwrap();
+    for (i, s) in data.iter().enumerate() {
+        if i != 150 && !(200..210).contains(&i) {
+            cal.push_logged(s, &mut log).unwrap();
+        }
+    }
+    assert_eq!(cal.progress().logged, 400);
+    assert_eq!(cal.progress().log_incomplete, None);
+    let opts = EstimatorOptions::default();
+    let (fin, filter) = cal.finish(&mut log, &opts, |_| {});
+    let EstimateKind::Final { passes, .. } = fin.kind else {
+        panic!("{:?}", fin.kind)
+    };
+    assert!(passes >= 2);
+    // The very estimator of record, run by hand over the same log.
+    let fc = filter_config(&sc, true, Options::default());
+    let s0 = nalgebra::SVector::<f64, 12>::repeat(cfg.prior_sigma_rad);
+    let by_hand = estimate::<f64, rollcal::models::M1Pa, 12, 3, _, _>(
+        &fc,
+        &nalgebra::SVector::zeros(),
+        &s0,
+        &mut log,
+        &opts,
+        |_| {},
+    )
+    .unwrap();
+    assert_eq!(filter.unwrap().state(), by_hand.filter.state());
+    assert_eq!(fin.state.as_slice(), by_hand.filter.state().as_slice());
+    // The running estimate is still there, and pass 1 differs from the answer.
+    assert_eq!(cal.estimate().kind, EstimateKind::Running);
+    // Without a log, a full log, a mismatched log: pass 1, with the reason.
+    let mut unlogged = M1PaCalibrator::<f64>::new(cfg).unwrap();
+    for s in &data {
+        unlogged.push(s).unwrap();
+    }
+    let mut empty_storage = vec![blank; 1];
+    let mut empty = SliceLog::new(&mut empty_storage);
+    let (e, f) = unlogged.finish(&mut empty, &opts, |_| {});
+    assert_eq!(
+        e.kind,
+        EstimateKind::SinglePass {
+            reason: SinglePassReason::NoLog,
+            logged: 0
+        }
+    );
+    assert!(f.is_none());
+    assert_eq!(e.state, unlogged.estimate().state);
+    let mut small_storage = vec![blank; 100];
+    let mut small = SliceLog::new(&mut small_storage);
+    let mut cal = M1PaCalibrator::<f64>::new(cfg).unwrap();
+    for s in &data {
+        cal.push_logged(s, &mut small).unwrap();
+    }
+    let (e, _) = cal.finish(&mut small, &opts, |_| {});
+    assert_eq!(
+        e.kind,
+        EstimateKind::SinglePass {
+            reason: SinglePassReason::LogFull,
+            logged: 100
+        }
+    );
+    let mut other_storage = vec![blank; 400];
+    let mut other = SliceLog::new(&mut other_storage);
+    let mut cal = M1PaCalibrator::<f64>::new(cfg).unwrap();
+    for s in &data[..10] {
+        cal.push_logged(s, &mut other).unwrap();
+    }
+    let restored = M1PaCalibrator::<f64>::restore(cfg, &cal.checkpoint()).unwrap();
+    let mut fresh_storage = vec![blank; 400];
+    let mut fresh = SliceLog::new(&mut fresh_storage);
+    let (e, _) = restored.finish(&mut fresh, &opts, |_| {});
+    assert_eq!(
+        e.kind,
+        EstimateKind::SinglePass {
+            reason: SinglePassReason::LogMismatch,
+            logged: 10
+        }
+    );
+}
+
+#[test]
+fn the_session_checkpoints_resets_restores_and_finishes_as_if_uninterrupted() {
+    use rollcal::estimator::{EstimatorOptions, LogRecord, SliceLog};
+    use rollcal::session::{Reply, Session, SessionError};
+    use rollcal::wire::EstimateKind;
+    let (sc, data) = samples(300, 8);
+    let cfg = settings(&sc, ConfigId::M2Ps, 0);
+    let blank = LogRecord::predicted(1.0, nalgebra::Vector3::zeros());
+    let run = |interrupt: bool| {
+        let mut storage = vec![blank; 300];
+        let mut log = SliceLog::new(&mut storage);
+        let mut session = Session::<f64>::new(Some(ConfigId::M2Ps), EstimatorOptions::default());
+        // Samples before Configure are counted and dropped.
+        let early = session.handle(&Message::Sample(data[0]), &mut log);
+        assert_eq!(early, Reply::Error(SessionError::NotConfigured));
+        assert_eq!(
+            session.handle(&Message::Configure(cfg), &mut log),
+            Reply::Nothing
+        );
+        let mut saved = None;
+        for (i, s) in data.iter().enumerate() {
+            if interrupt && i == 120 {
+                let Reply::Send(Message::Checkpoint(cp)) =
+                    session.handle(&Message::CheckpointRequest, &mut log)
+                else {
+                    panic!("no checkpoint")
+                };
+                saved = Some(cp);
+            }
+            if interrupt && i == 180 {
+                // A reset loses everything since; the restore brings back the
+                // state of sample 120, and the log is taken back with it.
+                assert_eq!(session.handle(&Message::Reset, &mut log), Reply::Nothing);
+                let cp = over_the_wire(saved.take().unwrap());
+                assert_eq!(
+                    session.handle(&Message::Checkpoint(cp), &mut log),
+                    Reply::Nothing
+                );
+                for s in &data[120..180] {
+                    session.handle(&Message::Sample(*s), &mut log);
+                }
+            }
+            assert!(!matches!(
+                session.handle(&Message::Sample(*s), &mut log),
+                Reply::Error(_) | Reply::Rejected(_)
+            ));
+        }
+        let Reply::Send(Message::Estimate(fin)) = session.handle(&Message::Finish, &mut log) else {
+            panic!("no final estimate")
+        };
+        (fin, session.stats().unconfigured)
+    };
+    let (plain, unconfigured) = run(false);
+    let (interrupted, _) = run(true);
+    assert_eq!(unconfigured, 1);
+    assert!(
+        matches!(plain.kind, EstimateKind::Final { .. }),
+        "{:?}",
+        plain.kind
+    );
+    assert_eq!(plain.state, interrupted.state);
+    assert_eq!(plain.sigma, interrupted.sigma);
+    assert_eq!(plain.kind, interrupted.kind);
+    // A Configure for another configuration than the session runs is refused.
+    let mut storage = vec![blank; 1];
+    let mut log = SliceLog::new(&mut storage);
+    let mut session = Session::<f64>::new(Some(ConfigId::M1Pa), EstimatorOptions::default());
+    assert_eq!(
+        session.handle(&Message::Configure(cfg), &mut log),
+        Reply::Error(SessionError::ConfigMismatch {
+            expected: ConfigId::M1Pa,
+            found: ConfigId::M2Ps
+        })
+    );
+}

@@ -693,6 +693,9 @@ impl SampleLog<f64> for Flaky {
     fn len(&self) -> usize {
         self.records.len()
     }
+    fn truncate(&mut self, len: usize) {
+        self.records.truncate(len);
+    }
     fn get(&mut self, k: usize) -> Option<LogRecord<f64>> {
         (k != self.bad)
             .then(|| self.records.get(k).copied())

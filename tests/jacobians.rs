@@ -34,10 +34,7 @@ use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use rollcal::command::{CommandFrame, Period};
 use rollcal::ekf::{Filter, FilterConfig, Options};
 use rollcal::geometry::{dcm, earth_rate_n, EARTH_RATE};
-use rollcal::models::{
-    AttitudeKind, ConfigId, Environment, Layout, M1Pa, M1Ps, M2Ps, M3Pa, M3Ps, M4Pa, M4Ps, Model,
-    PeriodPropagation,
-};
+use rollcal::models::{AttitudeKind, ConfigId, Environment, Layout, Model, PeriodPropagation};
 
 const DEG: f64 = PI / 180.0;
 /// Finite-difference step (rad), see the module docs.
@@ -257,16 +254,7 @@ fn check<M: Model<N, Z>, const N: usize, const Z: usize>() -> Report {
 }
 
 fn run(id: ConfigId) -> Report {
-    // Exhaustive: a new configuration must be added here.
-    let report = match id {
-        ConfigId::M1Pa => check::<M1Pa, 12, 3>(),
-        ConfigId::M1Ps => check::<M1Ps, 15, 3>(),
-        ConfigId::M2Ps => check::<M2Ps, 18, 6>(),
-        ConfigId::M3Pa => check::<M3Pa, 15, 3>(),
-        ConfigId::M3Ps => check::<M3Ps, 18, 3>(),
-        ConfigId::M4Pa => check::<M4Pa, 12, 3>(),
-        ConfigId::M4Ps => check::<M4Ps, 15, 3>(),
-    };
+    let report = rollcal::with_config!(id, |M, N, Z| check::<M, N, Z>());
     assert_eq!(report.id, id);
     report
 }

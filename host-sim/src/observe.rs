@@ -207,16 +207,13 @@ pub fn analyse(
     earth_rate: bool,
     keep_history: bool,
 ) -> Result<ConfigObs, ekf::Error> {
-    use rollcal::models::*;
-    match id {
-        ConfigId::M1Pa => analyse_typed::<M1Pa, 12, 3>(id, scenario, sim, earth_rate, keep_history),
-        ConfigId::M1Ps => analyse_typed::<M1Ps, 15, 3>(id, scenario, sim, earth_rate, keep_history),
-        ConfigId::M2Ps => analyse_typed::<M2Ps, 18, 6>(id, scenario, sim, earth_rate, keep_history),
-        ConfigId::M3Pa => analyse_typed::<M3Pa, 15, 3>(id, scenario, sim, earth_rate, keep_history),
-        ConfigId::M3Ps => analyse_typed::<M3Ps, 18, 3>(id, scenario, sim, earth_rate, keep_history),
-        ConfigId::M4Pa => analyse_typed::<M4Pa, 12, 3>(id, scenario, sim, earth_rate, keep_history),
-        ConfigId::M4Ps => analyse_typed::<M4Ps, 15, 3>(id, scenario, sim, earth_rate, keep_history),
-    }
+    rollcal::with_config!(id, |M, N, Z| analyse_typed::<M, N, Z>(
+        id,
+        scenario,
+        sim,
+        earth_rate,
+        keep_history
+    ))
 }
 
 /// The JSON document of `host-sim observability` (an interface: keep the

@@ -106,16 +106,7 @@ pub fn new_filter(
     x0: &[f64],
     sigma0: f64,
 ) -> Result<Box<dyn DynFilter>, ekf::Error> {
-    use rollcal::models::*;
-    match id {
-        ConfigId::M1Pa => make::<M1Pa, 12, 3>(cfg, x0, sigma0),
-        ConfigId::M1Ps => make::<M1Ps, 15, 3>(cfg, x0, sigma0),
-        ConfigId::M2Ps => make::<M2Ps, 18, 6>(cfg, x0, sigma0),
-        ConfigId::M3Pa => make::<M3Pa, 15, 3>(cfg, x0, sigma0),
-        ConfigId::M3Ps => make::<M3Ps, 18, 3>(cfg, x0, sigma0),
-        ConfigId::M4Pa => make::<M4Pa, 12, 3>(cfg, x0, sigma0),
-        ConfigId::M4Ps => make::<M4Ps, 15, 3>(cfg, x0, sigma0),
-    }
+    rollcal::with_config!(id, |M, N, Z| make::<M, N, Z>(cfg, x0, sigma0))
 }
 
 /// One state at the end of a run.
@@ -264,7 +255,6 @@ pub fn run_passes(
     x0: &[f64],
     keep_history: bool,
 ) -> Result<Passes, ekf::Error> {
-    use rollcal::models::*;
     let mut storage: Vec<LogRecord<f64>> = samples.iter().map(log_record).collect();
     let mut log = SliceLog::from_records(&mut storage);
     let options = EstimatorOptions {
@@ -272,15 +262,9 @@ pub fn run_passes(
         ..EstimatorOptions::default()
     };
     let (l, o, h) = (&mut log, &options, keep_history);
-    let out = match id {
-        ConfigId::M1Pa => passes_of::<M1Pa, 12, 3>(cfg, sigma0, samples, l, o, x0, h),
-        ConfigId::M1Ps => passes_of::<M1Ps, 15, 3>(cfg, sigma0, samples, l, o, x0, h),
-        ConfigId::M2Ps => passes_of::<M2Ps, 18, 6>(cfg, sigma0, samples, l, o, x0, h),
-        ConfigId::M3Pa => passes_of::<M3Pa, 15, 3>(cfg, sigma0, samples, l, o, x0, h),
-        ConfigId::M3Ps => passes_of::<M3Ps, 18, 3>(cfg, sigma0, samples, l, o, x0, h),
-        ConfigId::M4Pa => passes_of::<M4Pa, 12, 3>(cfg, sigma0, samples, l, o, x0, h),
-        ConfigId::M4Ps => passes_of::<M4Ps, 15, 3>(cfg, sigma0, samples, l, o, x0, h),
-    };
+    let out = rollcal::with_config!(id, |M, N, Z| passes_of::<M, N, Z>(
+        cfg, sigma0, samples, l, o, x0, h
+    ));
     out.map_err(|e| match e {
         EstimatorError::Filter(e) => e,
         EstimatorError::BackPropagation { .. } => ekf::Error::GimbalLock,

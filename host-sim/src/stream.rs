@@ -21,20 +21,21 @@ use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant as Clock};
 
-use nalgebra::{Matrix3, Vector3};
-use rollcal::calibrator::{self, Calibrator, RejectReason};
+use nalgebra::Vector3;
+use rollcal::calibrator::RejectReason;
 use rollcal::ekf::{self, FilterConfig, Options};
 use rollcal::estimator::{EstimatorOptions, LogError, LogRecord, SampleLog};
 use rollcal::models::{ConfigId, Environment, Model};
+use rollcal::session::{Reply, Session};
 use rollcal::wire::{
-    encode, CalibratorConfig, Checkpoint, DecoderStats, Estimate, EstimateKind, FrameDecoder,
-    Message, Sample, MAX_FRAME_LEN,
+    encode, CalibratorConfig, DecoderStats, Estimate, EstimateKind, FrameDecoder, Message, Sample,
+    MAX_FRAME_LEN,
 };
 
 use crate::report::{print_table, run_json, write_json};
 use crate::runner::{self, Passes, RunResult};
 use crate::scenario::{Scenario, DEG};
-use crate::truth::{simulate, truth_state, Instant, PeriodSample, SimOptions};
+use crate::truth::{simulate, truth_state, PeriodSample, SimOptions};
 
 /// Arguments of `host-sim record`.
 #[derive(clap::Args, Clone, Debug)]
@@ -152,28 +153,6 @@ pub fn to_sample(s: &PeriodSample) -> Sample {
     }
 }
 
-/// A received sample as the runner's input (f32 → f64 exactly); the truth
-/// fields are unknown (NaN) except the time.
-pub fn to_period_sample(s: &Sample) -> PeriodSample {
-    let v = |a: [f32; 3]| Vector3::new(f64::from(a[0]), f64::from(a[1]), f64::from(a[2]));
-    let nan3 = Vector3::repeat(f64::NAN);
-    PeriodSample {
-        k: s.seq,
-        dt: f64::from(s.dt),
-        dtheta_cmd: v(s.dtheta_cmd),
-        accel_mean: v(s.accel_mean),
-        gimbal: s.gimbal.map_or(nan3, v),
-        accel_mean_clean: nan3,
-        truth: Instant {
-            t: s.t_us as f64 * 1e-6,
-            c_ps_n: Matrix3::repeat(f64::NAN),
-            c_c_n: Matrix3::repeat(f64::NAN),
-            accel_at_t: nan3,
-            gimbal: nan3,
-        },
-    }
-}
-
 /// Appends the frame of `m` to `out`.
 pub fn push_frame(out: &mut Vec<u8>, m: &Message) -> Result<(), String> {
     let mut buf = [0u8; MAX_FRAME_LEN];
@@ -274,44 +253,33 @@ impl SampleLog<f64> for VecLog {
     fn len(&self) -> usize {
         self.0.len()
     }
+    fn truncate(&mut self, len: usize) {
+        self.0.truncate(len);
+    }
     fn get(&mut self, k: usize) -> Option<LogRecord<f64>> {
         self.0.get(k).copied()
     }
 }
 
-/// The final answer of [`DynCalibrator::finish`].
+/// The final answer of the session's calibrator.
 struct Final {
     estimate: Estimate,
-    /// Row-major covariance of the final filter, when the passes ran.
-    covariance: Option<Vec<f64>>,
     /// NIS of every update of the last pass.
     nis: Vec<f64>,
-    /// Failed updates of the last pass (record index, error).
-    failures: Vec<(u32, ekf::Error)>,
 }
 
-/// Object-safe view of an f64 calibrator of any configuration.
-trait DynCalibrator {
-    fn push(&mut self, s: &Sample, log: &mut VecLog) -> Result<Option<Estimate>, RejectReason>;
-    fn finish(&self, log: &mut VecLog, passes: u8) -> Final;
-    /// σ of the filter linearised at the truth (initial state `truth0`) over
-    /// the logged records: the Cramér–Rao bound of the samples received.
-    fn bound(&self, log: &VecLog, truth0: &[f64]) -> Result<Vec<f64>, ekf::Error>;
-    fn estimate(&self) -> Estimate;
-    fn checkpoint(&self) -> Checkpoint;
-    fn reset(&mut self) -> Result<(), calibrator::Error>;
-    fn restore(&mut self, cp: &Checkpoint) -> Result<(), calibrator::Error>;
-    fn set_frame_errors(&mut self, n: u32);
-}
-
-impl<M: Model<N, Z> + Clone, const N: usize, const Z: usize> DynCalibrator
-    for Calibrator<f64, M, N, Z>
-{
-    fn push(&mut self, s: &Sample, log: &mut VecLog) -> Result<Option<Estimate>, RejectReason> {
-        Calibrator::push_logged(self, s, log)
-    }
-    fn bound(&self, log: &VecLog, truth0: &[f64]) -> Result<Vec<f64>, ekf::Error> {
-        let settings = self.settings();
+/// σ of the filter linearised at the truth (initial state `truth0`) over
+/// the logged records: the Cramér–Rao bound of the samples received.
+fn received_bound(
+    settings: &CalibratorConfig,
+    log: &VecLog,
+    truth0: &[f64],
+) -> Result<Vec<f64>, ekf::Error> {
+    fn typed<M: Model<N, Z>, const N: usize, const Z: usize>(
+        settings: &CalibratorConfig,
+        log: &VecLog,
+        truth0: &[f64],
+    ) -> Result<Vec<f64>, ekf::Error> {
         let mut cfg = filter_config(settings);
         cfg.options = Options::plain();
         let x0 = nalgebra::SVector::<f64, N>::from_iterator(
@@ -328,145 +296,87 @@ impl<M: Model<N, Z> + Clone, const N: usize, const Z: usize> DynCalibrator
         }
         Ok(f.sigma().iter().copied().collect())
     }
-    fn finish(&self, log: &mut VecLog, passes: u8) -> Final {
-        let opts = EstimatorOptions {
-            max_passes: passes,
-            ..EstimatorOptions::default()
-        };
-        let (mut nis, mut failures, mut pass) = (Vec::new(), Vec::new(), 0);
-        let (estimate, filter) = Calibrator::finish(self, log, &opts, |e| {
-            if e.pass != pass {
-                (pass, nis, failures) = (e.pass, Vec::new(), Vec::new());
-            }
-            match &e.result {
-                Ok(Some(i)) => nis.push(i.nis),
-                Ok(None) => {}
-                Err(err) => failures.push((e.index as u32, *err)),
-            }
-        });
-        Final {
-            estimate,
-            covariance: filter.map(|f| f.covariance().transpose().iter().copied().collect()),
-            nis,
-            failures,
-        }
-    }
-    fn estimate(&self) -> Estimate {
-        Calibrator::estimate(self)
-    }
-    fn checkpoint(&self) -> Checkpoint {
-        Calibrator::checkpoint(self)
-    }
-    fn reset(&mut self) -> Result<(), calibrator::Error> {
-        Calibrator::reset(self)
-    }
-    fn restore(&mut self, cp: &Checkpoint) -> Result<(), calibrator::Error> {
-        *self = Calibrator::restore(*self.settings(), cp)?;
-        Ok(())
-    }
-    fn set_frame_errors(&mut self, n: u32) {
-        Calibrator::set_frame_errors(self, n);
-    }
+    rollcal::with_config!(settings.config, |M, N, Z| typed::<M, N, Z>(
+        settings, log, truth0
+    ))
 }
 
-fn new_calibrator(c: CalibratorConfig) -> Result<Box<dyn DynCalibrator>, calibrator::Error> {
-    use rollcal::models::*;
-    fn make<M: Model<N, Z> + Clone + 'static, const N: usize, const Z: usize>(
-        c: CalibratorConfig,
-    ) -> Result<Box<dyn DynCalibrator>, calibrator::Error> {
-        Ok(Box::new(Calibrator::<f64, M, N, Z>::new(c)?))
-    }
-    match c.config {
-        ConfigId::M1Pa => make::<M1Pa, 12, 3>(c),
-        ConfigId::M1Ps => make::<M1Ps, 15, 3>(c),
-        ConfigId::M2Ps => make::<M2Ps, 18, 6>(c),
-        ConfigId::M3Pa => make::<M3Pa, 15, 3>(c),
-        ConfigId::M3Ps => make::<M3Ps, 18, 3>(c),
-        ConfigId::M4Pa => make::<M4Pa, 12, 3>(c),
-        ConfigId::M4Ps => make::<M4Ps, 15, 3>(c),
-    }
-}
-
-/// The calibrator and what it was fed.
-struct Session {
-    config: ConfigId,
+/// The no_std session (the protocol, once) with the host's log and records
+/// for the report.
+struct Host {
+    session: Session<f64>,
+    /// Settings for a stream without a `Configure` message (`--scenario`).
     fallback: CalibratorConfig,
-    settings: Option<CalibratorConfig>,
-    cal: Option<Box<dyn DynCalibrator>>,
     /// The sample log since the last (re)start, for the final passes.
     log: VecLog,
     /// NIS of every accepted update since the last (re)start.
     nis: Vec<f64>,
     /// Filter failures (sequence number, error).
     failures: Vec<(u32, ekf::Error)>,
-    other_messages: u32,
-    restarts: u32,
 }
 
-impl Session {
-    fn start(&mut self, settings: CalibratorConfig) -> Result<(), String> {
-        let cal = new_calibrator(settings).map_err(|e| format!("calibrator: {e}"))?;
-        self.settings = Some(settings);
-        self.cal = Some(cal);
-        self.log.0.clear();
-        self.nis.clear();
-        self.failures.clear();
+impl Host {
+    fn handle(&mut self, m: Message) -> Result<(), String> {
+        match &m {
+            Message::Sample(_) if self.session.calibrator().is_none() => {
+                eprintln!(
+                    "note: the stream has no Configure message; using the scenario's settings"
+                );
+                self.session
+                    .configure(self.fallback)
+                    .map_err(|e| format!("calibrator: {e}"))?;
+            }
+            Message::Configure(_) | Message::Reset => {
+                if self.session.calibrator().is_some() {
+                    eprintln!("\nnote: {} mid-stream: restarting the calibrator", tag(&m));
+                }
+                self.nis.clear();
+                self.failures.clear();
+            }
+            _ => {}
+        }
+        match self.session.handle(&m, &mut self.log) {
+            Reply::Error(e) => return Err(format!("{e}")),
+            Reply::Rejected(RejectReason::Filter(e)) => {
+                if let Message::Sample(s) = &m {
+                    self.failures.push((s.seq, e));
+                }
+            }
+            Reply::Nothing | Reply::Send(_) | Reply::Rejected(_) => {
+                if let (Message::Sample(s), Some(cal)) = (&m, self.session.calibrator()) {
+                    if cal.progress().last_seq == Some(s.seq) {
+                        self.nis.push(cal.progress().last_nis);
+                    }
+                }
+            }
+        }
         Ok(())
     }
 
-    fn handle(&mut self, m: Message) -> Result<(), String> {
-        match m {
-            Message::Configure(mut c) => {
-                if c.config != self.config {
-                    eprintln!(
-                        "\nnote: the stream configures {}, running {} (--config)",
-                        c.config, self.config
-                    );
-                    c.config = self.config;
-                }
-                if self.cal.is_some() {
-                    eprintln!("\nnote: Configure mid-stream: restarting the calibrator");
-                    self.restarts += 1;
-                }
-                self.start(c)?;
+    fn finish(&mut self, passes: u8) -> Option<Final> {
+        let opts = EstimatorOptions {
+            max_passes: passes,
+            ..EstimatorOptions::default()
+        };
+        let cal = self.session.calibrator()?;
+        let (mut nis, mut pass) = (Vec::new(), 0);
+        let estimate = cal.finish(&mut self.log, &opts, &mut |p, v| {
+            if p != pass {
+                (pass, nis) = (p, Vec::new());
             }
-            Message::Sample(s) => {
-                if self.cal.is_none() {
-                    eprintln!(
-                        "note: the stream has no Configure message; using the scenario's settings"
-                    );
-                    self.start(self.fallback)?;
-                }
-                let Some(cal) = self.cal.as_mut() else {
-                    return Ok(());
-                };
-                match cal.push(&s, &mut self.log) {
-                    Ok(_) => self.nis.push(cal.estimate().progress.last_nis),
-                    Err(RejectReason::Filter(e)) => self.failures.push((s.seq, e)),
-                    Err(_) => {}
-                }
+            if let Some(v) = v {
+                nis.push(v);
             }
-            Message::Reset => {
-                if let Some(cal) = self.cal.as_mut() {
-                    cal.reset().map_err(|e| format!("reset: {e}"))?;
-                }
-                self.log.0.clear();
-                self.nis.clear();
-                self.failures.clear();
-                self.restarts += 1;
-            }
-            Message::Checkpoint(cp) => {
-                if self.cal.is_none() {
-                    self.start(self.fallback)?;
-                }
-                if let Some(cal) = self.cal.as_mut() {
-                    cal.restore(&cp)
-                        .map_err(|e| format!("restore from checkpoint: {e}"))?;
-                }
-            }
-            _ => self.other_messages += 1,
-        }
-        Ok(())
+        });
+        Some(Final { estimate, nis })
+    }
+}
+
+fn tag(m: &Message) -> &'static str {
+    match m {
+        Message::Configure(_) => "Configure",
+        Message::Reset => "Reset",
+        _ => "message",
     }
 }
 
@@ -573,16 +483,12 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
     let t0 = Clock::now();
     let id = args.config;
     let sc = load_scenario(args.scenario.as_deref())?;
-    let mut session = Session {
-        config: id,
+    let mut host = Host {
+        session: Session::new(Some(id), EstimatorOptions::default()),
         fallback: calibrator_config(&sc, id, sc.site.earth_rate),
-        settings: None,
-        cal: None,
         log: VecLog::default(),
         nis: Vec::new(),
         failures: Vec::new(),
-        other_messages: 0,
-        restarts: 0,
     };
     let mut decoder = FrameDecoder::new();
     let mut shown = 0usize;
@@ -592,10 +498,10 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
         let mut result = Ok(());
         decoder.feed(bytes, |m| {
             if result.is_ok() {
-                result = session.handle(m);
+                result = host.handle(m);
             }
         });
-        let progress = session.cal.as_ref().map(|c| c.estimate().progress);
+        let progress = host.session.calibrator().map(|c| *c.progress());
         let accepted = progress.map_or(0, |p| p.accepted as usize);
         if accepted >= shown + 500 {
             shown = accepted;
@@ -621,7 +527,7 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
             decoder.pending()
         );
     }
-    let (Some(cal), Some(settings)) = (session.cal.as_mut(), session.settings) else {
+    let Some(cal) = host.session.calibrator_mut() else {
         return Err(format!(
             "no samples in the stream ({} frames decoded, {} rejected)",
             stats.ok,
@@ -629,8 +535,8 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
         ));
     };
     cal.set_frame_errors(stats.errors());
+    let settings = *cal.settings();
     let est = cal.estimate();
-    let cp = cal.checkpoint();
     let p = est.progress;
     if p.accepted == 0 {
         return Err(format!(
@@ -650,7 +556,7 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
         p.log_incomplete,
     ) {
         (Some(t0), None) => Some(
-            cal.bound(&session.log, t0)
+            received_bound(&settings, &host.log, t0)
                 .map_err(|e| format!("Cramér–Rao bound of the received samples: {e}"))?,
         ),
         _ => None,
@@ -661,36 +567,35 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
         .unwrap_or(&nan);
     // The final answer: the calibrator's own estimator of record over its
     // log (pass 1 alone with --passes 1, or when the log is incomplete).
-    let fin = (args.passes > 1).then(|| cal.finish(&mut session.log, args.passes));
+    let fin = if args.passes > 1 {
+        host.finish(args.passes)
+    } else {
+        None
+    };
     if let Some(EstimateKind::SinglePass { reason, .. }) = fin.as_ref().map(|f| f.estimate.kind) {
         eprintln!("note: {reason}: the final answer is the calibrator's pass 1");
     }
-    let (state, sigma, covariance, nis, failures, passes) = match &fin {
-        Some(Final {
-            estimate,
-            covariance: Some(c),
-            nis,
-            failures,
-        }) => {
+    let (state, sigma, nis, failures, passes) = match &fin {
+        Some(Final { estimate, nis }) if matches!(estimate.kind, EstimateKind::Final { .. }) => {
             let passes = match estimate.kind {
                 EstimateKind::Final { passes, .. } => passes,
                 _ => 1,
             };
+            // Failures of the last pass are counted in the estimate's report,
+            // not listed; the table shows the pass-1 failures.
             (
                 &estimate.state,
                 &estimate.sigma,
-                c.clone(),
                 nis.clone(),
-                failures.clone(),
+                host.failures.clone(),
                 passes,
             )
         }
         _ => (
             &est.state,
             &est.sigma,
-            cp.covariance.to_vec(),
-            session.nis.clone(),
-            session.failures.clone(),
+            host.nis.clone(),
+            host.failures.clone(),
             1,
         ),
     };
@@ -700,7 +605,7 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
             filter: Box::new(CalibratorView {
                 state: state.to_vec(),
                 sigma: sigma.to_vec(),
-                covariance,
+                covariance: Vec::new(),
             }),
             history: Vec::new(),
             nis,
@@ -778,8 +683,8 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
             "reacquired": p.reacquired,
             "reacquired_periods": p.reacquired_periods,
             "clock_steps": p.clock_steps,
-            "restarts": session.restarts,
-            "other_messages": session.other_messages,
+            "restarts": host.session.stats().restarts,
+            "other_messages": host.session.stats().ignored,
         });
         write_json(path, &json)?;
     }

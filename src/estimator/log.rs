@@ -112,6 +112,10 @@
 //!         self.len
 //!     }
 //!
+//!     fn truncate(&mut self, len: usize) {
+//!         self.len = self.len.min(len);
+//!     }
+//!
 //!     fn get(&mut self, k: usize) -> Option<LogRecord<f32>> {
 //!         if k >= self.len {
 //!             return None;
@@ -249,6 +253,11 @@ pub trait SampleLog<T: RealField + Copy> {
     /// `k ≥ len()` or the storage cannot return it. `&mut self` because a
     /// device read (SPI, I²C) needs exclusive access to the bus driver.
     fn get(&mut self, k: usize) -> Option<LogRecord<T>>;
+
+    /// Forgets every record from number `len` on (nothing when `len ≥
+    /// len()`): a reset or a new configuration empties the log, a restore
+    /// from a checkpoint takes it back to the records the checkpoint counted.
+    fn truncate(&mut self, len: usize);
 }
 
 /// A [`SampleLog`] over a caller's slice of records in RAM: fills the slice
@@ -315,6 +324,10 @@ impl<T: RealField + Copy> SampleLog<T> for SliceLog<'_, T> {
 
     fn len(&self) -> usize {
         self.len
+    }
+
+    fn truncate(&mut self, len: usize) {
+        self.len = self.len.min(len);
     }
 
     fn get(&mut self, k: usize) -> Option<LogRecord<T>> {

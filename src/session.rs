@@ -1,0 +1,326 @@
+//! The protocol, once: every [`Message`] a calibrator receives, turned into
+//! what it does and what it sends back. The firmware and `host-sim
+//! calibrate` both drive this one implementation (docs/wire.md).
+//!
+//! | message | effect | reply |
+//! |---|---|---|
+//! | `Configure` | a new calibrator of the named configuration, from the prior (its first sample empties the log) | — |
+//! | `Sample` | one period ([`Calibrator::push_logged`]) | an `Estimate` at the configured cadence |
+//! | `EstimateRequest` | — | the running `Estimate` |
+//! | `Finish` | the final passes over the log ([`Calibrator::finish`]) | the final `Estimate` |
+//! | `CheckpointRequest` | — | a `Checkpoint` |
+//! | `Checkpoint` | restore from it; the log is taken back to the records it counted (a log that survived a device reset continues) | — |
+//! | `Reset` | restart from the prior (its first sample empties the log) | — |
+//! | `Estimate` | ignored (a calibrator's own output) | — |
+//!
+//! A `Sample` before any `Configure` cannot be processed: it is counted in
+//! [`SessionStats::unconfigured`] (the host may [`Session::configure`] with
+//! settings of its own first).
+
+use nalgebra::RealField;
+
+use crate::calibrator::{self, Calibrator, RejectReason};
+use crate::estimator::{EstimatorOptions, SampleLog};
+use crate::models::{ConfigId, M1Pa, M1Ps, M2Ps, M3Pa, M3Ps, M4Pa, M4Ps};
+use crate::wire::{CalibratorConfig, Checkpoint, Estimate, Message, Progress};
+
+/// A calibrator of any of the seven configurations (the value-level side of
+/// [`crate::with_config!`]).
+// The variants differ in size by their covariance; no heap to box them.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug, PartialEq)]
+pub enum AnyCalibrator<T: RealField + Copy> {
+    /// M1-pa.
+    M1Pa(Calibrator<T, M1Pa, 12, 3>),
+    /// M1-ps.
+    M1Ps(Calibrator<T, M1Ps, 15, 3>),
+    /// M2-ps.
+    M2Ps(Calibrator<T, M2Ps, 18, 6>),
+    /// M3-pa.
+    M3Pa(Calibrator<T, M3Pa, 15, 3>),
+    /// M3-ps.
+    M3Ps(Calibrator<T, M3Ps, 18, 3>),
+    /// M4-pa.
+    M4Pa(Calibrator<T, M4Pa, 12, 3>),
+    /// M4-ps.
+    M4Ps(Calibrator<T, M4Ps, 15, 3>),
+}
+
+macro_rules! each {
+    ($any:expr, $c:ident => $body:expr) => {
+        match $any {
+            AnyCalibrator::M1Pa($c) => $body,
+            AnyCalibrator::M1Ps($c) => $body,
+            AnyCalibrator::M2Ps($c) => $body,
+            AnyCalibrator::M3Pa($c) => $body,
+            AnyCalibrator::M3Ps($c) => $body,
+            AnyCalibrator::M4Pa($c) => $body,
+            AnyCalibrator::M4Ps($c) => $body,
+        }
+    };
+}
+
+impl<T: RealField + Copy> AnyCalibrator<T> {
+    /// A calibrator of `settings.config` at the prior.
+    pub fn new(settings: CalibratorConfig) -> Result<Self, calibrator::Error> {
+        Ok(match settings.config {
+            ConfigId::M1Pa => Self::M1Pa(Calibrator::new(settings)?),
+            ConfigId::M1Ps => Self::M1Ps(Calibrator::new(settings)?),
+            ConfigId::M2Ps => Self::M2Ps(Calibrator::new(settings)?),
+            ConfigId::M3Pa => Self::M3Pa(Calibrator::new(settings)?),
+            ConfigId::M3Ps => Self::M3Ps(Calibrator::new(settings)?),
+            ConfigId::M4Pa => Self::M4Pa(Calibrator::new(settings)?),
+            ConfigId::M4Ps => Self::M4Ps(Calibrator::new(settings)?),
+        })
+    }
+
+    /// The calibrator's settings.
+    pub fn settings(&self) -> &CalibratorConfig {
+        each!(self, c => c.settings())
+    }
+
+    /// Its bookkeeping.
+    pub fn progress(&self) -> &Progress {
+        each!(self, c => c.progress())
+    }
+
+    /// [`Calibrator::push_logged`].
+    pub fn push_logged(
+        &mut self,
+        s: &crate::wire::Sample,
+        log: &mut (dyn SampleLog<T> + '_),
+    ) -> Result<Option<Estimate>, RejectReason> {
+        each!(self, c => c.push_logged(s, log))
+    }
+
+    /// [`Calibrator::estimate`] (running).
+    pub fn estimate(&self) -> Estimate {
+        each!(self, c => c.estimate())
+    }
+
+    /// [`Calibrator::finish`] (the final answer); `on_update(pass, nis)` is
+    /// called for every update of every pass (`nis` `None` for a period
+    /// without measurement, or a refused update).
+    pub fn finish(
+        &self,
+        log: &mut (dyn SampleLog<T> + '_),
+        passes: &EstimatorOptions,
+        on_update: &mut dyn FnMut(u8, Option<T>),
+    ) -> Estimate {
+        each!(self, c => c
+            .finish(log, passes, |e| on_update(
+                e.pass,
+                e.result.as_ref().ok().and_then(|r| r.map(|i| i.nis))
+            ))
+            .0)
+    }
+
+    /// [`Calibrator::checkpoint`].
+    pub fn checkpoint(&self) -> Checkpoint {
+        each!(self, c => c.checkpoint())
+    }
+
+    /// [`Calibrator::reset`].
+    pub fn reset(&mut self) -> Result<(), calibrator::Error> {
+        each!(self, c => c.reset())
+    }
+
+    /// Restores from `cp` with the current settings; on error the calibrator
+    /// is unchanged.
+    pub fn restore(&mut self, cp: &Checkpoint) -> Result<(), calibrator::Error> {
+        let settings = *self.settings();
+        each!(self, c => {
+            *c = Calibrator::restore(settings, cp)?;
+            Ok(())
+        })
+    }
+
+    /// [`Calibrator::set_frame_errors`].
+    pub fn set_frame_errors(&mut self, n: u32) {
+        each!(self, c => c.set_frame_errors(n))
+    }
+}
+
+/// Errors of a message the session could not act on. The session is left as
+/// it was.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum SessionError {
+    /// A `Configure` names another configuration than the one this session
+    /// was told to run.
+    ConfigMismatch {
+        /// The configuration the session runs.
+        expected: ConfigId,
+        /// The one the message names.
+        found: ConfigId,
+    },
+    /// The settings, or the checkpoint, were refused.
+    Calibrator(calibrator::Error),
+    /// A message that needs a calibrator came before any `Configure`.
+    NotConfigured,
+}
+
+impl core::fmt::Display for SessionError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            SessionError::ConfigMismatch { expected, found } => write!(
+                f,
+                "the stream configures {}, but this session runs {}",
+                found.as_str(),
+                expected.as_str()
+            ),
+            SessionError::Calibrator(e) => write!(f, "{e}"),
+            SessionError::NotConfigured => f.write_str("no Configure message yet"),
+        }
+    }
+}
+
+impl core::error::Error for SessionError {}
+
+/// What a message did.
+// A Checkpoint reply is ~3 KB; no heap to box it.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug, PartialEq)]
+pub enum Reply {
+    /// Nothing to send.
+    Nothing,
+    /// Send this message back.
+    Send(Message),
+    /// The sample was rejected (counted by reason in the calibrator).
+    Rejected(RejectReason),
+    /// The message could not be acted on.
+    Error(SessionError),
+}
+
+/// Counters of the session itself (the calibrator counts the samples).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SessionStats {
+    /// Samples before any `Configure` (dropped).
+    pub unconfigured: u32,
+    /// `Configure` messages after the first (restarts), and `Reset`s.
+    pub restarts: u32,
+    /// Messages ignored (`Estimate`).
+    pub ignored: u32,
+    /// Messages that ended in a [`SessionError`].
+    pub errors: u32,
+}
+
+/// The session: at most one calibrator, and the counters.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Session<T: RealField + Copy> {
+    cal: Option<AnyCalibrator<T>>,
+    expected: Option<ConfigId>,
+    passes: EstimatorOptions,
+    stats: SessionStats,
+}
+
+impl<T: RealField + Copy> Session<T> {
+    /// A session without a calibrator yet. `expected`: refuse a `Configure`
+    /// for any other configuration (`None`: accept any). `passes`: the
+    /// final passes run on `Finish`.
+    pub fn new(expected: Option<ConfigId>, passes: EstimatorOptions) -> Self {
+        Self {
+            cal: None,
+            expected,
+            passes,
+            stats: SessionStats::default(),
+        }
+    }
+
+    /// The calibrator, once configured.
+    pub fn calibrator(&self) -> Option<&AnyCalibrator<T>> {
+        self.cal.as_ref()
+    }
+
+    /// The calibrator, once configured (e.g. for
+    /// [`AnyCalibrator::set_frame_errors`]).
+    pub fn calibrator_mut(&mut self) -> Option<&mut AnyCalibrator<T>> {
+        self.cal.as_mut()
+    }
+
+    /// The session's counters.
+    pub fn stats(&self) -> &SessionStats {
+        &self.stats
+    }
+
+    /// The final passes run on `Finish`.
+    pub fn passes(&self) -> &EstimatorOptions {
+        &self.passes
+    }
+
+    /// (Re)configures: a new calibrator from the prior (its first sample
+    /// empties the log).
+    pub fn configure(&mut self, settings: CalibratorConfig) -> Result<(), SessionError> {
+        if let Some(expected) = self.expected.filter(|e| *e != settings.config) {
+            return Err(SessionError::ConfigMismatch {
+                expected,
+                found: settings.config,
+            });
+        }
+        let cal = AnyCalibrator::new(settings).map_err(SessionError::Calibrator)?;
+        if self.cal.is_some() {
+            self.stats.restarts = self.stats.restarts.saturating_add(1);
+        }
+        self.cal = Some(cal);
+        Ok(())
+    }
+
+    /// Acts on one message; `log` is the sample log of the run.
+    pub fn handle(&mut self, msg: &Message, log: &mut (dyn SampleLog<T> + '_)) -> Reply {
+        let reply = self.act(msg, log);
+        if matches!(reply, Reply::Error(_)) {
+            self.stats.errors = self.stats.errors.saturating_add(1);
+        }
+        reply
+    }
+
+    fn act(&mut self, msg: &Message, log: &mut (dyn SampleLog<T> + '_)) -> Reply {
+        if let Message::Configure(settings) = msg {
+            return match self.configure(*settings) {
+                Ok(()) => Reply::Nothing,
+                Err(e) => Reply::Error(e),
+            };
+        }
+        if let Message::Estimate(_) = msg {
+            self.stats.ignored = self.stats.ignored.saturating_add(1);
+            return Reply::Nothing;
+        }
+        let Some(cal) = self.cal.as_mut() else {
+            if let Message::Sample(_) = msg {
+                self.stats.unconfigured = self.stats.unconfigured.saturating_add(1);
+            }
+            return Reply::Error(SessionError::NotConfigured);
+        };
+        match msg {
+            Message::Sample(s) => match cal.push_logged(s, log) {
+                Ok(Some(e)) => Reply::Send(Message::Estimate(e)),
+                Ok(None) => Reply::Nothing,
+                Err(r) => Reply::Rejected(r),
+            },
+            Message::EstimateRequest => Reply::Send(Message::Estimate(cal.estimate())),
+            Message::Finish => Reply::Send(Message::Estimate(cal.finish(
+                log,
+                &self.passes,
+                &mut |_, _| {},
+            ))),
+            Message::CheckpointRequest => Reply::Send(Message::Checkpoint(cal.checkpoint())),
+            // The log follows the calibrator's count of what it logged
+            // (Calibrator::push_logged): kept across a restore when it
+            // still holds those records, emptied after a reset.
+            Message::Checkpoint(cp) => match cal.restore(cp) {
+                Ok(()) => Reply::Nothing,
+                Err(e) => Reply::Error(SessionError::Calibrator(e)),
+            },
+            Message::Reset => match cal.reset() {
+                Ok(()) => {
+                    self.stats.restarts = self.stats.restarts.saturating_add(1);
+                    Reply::Nothing
+                }
+                Err(e) => Reply::Error(SessionError::Calibrator(e)),
+            },
+            Message::Configure(_) | Message::Estimate(_) => Reply::Nothing,
+        }
+    }
+}
