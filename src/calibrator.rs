@@ -258,6 +258,9 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     }
 
     /// A calibrator at the prior (zero estimate, σ = `prior_sigma_rad`).
+    // Not inlined: the session dispatches to seven of these, and their
+    // frames must not add up in one caller's frame (firmware stack).
+    #[inline(never)]
     pub fn new(settings: CalibratorConfig) -> Result<Self, Error> {
         Self::check_config(settings.config)?;
         Ok(Self {
@@ -270,6 +273,9 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     }
 
     /// Restarts from the prior with the current settings (counters cleared).
+    // Not inlined: the session dispatches to seven of these, and their
+    // frames must not add up in one caller's frame (firmware stack).
+    #[inline(never)]
     pub fn reset(&mut self) -> Result<(), Error> {
         self.filter = Self::fresh_filter(&self.settings)?;
         self.progress = Progress::default();
@@ -535,6 +541,9 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     /// reset (FRAM) continues a restored calibration; a shorter one cannot
     /// hold the run and makes the final answer pass 1 only
     /// ([`SinglePassReason::LogMismatch`]).
+    // Not inlined: the session dispatches to seven of these, and their
+    // frames must not add up in one caller's frame (firmware stack).
+    #[inline(never)]
     pub fn push_logged(
         &mut self,
         s: &Sample,
@@ -656,6 +665,9 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     /// calibrator itself is unchanged: more samples may follow. Also returns
     /// the final filter when the passes ran. `observer` sees every step of
     /// every pass ([`PassEvent`]; `|_| {}` when not needed).
+    // Not inlined: the session dispatches to seven of these, and their
+    // frames must not add up in one caller's frame (firmware stack).
+    #[inline(never)]
     pub fn finish<F: FnMut(&PassEvent<'_, T, M, N, Z>)>(
         &self,
         log: &mut (dyn SampleLog<T> + '_),
@@ -726,6 +738,9 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
 
     /// A checkpoint from which [`Calibrator::restore`] continues
     /// bit-identically.
+    // Not inlined: the session dispatches to seven of these, and their
+    // frames must not add up in one caller's frame (firmware stack).
+    #[inline(never)]
     pub fn checkpoint(&self) -> Checkpoint {
         let f = &self.filter;
         let collect = |v: &SVector<T, N>| {
@@ -761,6 +776,9 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     }
 
     /// A calibrator with settings `settings` continuing from checkpoint `cp`.
+    // Not inlined: the session dispatches to seven of these, and their
+    // frames must not add up in one caller's frame (firmware stack).
+    #[inline(never)]
     pub fn restore(settings: CalibratorConfig, cp: &Checkpoint) -> Result<Self, Error> {
         Self::check_config(settings.config)?;
         Self::check_config(cp.config)?;

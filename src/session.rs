@@ -62,6 +62,7 @@ macro_rules! each {
 
 impl<T: RealField + Copy> AnyCalibrator<T> {
     /// A calibrator of `settings.config` at the prior.
+    #[inline(never)]
     pub fn new(settings: CalibratorConfig) -> Result<Self, calibrator::Error> {
         Ok(match settings.config {
             ConfigId::M1Pa => Self::M1Pa(Calibrator::new(settings)?),
@@ -129,16 +130,30 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
     /// is unchanged.
     pub fn restore(&mut self, cp: &Checkpoint) -> Result<(), calibrator::Error> {
         let settings = *self.settings();
-        each!(self, c => {
-            *c = Calibrator::restore(settings, cp)?;
-            Ok(())
-        })
+        each!(self, c => restore_into(c, settings, cp))
     }
 
     /// [`Calibrator::set_frame_errors`].
     pub fn set_frame_errors(&mut self, n: u32) {
         each!(self, c => c.set_frame_errors(n))
     }
+}
+
+/// `*c = Calibrator::restore(settings, cp)`, in a frame of its own (one
+/// configuration's temporary on the stack, not seven).
+#[inline(never)]
+fn restore_into<
+    T: RealField + Copy,
+    M: crate::models::Model<N, Z> + Clone,
+    const N: usize,
+    const Z: usize,
+>(
+    c: &mut Calibrator<T, M, N, Z>,
+    settings: CalibratorConfig,
+    cp: &Checkpoint,
+) -> Result<(), calibrator::Error> {
+    *c = Calibrator::restore(settings, cp)?;
+    Ok(())
 }
 
 /// Errors of a message the session could not act on. The session is left as
@@ -252,6 +267,7 @@ impl<T: RealField + Copy> Session<T> {
 
     /// (Re)configures: a new calibrator from the prior (its first sample
     /// empties the log).
+    #[inline(never)]
     pub fn configure(&mut self, settings: CalibratorConfig) -> Result<(), SessionError> {
         if let Some(expected) = self.expected.filter(|e| *e != settings.config) {
             return Err(SessionError::ConfigMismatch {
@@ -276,51 +292,83 @@ impl<T: RealField + Copy> Session<T> {
         reply
     }
 
+    // Each message has its own function, none inlined: a firmware's stack
+    // holds the frame of one handler at a time, not of all of them (and
+    // not of the seven configurations' calibrators at once).
     fn act(&mut self, msg: &Message, log: &mut (dyn SampleLog<T> + '_)) -> Reply {
-        if let Message::Configure(settings) = msg {
-            return match self.configure(*settings) {
+        match msg {
+            Message::Configure(settings) => match self.configure(*settings) {
                 Ok(()) => Reply::Nothing,
                 Err(e) => Reply::Error(e),
-            };
-        }
-        if let Message::Estimate(_) = msg {
-            self.stats.ignored = self.stats.ignored.saturating_add(1);
-            return Reply::Nothing;
-        }
-        let Some(cal) = self.cal.as_mut() else {
-            if let Message::Sample(_) = msg {
-                self.stats.unconfigured = self.stats.unconfigured.saturating_add(1);
-            }
-            return Reply::Error(SessionError::NotConfigured);
-        };
-        match msg {
-            Message::Sample(s) => match cal.push_logged(s, log) {
-                Ok(Some(e)) => Reply::Send(Message::Estimate(e)),
-                Ok(None) => Reply::Nothing,
-                Err(r) => Reply::Rejected(r),
             },
-            Message::EstimateRequest => Reply::Send(Message::Estimate(cal.estimate())),
-            Message::Finish => Reply::Send(Message::Estimate(cal.finish(
-                log,
-                &self.passes,
-                &mut |_, _| {},
-            ))),
-            Message::CheckpointRequest => Reply::Send(Message::Checkpoint(cal.checkpoint())),
+            Message::Estimate(_) => {
+                self.stats.ignored = self.stats.ignored.saturating_add(1);
+                Reply::Nothing
+            }
+            Message::Sample(s) => match self.cal.as_mut() {
+                Some(cal) => Self::sample(cal, s, log),
+                None => {
+                    self.stats.unconfigured = self.stats.unconfigured.saturating_add(1);
+                    Reply::Error(SessionError::NotConfigured)
+                }
+            },
+            Message::EstimateRequest => match self.cal.as_ref() {
+                Some(cal) => Reply::Send(Message::Estimate(cal.estimate())),
+                None => Reply::Error(SessionError::NotConfigured),
+            },
+            Message::Finish => match self.cal.as_ref() {
+                Some(cal) => Self::finish(cal, log, &self.passes),
+                None => Reply::Error(SessionError::NotConfigured),
+            },
+            Message::CheckpointRequest => match self.cal.as_ref() {
+                Some(cal) => Self::checkpoint(cal),
+                None => Reply::Error(SessionError::NotConfigured),
+            },
             // The log follows the calibrator's count of what it logged
             // (Calibrator::push_logged): kept across a restore when it
             // still holds those records, emptied after a reset.
-            Message::Checkpoint(cp) => match cal.restore(cp) {
-                Ok(()) => Reply::Nothing,
-                Err(e) => Reply::Error(SessionError::Calibrator(e)),
+            Message::Checkpoint(cp) => match self.cal.as_mut() {
+                Some(cal) => match cal.restore(cp) {
+                    Ok(()) => Reply::Nothing,
+                    Err(e) => Reply::Error(SessionError::Calibrator(e)),
+                },
+                None => Reply::Error(SessionError::NotConfigured),
             },
-            Message::Reset => match cal.reset() {
-                Ok(()) => {
+            Message::Reset => match self.cal.as_mut().map(AnyCalibrator::reset) {
+                Some(Ok(())) => {
                     self.stats.restarts = self.stats.restarts.saturating_add(1);
                     Reply::Nothing
                 }
-                Err(e) => Reply::Error(SessionError::Calibrator(e)),
+                Some(Err(e)) => Reply::Error(SessionError::Calibrator(e)),
+                None => Reply::Error(SessionError::NotConfigured),
             },
-            Message::Configure(_) | Message::Estimate(_) => Reply::Nothing,
         }
+    }
+
+    #[inline(never)]
+    fn sample(
+        cal: &mut AnyCalibrator<T>,
+        s: &crate::wire::Sample,
+        log: &mut (dyn SampleLog<T> + '_),
+    ) -> Reply {
+        match cal.push_logged(s, log) {
+            Ok(Some(e)) => Reply::Send(Message::Estimate(e)),
+            Ok(None) => Reply::Nothing,
+            Err(r) => Reply::Rejected(r),
+        }
+    }
+
+    #[inline(never)]
+    fn finish(
+        cal: &AnyCalibrator<T>,
+        log: &mut (dyn SampleLog<T> + '_),
+        passes: &EstimatorOptions,
+    ) -> Reply {
+        Reply::Send(Message::Estimate(cal.finish(log, passes, &mut |_, _| {})))
+    }
+
+    #[inline(never)]
+    fn checkpoint(cal: &AnyCalibrator<T>) -> Reply {
+        Reply::Send(Message::Checkpoint(cal.checkpoint()))
     }
 }

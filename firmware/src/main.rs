@@ -29,6 +29,7 @@ use core::mem::size_of;
 
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use defmt_semihosting as _;
+use rollcal::models::ConfigId;
 
 /// The estimator's scalar in this build.
 #[cfg(not(feature = "f64"))]
@@ -40,15 +41,6 @@ pub type Real = f64;
 // The f64 build is meant for the Cortex-M7 (`-C target-cpu=cortex-m7`, double
 // FPU); `target_feature = "fp64"` is not visible to cfg on this target, so
 // run-qemu.sh checks the disassembly for `vmul.f64` instead.
-
-/// Which filter to run.
-#[derive(Clone, Copy, PartialEq, Eq, defmt::Format)]
-pub enum Config {
-    /// M2-ps (18 states, accelerometers and gimbal angles).
-    M2Ps,
-    /// M1-pa (12 states, accelerometers).
-    M1Pa,
-}
 
 /// Filter variant, for instruction counts.
 #[derive(Clone, Copy, PartialEq, Eq, defmt::Format)]
@@ -81,8 +73,8 @@ pub struct Args {
     /// `reply=uart1`: send replies on UART1 instead of UART0 (under QEMU,
     /// UART0 then reads stdin while the replies go to a file).
     pub reply_uart1: bool,
-    /// `config=M2-ps|M1-pa` (synthetic runs).
-    pub config: Config,
+    /// `config=M2-ps|M1-pa|…` (synthetic runs; any of the seven).
+    pub config: ConfigId,
     /// `mode=default|plain|linearised` (`plain` overrides the options of a
     /// `Configure` message; `linearised` is synthetic only).
     pub mode: Mode,
@@ -106,7 +98,7 @@ impl Args {
             source: Source::Uart,
             exit_on_request: false,
             reply_uart1: false,
-            config: Config::M2Ps,
+            config: ConfigId::M2Ps,
             mode: Mode::Default,
             periods: 200,
             noise_scale: 1,
@@ -124,8 +116,10 @@ impl Args {
                 (b"exit", b"never") => a.exit_on_request = false,
                 (b"reply", b"uart0") => a.reply_uart1 = false,
                 (b"reply", b"uart1") => a.reply_uart1 = true,
-                (b"config", b"M2-ps") => a.config = Config::M2Ps,
-                (b"config", b"M1-pa") => a.config = Config::M1Pa,
+                (b"config", id) => match core::str::from_utf8(id).ok().and_then(ConfigId::parse) {
+                    Some(id) => a.config = id,
+                    None => defmt::warn!("ignored argument {=[u8]:a}", word),
+                },
                 (b"mode", b"default") => a.mode = Mode::Default,
                 (b"mode", b"plain") => a.mode = Mode::Plain,
                 (b"mode", b"linearised") => a.mode = Mode::Linearised,

@@ -3,40 +3,43 @@
 //! log; `Estimate` (and `Checkpoint`) frames out over the same UART (or
 //! UART1).
 //!
-//! Messages handled (docs/wire.md): `Configure` (re)creates the calibrator
-//! for M2-ps or M1-pa (other configurations are logged and ignored) and
-//! clears the log; `Sample` runs one period (`Calibrator::push_logged`);
-//! `EstimateRequest` replies with the running `Estimate`; `Finish` runs the
-//! estimator of record over the log (`Calibrator::finish`, default
-//! `EstimatorOptions`: at most 4 passes) and replies with the final
-//! `Estimate` (and, with `exit=request`, ends the run: the QEMU script
-//! appends `EstimateRequest`, `Finish` to the recorded stream, as a UART has
-//! no end of file); `CheckpointRequest` replies with a `Checkpoint`;
-//! `Checkpoint` restores; `Reset` restarts and clears the log.
+//! Every message goes through `rollcal::session::Session`, the protocol
+//! implementation `host-sim calibrate` drives too (docs/wire.md): `Configure`
+//! (re)creates the calibrator for any of the seven configurations; `Sample`
+//! runs one period and logs it (`Calibrator::push_logged`); `EstimateRequest`
+//! replies with the running `Estimate`; `Finish` runs the estimator of
+//! record over the log (`Calibrator::finish`, default `EstimatorOptions`: at
+//! most 4 passes) and replies with the final `Estimate` (and, with
+//! `exit=request`, ends the run: the QEMU script appends `EstimateRequest`,
+//! `Finish` to the recorded stream, as a UART has no end of file);
+//! `CheckpointRequest` replies with a `Checkpoint`; `Checkpoint` restores;
+//! `Reset` restarts from the prior. This module adds the UART, the sample
+//! log's storage, the instruction marks, logging and the run's totals.
 //!
 //! # The sample log
 //!
-//! [`LOG_CAPACITY`] records in the static [`LOG`], linker section `.log`:
+//! [`LOG_CAPACITY`] records in the static `LOG`, linker section `.log`:
 //! the `LOG` region of `memory.x` (SSRAM2&3 from 0x2010_0000, outside the
 //! 128 KiB of `RAM`). The section is NOLOAD, so the start-up code neither
 //! copies nor zeroes it; [`log_storage`] writes every record in place once,
 //! and the stream loop keeps a `SliceLog` over it for the whole run.
 //!
 //! The log stands for storage that survives a reset (FRAM): a `Checkpoint`
-//! restore keeps its records and takes its length back to the checkpoint's
-//! `progress.logged` (`SliceLog::set_len`), so that the restored calibrator
-//! and its log agree and `Finish` still runs the estimator of record. (A
-//! device whose log is not the run's since that checkpoint must not do
-//! this: `Finish` then answers a single pass, `LogMismatch`.)
+//! restore keeps its records, and the restored calibrator takes the log
+//! back to the checkpoint's `progress.logged` at its next sample, so that
+//! calibrator and log agree and `Finish` still runs the estimator of record.
+//! After a `Configure` or `Reset` the first sample empties it. (A log shorter
+//! than the calibrator's count is not the run's: `Finish` then answers a
+//! single pass, `LogMismatch`.)
 
 use core::mem::MaybeUninit;
 use core::ptr::addr_of_mut;
 use core::sync::atomic::{AtomicBool, Ordering};
 
 use nalgebra::Vector3;
-use rollcal::calibrator::{M1PaCalibrator, M2PsCalibrator, RejectReason};
+use rollcal::calibrator::RejectReason;
 use rollcal::estimator::{EstimatorOptions, LogRecord, SampleLog, SliceLog};
-use rollcal::models::ConfigId;
+use rollcal::session::{Reply, Session, SessionError};
 use rollcal::wire::{
     decode_frame, encode, CalibratorConfig, EstimateKind, FrameDecoder, Message, MAX_FRAME_LEN,
 };
@@ -79,15 +82,6 @@ fn log_storage() -> Option<&'static mut [LogRecord<Real>]> {
     }
 }
 
-/// The running calibrator, if a `Configure` message has chosen one.
-// One of them lives on the stack of `run`, for the whole run.
-#[allow(clippy::large_enum_variant)]
-enum Cal {
-    None,
-    M2Ps(M2PsCalibrator<Real>),
-    M1Pa(M1PaCalibrator<Real>),
-}
-
 /// Totals of a run, for the closing log line (and the exit status).
 #[derive(Default, defmt::Format)]
 pub struct Totals {
@@ -126,45 +120,6 @@ impl Link {
     }
 }
 
-fn configure(mut c: CalibratorConfig, args: &Args) -> Cal {
-    if args.mode == Mode::Plain {
-        c.options = Options::plain();
-    }
-    let made = match c.config {
-        ConfigId::M2Ps => M2PsCalibrator::<Real>::new(c).map(Cal::M2Ps),
-        ConfigId::M1Pa => M1PaCalibrator::<Real>::new(c).map(Cal::M1Pa),
-        other => {
-            defmt::error!("configuration {} is not built into this firmware", other);
-            return Cal::None;
-        }
-    };
-    match made {
-        Ok(cal) => {
-            defmt::info!(
-                "configured {}, estimate every {} samples, second-order S {}",
-                c.config,
-                c.estimate_every,
-                c.options.second_order_covariance
-            );
-            cal
-        }
-        Err(e) => {
-            defmt::error!("Configure rejected: {}", e);
-            Cal::None
-        }
-    }
-}
-
-macro_rules! with_cal {
-    ($cal:expr, $c:ident => $body:expr) => {
-        match $cal {
-            Cal::M2Ps($c) => Some($body),
-            Cal::M1Pa($c) => Some($body),
-            Cal::None => None,
-        }
-    };
-}
-
 /// What the loop does after a message.
 #[derive(PartialEq, Eq)]
 enum Flow {
@@ -173,11 +128,12 @@ enum Flow {
     Exit,
 }
 
-/// The stream's state: the calibrator, its log, the reply link.
+/// The stream's state: the protocol session (`rollcal::session`, the same
+/// one `host-sim calibrate` drives), its log, the reply link.
 struct Stream<'a> {
     args: &'a Args,
     link: Link,
-    cal: Cal,
+    session: Session<Real>,
     log: SliceLog<'static, Real>,
     totals: Totals,
     /// The decoder's count of rejected frames, told to every calibrator.
@@ -185,74 +141,86 @@ struct Stream<'a> {
 }
 
 impl Stream<'_> {
-    // Every handler is its own function (not inlined): the stack of the
-    // sample path must not carry the frames of `Finish` or a restore (the
-    // M7 build's filter step alone takes ~70 KB of the 128 KB RAM).
+    // Every message goes through `Session::handle`; what the firmware adds
+    // is logging, the instruction marks, the counts and the link. The
+    // handlers that need large frames (`Finish`, a restore) are their own
+    // functions, not inlined into the sample path (the M7 build's filter
+    // step alone takes ~70 KB of the 128 KB RAM).
     fn handle(&mut self, msg: &Message) -> Flow {
         match msg {
             Message::Configure(c) => self.configure(c),
-            Message::Sample(s) => self.sample(s),
-            Message::EstimateRequest => self.estimate_request(),
+            Message::Sample(s) => self.sample(msg, s.seq),
             Message::Finish => return self.finish(),
-            Message::CheckpointRequest => self.checkpoint_request(),
-            Message::Checkpoint(cp) => self.restore(cp),
-            Message::Reset => self.reset(),
-            Message::Estimate(_) => {}
+            Message::Checkpoint(_) => self.restore(msg),
+            other => {
+                let reply = self.session.handle(other, &mut self.log);
+                self.reply(reply);
+            }
         }
         Flow::Continue
     }
 
-    /// `Configure`: a new calibrator, an empty log.
+    /// Sends what the session answered, or logs why it could not act.
+    fn reply(&mut self, reply: Reply) {
+        match reply {
+            Reply::Send(m) => {
+                if let Message::Estimate(_) = m {
+                    self.totals.estimates += 1;
+                }
+                self.link.send(&m);
+            }
+            Reply::Error(e) => defmt::warn!("message refused: {}", e),
+            Reply::Nothing | Reply::Rejected(_) => {}
+        }
+    }
+
+    /// Tells the (new or restored) calibrator how many frames the decoder
+    /// has rejected so far.
+    fn tell_frame_errors(&mut self) {
+        let n = self.frame_errors;
+        if let Some(c) = self.session.calibrator_mut() {
+            c.set_frame_errors(n);
+        }
+    }
+
+    /// `Configure`: a new calibrator from the prior (`mode=plain` overrides
+    /// its filter options).
     #[inline(never)]
     fn configure(&mut self, c: &CalibratorConfig) {
-        self.cal = configure(*c, self.args);
-        self.log.clear();
-        let n = self.frame_errors;
-        with_cal!(&mut self.cal, c => c.set_frame_errors(n));
-    }
-
-    /// `Reset`: the calibrator from the prior, an empty log.
-    #[inline(never)]
-    fn reset(&mut self) {
-        if let Some(Err(e)) = with_cal!(&mut self.cal, c => c.reset()) {
-            defmt::error!("reset failed: {}", e);
+        let mut c = *c;
+        if self.args.mode == Mode::Plain {
+            c.options = Options::plain();
         }
-        self.log.clear();
-    }
-
-    #[inline(never)]
-    fn estimate_request(&mut self) {
-        if let Some(est) = with_cal!(&self.cal, c => c.estimate()) {
-            self.totals.estimates += 1;
-            self.link.send(&Message::Estimate(est));
+        match self.session.handle(&Message::Configure(c), &mut self.log) {
+            Reply::Error(e) => defmt::error!("Configure refused: {}", e),
+            _ => defmt::info!(
+                "configured {}, estimate every {} samples, second-order S {}",
+                c.config,
+                c.estimate_every,
+                c.options.second_order_covariance
+            ),
         }
+        self.tell_frame_errors();
     }
 
     #[inline(never)]
-    fn checkpoint_request(&mut self) {
-        if let Some(cp) = with_cal!(&self.cal, c => c.checkpoint()) {
-            self.link.send(&Message::Checkpoint(cp));
-        }
-    }
-
-    #[inline(never)]
-    fn sample(&mut self, s: &rollcal::wire::Sample) {
-        let t = &mut self.totals;
-        t.samples += 1;
+    fn sample(&mut self, msg: &Message, seq: u32) {
+        self.totals.samples += 1;
         rollcal_mark_period_start();
-        let r = with_cal!(&mut self.cal, c => c.push_logged(s, &mut self.log));
+        let reply = self.session.handle(msg, &mut self.log);
         rollcal_mark_period_end();
-        match r {
-            None => {
+        let t = &mut self.totals;
+        match reply {
+            Reply::Error(SessionError::NotConfigured) => {
                 t.dropped += 1;
                 if t.dropped == 1 {
                     defmt::warn!(
                         "sample {} before any Configure message: dropped (and every one after it until a Configure)",
-                        s.seq
+                        seq
                     );
                 }
             }
-            Some(Ok(Some(est))) => {
+            Reply::Send(Message::Estimate(est)) => {
                 t.estimates += 1;
                 if est.seq % 600 == 0 || t.estimates == 1 {
                     defmt::info!(
@@ -265,13 +233,13 @@ impl Stream<'_> {
                 }
                 self.link.send(&Message::Estimate(est));
             }
-            Some(Ok(None)) => {}
-            Some(Err(reason)) => {
+            Reply::Rejected(reason) => {
                 t.rejected += 1;
                 if t.rejected <= 5 || matches!(reason, RejectReason::Filter(_)) {
-                    defmt::warn!("sample {} rejected: {}", s.seq, reason);
+                    defmt::warn!("sample {} rejected: {}", seq, reason);
                 }
             }
+            other => self.reply(other),
         }
         if self.args.checkpoint_at != 0 && self.totals.samples == self.args.checkpoint_at {
             self.selftest_checkpoint();
@@ -281,36 +249,32 @@ impl Stream<'_> {
     /// `Finish`: the estimator of record over the log, the final estimate.
     #[inline(never)]
     fn finish(&mut self) -> Flow {
-        let opts = EstimatorOptions::default();
-        let log = &mut self.log;
         rollcal_mark_finish_start();
-        let answer = with_cal!(&self.cal, c => c.finish(log, &opts, |_| {}).0);
+        let reply = self.session.handle(&Message::Finish, &mut self.log);
         rollcal_mark_finish_end();
-        match answer {
-            Some(est) => {
-                match est.kind {
-                    EstimateKind::Final { passes, converged } => {
-                        self.totals.finals += 1;
-                        defmt::info!(
-                            "Finish: estimator of record over {} records: {} passes, converged {}",
-                            self.log.len(),
-                            passes,
-                            converged
-                        );
-                    }
-                    EstimateKind::SinglePass { reason, logged } => defmt::warn!(
-                        "Finish: single pass only ({}); {} records logged, {} in the log",
-                        reason,
-                        logged,
-                        self.log.len()
-                    ),
-                    EstimateKind::Running => {}
+        match &reply {
+            Reply::Send(Message::Estimate(est)) => match est.kind {
+                EstimateKind::Final { passes, converged } => {
+                    self.totals.finals += 1;
+                    defmt::info!(
+                        "Finish: estimator of record over {} records: {} passes, converged {}",
+                        self.log.len(),
+                        passes,
+                        converged
+                    );
                 }
-                self.totals.estimates += 1;
-                self.link.send(&Message::Estimate(est));
-            }
-            None => defmt::error!("Finish before any Configure message: no estimate"),
+                EstimateKind::SinglePass { reason, logged } => defmt::warn!(
+                    "Finish: single pass only ({}); {} records logged, {} in the log",
+                    reason,
+                    logged,
+                    self.log.len()
+                ),
+                EstimateKind::Running => {}
+            },
+            Reply::Error(e) => defmt::error!("Finish: no estimate ({})", e),
+            _ => {}
         }
+        self.reply(reply);
         if self.args.exit_on_request {
             self.totals.logged = u32::try_from(self.log.len()).unwrap_or(u32::MAX);
             return Flow::Exit;
@@ -318,55 +282,44 @@ impl Stream<'_> {
         Flow::Continue
     }
 
-    /// `Checkpoint`: restore the calibrator; the log keeps its records and
-    /// takes the checkpoint's length.
+    /// `Checkpoint`: restore the calibrator. The log keeps its records;
+    /// the calibrator takes it back to the checkpoint's `logged` count at
+    /// its next sample.
     #[inline(never)]
-    fn restore(&mut self, cp: &rollcal::wire::Checkpoint) {
-        let restored = match (&self.cal, cp.config) {
-            (Cal::M2Ps(c), ConfigId::M2Ps) => {
-                M2PsCalibrator::<Real>::restore(*c.settings(), cp).map(Cal::M2Ps)
-            }
-            (Cal::M1Pa(c), ConfigId::M1Pa) => {
-                M1PaCalibrator::<Real>::restore(*c.settings(), cp).map(Cal::M1Pa)
-            }
+    fn restore(&mut self, msg: &Message) {
+        match self.session.handle(msg, &mut self.log) {
+            Reply::Error(e) => defmt::warn!("checkpoint refused: {}", e),
             _ => {
-                defmt::warn!("Checkpoint for another configuration ignored");
-                return;
-            }
-        };
-        match restored {
-            Ok(c) => {
-                self.cal = c;
-                let n = self.frame_errors;
-                with_cal!(&mut self.cal, c => c.set_frame_errors(n));
-                let logged = cp.progress.logged as usize;
-                match self.log.set_len(logged) {
-                    Ok(()) => defmt::info!(
-                        "restored from a checkpoint at seq {}: {} records in the log",
+                if let Message::Checkpoint(cp) = msg {
+                    defmt::info!(
+                        "restored from a checkpoint at seq {}: {} records logged, {} in the log",
                         cp.progress.last_seq,
-                        logged
-                    ),
-                    Err(e) => defmt::warn!(
-                        "restored from a checkpoint, but its {} logged records do not fit the log: {}",
-                        logged,
-                        e
-                    ),
+                        cp.progress.logged,
+                        self.log.len()
+                    );
                 }
+                self.tell_frame_errors();
             }
-            Err(e) => defmt::warn!("checkpoint rejected: {}", e),
         }
     }
 
-    /// `selftest=checkpoint-at=N`: checkpoint → (wire frame) → `Reset` →
-    /// restore from the decoded frame, by the handlers of those messages.
+    /// `selftest=checkpoint-at=N`: `CheckpointRequest` → (wire frame) →
+    /// `Reset` → `Checkpoint` from the decoded frame, through the session,
+    /// as if the host had sent them.
     #[inline(never)]
     fn selftest_checkpoint(&mut self) {
-        let Some(cp) = with_cal!(&self.cal, c => c.checkpoint()) else {
-            defmt::error!("selftest: no calibrator to checkpoint");
-            return;
+        let cp = match self
+            .session
+            .handle(&Message::CheckpointRequest, &mut self.log)
+        {
+            Reply::Send(m @ Message::Checkpoint(_)) => m,
+            _ => {
+                defmt::error!("selftest: no checkpoint");
+                return;
+            }
         };
         let mut frame = [0u8; MAX_FRAME_LEN];
-        let n = match encode(&Message::Checkpoint(cp), &mut frame) {
+        let n = match encode(&cp, &mut frame) {
             Ok(n) => n,
             Err(e) => {
                 defmt::error!("selftest: cannot encode the checkpoint: {}", e);
@@ -380,20 +333,15 @@ impl Stream<'_> {
             n,
             logged
         );
-        self.reset();
+        if let Reply::Error(e) = self.session.handle(&Message::Reset, &mut self.log) {
+            defmt::error!("selftest: reset refused: {}", e);
+        }
         // The frame without its delimiter.
         let body = frame.get_mut(..n.saturating_sub(1)).unwrap_or(&mut []);
         match decode_frame(body) {
-            Ok(Message::Checkpoint(cp)) => self.restore(&cp),
+            Ok(m @ Message::Checkpoint(_)) => self.restore(&m),
             Ok(_) => defmt::error!("selftest: the checkpoint frame decoded to another message"),
             Err(e) => defmt::error!("selftest: the checkpoint frame does not decode: {}", e),
-        }
-        if self.log.len() != logged {
-            defmt::error!(
-                "selftest: {} records in the log after the restore, {} before the checkpoint",
-                self.log.len(),
-                logged
-            );
         }
     }
 }
@@ -424,7 +372,7 @@ pub fn run(args: &Args) -> Totals {
             tx,
             out: [0; MAX_FRAME_LEN],
         },
-        cal: Cal::None,
+        session: Session::new(None, EstimatorOptions::default()),
         log: SliceLog::new(storage),
         totals: Totals::default(),
         frame_errors: 0,
@@ -453,7 +401,7 @@ pub fn run(args: &Args) -> Totals {
                     defmt::warn!("frame rejected: {}", e);
                 }
                 stream.frame_errors = n;
-                with_cal!(&mut stream.cal, c => c.set_frame_errors(n));
+                stream.tell_frame_errors();
             }
         }
     }

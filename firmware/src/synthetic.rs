@@ -10,7 +10,7 @@ use rollcal::geometry::{earth_rate_n, gravity_n};
 use rollcal::models::{Environment, Model};
 
 use crate::marks::{rollcal_mark_period_end, rollcal_mark_period_start};
-use crate::{Args, Config, Mode, Real};
+use crate::{Args, Mode, Real};
 
 /// Earth rate (rad/s).
 const EARTH_RATE: f64 = 7.292_115e-5;
@@ -83,8 +83,5 @@ fn run_model<M: Model<N, Z>, const N: usize, const Z: usize>(args: &Args) -> boo
 
 /// Runs the synthetic workload of `args`; true if every step succeeded.
 pub fn run(args: &Args) -> bool {
-    match args.config {
-        Config::M2Ps => run_model::<rollcal::models::M2Ps, 18, 6>(args),
-        Config::M1Pa => run_model::<rollcal::models::M1Pa, 12, 3>(args),
-    }
+    rollcal::with_config!(args.config, |M, N, Z| run_model::<M, N, Z>(args))
 }

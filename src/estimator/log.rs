@@ -293,21 +293,6 @@ impl<'a, T: RealField + Copy> SliceLog<'a, T> {
         self.len = 0;
     }
 
-    /// Takes the first `len` records of the storage as the log, whatever
-    /// the log held before: after [`crate::calibrator::Calibrator::restore`]
-    /// from a checkpoint whose `progress.logged` is `len`, on storage that
-    /// kept its contents across the reset (RAM that survived, FRAM). Records
-    /// past the old length are whatever the storage holds: only their
-    /// writer knows they are the run's. `Err(LogError::Full)` and nothing
-    /// changed when `len` exceeds the capacity.
-    pub fn set_len(&mut self, len: usize) -> Result<(), LogError> {
-        if len > self.buf.len() {
-            return Err(LogError::Full);
-        }
-        self.len = len;
-        Ok(())
-    }
-
     /// The records stored, in period order.
     pub fn records(&self) -> &[LogRecord<T>] {
         self.buf.get(..self.len).unwrap_or(&[])

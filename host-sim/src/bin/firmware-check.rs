@@ -173,7 +173,12 @@ fn summary(run: &RunInfo, config: &str, fields: &str, ok: bool, why: &[String]) 
         if let Some(s) = run.seconds {
             line += &format!(" qemu={s}s");
         }
-        line += if ok { " ok" } else { " FAIL" };
+        // A reported-only run (with a note) is "not-met", never "FAIL".
+        line += match (ok, run.note.is_some()) {
+            (true, _) => " ok",
+            (false, true) => " not-met",
+            (false, false) => " FAIL",
+        };
         let mut why = why.to_vec();
         if !rc_ok {
             why.push(format!("QEMU exit status {}", run.rc.unwrap_or(0)));
