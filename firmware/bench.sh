@@ -82,7 +82,7 @@ done
 
 echo
 echo "## Instructions per period, recorded paper streams (seed 1, Calibrator::push, paper noise)"
-echo "(m4f: the f32 filter fails after ~57 updates and refuses every period after; each later sample re-bridges the whole gap, so the run is cut at QEMU_TIMEOUT_F32 s, default 120; only its first updates are real periods)"
+echo "(m4f: the f32 filter loses positive definiteness after ~57 updates and refuses nearly every period after; the run is cut at QEMU_TIMEOUT_F32 s, default 120; only its first updates are real periods)"
 for c in M2-ps M1-pa; do
     record_stream "$c"
 done

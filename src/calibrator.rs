@@ -493,6 +493,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         match log.append(r) {
             Ok(()) => self.progress.logged = self.progress.logged.saturating_add(1),
             Err(LogError::Full) => self.log_broken(SinglePassReason::LogFull),
+            Err(LogError::Unrepresentable) => self.log_broken(SinglePassReason::LogUnrepresentable),
             Err(_) => self.log_broken(SinglePassReason::LogStorage),
         }
     }

@@ -315,6 +315,9 @@ pub enum SinglePassReason {
     /// The multi-pass estimator refused the log (an empty log, or the
     /// back-propagation hit gimbal lock).
     Estimator,
+    /// The sample log could not encode a record (e.g. a
+    /// [`crate::estimator::PackedLog`] whose command table is full).
+    LogUnrepresentable,
 }
 
 impl core::fmt::Display for SinglePassReason {
@@ -327,6 +330,7 @@ impl core::fmt::Display for SinglePassReason {
             SinglePassReason::Reacquired => "the attitude was re-acquired after a gap",
             SinglePassReason::FilterFailed => "the filter refused a period after a bridged gap",
             SinglePassReason::Estimator => "the multi-pass estimator refused the log",
+            SinglePassReason::LogUnrepresentable => "the sample log could not encode a record",
         })
     }
 }

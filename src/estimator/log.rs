@@ -221,6 +221,9 @@ pub enum LogError {
     Full,
     /// The storage device failed to store the record.
     Storage,
+    /// This log cannot encode the record (a value out of its range, or
+    /// its table of distinct commands full: [`super::PackedLog`]).
+    Unrepresentable,
 }
 
 impl core::fmt::Display for LogError {
@@ -228,6 +231,7 @@ impl core::fmt::Display for LogError {
         f.write_str(match self {
             LogError::Full => "sample log is full; the record was not stored",
             LogError::Storage => "sample log storage failed to store the record",
+            LogError::Unrepresentable => "sample log cannot encode the record",
         })
     }
 }

@@ -61,8 +61,10 @@
 //! `2·max_passes − 1` reads of each record.
 
 pub mod log;
+pub mod packed;
 
 pub use log::{LogError, LogRecord, SampleLog, SliceLog};
+pub use packed::{PackedLayout, PackedLog, MAX_PERIODS};
 
 use nalgebra::{RealField, SVector};
 
