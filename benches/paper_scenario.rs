@@ -1,31 +1,60 @@
 //! Whole-scenario performance (issue 3's goals): the seven configurations'
-//! estimators over the full paper scenario (5400 periods, the default
-//! multi-pass estimator), run in parallel on the machine's cores as
-//! `host-sim paper` does, and one M2-ps Monte Carlo run (simulation and
-//! estimator), the unit of `host-sim montecarlo`.
+//! estimators of record ([`rollcal::estimator::estimate`], the default
+//! multi-pass estimator) over the full paper scenario (5400 periods), run in
+//! parallel on the machine's cores as `host-sim paper` does. The data are
+//! the recorded paper stream (noise seed 1, `tests/data/paper_seed1.bin`,
+//! see `tests/support`).
 //!
-//! `cargo bench --bench paper_scenario`
+//! The other benchmark of the group, one M2-ps Monte Carlo run (simulation
+//! and estimator, `paper_scenario/m2ps_montecarlo_run`), needs the truth
+//! simulator and lives in `host-sim/benches/paper_scenario.rs`; both:
+//!
+//! `cargo bench --workspace --bench paper_scenario`
 
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use host_sim::runner::{run_filter, Estimator};
-use host_sim::scenario::Scenario;
-use host_sim::truth::{simulate, SimOptions};
+use nalgebra::SVector;
 use rayon::prelude::*;
-use rollcal::models::ConfigId;
+use rollcal::estimator::{estimate, EstimatorOptions, LogRecord, SliceLog};
+use rollcal::models::{ConfigId, Model};
+use rollcal::wire::CalibratorConfig;
+use rollcal::Options;
 
-fn options(seed: u64) -> SimOptions {
-    SimOptions {
-        seed,
-        noise: true,
-        earth_rate: true,
-    }
+#[path = "../tests/support/mod.rs"]
+mod support;
+
+/// The estimator of record of configuration `M` over `records` from a cold
+/// start; the failed updates of its last pass.
+fn failed_updates<M: Model<N, Z>, const N: usize, const Z: usize>(
+    settings: &CalibratorConfig,
+    records: &[LogRecord<f64>],
+) -> Option<usize> {
+    let cfg = support::filter_config(settings, Options::default());
+    let sigma0 = SVector::<f64, N>::repeat(settings.prior_sigma_rad);
+    let mut storage = records.to_vec();
+    let mut log = SliceLog::from_records(&mut storage);
+    let (mut pass, mut failures) = (0, 0);
+    estimate::<f64, M, N, Z, _, _>(
+        &cfg,
+        &SVector::zeros(),
+        &sigma0,
+        &mut log,
+        &EstimatorOptions::default(),
+        |ev| {
+            if ev.pass != pass {
+                (pass, failures) = (ev.pass, 0);
+            }
+            failures += usize::from(ev.result.is_err());
+        },
+    )
+    .ok()
+    .map(|_| failures)
 }
 
 fn bench(c: &mut Criterion) {
-    let scenario = Scenario::paper();
-    let sim = simulate(&scenario, options(1));
+    let (settings, samples) = support::paper_stream();
+    let records: Vec<LogRecord<f64>> = samples.iter().map(support::log_record).collect();
     let mut g = c.benchmark_group("paper_scenario");
     g.sample_size(10);
     g.bench_function("all_seven_configs_parallel", |b| {
@@ -33,28 +62,14 @@ fn bench(c: &mut Criterion) {
             let ok = ConfigId::ALL
                 .par_iter()
                 .map(|&id| {
-                    run_filter(id, &scenario, &sim, true, Estimator::default(), None, false)
-                        .map(|r| r.failures.len())
+                    rollcal::with_config!(id, |M, N, Z| failed_updates::<M, N, Z>(
+                        &settings, &records
+                    ))
                 })
-                .filter(|r| matches!(r, Ok(0)))
+                .filter(|r| matches!(r, Some(0)))
                 .count();
             assert_eq!(ok, 7, "every configuration runs without failed updates");
             black_box(ok)
-        })
-    });
-    g.bench_function("m2ps_montecarlo_run", |b| {
-        b.iter(|| {
-            let sim = simulate(&scenario, options(2));
-            let r = run_filter(
-                ConfigId::M2Ps,
-                &scenario,
-                &sim,
-                true,
-                Estimator::default(),
-                None,
-                false,
-            );
-            black_box(r.map(|r| r.passes))
         })
     });
     g.finish();

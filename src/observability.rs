@@ -21,6 +21,14 @@
 //!   `σ_CRLB`; `σ_CRLB / σ_prior ≪ 1` says *how well* a parameter is
 //!   observable, which the rank alone does not.
 //!
+//! A period without a measurement (a lost sample the calibrator bridged,
+//! [`Observability::predict`], or a [`LogRecord`] without observation via
+//! [`Observability::record`]) moves the true state and the bound along the
+//! commanded motion and adds nothing to `J`: the bound of the samples
+//! actually received. This is the one computation of the bound: `host-sim`'s
+//! σ_CRLB columns (`run`, `record --truth`, `calibrate --truth`) and the
+//! observability report all come from it.
+//!
 //! [`Observability::analyse`] decomposes `J` (scaled by the prior,
 //! `J̃ = S J S`, `S = diag(σ_prior)`, so that its eigenvalues are the
 //! information relative to the prior) with a symmetric eigen-decomposition.
@@ -44,6 +52,7 @@ use nalgebra::{RealField, SMatrix, SVector};
 
 use crate::command::CommandFrame;
 use crate::ekf::{Error, Filter, FilterConfig, Observation, Options};
+use crate::estimator::LogRecord;
 use crate::models::{Layout, Model, PeriodPropagation};
 
 /// Default relative tolerance of the numerical rank: an eigenvalue of the
@@ -246,9 +255,36 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>
     }
 
     /// One filter period of length `dt` (s) with commanded angle increment
-    /// `dtheta_c` (rad, c frame): propagates the true state and the bound,
-    /// and adds the period's measurement to `J`. On error nothing changes.
+    /// `dtheta_c` (rad, c frame) and a measurement: propagates the true
+    /// state and the bound, adds the period's measurement to `J` and updates
+    /// the bound with it. On error nothing changes.
     pub fn step(&mut self, dtheta_c: &nalgebra::Vector3<T>, dt: T) -> Result<(), Error> {
+        self.period(dtheta_c, dt, true)
+    }
+
+    /// One filter period without a measurement (e.g. a sample lost and
+    /// bridged along the commanded motion): the true state, `Φ(k,0)` and the
+    /// bound are propagated (the bound grows by the process noise), `J`
+    /// gains nothing. On error nothing changes.
+    pub fn predict(&mut self, dtheta_c: &nalgebra::Vector3<T>, dt: T) -> Result<(), Error> {
+        self.period(dtheta_c, dt, false)
+    }
+
+    /// One logged period: [`Observability::step`] for a record with a
+    /// measurement, [`Observability::predict`] for one without. Only the
+    /// record's period and increment are used (the bound's measurements are
+    /// the noise-free ones of the true trajectory; the covariance of the
+    /// linearised filter does not depend on their values).
+    pub fn record(&mut self, r: &LogRecord<T>) -> Result<(), Error> {
+        self.period(&r.dtheta_cmd, r.dt, r.observation.is_some())
+    }
+
+    fn period(
+        &mut self,
+        dtheta_c: &nalgebra::Vector3<T>,
+        dt: T,
+        measured: bool,
+    ) -> Result<(), Error> {
         let layout = Self::LAYOUT;
         if !dtheta_c.iter().chain([dt].iter()).all(|v| v.is_finite()) {
             return Err(Error::NonFiniteInput);
@@ -267,7 +303,6 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>
         x_end
             .fixed_rows_mut::<3>(crate::models::ATT)
             .copy_from(&att_end);
-        let (z_accel, h_accel, _) = layout.mean_accel(&env, &m, &prop, &period);
 
         // Φ_k: identity with the attitude rows from the propagation.
         let mut phi_k = SMatrix::<T, N, N>::identity();
@@ -275,39 +310,51 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>
             .fixed_rows_mut::<3>(crate::models::ATT)
             .copy_from(&prop.phi_att);
         let phi = phi_k * self.phi;
-
-        // H_k Φ(k,0) and R⁻¹ (diagonal).
-        let cfg = self.crlb.config();
-        let mut h = SMatrix::<T, Z, N>::zeros();
-        let mut r_inv = SVector::<T, Z>::zeros();
-        let accel_row = if layout.gimbal_obs {
-            h.fixed_view_mut::<3, 3>(0, crate::models::ATT)
-                .copy_from(&nalgebra::Matrix3::identity());
-            r_inv
-                .fixed_rows_mut::<3>(0)
-                .fill(T::one() / (cfg.sigma_gimbal * cfg.sigma_gimbal));
-            3
-        } else {
-            0
-        };
-        h.fixed_rows_mut::<3>(accel_row).copy_from(&h_accel);
-        r_inv
-            .fixed_rows_mut::<3>(accel_row)
-            .fill(T::one() / (cfg.sigma_accel * cfg.sigma_accel));
-        let hphi = h * phi;
-        let weighted = SMatrix::<T, Z, Z>::from_diagonal(&r_inv) * hphi;
-        let info = self.info + hphi.transpose() * weighted;
-        if !info.iter().chain(phi.iter()).all(|v| v.is_finite()) {
+        if !phi.iter().all(|v| v.is_finite()) {
             return Err(Error::NonFiniteState);
         }
 
-        // The bound: the linearised filter fed the noise-free measurement.
-        let obs = Observation {
-            accel_mean: z_accel,
-            gimbal: Some(layout.attitude(&x_end)),
+        let info = if measured {
+            let (z_accel, h_accel, _) = layout.mean_accel(&env, &m, &prop, &period);
+            // H_k Φ(k,0) and R⁻¹ (diagonal).
+            let cfg = self.crlb.config();
+            let mut h = SMatrix::<T, Z, N>::zeros();
+            let mut r_inv = SVector::<T, Z>::zeros();
+            let accel_row = if layout.gimbal_obs {
+                h.fixed_view_mut::<3, 3>(0, crate::models::ATT)
+                    .copy_from(&nalgebra::Matrix3::identity());
+                r_inv
+                    .fixed_rows_mut::<3>(0)
+                    .fill(T::one() / (cfg.sigma_gimbal * cfg.sigma_gimbal));
+                3
+            } else {
+                0
+            };
+            h.fixed_rows_mut::<3>(accel_row).copy_from(&h_accel);
+            r_inv
+                .fixed_rows_mut::<3>(accel_row)
+                .fill(T::one() / (cfg.sigma_accel * cfg.sigma_accel));
+            let hphi = h * phi;
+            let weighted = SMatrix::<T, Z, Z>::from_diagonal(&r_inv) * hphi;
+            let info = self.info + hphi.transpose() * weighted;
+            if !info.iter().all(|v| v.is_finite()) {
+                return Err(Error::NonFiniteState);
+            }
+
+            // The bound: the linearised filter fed the noise-free
+            // measurement (Filter::step leaves the filter untouched on
+            // error).
+            let obs = Observation {
+                accel_mean: z_accel,
+                gimbal: Some(layout.attitude(&x_end)),
+            };
+            self.crlb.step(dtheta_c, dt, &obs)?;
+            info
+        } else {
+            // Filter::predict leaves the filter untouched on error.
+            self.crlb.predict(dtheta_c, dt)?;
+            self.info
         };
-        // Filter::step leaves the filter untouched on error.
-        self.crlb.step(dtheta_c, dt, &obs)?;
 
         self.x_true = x_end;
         self.command.advance(&period);
@@ -317,12 +364,19 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>
         Ok(())
     }
 
+    /// The transition `Φ(k,0)` of the linearised model from the initial
+    /// time to the current one (the state at `t_k` moves by `Φ(k,0) δx_0`
+    /// when the initial state moves by `δx_0`).
+    pub fn transition(&self) -> &SMatrix<T, N, N> {
+        &self.phi
+    }
+
     /// The information matrix `J` of the initial state (rad⁻²).
     pub fn information(&self) -> &SMatrix<T, N, N> {
         &self.info
     }
 
-    /// Periods processed.
+    /// Periods processed (measured or predicted only).
     pub fn periods(&self) -> u32 {
         self.periods
     }

@@ -3,9 +3,8 @@
 //! attitude, emits estimates at its cadence, and
 //! continues bit-identically from a checkpoint taken at any sample.
 
-use host_sim::runner::filter_config;
-use host_sim::scenario::{Scenario, DEG};
-use host_sim::truth::{simulate, SimOptions};
+mod support;
+
 use nalgebra::RealField;
 use rollcal::calibrator::{Calibrator, M1PaCalibrator, M2PsCalibrator, RejectReason};
 use rollcal::ekf::{M1PaFilter, M2PsFilter, Observation, Options};
@@ -13,47 +12,22 @@ use rollcal::models::{ConfigId, Model};
 use rollcal::wire::{
     encode, CalibratorConfig, Checkpoint, FrameDecoder, Message, Sample, MAX_FRAME_LEN,
 };
+use support::filter_config;
 
-/// The paper's scenario cut to `periods` periods, as f32 samples.
-fn samples(periods: usize, seed: u64) -> (Scenario, Vec<Sample>) {
-    let mut sc = Scenario::paper();
-    sc.timing.duration_s = periods as f64 * sc.timing.period_s;
-    let sim = simulate(
-        &sc,
-        SimOptions {
-            seed,
-            noise: true,
-            earth_rate: true,
-        },
-    );
-    let out = sim
-        .samples
-        .iter()
-        .map(|s| Sample {
-            seq: s.k,
-            t_us: (s.truth.t * 1e6).round() as u64,
-            dt: s.dt as f32,
-            dtheta_cmd: s.dtheta_cmd.map(|v| v as f32).into(),
-            accel_mean: s.accel_mean.map(|v| v as f32).into(),
-            gimbal: Some(s.gimbal.map(|v| v as f32).into()),
-            c_cn_quat: rollcal::geometry::quaternion_from_dcm(&s.truth.c_c_n).map(|v| v as f32),
-        })
-        .collect();
-    (sc, out)
+/// The first `periods` samples of the recorded paper stream (f32 samples,
+/// noise seed 1, `tests/support`) and its settings.
+fn samples(periods: usize) -> (CalibratorConfig, Vec<Sample>) {
+    let (sc, mut data) = support::paper_stream();
+    data.truncate(periods);
+    (sc, data)
 }
 
-fn settings(sc: &Scenario, id: ConfigId, every: u32) -> CalibratorConfig {
-    let f = filter_config(sc, true, Options::default());
+/// The stream's settings for `id` with an estimate every `every` samples.
+fn settings(sc: &CalibratorConfig, id: ConfigId, every: u32) -> CalibratorConfig {
     CalibratorConfig {
         config: id,
-        sigma_accel_g: f.sigma_accel,
-        sigma_gyro_rad_s: f.sigma_gyro,
-        sigma_gimbal_rad: f.sigma_gimbal,
-        earth_rate_n: f.env.earth_rate_n.into(),
-        gravity_n: f.env.gravity_n.into(),
-        prior_sigma_rad: sc.prior.sigma_deg * DEG,
         estimate_every: every,
-        ..CalibratorConfig::paper(id)
+        ..*sc
     }
 }
 
@@ -111,7 +85,7 @@ fn run<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usi
 
 #[test]
 fn checkpoint_restore_at_any_sample_is_bit_identical() {
-    let (sc, data) = samples(400, 11);
+    let (sc, data) = samples(400);
     let cuts: Vec<usize> = (0..data.len()).step_by(97).chain([1, 2, 399]).collect();
     // f64 and f32, M2-ps and M1-pa: one interrupted run per cut index and
     // one run interrupted at all of them.
@@ -154,11 +128,11 @@ fn checkpoint_restore_at_any_sample_is_bit_identical() {
 
 #[test]
 fn the_calibrator_is_the_filter_on_the_f32_samples() {
-    let (sc, data) = samples(200, 2);
+    let (sc, data) = samples(200);
     let cfg = settings(&sc, ConfigId::M2Ps, 0);
     let mut cal = M2PsCalibrator::<f64>::new(cfg).unwrap();
-    let fc = filter_config(&sc, true, Options::default());
-    let s0 = nalgebra::SVector::<f64, 18>::repeat(sc.prior.sigma_deg * DEG);
+    let fc = filter_config(&sc, Options::default());
+    let s0 = nalgebra::SVector::<f64, 18>::repeat(sc.prior_sigma_rad);
     let mut f = M2PsFilter::<f64>::new(fc, nalgebra::SVector::zeros(), s0).unwrap();
     let v = |a: [f32; 3]| nalgebra::Vector3::new(a[0] as f64, a[1] as f64, a[2] as f64);
     for s in &data {
@@ -181,7 +155,7 @@ fn the_calibrator_is_the_filter_on_the_f32_samples() {
 
 #[test]
 fn bad_samples_are_rejected_by_reason_and_leave_the_filter_untouched() {
-    let (sc, data) = samples(60, 3);
+    let (sc, data) = samples(60);
     let mut cal = M2PsCalibrator::<f64>::new(settings(&sc, ConfigId::M2Ps, 0)).unwrap();
     for s in &data[..30] {
         cal.push(s).unwrap();
@@ -314,9 +288,13 @@ fn bad_samples_are_rejected_by_reason_and_leave_the_filter_untouched() {
 
 /// A filter told the true commanded increments of every period, lost ones
 /// predicted without measurement: what bridging a gap should reproduce.
-fn reference_m1pa(sc: &Scenario, data: &[Sample], lost: impl Fn(usize) -> bool) -> M1PaFilter<f64> {
-    let fc = filter_config(sc, true, Options::default());
-    let s0 = nalgebra::SVector::<f64, 12>::repeat(sc.prior.sigma_deg * DEG);
+fn reference_m1pa(
+    sc: &CalibratorConfig,
+    data: &[Sample],
+    lost: impl Fn(usize) -> bool,
+) -> M1PaFilter<f64> {
+    let fc = filter_config(sc, Options::default());
+    let s0 = nalgebra::SVector::<f64, 12>::repeat(sc.prior_sigma_rad);
     let mut f = M1PaFilter::<f64>::new(fc, nalgebra::SVector::zeros(), s0).unwrap();
     let v = |a: [f32; 3]| nalgebra::Vector3::new(a[0] as f64, a[1] as f64, a[2] as f64);
     for (i, s) in data.iter().enumerate() {
@@ -347,7 +325,7 @@ fn assert_same_estimate(e: &rollcal::wire::Estimate, f: &M1PaFilter<f64>, tol_si
 
 #[test]
 fn the_reported_frame_is_the_integrated_one() {
-    let (sc, data) = samples(300, 4);
+    let (sc, data) = samples(300);
     let mut cal = M1PaCalibrator::<f64>::new(settings(&sc, ConfigId::M1Pa, 0)).unwrap();
     for s in &data {
         cal.push(s).unwrap();
@@ -360,7 +338,7 @@ fn the_reported_frame_is_the_integrated_one() {
 
 #[test]
 fn gaps_inside_a_segment_are_bridged_along_the_commanded_motion() {
-    let (sc, data) = samples(600, 4);
+    let (sc, data) = samples(600);
     let cfg = settings(&sc, ConfigId::M1Pa, 0);
     // A NaN sample, three lost ones and a burst of 250, all inside the first
     // path segment.
@@ -391,7 +369,7 @@ fn gaps_inside_a_segment_are_bridged_along_the_commanded_motion() {
 #[test]
 fn a_gap_at_a_segment_switch_is_bridged_and_an_unknown_motion_reacquires() {
     // The paper's path turns from South to East at 1800 s and back at 2700 s.
-    let (sc, data) = samples(3000, 6);
+    let (sc, data) = samples(3000);
     let cfg = settings(&sc, ConfigId::M1Pa, 0);
     // One frame lost on each side of the first switch, and bursts of 20 and
     // 1000 that contain it.
@@ -459,7 +437,7 @@ fn a_gap_at_a_segment_switch_is_bridged_and_an_unknown_motion_reacquires() {
 
 #[test]
 fn a_clock_step_is_reanchored_once_confirmed() {
-    let (sc, data) = samples(300, 4);
+    let (sc, data) = samples(300);
     let cfg = settings(&sc, ConfigId::M1Pa, 0);
     let stepped: Vec<Sample> = data
         .iter()
@@ -500,7 +478,7 @@ fn a_clock_step_is_reanchored_once_confirmed() {
 
 #[test]
 fn estimates_come_at_the_cadence() {
-    let (sc, data) = samples(100, 5);
+    let (sc, data) = samples(100);
     let mut cal = M1PaCalibrator::<f64>::new(settings(&sc, ConfigId::M1Pa, 7)).unwrap();
     let mut at = Vec::new();
     for s in &data {
@@ -526,7 +504,7 @@ fn estimates_come_at_the_cadence() {
 fn finish_is_the_estimator_of_record_over_the_log_or_says_why_not() {
     use rollcal::estimator::{estimate, EstimatorOptions, LogRecord, SliceLog};
     use rollcal::wire::{EstimateKind, SinglePassReason};
-    let (sc, data) = samples(400, 7);
+    let (sc, data) = samples(400);
     let cfg = settings(&sc, ConfigId::M1Pa, 0);
     let blank = LogRecord::predicted(1.0, nalgebra::Vector3::zeros());
     // Complete log, with a lost sample and a bridged gap in it.
@@ -547,7 +525,7 @@ fn finish_is_the_estimator_of_record_over_the_log_or_says_why_not() {
     };
     assert!(passes >= 2);
     // The very estimator of record, run by hand over the same log.
-    let fc = filter_config(&sc, true, Options::default());
+    let fc = filter_config(&sc, Options::default());
     let s0 = nalgebra::SVector::<f64, 12>::repeat(cfg.prior_sigma_rad);
     let by_hand = estimate::<f64, rollcal::models::M1Pa, 12, 3, _, _>(
         &fc,
@@ -617,7 +595,7 @@ fn the_session_checkpoints_resets_restores_and_finishes_as_if_uninterrupted() {
     use rollcal::estimator::{EstimatorOptions, LogRecord, SliceLog};
     use rollcal::session::{Reply, Session, SessionError};
     use rollcal::wire::EstimateKind;
-    let (sc, data) = samples(300, 8);
+    let (sc, data) = samples(300);
     let cfg = settings(&sc, ConfigId::M2Ps, 0);
     let blank = LogRecord::predicted(1.0, nalgebra::Vector3::zeros());
     let run = |interrupt: bool| {

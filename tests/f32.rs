@@ -2,16 +2,16 @@
 //! on the paper's data without panicking. (Single-precision accuracy is a
 //! later issue; this only asserts that the f32 path stays finite early on.)
 
-use host_sim::runner::filter_config;
-use host_sim::scenario::{Scenario, DEG};
-use host_sim::truth::{simulate, SimOptions};
+mod support;
+
 use nalgebra::{SVector, Vector3};
 use rollcal::ekf::{M1PaFilter, M2PsFilter, Observation, Options};
 use rollcal::models::Environment;
+use rollcal::wire::CalibratorConfig;
 use rollcal::FilterConfig;
 
-fn config32(scenario: &Scenario) -> FilterConfig<f32> {
-    let c = filter_config(scenario, true, Options::default());
+fn config32(c: &CalibratorConfig) -> FilterConfig<f32> {
+    let c = support::filter_config(c, Options::default());
     FilterConfig {
         env: Environment {
             earth_rate_n: c.env.earth_rate_n.cast(),
@@ -26,37 +26,30 @@ fn config32(scenario: &Scenario) -> FilterConfig<f32> {
 
 #[test]
 fn f32_filters_run() {
-    let scenario = Scenario::paper();
-    let sim = simulate(
-        &scenario,
-        SimOptions {
-            seed: 1,
-            noise: true,
-            earth_rate: true,
-        },
-    );
-    let sigma0 = (scenario.prior.sigma_deg * DEG) as f32;
+    // The recorded paper stream (noise seed 1): f32 samples already.
+    let (settings, samples) = support::paper_stream();
+    let sigma0 = settings.prior_sigma_rad as f32;
     let mut m1 = M1PaFilter::<f32>::new(
-        config32(&scenario),
+        config32(&settings),
         SVector::zeros(),
         SVector::repeat(sigma0),
     )
     .unwrap();
     let mut m2 = M2PsFilter::<f32>::new(
-        config32(&scenario),
+        config32(&settings),
         SVector::zeros(),
         SVector::repeat(sigma0),
     )
     .unwrap();
     let (mut ok1, mut ok2) = (0, 0);
-    for s in sim.samples.iter().take(300) {
+    for s in samples.iter().take(300) {
         let obs = Observation::<f32> {
-            accel_mean: s.accel_mean.cast(),
-            gimbal: Some(s.gimbal.cast()),
+            accel_mean: Vector3::from(s.accel_mean),
+            gimbal: s.gimbal.map(Vector3::from),
         };
-        let d: Vector3<f32> = s.dtheta_cmd.cast();
-        ok1 += usize::from(m1.step(&d, s.dt as f32, &obs).is_ok());
-        ok2 += usize::from(m2.step(&d, s.dt as f32, &obs).is_ok());
+        let d = Vector3::from(s.dtheta_cmd);
+        ok1 += usize::from(m1.step(&d, s.dt, &obs).is_ok());
+        ok2 += usize::from(m2.step(&d, s.dt, &obs).is_ok());
     }
     eprintln!("f32: M1-pa {ok1}/300 updates, M2-ps {ok2}/300 updates accepted");
     assert!(m1

@@ -1,30 +1,53 @@
 //! Bad input to the filter is an error, never a panic, and leaves the filter
 //! as it was; the NIS gate rejects an update.
 
-use host_sim::runner::filter_config;
-use host_sim::scenario::{Scenario, DEG};
-use host_sim::truth::{simulate, SimOptions};
+mod support;
+
 use nalgebra::{SVector, Vector3};
 use rollcal::ekf::{M2PsFilter, Observation, Options};
 use rollcal::Error;
 
+/// A sample of the recorded paper stream (noise seed 1) in f64.
+struct Period {
+    dtheta_cmd: Vector3<f64>,
+    dt: f64,
+    accel_mean: Vector3<f64>,
+    gimbal: Vector3<f64>,
+}
+
+fn samples() -> Vec<Period> {
+    support::paper_stream()
+        .1
+        .iter()
+        .map(|s| {
+            let (dt, dtheta_cmd) = support::period(s);
+            let obs = support::observation(s);
+            Period {
+                dtheta_cmd,
+                dt,
+                accel_mean: obs.accel_mean,
+                gimbal: obs.gimbal.unwrap(),
+            }
+        })
+        .collect()
+}
+
 fn filter(options: Options) -> M2PsFilter<f64> {
-    let cfg = filter_config(&Scenario::paper(), true, options);
-    M2PsFilter::new(cfg, SVector::zeros(), SVector::repeat(DEG)).unwrap()
+    let settings = support::paper_stream().0;
+    let cfg = support::filter_config(&settings, options);
+    M2PsFilter::new(
+        cfg,
+        SVector::zeros(),
+        SVector::repeat(settings.prior_sigma_rad),
+    )
+    .unwrap()
 }
 
 #[test]
 fn bad_input_is_rejected_and_leaves_the_filter_untouched() {
-    let sim = simulate(
-        &Scenario::paper(),
-        SimOptions {
-            seed: 2,
-            noise: true,
-            earth_rate: true,
-        },
-    );
+    let samples = samples();
     let mut f = filter(Options::default());
-    for s in sim.samples.iter().take(20) {
+    for s in samples.iter().take(20) {
         f.step(
             &s.dtheta_cmd,
             s.dt,
@@ -36,7 +59,7 @@ fn bad_input_is_rejected_and_leaves_the_filter_untouched() {
         .unwrap();
     }
     let before = f.clone();
-    let s = &sim.samples[20];
+    let s = &samples[20];
     let good = Observation {
         accel_mean: s.accel_mean,
         gimbal: Some(s.gimbal),
@@ -78,19 +101,12 @@ fn bad_input_is_rejected_and_leaves_the_filter_untouched() {
 
 #[test]
 fn nis_gate_rejects_an_outlier() {
-    let sim = simulate(
-        &Scenario::paper(),
-        SimOptions {
-            seed: 2,
-            noise: true,
-            earth_rate: true,
-        },
-    );
+    let samples = samples();
     let mut f = filter(Options {
         nis_gate: 100.0,
         ..Options::default()
     });
-    for s in sim.samples.iter().take(200) {
+    for s in samples.iter().take(200) {
         f.step(
             &s.dtheta_cmd,
             s.dt,
@@ -101,7 +117,7 @@ fn nis_gate_rejects_an_outlier() {
         )
         .unwrap();
     }
-    let s = &sim.samples[200];
+    let s = &samples[200];
     let outlier = Observation {
         accel_mean: s.accel_mean + Vector3::new(1e-3, 0.0, 0.0),
         gimbal: Some(s.gimbal),

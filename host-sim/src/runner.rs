@@ -10,6 +10,7 @@ use rollcal::ekf::{self, Filter, FilterConfig, Observation, Options};
 use rollcal::estimator::{self, EstimatorError, EstimatorOptions, LogRecord, SliceLog};
 use rollcal::geometry::{wrap_angle, EARTH_RATE};
 use rollcal::models::{ConfigId, Environment, Group, Model};
+use rollcal::observability::Observability;
 
 use crate::scenario::{Scenario, ARCSEC, DEG};
 use crate::truth::{truth_state, PeriodSample, Simulation};
@@ -24,8 +25,6 @@ pub trait DynFilter: Send {
     fn sigma(&self) -> Vec<f64>;
     /// Covariance, row-major (rad²).
     fn covariance(&self) -> Vec<f64>;
-    /// Switch to the linearised filter about the nominal starting at `x`.
-    fn set_nominal(&mut self, x: &[f64]);
 }
 
 impl<M: Model<N, Z> + Send, const N: usize, const Z: usize> DynFilter for Filter<f64, M, N, Z> {
@@ -45,9 +44,6 @@ impl<M: Model<N, Z> + Send, const N: usize, const Z: usize> DynFilter for Filter
             .iter()
             .copied()
             .collect()
-    }
-    fn set_nominal(&mut self, x: &[f64]) {
-        Filter::set_nominal(self, Some(SVector::from_iterator(x.iter().copied())));
     }
 }
 
@@ -87,26 +83,6 @@ pub fn filter_config(s: &Scenario, earth_rate: bool, options: Options) -> Filter
 fn initial<const N: usize>(x0: &[f64], sigma0: f64) -> (SVector<f64, N>, SVector<f64, N>) {
     let x = SVector::<f64, N>::from_iterator(x0.iter().copied().chain(std::iter::repeat(0.0)));
     (x, SVector::<f64, N>::repeat(sigma0))
-}
-
-fn make<M: Model<N, Z> + Send + 'static, const N: usize, const Z: usize>(
-    cfg: FilterConfig<f64>,
-    x0: &[f64],
-    sigma0: f64,
-) -> Result<Box<dyn DynFilter>, ekf::Error> {
-    let (x, s) = initial::<N>(x0, sigma0);
-    Ok(Box::new(Filter::<f64, M, N, Z>::new(cfg, x, s)?))
-}
-
-/// A filter of configuration `id` with initial estimate `x0` (rad; zeros
-/// for a cold start) and prior σ `sigma0` (rad) on every state.
-pub fn new_filter(
-    id: ConfigId,
-    cfg: FilterConfig<f64>,
-    x0: &[f64],
-    sigma0: f64,
-) -> Result<Box<dyn DynFilter>, ekf::Error> {
-    rollcal::with_config!(id, |M, N, Z| make::<M, N, Z>(cfg, x0, sigma0))
 }
 
 /// One state at the end of a run.
@@ -321,10 +297,38 @@ pub fn result(id: ConfigId, p: &Passes, truth: &[f64], sigma0: f64) -> RunResult
     }
 }
 
-/// Posterior Cramér–Rao bound σ (rad) of every state at the end of `sim`:
-/// the covariance of the filter linearised along the true trajectory (its
-/// nominal starts at the true initial state), with the same prior and
-/// process noise (SPEC §5.3).
+/// Posterior Cramér–Rao bound σ (rad) of every state after the periods
+/// `records`, from the true initial state `truth0` (rad; missing trailing
+/// states are zero) with prior σ `sigma0` (rad) on every state and the noise
+/// levels of `cfg` (its options are ignored): [`Observability`] along the
+/// true trajectory, a record without measurement being a period that is
+/// only predicted (SPEC §5.3). The one computation of the bound.
+pub fn bound(
+    id: ConfigId,
+    cfg: FilterConfig<f64>,
+    truth0: &[f64],
+    sigma0: f64,
+    records: &[LogRecord<f64>],
+) -> Result<Vec<f64>, ekf::Error> {
+    fn typed<M: Model<N, Z>, const N: usize, const Z: usize>(
+        cfg: FilterConfig<f64>,
+        truth0: &[f64],
+        sigma0: f64,
+        records: &[LogRecord<f64>],
+    ) -> Result<Vec<f64>, ekf::Error> {
+        let (x, s) = initial::<N>(truth0, sigma0);
+        let mut obs = Observability::<f64, M, N, Z>::new(cfg, x, s)?;
+        for r in records {
+            obs.record(r)?;
+        }
+        Ok(obs.crlb_sigma().iter().copied().collect())
+    }
+    rollcal::with_config!(id, |M, N, Z| typed::<M, N, Z>(cfg, truth0, sigma0, records))
+}
+
+/// Posterior Cramér–Rao bound σ (rad) of every state at the end of `sim`
+/// ([`bound`] over all its periods, from its true initial state, with the
+/// scenario's prior and noise levels).
 pub fn crlb_sigma(
     id: ConfigId,
     scenario: &Scenario,
@@ -333,12 +337,8 @@ pub fn crlb_sigma(
 ) -> Result<Vec<f64>, ekf::Error> {
     let cfg = filter_config(scenario, earth_rate, Options::plain());
     let truth0 = truth_state(id, &sim.params, &sim.initial);
-    let mut f = new_filter(id, cfg, &truth0, scenario.prior.sigma_deg * DEG)?;
-    f.set_nominal(&truth0);
-    for s in &sim.samples {
-        f.step(s)?;
-    }
-    Ok(f.sigma())
+    let records: Vec<LogRecord<f64>> = sim.samples.iter().map(log_record).collect();
+    bound(id, cfg, &truth0, scenario.prior.sigma_deg * DEG, &records)
 }
 
 /// What the run says of one state.

@@ -25,7 +25,7 @@ use nalgebra::Vector3;
 use rollcal::calibrator::RejectReason;
 use rollcal::ekf::{self, FilterConfig, Options};
 use rollcal::estimator::{EstimatorOptions, LogError, LogRecord, SampleLog};
-use rollcal::models::{ConfigId, Environment, Model};
+use rollcal::models::{ConfigId, Environment};
 use rollcal::session::{Reply, Session};
 use rollcal::wire::{
     encode, CalibratorConfig, DecoderStats, Estimate, EstimateKind, FrameDecoder, Message, Sample,
@@ -266,39 +266,6 @@ struct Final {
     estimate: Estimate,
     /// NIS of every update of the last pass.
     nis: Vec<f64>,
-}
-
-/// σ of the filter linearised at the truth (initial state `truth0`) over
-/// the logged records: the Cramér–Rao bound of the samples received.
-fn received_bound(
-    settings: &CalibratorConfig,
-    log: &VecLog,
-    truth0: &[f64],
-) -> Result<Vec<f64>, ekf::Error> {
-    fn typed<M: Model<N, Z>, const N: usize, const Z: usize>(
-        settings: &CalibratorConfig,
-        log: &VecLog,
-        truth0: &[f64],
-    ) -> Result<Vec<f64>, ekf::Error> {
-        let mut cfg = filter_config(settings);
-        cfg.options = Options::plain();
-        let x0 = nalgebra::SVector::<f64, N>::from_iterator(
-            truth0.iter().copied().chain(std::iter::repeat(0.0)),
-        );
-        let sigma0 = nalgebra::SVector::<f64, N>::repeat(settings.prior_sigma_rad);
-        let mut f = rollcal::Filter::<f64, M, N, Z>::new(cfg, x0, sigma0)?;
-        f.set_nominal(Some(x0));
-        for r in &log.0 {
-            match &r.observation {
-                Some(obs) => f.step(&r.dtheta_cmd, r.dt, obs).map(|_| ())?,
-                None => f.predict(&r.dtheta_cmd, r.dt)?,
-            }
-        }
-        Ok(f.sigma().iter().copied().collect())
-    }
-    rollcal::with_config!(settings.config, |M, N, Z| typed::<M, N, Z>(
-        settings, log, truth0
-    ))
 }
 
 /// The no_std session (the protocol, once) with the host's log and records
@@ -548,16 +515,22 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
     let sigma0 = settings.prior_sigma_rad;
     let nan = vec![f64::NAN; id.layout().n()];
     let truth = sidecar.as_ref().map_or(&nan, |s| &s.truth);
-    // The bound of the samples actually received: the filter linearised at
-    // the truth over the same log (with the bridged periods predicted);
+    // The bound of the samples actually received: the bound over the same
+    // log (the bridged periods predicted only);
     // the full run's bound when the log is not the whole run.
     let received_bound = match (
         sidecar.as_ref().and_then(|s| s.truth0.as_ref()),
         p.log_incomplete,
     ) {
         (Some(t0), None) => Some(
-            received_bound(&settings, &host.log, t0)
-                .map_err(|e| format!("Cramér–Rao bound of the received samples: {e}"))?,
+            runner::bound(
+                settings.config,
+                filter_config(&settings),
+                t0,
+                sigma0,
+                &host.log.0,
+            )
+            .map_err(|e| format!("Cramér–Rao bound of the received samples: {e}"))?,
         ),
         _ => None,
     };
@@ -711,5 +684,4 @@ impl runner::DynFilter for CalibratorView {
     fn covariance(&self) -> Vec<f64> {
         self.covariance.clone()
     }
-    fn set_nominal(&mut self, _: &[f64]) {}
 }

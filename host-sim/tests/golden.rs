@@ -1,5 +1,5 @@
 //! The truth simulator reproduces the golden vectors of an independent
-//! implementation of SPEC (`tests/data/paper_scenario_clean.csv`, see
+//! implementation of SPEC (the root crate's `tests/data/paper_scenario_clean.csv`, see
 //! `tests/data/GOLDEN-README.md`) to 1e-10.
 
 use host_sim::scenario::Scenario;
@@ -8,7 +8,7 @@ use host_sim::truth::{simulate, SimOptions};
 struct Row(Vec<f64>);
 
 fn golden() -> (Vec<String>, Vec<Row>) {
-    let text = include_str!("data/paper_scenario_clean.csv");
+    let text = include_str!("../../tests/data/paper_scenario_clean.csv");
     let mut lines = text.lines();
     let header: Vec<String> = lines
         .next()

@@ -172,7 +172,7 @@ fn m3_pa_estimates_the_instruments_but_not_the_base() {
 fn other_scenarios_converge_too() {
     for file in ["reordered-fast.toml", "southern-slow.toml"] {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("scenarios")
+            .join("../scenarios")
             .join(file);
         let scenario = Scenario::from_file(&path).unwrap();
         let prior = scenario.prior.sigma_deg * DEG;
