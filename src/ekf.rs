@@ -333,12 +333,19 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         if sigma0.iter().any(|s| *s <= T::zero()) || config.sigma_accel <= T::zero() {
             return Err(Error::CovarianceNotPositiveDefinite);
         }
+        // A finite prior σ whose variance overflows (σ > 1.3e154 in f64,
+        // 1.8e19 in f32) would give an infinite covariance, from which no
+        // checkpoint of the filter could be restored (`from_parts`).
+        let variance = sigma0.component_mul(&sigma0);
+        if !all_finite(variance.iter().copied()) {
+            return Err(Error::NonFiniteInput);
+        }
         if Self::LAYOUT.gimbal_obs && config.sigma_gimbal <= T::zero() {
             return Err(Error::CovarianceNotPositiveDefinite);
         }
         Ok(Self {
             x: x0,
-            p: SMatrix::from_diagonal(&sigma0.component_mul(&sigma0)),
+            p: SMatrix::from_diagonal(&variance),
             command: CommandFrame::aligned(config.env.earth_rate_n),
             config,
             pending: None,

@@ -665,3 +665,45 @@ fn the_session_checkpoints_resets_restores_and_finishes_as_if_uninterrupted() {
         })
     );
 }
+
+/// Found by the `session` fuzz target: a finite prior σ whose variance
+/// overflows (f64::MAX) was accepted, giving an infinite covariance, so the
+/// calibrator's own checkpoint could not be restored. It is now refused.
+#[test]
+fn a_prior_whose_variance_overflows_is_refused_and_every_accepted_one_restores() {
+    for (sigma, ok) in [
+        (f64::MAX, false),
+        (1e155, false),
+        (1e150, true),
+        (1.0, true),
+    ] {
+        let cfg = CalibratorConfig {
+            prior_sigma_rad: sigma,
+            ..CalibratorConfig::paper(ConfigId::M4Pa)
+        };
+        match rollcal::M4PaCalibrator::<f64>::new(cfg) {
+            Ok(cal) => {
+                assert!(ok, "{sigma}");
+                let cp = cal.checkpoint();
+                let again = rollcal::M4PaCalibrator::<f64>::restore(cfg, &cp).unwrap();
+                assert_eq!(
+                    bytes(&Message::Checkpoint(again.checkpoint())),
+                    bytes(&Message::Checkpoint(cp))
+                );
+            }
+            Err(e) => {
+                assert!(!ok, "{sigma}");
+                assert_eq!(
+                    e,
+                    rollcal::calibrator::Error::Filter(rollcal::Error::NonFiniteInput)
+                );
+            }
+        }
+    }
+    // f32: σ² overflows above 1.8e19.
+    let cfg = CalibratorConfig {
+        prior_sigma_rad: 1e20,
+        ..CalibratorConfig::paper(ConfigId::M4Pa)
+    };
+    assert!(rollcal::M4PaCalibrator::<f32>::new(cfg).is_err());
+}
