@@ -5,12 +5,14 @@ use std::path::Path;
 use std::process::Command;
 
 use rollcal::models::ConfigId;
-use rollcal::wire::{encode, Estimate, FrameDecoder, Message, Progress, MAX_FRAME_LEN};
+use rollcal::wire::{
+    encode, Estimate, EstimateKind, FrameDecoder, Message, Progress, MAX_FRAME_LEN,
+};
 
 const BIN: &str = env!("CARGO_BIN_EXE_firmware-check");
 
 #[test]
-fn end_frame_is_an_estimate_request() {
+fn end_frame_is_an_estimate_request_then_finish() {
     let out = Command::new(BIN).arg("end-frame").output().unwrap();
     assert!(out.status.success());
     assert_eq!(
@@ -22,10 +24,21 @@ fn end_frame_is_an_estimate_request() {
     let mut d = FrameDecoder::new();
     d.feed(&out.stdout, |m| msgs.push(m));
     assert_eq!(d.stats().errors(), 0);
-    assert_eq!(msgs, vec![Message::EstimateRequest]);
+    assert_eq!(msgs, vec![Message::EstimateRequest, Message::Finish]);
 }
 
+/// A final estimate of record after `passes` passes.
 fn estimate(x: &[f64]) -> Estimate {
+    estimate_of(
+        x,
+        EstimateKind::Final {
+            passes: 2,
+            converged: true,
+        },
+    )
+}
+
+fn estimate_of(x: &[f64], kind: EstimateKind) -> Estimate {
     let mut e = Estimate {
         config: ConfigId::M1Pa,
         seq: 7,
@@ -34,7 +47,7 @@ fn estimate(x: &[f64]) -> Estimate {
         sigma: Default::default(),
         progress: Progress::default(),
         frame_errors: 0,
-        kind: rollcal::wire::EstimateKind::Running,
+        kind,
     };
     for v in x {
         e.state.push(*v).unwrap();
@@ -81,7 +94,8 @@ fn compare_uses_the_last_estimate_and_the_tolerance() {
     let host = dir.join("host.json");
     std::fs::write(
         &host,
-        serde_json::json!({"config": "M1-pa", "states": states}).to_string(),
+        serde_json::json!({"config": "M1-pa", "states": states, "answer": {"passes": 2}})
+            .to_string(),
     )
     .unwrap();
     // An early estimate far off, then the final one 3e-10 rad off on one state.
@@ -102,6 +116,19 @@ fn compare_uses_the_last_estimate_and_the_tolerance() {
     let (ok, text) = compare(&fw, &host, 1e-10);
     assert!(!ok, "{text}");
     assert!(text.contains("FAIL"), "{text}");
+    // A running estimate, however close, is not the answer of record; nor
+    // is a final one after another number of passes than the host's.
+    for kind in [
+        EstimateKind::Running,
+        EstimateKind::Final {
+            passes: 3,
+            converged: true,
+        },
+    ] {
+        write_frames(&fw, &[Message::Estimate(estimate_of(&host_x, kind))]);
+        let (ok, text) = compare(&fw, &host, 1e-9);
+        assert!(!ok, "{text}");
+    }
     // No estimate at all is an error, not a pass.
     write_frames(&fw, &[Message::EstimateRequest]);
     let (ok, _) = compare(&fw, &host, 1.0);
