@@ -171,6 +171,10 @@ fn vec3<T: RealField + Copy>(a: [f64; 3]) -> Vector3<T> {
     Vector3::new(to_t(a[0]), to_t(a[1]), to_t(a[2]))
 }
 
+fn vec3_f64<T: RealField + Copy>(a: &[f64; 3]) -> Vector3<T> {
+    Vector3::new(to_t(a[0]), to_t(a[1]), to_t(a[2]))
+}
+
 fn vec3_f32<T: RealField + Copy>(a: &[f32; 3]) -> Vector3<T> {
     Vector3::new(
         to_t(f64::from(a[0])),
@@ -308,13 +312,13 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         let gimbal_obs = M::LAYOUT.gimbal_obs;
         let gimbal = if gimbal_obs { s.gimbal } else { None };
         let values = || {
-            s.dtheta_cmd
+            s.accel_mean
                 .iter()
-                .chain(s.accel_mean.iter())
                 .chain(s.c_cn_quat.iter())
                 .chain(gimbal.iter().flatten())
                 .chain(core::iter::once(&s.dt))
                 .map(|v| f64::from(*v))
+                .chain(s.dtheta_cmd.iter().copied())
         };
         if !values().all(f64::is_finite) {
             return Err(RejectReason::NonFinite);
@@ -327,7 +331,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         if over(&s.accel_mean, lim.max_accel_g) {
             return Err(RejectReason::AccelRange);
         }
-        if over(&s.dtheta_cmd, lim.max_increment_rad) {
+        if s.dtheta_cmd.iter().any(|v| v.abs() > lim.max_increment_rad) {
             return Err(RejectReason::IncrementRange);
         }
         match gimbal {
@@ -390,7 +394,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     fn motion_across(&self, s: &Sample, gap: u32) -> Motion<T> {
         let lim = &self.settings.limits;
         let dt: T = to_t(f64::from(s.dt));
-        let dtheta: Vector3<T> = vec3_f32(&s.dtheta_cmd);
+        let dtheta: Vector3<T> = vec3_f64(&s.dtheta_cmd);
         let q = s.c_cn_quat.map(|v| to_t::<T>(f64::from(v)));
         let tol: T = to_t(lim.frame_tolerance_rad);
         let frame = *self.filter.command_frame();
@@ -584,7 +588,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         };
         let gap = checked.gap;
         let dt: T = to_t(f64::from(s.dt));
-        let dtheta: Vector3<T> = vec3_f32(&s.dtheta_cmd);
+        let dtheta: Vector3<T> = vec3_f64(&s.dtheta_cmd);
         let obs = Observation {
             accel_mean: vec3_f32(&s.accel_mean),
             gimbal: s.gimbal.as_ref().map(vec3_f32),
@@ -641,7 +645,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         p.clock_candidate = None;
         p.last_seq = Some(s.seq);
         p.last_t_us = Some(s.t_us);
-        p.last_increment = s.dtheta_cmd.map(f64::from);
+        p.last_increment = s.dtheta_cmd;
         p.accepted = p.accepted.saturating_add(1);
         p.since_estimate = p.since_estimate.saturating_add(1);
         let every = self.settings.estimate_every;

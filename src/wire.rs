@@ -32,7 +32,7 @@ use crate::ekf::Options;
 use crate::models::ConfigId;
 
 /// Protocol version carried in the first byte of every frame.
-pub const VERSION: u8 = 2;
+pub const VERSION: u8 = 3;
 
 /// Largest state dimension of any configuration (M2-ps, M3-ps).
 pub const MAX_STATES: usize = 18;
@@ -66,8 +66,12 @@ pub struct Sample {
     pub t_us: u64,
     /// Period length `T` (s).
     pub dt: f32,
-    /// Commanded angle increment `Δθc = ∫ωc dt` over the period (rad, c frame).
-    pub dtheta_cmd: [f32; 3],
+    /// Commanded angle increment `Δθc = ∫ωc dt` over the period (rad, c
+    /// frame). `f64`: its rounding is not noise but a bias that lasts a
+    /// whole path segment (the Earth rate's share of an increment is
+    /// ~4e-8 rad and changes slowly): in `f32` it moved the M1-pa answer by
+    /// 0.11σ.
+    pub dtheta_cmd: [f64; 3],
     /// The computed frame at the end of the period, `C^c_n(t_k)`, as the unit
     /// quaternion `[w, x, y, z]` of its rotation vector θ (`C^c_n = R(θ)`,
     /// [`crate::geometry::quaternion_from_dcm`]). It makes the commanded

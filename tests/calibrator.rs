@@ -141,7 +141,7 @@ fn the_calibrator_is_the_filter_on_the_f32_samples() {
             accel_mean: v(s.accel_mean),
             gimbal: s.gimbal.map(v),
         };
-        f.step(&v(s.dtheta_cmd), s.dt as f64, &obs).unwrap();
+        f.step(&s.dtheta_cmd.into(), s.dt as f64, &obs).unwrap();
     }
     assert_eq!(cal.filter(), &f);
     let e = cal.estimate();
@@ -174,7 +174,7 @@ fn bad_samples_are_rejected_by_reason_and_leave_the_filter_untouched() {
         (
             RejectReason::NonFinite,
             Sample {
-                dtheta_cmd: [f32::INFINITY, 0.0, 0.0],
+                dtheta_cmd: [f64::INFINITY, 0.0, 0.0],
                 ..good
             },
         ),
@@ -299,13 +299,13 @@ fn reference_m1pa(
     let v = |a: [f32; 3]| nalgebra::Vector3::new(a[0] as f64, a[1] as f64, a[2] as f64);
     for (i, s) in data.iter().enumerate() {
         if lost(i) {
-            f.predict(&v(s.dtheta_cmd), s.dt as f64).unwrap();
+            f.predict(&s.dtheta_cmd.into(), s.dt as f64).unwrap();
         } else {
             let obs = Observation {
                 accel_mean: v(s.accel_mean),
                 gimbal: None,
             };
-            match f.step(&v(s.dtheta_cmd), s.dt as f64, &obs) {
+            match f.step(&s.dtheta_cmd.into(), s.dt as f64, &obs) {
                 Ok(_) | Err(rollcal::ekf::Error::Gated) => {}
                 Err(e) => panic!("period {i}: {e}"),
             }

@@ -47,7 +47,7 @@ fn f32_filters_run() {
             accel_mean: Vector3::from(s.accel_mean),
             gimbal: s.gimbal.map(Vector3::from),
         };
-        let d = Vector3::from(s.dtheta_cmd);
+        let d = Vector3::from(s.dtheta_cmd).cast::<f32>();
         ok1 += usize::from(m1.step(&d, s.dt, &obs).is_ok());
         ok2 += usize::from(m2.step(&d, s.dt, &obs).is_ok());
     }

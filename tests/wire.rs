@@ -423,7 +423,7 @@ fn arb_sample() -> impl Strategy<Value = Sample> {
         any::<u32>(),
         any::<u64>(),
         arb_f32(),
-        [arb_f32(), arb_f32(), arb_f32()],
+        [arb_f64(), arb_f64(), arb_f64()],
         [arb_f32(), arb_f32(), arb_f32()],
         proptest::option::of([arb_f32(), arb_f32(), arb_f32()]),
         [arb_f32(), arb_f32(), arb_f32(), arb_f32()],

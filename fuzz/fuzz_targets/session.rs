@@ -213,7 +213,7 @@ impl Platform {
             seq: self.seq,
             t_us: self.t_us,
             dt: self.dt as f32,
-            dtheta_cmd: [dtheta.x as f32, dtheta.y as f32, dtheta.z as f32],
+            dtheta_cmd: [dtheta.x, dtheta.y, dtheta.z],
             c_cn_quat: quaternion_from_dcm(&self.frame.c_cn).map(|v| v as f32),
             accel_mean: self.accel,
             gimbal: self
@@ -235,7 +235,7 @@ fn perturb(u: &mut Unstructured, s: &mut Sample, p: &mut Platform) -> Result<()>
             }
             2 => {
                 let i = usize::from(u.int_in_range(0..=2u8)?);
-                s.dtheta_cmd[i] = value32(u, s.dtheta_cmd[i])?;
+                s.dtheta_cmd[i] = value(u, s.dtheta_cmd[i])?;
             }
             3 => {
                 let i = usize::from(u.int_in_range(0..=3u8)?);
@@ -267,9 +267,9 @@ fn perturb(u: &mut Unstructured, s: &mut Sample, p: &mut Platform) -> Result<()>
 
 fn arbitrary_sample(u: &mut Unstructured) -> Result<Sample> {
     let mut a3 = || -> Result<[f32; 3]> { Ok([u.arbitrary()?, u.arbitrary()?, u.arbitrary()?]) };
-    let dtheta_cmd = a3()?;
     let accel_mean = a3()?;
     let gimbal = a3()?;
+    let dtheta_cmd = [u.arbitrary()?, u.arbitrary()?, u.arbitrary()?];
     Ok(Sample {
         seq: u.arbitrary()?,
         t_us: u.arbitrary()?,

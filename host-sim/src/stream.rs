@@ -138,15 +138,15 @@ pub fn filter_config(c: &CalibratorConfig) -> FilterConfig<f64> {
     }
 }
 
-/// A simulated period as the platform would send it (f32 fields; the
-/// timestamp is the end of the period in µs).
+/// A simulated period as the platform would send it (f32 fields but the
+/// commanded increment, f64; the timestamp is the end of the period in µs).
 pub fn to_sample(s: &PeriodSample) -> Sample {
     let f = |v: &Vector3<f64>| [v.x as f32, v.y as f32, v.z as f32];
     Sample {
         seq: s.k,
         t_us: (s.truth.t * 1e6).round() as u64,
         dt: s.dt as f32,
-        dtheta_cmd: f(&s.dtheta_cmd),
+        dtheta_cmd: s.dtheta_cmd.into(),
         accel_mean: f(&s.accel_mean),
         gimbal: Some(f(&s.gimbal)),
         c_cn_quat: rollcal::geometry::quaternion_from_dcm(&s.truth.c_c_n).map(|v| v as f32),

@@ -1,5 +1,5 @@
-//! A compact [`SampleLog`]: 24 bytes per period for the accelerometer-only
-//! configurations, 33 for M2-ps (against 44 / 88 for a [`super::SliceLog`]
+//! A compact [`SampleLog`]: 27 bytes per period for the accelerometer-only
+//! configurations, 36 for M2-ps (against 44 / 88 for a [`super::SliceLog`]
 //! record of `f32` / `f64`).
 //!
 //! # Record layout
@@ -15,12 +15,12 @@
 //! | 0 | the period has a measurement |
 //! | 1 | the measurement has gimbal angles |
 //! | 2–6 | index of the period length `dt` in the table of distinct lengths (5 bits) |
-//! | 7–38, 39–70, 71–102 | commanded increment `Δθc` x, y, z (rad): `f32` bit patterns |
-//! | 103–131, 132–160, 161–189 | accelerometer mean x, y, z: two's complement, 29 bits, in units of 2⁻²⁷ g (range ±2 g) |
-//! | 190–213, 214–237, 238–261 | gimbal angles `(α, β, γ)` (M2-ps layout only): two's complement, 24 bits, in units of 2π/2²⁴ rad (range ±π) |
+//! | 7–46, 47–86, 87–126 | commanded increment `Δθc` x, y, z: two's complement, 40 bits, in units of 2⁻⁴⁰ rad (range ±0.5 rad) |
+//! | 127–155, 156–184, 185–213 | accelerometer mean x, y, z: two's complement, 29 bits, in units of 2⁻²⁷ g (range ±2 g) |
+//! | 214–237, 238–261, 262–285 | gimbal angles `(α, β, γ)` (M2-ps layout only): two's complement, 24 bits, in units of 2π/2²⁴ rad (range ±π) |
 //!
-//! The accelerometer-only layout is 24 bytes (bits 190–191 zero), the
-//! M2-ps one 33 (bits 262–263 zero).
+//! The accelerometer-only layout is 27 bytes (bits 214–215 zero), the
+//! M2-ps one 36 (bits 286–287 zero).
 //!
 //! # What is kept, what is rounded
 //!
@@ -30,18 +30,17 @@
 //!   to period fills the table: `append` then refuses the record
 //!   ([`LogError::Unrepresentable`]) and the final answer says the log is
 //!   incomplete; use a [`super::SliceLog`] there.
-//! - **The commanded increments** are kept as `f32`, exactly what the wire
-//!   delivers ([`crate::wire::Sample`]). They cannot come from a table (the
-//!   Earth rate in the computed frame changes every period), nor be fixed
-//!   point: rounding a component of 4e-8 rad (the Earth rate's share) to a
-//!   fixed step is a bias that lasts a whole path segment; at 2⁻³⁰ rad it
-//!   moved the M1-pa answer by 0.9σ against `f64` increments (the wire's
-//!   own `f32` rounding moves it by 0.11σ).
+//! - **The commanded increments** are rounded to 2⁻⁴⁰ rad = 9.1e-13 rad.
+//!   They need far more resolution than the measurements: their rounding is
+//!   not noise but a bias that lasts a whole path segment (the Earth rate's
+//!   share of an increment, ~4e-8 rad, changes slowly), and they cannot come
+//!   from a table (that share changes every period). Rounded to `f32` (a
+//!   relative 6e-8) they moved the M1-pa answer by 0.11σ, to a fixed 2⁻³⁰ rad
+//!   by 0.9σ.
 //! - **The accelerometer means** are rounded to 2⁻²⁷ g = 7.5e-9 g (error
 //!   ≤ 3.7e-9 g, 0.004 of the paper's 1e-6 g noise; the wire's own `f32`
 //!   spacing is 1.2e-7 g at 1 g). One bit less (2⁻²⁶ g, with 2π/2²³ rad
-//!   gimbal steps: a 32-byte M2-ps record) moved the M2-ps answer by
-//!   0.012–0.013σ.
+//!   gimbal steps) moved the M2-ps answer by 0.012–0.013σ.
 //! - **The gimbal angles** are rounded to 3.7e-7 rad = 0.077″ (error
 //!   ≤ 0.039″ against a 10″ noise).
 //!
@@ -57,7 +56,7 @@
 //! use rollcal::estimator::{LogRecord, PackedLayout, PackedLog, SampleLog};
 //!
 //! let layout = PackedLayout::Accel;
-//! let mut bytes = [0u8; 4 * 24];
+//! let mut bytes = [0u8; 4 * 27];
 //! let mut periods = [0.0f64; 4];
 //! let mut log = PackedLog::new(&mut bytes, &mut periods, layout);
 //! assert_eq!(log.capacity(), 4);
@@ -66,7 +65,7 @@
 //! log.append(&r).unwrap();
 //! let back = log.get(0).unwrap();
 //! assert_eq!(back.dt, 1.0);
-//! assert_eq!(back.dtheta_cmd, r.dtheta_cmd.map(|v| f64::from(v as f32)));
+//! assert!((back.dtheta_cmd - r.dtheta_cmd).amax() <= 4.6e-13);
 //! let err = back.observation.unwrap().accel_mean - obs.accel_mean;
 //! assert!(err.amax() <= 3.8e-9);
 //! ```
@@ -80,11 +79,11 @@ use crate::ekf::Observation;
 pub const MAX_PERIODS: usize = 32;
 
 /// Bytes of the fields every layout has.
-const WORD_BYTES: usize = 24;
+const WORD_BYTES: usize = 27;
 /// Bytes of the largest record.
-const MAX_RECORD: usize = 33;
+const MAX_RECORD: usize = 36;
 
-/// A fixed-point field: `bits` wide (≤ 32), two's complement, `scale`
+/// A fixed-point field: `bits` wide (≤ 48), two's complement, `scale`
 /// units per physical unit, from bit `at` of the record.
 #[derive(Clone, Copy)]
 struct Field {
@@ -131,7 +130,7 @@ fn window(record: &[u8; MAX_RECORD + 8], at: usize) -> u64 {
     u64::from_le_bytes(w)
 }
 
-/// Writes the low `bits` (≤ 32) of `v` at bit `at` (ORs into zeros).
+/// Writes the low `bits` (≤ 48) of `v` at bit `at` (ORs into zeros).
 fn put_bits(record: &mut [u8; MAX_RECORD + 8], at: usize, bits: u32, v: u64) {
     let shift = (at % 8) as u32;
     let w = window(record, at) | ((v & ((1u64 << bits) - 1)) << shift);
@@ -140,7 +139,7 @@ fn put_bits(record: &mut [u8; MAX_RECORD + 8], at: usize, bits: u32, v: u64) {
     }
 }
 
-/// Reads `bits` (≤ 32) bits at bit `at`.
+/// Reads `bits` (≤ 48) bits at bit `at`.
 fn get_bits(record: &[u8; MAX_RECORD + 8], at: usize, bits: u32) -> u64 {
     (window(record, at) >> (at % 8)) & ((1u64 << bits) - 1)
 }
@@ -149,19 +148,24 @@ const G_UNITS: f64 = (1u64 << 27) as f64;
 const GIMBAL_UNITS: f64 = (1u64 << 24) as f64 / core::f64::consts::TAU;
 /// Bits of the period-length index, from bit 2.
 const PERIOD_BITS: u32 = 5;
-/// `Δθc` x, y, z: `f32` bit patterns, from bit 7.
-const DTHETA_AT: [usize; 3] = [7, 39, 71];
-/// Accelerometer means: 29 bits of 2⁻²⁷ g each, from bit 103.
-const ACCEL: [Field; 3] = [
-    Field::new(103, 29, G_UNITS),
-    Field::new(132, 29, G_UNITS),
-    Field::new(161, 29, G_UNITS),
+const RAD_UNITS: f64 = (1u64 << 40) as f64;
+/// `Δθc` x, y, z: 40 bits of 2⁻⁴⁰ rad each, from bit 7.
+const DTHETA: [Field; 3] = [
+    Field::new(7, 40, RAD_UNITS),
+    Field::new(47, 40, RAD_UNITS),
+    Field::new(87, 40, RAD_UNITS),
 ];
-/// Gimbal angles: 24 bits of 2π/2²⁴ rad each, from bit 190.
+/// Accelerometer means: 29 bits of 2⁻²⁷ g each, from bit 127.
+const ACCEL: [Field; 3] = [
+    Field::new(127, 29, G_UNITS),
+    Field::new(156, 29, G_UNITS),
+    Field::new(185, 29, G_UNITS),
+];
+/// Gimbal angles: 24 bits of 2π/2²⁴ rad each, from bit 214.
 const GIMBAL: [Field; 3] = [
-    Field::new(190, 24, GIMBAL_UNITS),
     Field::new(214, 24, GIMBAL_UNITS),
     Field::new(238, 24, GIMBAL_UNITS),
+    Field::new(262, 24, GIMBAL_UNITS),
 ];
 const HAS_OBSERVATION: u8 = 1;
 const HAS_GIMBAL: u8 = 2;
@@ -170,9 +174,9 @@ const HAS_GIMBAL: u8 = 2;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum PackedLayout {
-    /// No gimbal angles (every configuration but M2-ps): 24 bytes.
+    /// No gimbal angles (every configuration but M2-ps): 27 bytes.
     Accel,
-    /// With the gimbal angles (M2-ps): 33 bytes.
+    /// With the gimbal angles (M2-ps): 36 bytes.
     AccelGimbal,
 }
 
@@ -262,12 +266,9 @@ impl<'a, T: RealField + Copy> PackedLog<'a, T> {
     /// The record's bits (the period-length index left 0).
     fn encode(&self, record: &LogRecord<T>) -> Option<[u8; MAX_RECORD + 8]> {
         let mut bits = [0u8; MAX_RECORD + 8];
-        for (at, v) in DTHETA_AT.iter().zip(record.dtheta_cmd.iter()) {
-            let f: f32 = nalgebra::try_convert(*v)?;
-            if !f.is_finite() {
-                return None;
-            }
-            put_bits(&mut bits, *at, 32, u64::from(f.to_bits()));
+        for (f, v) in DTHETA.iter().zip(record.dtheta_cmd.iter()) {
+            let q = f.quantise(*v)?;
+            f.store(&mut bits, q);
         }
         if let Some(obs) = &record.observation {
             let mut flags = HAS_OBSERVATION;
@@ -331,11 +332,8 @@ impl<T: RealField + Copy> SampleLog<T> for PackedLog<'_, T> {
         let flags = get_bits(&bits, 0, 2) as u8;
         let index = get_bits(&bits, 2, PERIOD_BITS) as usize;
         let dt = *self.periods.get(..self.used_periods)?.get(index)?;
-        let axis = |at: usize| -> T {
-            nalgebra::convert(f64::from(f32::from_bits(get_bits(&bits, at, 32) as u32)))
-        };
-        let [x, y, z] = DTHETA_AT;
-        let dtheta_cmd = Vector3::new(axis(x), axis(y), axis(z));
+        let [x, y, z] = DTHETA;
+        let dtheta_cmd = Vector3::new(x.load(&bits), y.load(&bits), z.load(&bits));
         let observation = (flags & HAS_OBSERVATION != 0).then(|| {
             let [ax, ay, az] = ACCEL;
             let [ga, gb, gc] = GIMBAL;
