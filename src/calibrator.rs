@@ -38,7 +38,7 @@
 //! any lost one.
 //!
 //! **Checkpoints.** [`Calibrator::checkpoint`] captures the filter state,
-//! covariance, nominal, computed frame and update counter, plus the
+//! the U-D factor of its covariance, nominal, computed frame and update counter, plus the
 //! bookkeeping ([`Progress`]); [`Calibrator::restore`] continues from it
 //! bit-identically (all values stored as `f64`, which an `f32` value
 //! round-trips exactly).
@@ -167,14 +167,6 @@ fn to_f64<T: RealField + Copy>(v: T) -> f64 {
     v.to_subset().unwrap_or(f64::NAN)
 }
 
-fn vec3<T: RealField + Copy>(a: [f64; 3]) -> Vector3<T> {
-    Vector3::new(to_t(a[0]), to_t(a[1]), to_t(a[2]))
-}
-
-fn vec3_f64<T: RealField + Copy>(a: &[f64; 3]) -> Vector3<T> {
-    Vector3::new(to_t(a[0]), to_t(a[1]), to_t(a[2]))
-}
-
 fn vec3_f32<T: RealField + Copy>(a: &[f32; 3]) -> Vector3<T> {
     Vector3::new(
         to_t(f64::from(a[0])),
@@ -194,17 +186,17 @@ struct Validated {
 
 /// The commanded motion across a gap.
 #[derive(Clone, Copy, Debug)]
-enum Motion<T: RealField + Copy> {
+enum Motion {
     /// `old` periods at the last sample's path rate `u_old`, the rest at
     /// the new sample's `u_new` (rad/s, c frame).
     Found {
         old: u32,
-        u_old: Vector3<T>,
-        u_new: Vector3<T>,
+        u_old: Vector3<f64>,
+        u_new: Vector3<f64>,
     },
     /// Not found: `start` is `C^c_n` at the start of the new sample's
     /// period, from its report.
-    Unknown { start: Matrix3<T> },
+    Unknown { start: Matrix3<f64> },
 }
 
 /// Validates samples and runs configuration `M`'s filter over them (see the
@@ -232,8 +224,8 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     fn filter_config(s: &CalibratorConfig) -> FilterConfig<T> {
         FilterConfig {
             env: Environment {
-                earth_rate_n: vec3(s.earth_rate_n),
-                gravity_n: vec3(s.gravity_n),
+                earth_rate_n: Vector3::from(s.earth_rate_n),
+                gravity_n: Vector3::from(s.gravity_n),
             },
             sigma_accel: to_t(s.sigma_accel_g),
             sigma_gyro: to_t(s.sigma_gyro_rad_s),
@@ -391,22 +383,22 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
 
     /// The commanded motion across the `gap` missing periods before sample
     /// `s` (see the module docs, "Lost data").
-    fn motion_across(&self, s: &Sample, gap: u32) -> Motion<T> {
+    fn motion_across(&self, s: &Sample, gap: u32) -> Motion {
         let lim = &self.settings.limits;
-        let dt: T = to_t(f64::from(s.dt));
-        let dtheta: Vector3<T> = vec3_f64(&s.dtheta_cmd);
-        let q = s.c_cn_quat.map(|v| to_t::<T>(f64::from(v)));
-        let tol: T = to_t(lim.frame_tolerance_rad);
+        let dt = f64::from(s.dt);
+        let dtheta = Vector3::from(s.dtheta_cmd);
+        let q = s.c_cn_quat.map(f64::from);
+        let tol = lim.frame_tolerance_rad;
         let frame = *self.filter.command_frame();
         let er = frame.earth_rate_n;
         // Validated: a unit quaternion within the tolerance.
         let reported = dcm_from_quaternion(&q, tol).unwrap_or(frame.c_cn);
-        let at = |c_cn: Matrix3<T>| CommandFrame {
+        let at = |c_cn: Matrix3<f64>| CommandFrame {
             c_cn,
             earth_rate_n: er,
         };
         if gap <= lim.max_bridge {
-            let last = vec3::<T>(self.progress.last_increment);
+            let last = Vector3::from(self.progress.last_increment);
             let [last_start, _, _] = frame.period_before(&last, dt).c_cn;
             let u_old = at(last_start).path_rate(&last, dt);
             for old in (0..=gap).rev() {
@@ -422,7 +414,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
                     let moved = angle_between(&next, &start);
                     start = next;
                     u_new = at(start).path_rate(&dtheta, dt);
-                    if moved < tol * nalgebra::convert(1e-3) {
+                    if moved < tol * 1e-3 {
                         break;
                     }
                 }
@@ -442,10 +434,10 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     fn bridge(
         &mut self,
         gap: u32,
-        dt: T,
-        motion: &Motion<T>,
+        dt: f64,
+        motion: &Motion,
         mut log: Option<&mut (dyn SampleLog<T> + '_)>,
-    ) -> Result<Vector3<T>, ekf::Error> {
+    ) -> Result<Vector3<f64>, ekf::Error> {
         let mut last = Vector3::zeros();
         match motion {
             Motion::Found { old, u_old, u_new } => {
@@ -461,7 +453,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
             Motion::Unknown { start } => {
                 if gap > 0 {
                     let c0 = self.filter.command_frame().c_cn;
-                    let periods: T = to_t(f64::from(gap));
+                    let periods = f64::from(gap);
                     let u = rotation_vector(&(start * c0.transpose())) / (dt * periods);
                     for _ in 0..gap {
                         let inc = self.filter.command_frame().increment(&u, dt);
@@ -587,8 +579,8 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
             }
         };
         let gap = checked.gap;
-        let dt: T = to_t(f64::from(s.dt));
-        let dtheta: Vector3<T> = vec3_f64(&s.dtheta_cmd);
+        let dt = f64::from(s.dt);
+        let dtheta = Vector3::from(s.dtheta_cmd);
         let obs = Observation {
             accel_mean: vec3_f32(&s.accel_mean),
             gimbal: s.gimbal.as_ref().map(vec3_f32),
@@ -617,7 +609,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
                     let dt_us = libm::round(f64::from(s.dt) * 1e6) as u64;
                     p.last_seq = Some(s.seq - 1);
                     p.last_t_us = Some(s.t_us.saturating_sub(dt_us));
-                    p.last_increment = [to_f64(last.x), to_f64(last.y), to_f64(last.z)];
+                    p.last_increment = [last.x, last.y, last.z];
                 }
                 Err(e) => {
                     self.filter = saved;
@@ -726,7 +718,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         let mut sigma = heapless::Vec::new();
         for (x, s) in filter.state().iter().zip(filter.sigma().iter()) {
             // N ≤ MAX_STATES for every configuration: the pushes cannot fail.
-            let _ = state.push(to_f64(*x));
+            let _ = state.push(*x);
             let _ = sigma.push(to_f64(*s));
         }
         Estimate {
@@ -748,29 +740,29 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     #[inline(never)]
     pub fn checkpoint(&self) -> Checkpoint {
         let f = &self.filter;
-        let collect = |v: &SVector<T, N>| {
+        let collect = |v: &SVector<f64, N>| {
             let mut out = heapless::Vec::new();
             for x in v.iter() {
-                let _ = out.push(to_f64(*x));
+                let _ = out.push(*x);
             }
             out
         };
-        let mut covariance = heapless::Vec::new();
-        // Row-major: the column-major storage of Pᵀ.
-        for v in f.covariance().transpose().iter() {
-            let _ = covariance.push(to_f64(*v));
+        let mut factor = heapless::Vec::new();
+        // Row-major: the column-major storage of the transpose.
+        for v in f.factor().transpose().iter() {
+            let _ = factor.push(to_f64(*v));
         }
         let mut c_cn = [0.0; 9];
         for (o, v) in c_cn
             .iter_mut()
             .zip(f.command_frame().c_cn.transpose().iter())
         {
-            *o = to_f64(*v);
+            *o = *v;
         }
         Checkpoint {
             config: M::ID,
             state: collect(f.state()),
-            covariance,
+            factor,
             nominal: f.nominal().map(collect),
             c_cn,
             updates: f.updates(),
@@ -789,23 +781,23 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         Self::check_config(cp.config)?;
         let vector = |v: &[f64]| {
             (v.len() == N)
-                .then(|| SVector::<T, N>::from_iterator(v.iter().map(|x| to_t::<T>(*x))))
+                .then(|| SVector::<f64, N>::from_iterator(v.iter().copied()))
                 .ok_or(Error::CheckpointDimension)
         };
         let x = vector(&cp.state)?;
-        if cp.covariance.len() != N * N {
+        if cp.factor.len() != N * N {
             return Err(Error::CheckpointDimension);
         }
-        let p = SMatrix::<T, N, N>::from_row_iterator(cp.covariance.iter().map(|v| to_t::<T>(*v)));
+        let factor = SMatrix::<T, N, N>::from_row_iterator(cp.factor.iter().map(|v| to_t::<T>(*v)));
         let nominal = match &cp.nominal {
             Some(v) => Some(vector(v)?),
             None => None,
         };
-        let c_cn = Matrix3::from_row_iterator(cp.c_cn.iter().map(|v| to_t::<T>(*v)));
+        let c_cn = Matrix3::from_row_iterator(cp.c_cn.iter().copied());
         let filter = Filter::from_parts(
             Self::filter_config(&settings),
             x,
-            p,
+            factor,
             c_cn,
             nominal,
             cp.updates,

@@ -40,6 +40,7 @@ use core::marker::PhantomData;
 use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3};
 
 use crate::command::{CommandFrame, Period};
+use crate::factor::Ud;
 use crate::geometry::wrap_angle;
 use crate::models::{Environment, Layout, Model, PeriodPropagation, ATT};
 
@@ -153,8 +154,9 @@ impl Options {
 /// Noise levels and environment of a filter.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FilterConfig<T: RealField + Copy> {
-    /// Earth rate and gravity.
-    pub env: Environment<T>,
+    /// Earth rate and gravity, in double precision whatever `T` (they drive
+    /// the nominal trajectory, see [`Filter`]).
+    pub env: Environment<f64>,
     /// Accelerometer noise of the period mean, 1σ per axis (g).
     pub sigma_accel: T,
     /// Gyro white rate noise, constant over a period, 1σ per axis (rad/s).
@@ -201,31 +203,55 @@ struct Measured<T: RealField + Copy, const N: usize, const Z: usize> {
     noise: Noise<T, N, Z>,
 }
 
-/// One Kalman gain with correlated noise.
+/// One Kalman gain with correlated noise, dense (the iterated filter's
+/// intermediate relinearisation points only).
 struct Gain<T: RealField + Copy, const N: usize, const Z: usize> {
     k: SMatrix<T, N, Z>,
+}
+
+/// The outcome of one factored update, not yet committed: the factor at
+/// the end of the period, the state correction `x̂_{k+1} − x̂⁻_{k+1}`, and
+/// the innovation's covariance and NIS.
+struct Factored<T: RealField + Copy, const N: usize, const Z: usize> {
+    ud: Ud<T, N>,
+    dx: SVector<f64, N>,
     s: SMatrix<T, Z, Z>,
-    r_eff: SMatrix<T, Z, Z>,
-    c: SMatrix<T, N, Z>,
     nis: T,
 }
 
+/// A period the state has been propagated over whose covariance time
+/// update is still to be applied (with the period's measurement, or alone).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Pending<T: RealField + Copy, const N: usize> {
-    period: Period<T>,
-    prop: PeriodPropagation<T, N>,
+    period: Period<f64>,
+    prop: PeriodPropagation<f64, N>,
+    /// Second-order process noise of the attitude (rad², zero unless
+    /// [`Options::second_order_dynamics`]).
+    q_extra: Matrix3<T>,
 }
 
 /// The estimator of configuration `M` with `N` states and `Z` measurement
-/// components per period.
+/// components per period, its covariance arithmetic in precision `T`.
+///
+/// **Precision.** The state estimate, the nominal, the computed frame and
+/// every evaluation of the model (trajectory, predicted measurement, the
+/// residual `z − h(x)`) are `f64` whatever `T`: the accelerometers resolve
+/// 1e-6 g of a 1 g signal and the path turns the frame by 5 400 increments,
+/// where f32's rounding (6e-8 per operation) would be a third of the noise
+/// and a drift of the computed frame. The covariance factor, the Jacobians
+/// and the gains — the `O(N²)` bulk of a period, whose values need only a
+/// few digits — are in `T`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Filter<T: RealField + Copy, M, const N: usize, const Z: usize> {
-    x: SVector<T, N>,
-    p: SMatrix<T, N, N>,
-    command: CommandFrame<T>,
+    x: SVector<f64, N>,
+    /// The covariance of `x` — at the start of the pending period while a
+    /// prediction is pending (its time update is applied with the
+    /// measurement, [`Filter::update`]).
+    ud: Ud<T, N>,
+    command: CommandFrame<f64>,
     config: FilterConfig<T>,
     pending: Option<Pending<T, N>>,
-    reference: Option<SVector<T, N>>,
+    reference: Option<SVector<f64, N>>,
     updates: u32,
     gated_run: u32,
     gate_open: bool,
@@ -303,6 +329,39 @@ fn all_finite<T: RealField + Copy>(it: impl IntoIterator<Item = T>) -> bool {
     it.into_iter().all(|v| v.is_finite())
 }
 
+/// A double-precision matrix in precision `T`.
+fn to_t<T: RealField + Copy, const R: usize, const C: usize>(
+    m: &SMatrix<f64, R, C>,
+) -> SMatrix<T, R, C> {
+    m.map(nalgebra::convert::<f64, T>)
+}
+
+/// A matrix of precision `T` in double precision (exact for f32).
+fn to_f64<T: RealField + Copy, const R: usize, const C: usize>(
+    m: &SMatrix<T, R, C>,
+) -> SMatrix<f64, R, C> {
+    m.map(|v| v.to_subset().unwrap_or(f64::NAN))
+}
+
+/// The dense gain with measurement noise `R_v + D Dᵀ` correlated with the
+/// process noise by `C = G Dᵀ`: `S = H P Hᵀ + H C + Cᵀ Hᵀ + R_eff`,
+/// `K = (P Hᵀ + C) S⁻¹`, for the predicted covariance `p`.
+fn dense_gain<T: RealField + Copy, const N: usize, const Z: usize>(
+    p: &SMatrix<T, N, N>,
+    h: &SMatrix<T, Z, N>,
+    r: &SMatrix<T, Z, Z>,
+    noise: &Noise<T, N, Z>,
+) -> Result<Gain<T, N, Z>, Error> {
+    let c = noise.g * noise.d.transpose();
+    let r_eff = r + noise.d * noise.d.transpose();
+    let ph = p * h.transpose() + c;
+    let mut s = h * ph + h * c + r_eff;
+    s = (s + s.transpose()) * nalgebra::convert::<f64, T>(0.5);
+    let chol = s.cholesky().ok_or(Error::InnovationNotPositiveDefinite)?;
+    let k = chol.solve(&ph.transpose()).transpose();
+    Ok(Gain { k })
+}
+
 impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter<T, M, N, Z> {
     const LAYOUT: Layout = M::LAYOUT;
     const SIZES_AGREE: () = assert!(M::LAYOUT.n() == N && M::LAYOUT.z() == Z);
@@ -311,13 +370,14 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// deviations `sigma0` (rad), the computed frame aligned with n.
     pub fn new(
         config: FilterConfig<T>,
-        x0: SVector<T, N>,
+        x0: SVector<f64, N>,
         sigma0: SVector<T, N>,
     ) -> Result<Self, Error> {
         #[allow(clippy::let_unit_value)]
         let () = Self::SIZES_AGREE;
         let inputs = [config.sigma_accel, config.sigma_gyro, config.sigma_gimbal];
-        if !all_finite(x0.iter().chain(sigma0.iter()).copied().chain(inputs))
+        if !all_finite(sigma0.iter().copied().chain(inputs))
+            || !all_finite(x0.iter().copied())
             || !all_finite(
                 config
                     .env
@@ -343,9 +403,10 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         if Self::LAYOUT.gimbal_obs && config.sigma_gimbal <= T::zero() {
             return Err(Error::CovarianceNotPositiveDefinite);
         }
+        let ud = Ud::from_variances(&variance).ok_or(Error::NonFiniteInput)?;
         Ok(Self {
             x: x0,
-            p: SMatrix::from_diagonal(&variance),
+            ud,
             command: CommandFrame::aligned(config.env.earth_rate_n),
             config,
             pending: None,
@@ -359,36 +420,30 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
 
     /// Rebuilds a filter between two periods from its parts, as saved by a
     /// checkpoint ([`crate::calibrator::Calibrator::checkpoint`]): state `x`
-    /// (rad), covariance `p` (rad², used as given, so a restored filter
-    /// continues bit-identically), computed frame `c_cn` (`C^c_n`), nominal
+    /// (rad), the packed U-D factor of its covariance ([`Filter::factor`],
+    /// rad², used as given, so a restored filter continues
+    /// bit-identically), computed frame `c_cn` (`C^c_n`), nominal
     /// of the linearised mode, the update counter and the state of the NIS
     /// gate ([`Filter::gate_state`]). The Earth rate of the computed frame is
     /// the one of `config`.
     pub fn from_parts(
         config: FilterConfig<T>,
-        x: SVector<T, N>,
-        p: SMatrix<T, N, N>,
-        c_cn: Matrix3<T>,
-        nominal: Option<SVector<T, N>>,
+        x: SVector<f64, N>,
+        factor: SMatrix<T, N, N>,
+        c_cn: Matrix3<f64>,
+        nominal: Option<SVector<f64, N>>,
         updates: u32,
         gate_state: (u32, bool),
     ) -> Result<Self, Error> {
         let mut f = Self::new(config, SVector::zeros(), SVector::repeat(T::one()))?;
         let nominal_values = nominal.iter().flat_map(|v| v.iter().copied());
-        if !all_finite(
-            x.iter()
-                .chain(p.iter())
-                .chain(c_cn.iter())
-                .copied()
-                .chain(nominal_values),
-        ) {
+        if !all_finite(x.iter().chain(c_cn.iter()).copied().chain(nominal_values))
+            || !all_finite(factor.iter().copied())
+        {
             return Err(Error::NonFiniteInput);
         }
-        if p.diagonal().iter().any(|v| *v <= T::zero()) {
-            return Err(Error::CovarianceNotPositiveDefinite);
-        }
+        f.ud = Ud::from_packed(&factor).ok_or(Error::CovarianceNotPositiveDefinite)?;
         f.x = x;
-        f.p = p;
         f.command.c_cn = c_cn;
         f.reference = nominal;
         f.updates = updates;
@@ -405,7 +460,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// of the multi-pass estimator (the nominal is the previous pass's estimate
     /// propagated back to the start), and, with the true initial state as
     /// nominal, the Riccati recursion of the posterior Cramér–Rao bound.
-    pub fn set_nominal(&mut self, x_nominal: Option<SVector<T, N>>) {
+    pub fn set_nominal(&mut self, x_nominal: Option<SVector<f64, N>>) {
         self.reference = x_nominal;
     }
 
@@ -422,21 +477,16 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// [`Error::NonFiniteInput`] or [`Error::CovarianceNotPositiveDefinite`]
     /// for a non-finite frame or a `sigma` that is not strictly positive; the
     /// filter is then left untouched.
-    pub fn reacquire_attitude(&mut self, c_cn: &Matrix3<T>, sigma: T) -> Result<(), Error> {
-        if !all_finite(c_cn.iter().copied().chain([sigma])) {
+    pub fn reacquire_attitude(&mut self, c_cn: &Matrix3<f64>, sigma: T) -> Result<(), Error> {
+        if !all_finite(c_cn.iter().copied()) || !sigma.is_finite() {
             return Err(Error::NonFiniteInput);
         }
         if sigma <= T::zero() {
             return Err(Error::CovarianceNotPositiveDefinite);
         }
-        let zeros = SMatrix::<T, 3, N>::zeros();
-        self.p.fixed_rows_mut::<3>(ATT).copy_from(&zeros);
-        self.p
-            .fixed_columns_mut::<3>(ATT)
-            .copy_from(&zeros.transpose());
-        self.p
-            .fixed_view_mut::<3, 3>(ATT, ATT)
-            .copy_from(&(Matrix3::identity() * (sigma * sigma)));
+        // The pending time update moves only the attitude block, which this
+        // replaces: it needs no applying.
+        self.ud.reset_attitude(sigma * sigma);
         self.command.c_cn = *c_cn;
         if let Some(nominal) = self.reference.as_mut() {
             let att = self.x.fixed_rows::<3>(ATT).clone_owned();
@@ -447,23 +497,58 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     }
 
     /// The nominal state at the current time, in linearised mode.
-    pub fn nominal(&self) -> Option<&SVector<T, N>> {
+    pub fn nominal(&self) -> Option<&SVector<f64, N>> {
         self.reference.as_ref()
     }
 
-    /// The state estimate (rad), in the configuration's state order.
-    pub fn state(&self) -> &SVector<T, N> {
+    /// The state estimate (rad), in the configuration's state order; held
+    /// in double precision whatever `T` (see [`Filter`]).
+    pub fn state(&self) -> &SVector<f64, N> {
         &self.x
     }
 
-    /// The state covariance `P` (rad²).
-    pub fn covariance(&self) -> &SMatrix<T, N, N> {
-        &self.p
+    /// The state covariance `P = U D Uᵀ` (rad²) of [`Filter::state`].
+    pub fn covariance(&self) -> SMatrix<T, N, N> {
+        self.settled().covariance()
     }
 
     /// Per-state standard deviations `√P_ii` (rad).
     pub fn sigma(&self) -> SVector<T, N> {
-        self.p.diagonal().map(|v| v.max(T::zero()).sqrt())
+        self.settled()
+            .variances()
+            .map(|v| v.max(T::zero()).sqrt())
+    }
+
+    /// The packed U-D factor of the covariance (rad²; `D` on the diagonal,
+    /// `U` strictly above, see [`crate::factor`]), as checkpoints carry it.
+    /// Between [`Filter::predict`] and [`Filter::update`] it is the factor at
+    /// the start of the pending period.
+    pub fn factor(&self) -> &SMatrix<T, N, N> {
+        self.ud.packed()
+    }
+
+    /// The factor with any pending time update applied (the unpropagated
+    /// one in the impossible case that it fails: predict checks it).
+    fn settled(&self) -> Ud<T, N> {
+        self.propagated_factor().unwrap_or(self.ud)
+    }
+
+    /// The process noise of a pending period on the attitude (rad²).
+    fn process_noise(&self, pending: &Pending<T, N>) -> Matrix3<T> {
+        let b = to_t::<T, 3, 3>(&pending.prop.noise_map)
+            * (self.config.sigma_gyro * nalgebra::convert::<f64, T>(pending.period.dt));
+        b * b.transpose() + pending.q_extra
+    }
+
+    /// The factor at the current time: the pending time update applied
+    /// without a measurement.
+    fn propagated_factor(&self) -> Result<Ud<T, N>, Error> {
+        let mut ud = self.ud;
+        if let Some(pending) = &self.pending {
+            ud.predict_attitude(&to_t(&pending.prop.phi_att), &self.process_noise(pending))
+                .ok_or(Error::CovarianceNotPositiveDefinite)?;
+        }
+        Ok(ud)
     }
 
     /// The filter's settings.
@@ -472,7 +557,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     }
 
     /// The computed frame the filter integrates from the commands.
-    pub fn command_frame(&self) -> &CommandFrame<T> {
+    pub fn command_frame(&self) -> &CommandFrame<f64> {
         &self.command
     }
 
@@ -493,21 +578,25 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         Self::LAYOUT
     }
 
-    /// Propagates the state and covariance over one period of length `dt`
-    /// (s) with commanded angle increment `dtheta_c` (rad, c frame).
+    /// Propagates the state over one period of length `dt` (s) with
+    /// commanded angle increment `dtheta_c` (rad, c frame). The covariance's
+    /// time update is applied by the [`Filter::update`] that follows (with
+    /// the measurement, whose noise it shares), or by the next `predict`.
     /// On error the filter is left untouched.
-    pub fn predict(&mut self, dtheta_c: &Vector3<T>, dt: T) -> Result<(), Error> {
+    pub fn predict(&mut self, dtheta_c: &Vector3<f64>, dt: f64) -> Result<(), Error> {
         if !all_finite(dtheta_c.iter().copied().chain([dt])) {
             return Err(Error::NonFiniteInput);
         }
-        if dt <= T::zero() {
+        if dt <= 0.0 {
             return Err(Error::InvalidPeriod);
         }
         let layout = Self::LAYOUT;
         let period = self.command.period(dtheta_c, dt);
         // The linearisation point: the estimate (EKF) or the nominal.
         let x_lin = self.reference.unwrap_or(self.x);
-        let prop: PeriodPropagation<T, N> = layout
+        // A period predicted without a measurement: its time update now.
+        let ud = self.propagated_factor()?;
+        let prop: PeriodPropagation<f64, N> = layout
             .propagate(
                 &self.config.env,
                 &layout.matrices(&x_lin),
@@ -515,14 +604,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 &period,
             )
             .ok_or(Error::GimbalLock)?;
-        let lin_prop = prop;
-        // P ← Φ P Φᵀ + Q, touching only the attitude rows and columns.
-        let a = &lin_prop.phi_att;
-        let ap = a * self.p;
-        let aaa = ap * a.transpose();
-        let q_scale = self.config.sigma_gyro * dt;
-        let b = lin_prop.noise_map * q_scale;
-        let mut q = b * b.transpose();
+        let mut q_extra = Matrix3::<T>::zeros();
         if self.config.options.second_order_dynamics {
             // Linearisation error of the period map x_{k+1} ≈ x_k + f(x_mid) T.
             let env = &self.config.env;
@@ -532,17 +614,13 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             x_mid.fixed_rows_mut::<3>(ATT).copy_from(&att_mid);
             let relevant =
                 |j: usize| j < 9 || layout.lam().is_some_and(|i| (i..i + 3).contains(&j));
-            let (_, q2) = hessian_terms(&x_mid, &self.p, relevant, |xp| {
+            let (_, q2) = hessian_terms(&x_mid, &to_f64(&ud.covariance()), relevant, |xp| {
                 layout.attitude_rate_jacobian(env, &layout.matrices(xp), &layout.attitude(xp), &wm)
             })
             .ok_or(Error::GimbalLock)?;
-            q += q2 * (dt * dt);
+            q_extra = to_t(&(q2 * (dt * dt)));
         }
-        let mut p = self.p;
-        p.fixed_rows_mut::<3>(ATT).copy_from(&ap);
-        p.fixed_columns_mut::<3>(ATT).copy_from(&ap.transpose());
-        p.fixed_view_mut::<3, 3>(ATT, ATT).copy_from(&(aaa + q));
-        if !all_finite(p.iter().copied()) {
+        if !all_finite(q_extra.iter().copied()) || !all_finite(prop.noise_map.iter().copied()) {
             return Err(Error::NonFiniteState);
         }
         let [_, _, att1] = prop.att;
@@ -563,21 +641,25 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             return Err(Error::NonFiniteState);
         }
         self.x = x_new;
-        self.p = p;
+        self.ud = ud;
         self.command.advance(&period);
-        self.pending = Some(Pending { period, prop });
+        self.pending = Some(Pending {
+            period,
+            prop,
+            q_extra,
+        });
         Ok(())
     }
 
     /// Predicted measurement, its Jacobian (w.r.t. the state at the end of
     /// the period) for the state `x` whose period trajectory is `prop`, and
     /// the measurement's share of the period's process noise (see [`Noise`]).
-    fn measure(&self, x: &SVector<T, N>, pending: &Pending<T, N>) -> Measured<T, N, Z> {
+    fn measure(&self, x: &SVector<f64, N>, pending: &Pending<T, N>) -> Measured<f64, N, Z> {
         let layout = Self::LAYOUT;
         let m = layout.matrices(x);
         let (za, ha, da) = layout.mean_accel(&self.config.env, &m, &pending.prop, &pending.period);
-        let mut z = SVector::<T, Z>::zeros();
-        let mut h = SMatrix::<T, Z, N>::zeros();
+        let mut z = SVector::<f64, Z>::zeros();
+        let mut h = SMatrix::<f64, Z, N>::zeros();
         let accel_row = if layout.gimbal_obs {
             let att = layout.attitude(x);
             z.fixed_rows_mut::<3>(0).copy_from(&att);
@@ -590,11 +672,11 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         z.fixed_rows_mut::<3>(accel_row).copy_from(&za);
         h.fixed_rows_mut::<3>(accel_row).copy_from(&ha);
         // Unit-variance noise w = σ_g u: x_{k+1} gets G u, z gets D u.
-        let sigma_g = self.config.sigma_gyro;
-        let mut g = SMatrix::<T, N, 3>::zeros();
+        let sigma_g: f64 = self.config.sigma_gyro.to_subset().unwrap_or(f64::NAN);
+        let mut g = SMatrix::<f64, N, 3>::zeros();
         g.fixed_rows_mut::<3>(ATT)
             .copy_from(&(pending.prop.noise_map * (sigma_g * pending.period.dt)));
-        let mut d = SMatrix::<T, Z, 3>::zeros();
+        let mut d = SMatrix::<f64, Z, 3>::zeros();
         d.fixed_rows_mut::<3>(accel_row).copy_from(&(da * sigma_g));
         Measured {
             z,
@@ -605,12 +687,16 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
 
     /// The trajectory over the pending period that ends at state `x`
     /// (integrated backwards), for relinearisation.
-    fn retrace(&self, x: &SVector<T, N>, pending: &Pending<T, N>) -> Result<Pending<T, N>, Error> {
+    fn retrace(
+        &self,
+        x: &SVector<f64, N>,
+        pending: &Pending<T, N>,
+    ) -> Result<Pending<T, N>, Error> {
         let layout = Self::LAYOUT;
         let pr = &pending.period;
         let reversed = pr.reversed();
         let m = layout.matrices(x);
-        let back: PeriodPropagation<T, N> = layout
+        let back: PeriodPropagation<f64, N> = layout
             .propagate(&self.config.env, &m, &layout.attitude(x), &reversed)
             .ok_or(Error::GimbalLock)?;
         let [a1, am, a0] = back.att;
@@ -623,13 +709,21 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 .ok_or(Error::GimbalLock)?,
             noise_map: back.noise_map,
         };
-        Ok(Pending { period: *pr, prop })
+        Ok(Pending {
+            period: *pr,
+            prop,
+            q_extra: pending.q_extra,
+        })
     }
 
     /// Second-order terms of the accelerometer rows: returns
     /// (`½ tr(∇²h_a P)`, `½ tr(∇²h_a P ∇²h_b P)`), by central differences of
     /// the instantaneous accelerometer Jacobian at the end of the period.
-    fn second_order(&self, x: &SVector<T, N>, pending: &Pending<T, N>) -> (Vector3<T>, Matrix3<T>) {
+    fn second_order(
+        &self,
+        x: &SVector<f64, N>,
+        pending: &Pending<T, N>,
+    ) -> (Vector3<f64>, Matrix3<f64>) {
         let layout = Self::LAYOUT;
         let env = &self.config.env;
         let [_, _, c_end] = pending.period.c_cn;
@@ -639,7 +733,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 || (layout.at()..layout.at() + 3).contains(&j)
                 || layout.lam().is_some_and(|i| (i..i + 3).contains(&j))
         };
-        hessian_terms(x, &self.p, relevant, |xp| {
+        hessian_terms(x, &to_f64(&self.settled().covariance()), relevant, |xp| {
             Some(layout.accel_jacobian(env, &layout.matrices(xp), &layout.attitude(xp), &c_end))
         })
         .unwrap_or((Vector3::zeros(), Matrix3::zeros()))
@@ -664,18 +758,19 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         ) {
             return Err(Error::NonFiniteInput);
         }
-        let mut z = SVector::<T, Z>::zeros();
+        let mut z = SVector::<f64, Z>::zeros();
         let mut r = SVector::<T, Z>::zeros();
         let sa2 = self.config.sigma_accel * self.config.sigma_accel;
         let accel_row = if let Some(g) = gimbal {
-            z.fixed_rows_mut::<3>(0).copy_from(&g);
+            z.fixed_rows_mut::<3>(0).copy_from(&to_f64(&g));
             let sg2 = self.config.sigma_gimbal * self.config.sigma_gimbal;
             r.fixed_rows_mut::<3>(0).fill(sg2);
             3
         } else {
             0
         };
-        z.fixed_rows_mut::<3>(accel_row).copy_from(&obs.accel_mean);
+        z.fixed_rows_mut::<3>(accel_row)
+            .copy_from(&to_f64(&obs.accel_mean));
         r.fixed_rows_mut::<3>(accel_row).fill(sa2);
         let r = SMatrix::<T, Z, Z>::from_diagonal(&r);
 
@@ -688,15 +783,27 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         } else {
             (Vector3::zeros(), Matrix3::zeros())
         };
+        let mut r_v = r;
+        if opts.second_order_covariance {
+            let mut blk = r_v.fixed_view_mut::<3, 3>(accel_row, accel_row);
+            blk += to_t::<T, 3, 3>(&cov2);
+        }
         let x_prior = self.x;
         let iterations = if self.updates < opts.iterate_updates {
             opts.iterations
         } else {
             0
         };
+        // The iterated filter's intermediate relinearisation points use the
+        // dense gain (double precision); the update itself is always the
+        // factored one.
+        let p_prior = if iterations > 0 {
+            Some(to_f64(&self.settled().covariance()))
+        } else {
+            None
+        };
         let mut x_lin = x_prior;
         let mut lin = pending;
-        let mut result = None;
         for it in 0..=iterations {
             if it > 0 {
                 lin = self.retrace(&x_lin, &pending)?;
@@ -714,25 +821,26 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                     *v = wrap_angle(*v);
                 }
             }
-            let mut extra = SMatrix::<T, Z, Z>::zeros();
-            if opts.second_order_covariance {
-                let mut blk = extra.fixed_view_mut::<3, 3>(accel_row, accel_row);
-                blk += cov2;
+            match (&p_prior, it < iterations) {
+                (Some(p), true) => {
+                    let gain = dense_gain(p, &h, &to_f64(&r_v), &noise)?;
+                    x_lin = x_prior + gain.k * nu;
+                }
+                _ => {
+                    let out = self.factored(&h, &nu, &r_v, &noise, &pending.prop.phi_att)?;
+                    return self.commit(x_prior + out.dx, out, to_t(&nu));
+                }
             }
-            let gain = self.gain(&h, &nu, &r, &noise, &extra)?;
-            x_lin = x_prior + gain.k * nu;
-            result = Some((gain, h, nu));
         }
-        let (gain, h, nu) = result.ok_or(Error::NoPrediction)?;
-        self.commit(x_lin, &gain, &h, nu)
+        Err(Error::NoPrediction)
     }
 
     /// The update of the linearised filter about the nominal `x_nom`.
     fn update_linearised(
         &mut self,
-        x_nom: &SVector<T, N>,
+        x_nom: &SVector<f64, N>,
         pending: &Pending<T, N>,
-        z: &SVector<T, Z>,
+        z: &SVector<f64, Z>,
         r: &SMatrix<T, Z, Z>,
         accel_row: usize,
     ) -> Result<Innovation<T, Z>, Error> {
@@ -745,53 +853,117 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 *v = wrap_angle(*v);
             }
         }
-        let gain = self.gain(&h, &nu, r, &noise, &SMatrix::zeros())?;
-        let x_new = x_nom + delta + gain.k * nu;
-        self.commit(x_new, &gain, &h, nu)
+        let out = self.factored(&h, &nu, r, &noise, &pending.prop.phi_att)?;
+        let x_new = x_nom + delta + out.dx;
+        self.commit(x_new, out, to_t(&nu))
     }
 
-    /// Gain with measurement noise `R + D Dᵀ + extra` correlated with the
-    /// process noise by `C = G Dᵀ`: `S = H P Hᵀ + H C + Cᵀ Hᵀ + R_eff`,
-    /// `K = (P Hᵀ + C) S⁻¹`.
-    fn gain(
+    /// The factored update of one period, measurement and time update
+    /// together (SPEC §6; Anderson & Moore, *Optimal Filtering*, §5.5).
+    ///
+    /// The measurement `z = H x_{k+1} + D u + v` shares the period's gyro
+    /// noise `u` with the dynamics `x_{k+1} = Φ x_k + G u`. Written as a
+    /// measurement of `x_k`, `z = H Φ x_k + e` with `e = M u + v`,
+    /// `M = H G + D`, `R_e = M Mᵀ + R_v`, it is decorrelated from the
+    /// dynamics by subtracting `J (z − H Φ x_k − e)`, `J = G Mᵀ R_e⁻¹`:
+    /// `x_{k+1} = (Φ − J H Φ) x_k + J z + (G u − J e)`, whose noise is
+    /// uncorrelated with `e`, with covariance `G Gᵀ − J R_e Jᵀ`. Whitening
+    /// by `L = chol(R_e)` makes the `Z` components independent: Bierman's
+    /// scalar updates of the factor at `t_k` take them one at a time, then
+    /// the structured time update (`G` and `J` touch only the attitude rows)
+    /// brings the factor to `t_{k+1}`. The result equals the dense filter's
+    /// `K = (P⁻ Hᵀ + G Dᵀ) S⁻¹` update in exact arithmetic.
+    fn factored(
         &self,
-        h: &SMatrix<T, Z, N>,
-        nu: &SVector<T, Z>,
-        r: &SMatrix<T, Z, Z>,
-        noise: &Noise<T, N, Z>,
-        extra: &SMatrix<T, Z, Z>,
-    ) -> Result<Gain<T, N, Z>, Error> {
-        let c = noise.g * noise.d.transpose();
-        let r_eff = r + noise.d * noise.d.transpose() + extra;
-        let ph = self.p * h.transpose() + c;
-        let mut s = h * ph + h * c + r_eff;
-        s = (s + s.transpose()) * nalgebra::convert::<f64, T>(0.5);
-        let chol = s.cholesky().ok_or(Error::InnovationNotPositiveDefinite)?;
-        let k = chol.solve(&ph.transpose()).transpose();
-        let nis = nu.dot(&chol.solve(nu));
-        Ok(Gain {
-            k,
+        h: &SMatrix<f64, Z, N>,
+        nu: &SVector<f64, Z>,
+        r_v: &SMatrix<T, Z, Z>,
+        noise: &Noise<f64, N, Z>,
+        phi_att: &SMatrix<f64, 3, N>,
+    ) -> Result<Factored<T, N, Z>, Error> {
+        let half: T = nalgebra::convert(0.5);
+        let hf: SMatrix<T, Z, N> = to_t(&crate::models::apply_transition(h, phi_att));
+        let h: SMatrix<T, Z, N> = to_t(h);
+        let nu: SVector<T, Z> = to_t(nu);
+        let nu = &nu;
+        let phi_att: SMatrix<T, 3, N> = to_t(phi_att);
+        let g_att: Matrix3<T> = to_t(&noise.g.fixed_rows::<3>(ATT).clone_owned());
+        let m_e = h.fixed_columns::<3>(ATT) * g_att + to_t::<T, Z, 3>(&noise.d);
+        let mut r_e = m_e * m_e.transpose() + r_v;
+        r_e = (r_e + r_e.transpose()) * half;
+        let chol = r_e
+            .cholesky()
+            .ok_or(Error::InnovationNotPositiveDefinite)?;
+        let l = chol.l();
+        let nu_w = l
+            .solve_lower_triangular(nu)
+            .ok_or(Error::InnovationNotPositiveDefinite)?;
+        let h_w = l
+            .solve_lower_triangular(&hf)
+            .ok_or(Error::InnovationNotPositiveDefinite)?;
+        // J L = G Mᵀ L⁻ᵀ (attitude rows), so J z = (J L) ν_w.
+        let j_l: SMatrix<T, 3, Z> = l
+            .solve_lower_triangular(&(m_e * g_att.transpose()))
+            .ok_or(Error::InnovationNotPositiveDefinite)?
+            .transpose();
+        // S = H Φ P Φᵀ Hᵀ + R_e, for the innovation report.
+        let mut s = r_e;
+        for a in 0..Z {
+            for b in a..Z {
+                if let (Some(ra), Some(rb)) = (hf.row_iter().nth(a), hf.row_iter().nth(b)) {
+                    let v = self.ud.bilinear(&ra.transpose(), &rb.transpose());
+                    if let Some(e) = s.get_mut((a, b)) {
+                        *e += v;
+                    }
+                    if a != b {
+                        if let Some(e) = s.get_mut((b, a)) {
+                            *e += v;
+                        }
+                    }
+                }
+            }
+        }
+        let mut ud = self.ud;
+        let mut dx = SVector::<T, N>::zeros();
+        let mut nis = T::zero();
+        for (row, nu_i) in h_w.row_iter().zip(nu_w.iter()) {
+            let row = row.transpose();
+            let resid = *nu_i - row.dot(&dx);
+            let up = ud
+                .update(&row, T::one())
+                .ok_or(Error::CovarianceNotPositiveDefinite)?;
+            nis += resid * resid / up.alpha;
+            dx += up.gain * resid;
+        }
+        // Time update with Φ' = Φ − J H Φ and Q' = G Gᵀ − J R_e Jᵀ.
+        let phi_dec = phi_att - j_l * h_w;
+        let mut q = g_att * g_att.transpose() - j_l * j_l.transpose();
+        q = (q + q.transpose()) * half;
+        ud.predict_attitude(&phi_dec, &q)
+            .ok_or(Error::CovarianceNotPositiveDefinite)?;
+        // x̂_{k+1} − x̂⁻_{k+1} = Φ δ + J (z − H Φ δ) for the correction δ at t_k.
+        let d_att = phi_att * dx + j_l * (nu_w - h_w * dx);
+        dx.fixed_rows_mut::<3>(ATT).copy_from(&d_att);
+        Ok(Factored {
+            ud,
+            dx: to_f64(&dx),
             s,
-            r_eff,
-            c,
             nis,
         })
     }
 
-    /// Gate, Joseph-form covariance update, and state commit.
+    /// Gate and commit of a factored update.
     fn commit(
         &mut self,
-        x_new: SVector<T, N>,
-        gain: &Gain<T, N, Z>,
-        h: &SMatrix<T, Z, N>,
+        x_new: SVector<f64, N>,
+        out: Factored<T, N, Z>,
         nu: SVector<T, Z>,
     ) -> Result<Innovation<T, Z>, Error> {
         let innovation = Innovation {
             nu,
-            s: gain.s,
-            nis: gain.nis,
+            s: out.s,
+            nis: out.nis,
         };
-        let (k, r, c) = (&gain.k, &gain.r_eff, &gain.c);
         let layout = Self::LAYOUT;
         if !all_finite(x_new.iter().copied()) || !innovation.nis.is_finite() {
             return Err(Error::NonFiniteState);
@@ -799,18 +971,11 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let gate = self.config.options.nis_gate;
         let above = gate > 0.0 && innovation.nis > nalgebra::convert(gate);
         if above && !self.gate_open && self.gated_run < MAX_GATED_RUN {
+            // Predicted only: the time update without the measurement.
+            self.ud = self.propagated_factor()?;
             self.gated_run += 1;
             self.pending = None;
             return Err(Error::Gated);
-        }
-        // Joseph form with correlated noise:
-        // P = (I − K H) P (I − K H)ᵀ + K R Kᵀ − (I − K H) C Kᵀ − K Cᵀ (I − K H)ᵀ.
-        let ikh = SMatrix::<T, N, N>::identity() - k * h;
-        let ick = ikh * c * k.transpose();
-        let mut p = ikh * self.p * ikh.transpose() + k * r * k.transpose() - ick - ick.transpose();
-        p = (p + p.transpose()) * nalgebra::convert::<f64, T>(0.5);
-        if p.diagonal().iter().any(|v| *v <= T::zero()) || !all_finite(p.iter().copied()) {
-            return Err(Error::CovarianceNotPositiveDefinite);
         }
         // Keep the Euler attitude angles in (−π, π]; P is unchanged by 2π shifts.
         let mut x = x_new;
@@ -820,7 +985,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             }
         }
         self.x = x;
-        self.p = p;
+        self.ud = out.ud;
         self.pending = None;
         self.updates = self.updates.saturating_add(1);
         self.gated_run = 0;
@@ -831,17 +996,21 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// One filter period: [`Filter::predict`] then [`Filter::update`].
     pub fn step(
         &mut self,
-        dtheta_c: &Vector3<T>,
-        dt: T,
+        dtheta_c: &Vector3<f64>,
+        dt: f64,
         obs: &Observation<T>,
     ) -> Result<Innovation<T, Z>, Error> {
-        let saved = (self.x, self.p, self.command, self.reference);
+        if self.pending.is_some() {
+            self.ud = self.propagated_factor()?;
+            self.pending = None;
+        }
+        let saved = (self.x, self.ud, self.command, self.reference);
         self.predict(dtheta_c, dt)?;
         match self.update(obs) {
             Ok(i) => Ok(i),
             Err(Error::Gated) => Err(Error::Gated),
             Err(e) => {
-                (self.x, self.p, self.command, self.reference) = saved;
+                (self.x, self.ud, self.command, self.reference) = saved;
                 self.pending = None;
                 Err(e)
             }
@@ -853,8 +1022,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// period that [`Filter::predict`] last propagated over.
     pub fn measurement_at(
         &self,
-        x: &SVector<T, N>,
-    ) -> Result<(SVector<T, Z>, SMatrix<T, Z, N>), Error> {
+        x: &SVector<f64, N>,
+    ) -> Result<(SVector<f64, Z>, SMatrix<f64, Z, N>), Error> {
         let pending = self.pending.ok_or(Error::NoPrediction)?;
         let lin = self.retrace(x, &pending)?;
         let m = self.measure(x, &lin);

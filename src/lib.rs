@@ -51,6 +51,7 @@ pub mod calibrator;
 pub mod command;
 pub mod ekf;
 pub mod estimator;
+pub mod factor;
 pub mod geometry;
 pub mod instruments;
 pub mod models;

@@ -212,10 +212,11 @@ pub struct Observability<T: RealField + Copy, M, const N: usize, const Z: usize>
     /// The Kalman filter linearised about the true trajectory: its
     /// covariance is the posterior Cramér–Rao bound.
     crlb: Filter<T, M, N, Z>,
-    /// The true (noise-free model) state at the current time.
-    x_true: SVector<T, N>,
+    /// The true (noise-free model) state at the current time (double
+    /// precision, as the filter's nominal).
+    x_true: SVector<f64, N>,
     /// The computed frame, advanced by the commands.
-    command: CommandFrame<T>,
+    command: CommandFrame<f64>,
     /// `Φ(k,0)`.
     phi: SMatrix<T, N, N>,
     /// `J` (rad⁻²).
@@ -234,7 +235,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>
     /// are ignored: the bound is the plain linearised recursion.
     pub fn new(
         config: FilterConfig<T>,
-        x_true0: SVector<T, N>,
+        x_true0: SVector<f64, N>,
         sigma_prior: SVector<T, N>,
     ) -> Result<Self, Error> {
         let config = FilterConfig {
@@ -258,7 +259,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>
     /// `dtheta_c` (rad, c frame) and a measurement: propagates the true
     /// state and the bound, adds the period's measurement to `J` and updates
     /// the bound with it. On error nothing changes.
-    pub fn step(&mut self, dtheta_c: &nalgebra::Vector3<T>, dt: T) -> Result<(), Error> {
+    pub fn step(&mut self, dtheta_c: &nalgebra::Vector3<f64>, dt: f64) -> Result<(), Error> {
         self.period(dtheta_c, dt, true)
     }
 
@@ -266,7 +267,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>
     /// bridged along the commanded motion): the true state, `Φ(k,0)` and the
     /// bound are propagated (the bound grows by the process noise), `J`
     /// gains nothing. On error nothing changes.
-    pub fn predict(&mut self, dtheta_c: &nalgebra::Vector3<T>, dt: T) -> Result<(), Error> {
+    pub fn predict(&mut self, dtheta_c: &nalgebra::Vector3<f64>, dt: f64) -> Result<(), Error> {
         self.period(dtheta_c, dt, false)
     }
 
@@ -281,21 +282,21 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>
 
     fn period(
         &mut self,
-        dtheta_c: &nalgebra::Vector3<T>,
-        dt: T,
+        dtheta_c: &nalgebra::Vector3<f64>,
+        dt: f64,
         measured: bool,
     ) -> Result<(), Error> {
         let layout = Self::LAYOUT;
         if !dtheta_c.iter().chain([dt].iter()).all(|v| v.is_finite()) {
             return Err(Error::NonFiniteInput);
         }
-        if dt <= T::zero() {
+        if dt <= 0.0 {
             return Err(Error::InvalidPeriod);
         }
         let env = self.crlb.config().env;
         let period = self.command.period(dtheta_c, dt);
         let m = layout.matrices(&self.x_true);
-        let prop: PeriodPropagation<T, N> = layout
+        let prop: PeriodPropagation<f64, N> = layout
             .propagate(&env, &m, &layout.attitude(&self.x_true), &period)
             .ok_or(Error::GimbalLock)?;
         let [_, _, att_end] = prop.att;
@@ -308,7 +309,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>
         let mut phi_k = SMatrix::<T, N, N>::identity();
         phi_k
             .fixed_rows_mut::<3>(crate::models::ATT)
-            .copy_from(&prop.phi_att);
+            .copy_from(&prop.phi_att.map(nalgebra::convert::<f64, T>));
         let phi = phi_k * self.phi;
         if !phi.iter().all(|v| v.is_finite()) {
             return Err(Error::NonFiniteState);
@@ -330,7 +331,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>
             } else {
                 0
             };
-            h.fixed_rows_mut::<3>(accel_row).copy_from(&h_accel);
+            h.fixed_rows_mut::<3>(accel_row)
+                .copy_from(&h_accel.map(nalgebra::convert::<f64, T>));
             r_inv
                 .fixed_rows_mut::<3>(accel_row)
                 .fill(T::one() / (cfg.sigma_accel * cfg.sigma_accel));
@@ -345,8 +347,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>
             // measurement (Filter::step leaves the filter untouched on
             // error).
             let obs = Observation {
-                accel_mean: z_accel,
-                gimbal: Some(layout.attitude(&x_end)),
+                accel_mean: z_accel.map(nalgebra::convert::<f64, T>),
+                gimbal: Some(layout.attitude(&x_end).map(nalgebra::convert::<f64, T>)),
             };
             self.crlb.step(dtheta_c, dt, &obs)?;
             info
@@ -382,12 +384,12 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>
     }
 
     /// The true (noise-free model) state at the current time (rad).
-    pub fn true_state(&self) -> &SVector<T, N> {
+    pub fn true_state(&self) -> &SVector<f64, N> {
         &self.x_true
     }
 
     /// Posterior Cramér–Rao covariance at the current time (rad²).
-    pub fn crlb_covariance(&self) -> &SMatrix<T, N, N> {
+    pub fn crlb_covariance(&self) -> SMatrix<T, N, N> {
         self.crlb.covariance()
     }
 

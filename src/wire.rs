@@ -32,7 +32,7 @@ use crate::ekf::Options;
 use crate::models::ConfigId;
 
 /// Protocol version carried in the first byte of every frame.
-pub const VERSION: u8 = 3;
+pub const VERSION: u8 = 4;
 
 /// Largest state dimension of any configuration (M2-ps, M3-ps).
 pub const MAX_STATES: usize = 18;
@@ -395,8 +395,11 @@ pub struct Checkpoint {
     pub config: ConfigId,
     /// State `x` (rad).
     pub state: Vec<f64, MAX_STATES>,
-    /// Covariance `P`, row-major N×N (rad²).
-    pub covariance: Vec<f64, MAX_COVARIANCE>,
+    /// The packed U-D factor of the covariance `P = U D Uᵀ` (rad²),
+    /// row-major N×N: `D` on the diagonal, the unit upper triangular `U`'s
+    /// strict upper triangle above it, zeros below
+    /// ([`crate::ekf::Filter::factor`]).
+    pub factor: Vec<f64, MAX_COVARIANCE>,
     /// Nominal state of a linearised filter (rad), if any.
     pub nominal: Option<Vec<f64, MAX_STATES>>,
     /// `C^c_n` of the computed frame, row-major.

@@ -1,61 +1,106 @@
-//! The estimator is generic over the scalar: an `f32` filter builds and runs
-//! on the paper's data without panicking. (Single-precision accuracy is a
-//! later issue; this only asserts that the f32 path stays finite early on.)
+//! Single precision: the estimator of record in `f32` against `f64` on the
+//! same recorded data (SPEC §6, "single precision").
 
 mod support;
 
-use nalgebra::{SVector, Vector3};
-use rollcal::ekf::{M1PaFilter, M2PsFilter, Observation, Options};
-use rollcal::models::Environment;
-use rollcal::wire::CalibratorConfig;
+use nalgebra::{RealField, SVector};
+use rollcal::ekf::{Observation, Options};
+use rollcal::estimator::{estimate, EstimatorOptions, LogRecord, SliceLog};
+use rollcal::models::{M1Pa, M2Ps, M4Pa, Model};
+use rollcal::wire::{CalibratorConfig, Sample};
 use rollcal::FilterConfig;
 
-fn config32(c: &CalibratorConfig) -> FilterConfig<f32> {
+fn config_t<T: RealField + Copy>(c: &CalibratorConfig) -> FilterConfig<T> {
     let c = support::filter_config(c, Options::default());
+    let t = |v: f64| nalgebra::convert::<f64, T>(v);
     FilterConfig {
-        env: Environment {
-            earth_rate_n: c.env.earth_rate_n.cast(),
-            gravity_n: c.env.gravity_n.cast(),
-        },
-        sigma_accel: c.sigma_accel as f32,
-        sigma_gyro: c.sigma_gyro as f32,
-        sigma_gimbal: c.sigma_gimbal as f32,
+        env: c.env,
+        sigma_accel: t(c.sigma_accel),
+        sigma_gyro: t(c.sigma_gyro),
+        sigma_gimbal: t(c.sigma_gimbal),
         options: c.options,
     }
 }
 
-#[test]
-fn f32_filters_run() {
-    // The recorded paper stream (noise seed 1): f32 samples already.
-    let (settings, samples) = support::paper_stream();
-    let sigma0 = settings.prior_sigma_rad as f32;
-    let mut m1 = M1PaFilter::<f32>::new(
-        config32(&settings),
-        SVector::zeros(),
-        SVector::repeat(sigma0),
-    )
-    .unwrap();
-    let mut m2 = M2PsFilter::<f32>::new(
-        config32(&settings),
-        SVector::zeros(),
-        SVector::repeat(sigma0),
-    )
-    .unwrap();
-    let (mut ok1, mut ok2) = (0, 0);
-    for s in samples.iter().take(300) {
-        let obs = Observation::<f32> {
-            accel_mean: Vector3::from(s.accel_mean),
-            gimbal: s.gimbal.map(Vector3::from),
-        };
-        let d = Vector3::from(s.dtheta_cmd).cast::<f32>();
-        ok1 += usize::from(m1.step(&d, s.dt, &obs).is_ok());
-        ok2 += usize::from(m2.step(&d, s.dt, &obs).is_ok());
-    }
-    eprintln!("f32: M1-pa {ok1}/300 updates, M2-ps {ok2}/300 updates accepted");
-    assert!(m1
-        .state()
+fn log_t<T: RealField + Copy>(samples: &[Sample]) -> Vec<LogRecord<T>> {
+    let t = |v: f64| nalgebra::convert::<f64, T>(v);
+    samples
         .iter()
-        .chain(m2.state().iter())
-        .all(|v| v.is_finite()));
-    assert!(ok1 > 0 && ok2 > 0);
+        .map(|s| {
+            let r = support::log_record(s);
+            LogRecord {
+                dt: r.dt,
+                dtheta_cmd: r.dtheta_cmd,
+                observation: r.observation.map(|o| Observation {
+                    accel_mean: o.accel_mean.map(t),
+                    gimbal: o.gimbal.map(|g| g.map(t)),
+                }),
+            }
+        })
+        .collect()
+}
+
+/// The estimator of record's answer `(x, σ, passes)` in precision `T`.
+fn answer<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>(
+    settings: &CalibratorConfig,
+    samples: &[Sample],
+) -> (SVector<f64, N>, SVector<f64, N>, u32) {
+    let mut records = log_t::<T>(samples);
+    let mut log = SliceLog::from_records(&mut records);
+    let sigma0 = nalgebra::convert::<f64, T>(settings.prior_sigma_rad);
+    let o = estimate::<T, M, N, Z, _, _>(
+        &config_t::<T>(settings),
+        &SVector::zeros(),
+        &SVector::repeat(sigma0),
+        &mut log,
+        &EstimatorOptions {
+            max_passes: std::env::var("F32_PASSES").ok().and_then(|v| v.parse().ok()).unwrap_or(4),
+            ..EstimatorOptions::default()
+        },
+        |_| {},
+    )
+    .expect("the estimator runs");
+    let f = |v: T| nalgebra::try_convert::<T, f64>(v).unwrap_or(f64::NAN);
+    (
+        *o.filter.state(),
+        o.filter.sigma().map(f),
+        o.report.passes.into(),
+    )
+}
+
+/// `(max |x32 − x64|/σ64, max σ32/σ64, min σ32/σ64)` on the paper stream.
+fn compare<M: Model<N, Z>, const N: usize, const Z: usize>(name: &str) -> (f64, f64, f64) {
+    let (settings, samples) = support::paper_stream();
+    let (x64, s64, p64) = answer::<f64, M, N, Z>(&settings, &samples);
+    let (x32, s32, p32) = answer::<f32, M, N, Z>(&settings, &samples);
+    let mut worst = (0.0_f64, 0.0_f64, f64::INFINITY);
+    for i in 0..N {
+        let d = (x32[i] - x64[i]).abs() / s64[i];
+        eprintln!("{name} state {i}: x64 {:.6e} x32 {:.6e} s64 {:.3e} s32 {:.3e} d {d:.3}", x64[i], x32[i], s64[i], s32[i]);
+        let r = s32[i] / s64[i];
+        worst = (worst.0.max(d), worst.1.max(r), worst.2.min(r));
+    }
+    eprintln!(
+        "{name}: f32 {p32} passes, f64 {p64}: max |dx|/sigma {:.4}, sigma ratio {:.4}..{:.4}",
+        worst.0, worst.2, worst.1
+    );
+    worst
+}
+
+#[test]
+fn f32_matches_f64_m1pa() {
+    let (d, hi, lo) = compare::<M1Pa, 12, 3>("M1-pa");
+    assert!(d < 0.1 && hi < 1.05 && lo > 1.0 / 1.05);
+}
+
+#[test]
+fn f32_matches_f64_m4pa() {
+    let (d, hi, lo) = compare::<M4Pa, 12, 3>("M4-pa");
+    assert!(d < 0.1 && hi < 1.05 && lo > 1.0 / 1.05);
+}
+
+#[test]
+fn f32_matches_f64_m2ps() {
+    let (d, hi, lo) = compare::<M2Ps, 18, 6>("M2-ps");
+    assert!(d < 0.1 && hi < 1.05 && lo > 1.0 / 1.05);
 }

@@ -122,7 +122,7 @@ fn nis_gate_rejects_an_outlier() {
         accel_mean: s.accel_mean + Vector3::new(1e-3, 0.0, 0.0),
         gimbal: Some(s.gimbal),
     };
-    let p_before = *f.covariance();
+    let p_before = f.covariance();
     assert_eq!(
         f.step(&s.dtheta_cmd, s.dt, &outlier).unwrap_err(),
         Error::Gated

@@ -76,7 +76,7 @@ fn big_checkpoint() -> Checkpoint {
     Checkpoint {
         config: ConfigId::M2Ps,
         state: v.clone(),
-        covariance: (0..MAX_COVARIANCE).map(|i| 1e-300 * i as f64).collect(),
+        factor: (0..MAX_COVARIANCE).map(|i| 1e-300 * i as f64).collect(),
         nominal: Some(v),
         c_cn: [f64::MAX; 9],
         updates: u32::MAX,
@@ -530,11 +530,11 @@ fn arb_message() -> impl Strategy<Value = Message> {
             arb_progress()
         )
             .prop_map(
-                |(config, state, covariance, nominal, c_cn, updates, progress)| {
+                |(config, state, factor, nominal, c_cn, updates, progress)| {
                     Message::Checkpoint(Checkpoint {
                         config,
                         state,
-                        covariance,
+                        factor,
                         nominal,
                         c_cn,
                         updates,

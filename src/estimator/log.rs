@@ -169,11 +169,13 @@ use crate::ekf::Observation;
 /// bridged: the platform still moved by `dtheta_cmd` over `dt`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LogRecord<T: RealField + Copy> {
-    /// Period length `T` (s), strictly positive.
-    pub dt: T,
+    /// Period length `T` (s), strictly positive. Double precision whatever
+    /// `T`: the period drives the nominal trajectory ([`crate::ekf::Filter`]).
+    pub dt: f64,
     /// Commanded angle increment `Δθc = ∫ωc dt` over the period (rad,
-    /// components in the computed frame c).
-    pub dtheta_cmd: Vector3<T>,
+    /// components in the computed frame c). Double precision whatever `T`:
+    /// f32's rounding of an increment is a bias over a path segment.
+    pub dtheta_cmd: Vector3<f64>,
     /// The period's measurement: accelerometer mean over the period (g,
     /// instrument axes) and, for M2, the gimbal angles `(α, β, γ)` at its end
     /// (rad). `None`: the period is predicted only.
@@ -183,7 +185,7 @@ pub struct LogRecord<T: RealField + Copy> {
 impl<T: RealField + Copy> LogRecord<T> {
     /// A measured period: length `dt` (s), commanded increment `dtheta_cmd`
     /// (rad, c frame) and its measurement.
-    pub fn measured(dt: T, dtheta_cmd: Vector3<T>, observation: Observation<T>) -> Self {
+    pub fn measured(dt: f64, dtheta_cmd: Vector3<f64>, observation: Observation<T>) -> Self {
         Self {
             dt,
             dtheta_cmd,
@@ -193,7 +195,7 @@ impl<T: RealField + Copy> LogRecord<T> {
 
     /// A period without measurement (predicted only): length `dt` (s) and
     /// commanded increment `dtheta_cmd` (rad, c frame).
-    pub fn predicted(dt: T, dtheta_cmd: Vector3<T>) -> Self {
+    pub fn predicted(dt: f64, dtheta_cmd: Vector3<f64>) -> Self {
         Self {
             dt,
             dtheta_cmd,
@@ -207,7 +209,7 @@ impl<T: RealField + Copy> LogRecord<T> {
     /// [`crate::ekf::Error::InvalidPeriod`]) and the estimator skips it when
     /// it walks the computed frame.
     pub fn has_valid_period(&self) -> bool {
-        self.dt.is_finite() && self.dt > T::zero() && self.dtheta_cmd.iter().all(|v| v.is_finite())
+        self.dt.is_finite() && self.dt > 0.0 && self.dtheta_cmd.iter().all(|v| v.is_finite())
     }
 }
 

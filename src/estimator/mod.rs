@@ -250,7 +250,7 @@ impl Tally {
 /// back-propagation. Never panics.
 pub fn estimate<T, M, const N: usize, const Z: usize, L, F>(
     config: &FilterConfig<T>,
-    x0: &SVector<T, N>,
+    x0: &SVector<f64, N>,
     sigma0: &SVector<T, N>,
     log: &mut L,
     passes: &EstimatorOptions,
@@ -270,12 +270,12 @@ where
         return Err(EstimatorError::InvalidTolerance);
     }
     let max = passes.max_passes.max(1);
-    let tolerance: T = nalgebra::convert(passes.tolerance);
+    let tolerance = passes.tolerance;
     let env = config.env;
-    let mut nominal: Option<SVector<T, N>> = None;
-    let mut previous: Option<SVector<T, N>> = None;
+    let mut nominal: Option<SVector<f64, N>> = None;
+    let mut previous: Option<SVector<f64, N>> = None;
     // C^c_n at the end of the run, integrated during pass 1.
-    let mut end_frame: Option<CommandFrame<T>> = None;
+    let mut end_frame: Option<CommandFrame<f64>> = None;
     let mut pass: u8 = 1;
     loop {
         let mut filter = Filter::<T, M, N, Z>::new(*config, *x0, *sigma0)?;
@@ -310,7 +310,9 @@ where
             x.iter()
                 .zip(prev.iter())
                 .zip(sigma.iter())
-                .all(|((a, b), s)| wrap_angle(*a - *b).abs() < tolerance * *s)
+                .all(|((a, b), s)| {
+                    wrap_angle(*a - *b).abs() < tolerance * s.to_subset().unwrap_or(f64::NAN)
+                })
         });
         if converged || pass >= max {
             return Ok(Outcome {
@@ -347,11 +349,11 @@ where
 /// with [`CommandFrame::period_before`].
 pub fn back_propagate<T, const N: usize, L>(
     layout: Layout,
-    env: &Environment<T>,
-    x_end: &SVector<T, N>,
-    frame_end: &CommandFrame<T>,
+    env: &Environment<f64>,
+    x_end: &SVector<f64, N>,
+    frame_end: &CommandFrame<f64>,
     log: &mut L,
-) -> Result<(SVector<T, N>, CommandFrame<T>), EstimatorError>
+) -> Result<(SVector<f64, N>, CommandFrame<f64>), EstimatorError>
 where
     T: RealField + Copy,
     L: SampleLog<T> + ?Sized,
@@ -363,7 +365,7 @@ where
         if !record.has_valid_period() {
             continue;
         }
-        let period: Period<T> = frame.period_before(&record.dtheta_cmd, record.dt);
+        let period: Period<f64> = frame.period_before(&record.dtheta_cmd, record.dt);
         x = layout
             .propagate_state(env, &x, &period.reversed())
             .filter(|v| v.iter().all(|c| c.is_finite()))

@@ -206,21 +206,23 @@ impl PackedLayout {
 #[derive(Debug)]
 pub struct PackedLog<'a, T: RealField + Copy> {
     bytes: &'a mut [u8],
-    periods: &'a mut [T],
+    periods: &'a mut [f64],
     used_periods: usize,
     layout: PackedLayout,
     len: usize,
+    _scalar: core::marker::PhantomData<T>,
 }
 
 impl<'a, T: RealField + Copy> PackedLog<'a, T> {
     /// An empty log over `bytes` (capacity `bytes.len() / record_len`
     /// records) with the table of period lengths `periods` (at most
     /// [`MAX_PERIODS`] of its entries are used).
-    pub fn new(bytes: &'a mut [u8], periods: &'a mut [T], layout: PackedLayout) -> Self {
+    pub fn new(bytes: &'a mut [u8], periods: &'a mut [f64], layout: PackedLayout) -> Self {
         Self {
             bytes,
             periods,
             used_periods: 0,
+            _scalar: core::marker::PhantomData,
             layout,
             len: 0,
         }
@@ -249,7 +251,7 @@ impl<'a, T: RealField + Copy> PackedLog<'a, T> {
 
     /// Index of `dt` in the table, added if new; `None` when the table is
     /// full.
-    fn period_index(&mut self, dt: T) -> Option<usize> {
+    fn period_index(&mut self, dt: f64) -> Option<usize> {
         let table = self.periods.get(..self.used_periods)?;
         if let Some(i) = table.iter().position(|p| *p == dt) {
             return Some(i);

@@ -1,0 +1,278 @@
+//! The U-D factored state covariance `P = U D Uᵀ` (SPEC §6, single
+//! precision).
+//!
+//! `U` is unit upper triangular and `D` diagonal and positive. The factor
+//! carries the square root of the covariance's dynamic range: the states'
+//! σ span 1° to 0.014″ (cond P ≈ 7e10, beyond what f32 resolves) while
+//! `U D^{1/2}` spans ≈ 3e5, which f32 holds with three digits to spare.
+//!
+//! - measurement updates are Bierman's scalar updates ([`Ud::update`],
+//!   Bierman 1977, *Factorization Methods for Discrete Sequential
+//!   Estimation*, §V.3): the filter first decorrelates the period's
+//!   measurement components;
+//! - the time update ([`Ud::predict_attitude`]) exploits the structure of
+//!   this problem: the parameters are constant, so only the three attitude
+//!   states (the first three, [`crate::models::ATT`]) move. With `Φ` equal to
+//!   the identity below its first three rows, `U₁₂ ← A U₁₂ + B U₂₂` and the
+//!   3×3 block `A U₁₁ D₁ U₁₁ᵀ Aᵀ + Q` is refactored; `U₂₂` and `D₂` do not
+//!   change. That costs `3 N²/2` products instead of Thornton's `N³`.
+//!
+//! The factor is stored packed in one `N×N` matrix: `D` on the diagonal,
+//! `U`'s strict upper triangle above it, zeros below (checkpoints carry it
+//! in this form, so a restored filter continues bit-identically).
+//!
+//! Every index in this module is a loop index below the const size `N` (or
+//! 3), so the indexing cannot be broken by input; `tools/panic-check.py`
+//! verifies that the compiler removed every bounds check.
+#![allow(clippy::indexing_slicing)]
+
+use nalgebra::{Matrix3, RealField, SMatrix, SVector};
+
+use crate::models::ATT;
+
+/// A U-D factored covariance of `N` states (rad²), attitude states first.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ud<T: RealField + Copy, const N: usize> {
+    /// Packed: `D` on the diagonal, `U` strictly above, zeros below.
+    m: SMatrix<T, N, N>,
+}
+
+/// Gain and innovation variance of one scalar update.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScalarUpdate<T: RealField + Copy, const N: usize> {
+    /// Kalman gain `K = P hᵀ / α` (state units per measurement unit).
+    pub gain: SVector<T, N>,
+    /// Innovation variance `α = h P hᵀ + r` (measurement units²).
+    pub alpha: T,
+}
+
+const _ATTITUDE_FIRST: () = assert!(ATT == 0);
+
+impl<T: RealField + Copy, const N: usize> Ud<T, N> {
+    /// The factor of a diagonal covariance with these variances (rad²).
+    /// `None` unless every variance is finite and strictly positive.
+    pub fn from_variances(variances: &SVector<T, N>) -> Option<Self> {
+        if variances.iter().any(|v| !v.is_finite() || *v <= T::zero()) {
+            return None;
+        }
+        Some(Self {
+            m: SMatrix::from_diagonal(variances),
+        })
+    }
+
+    /// A factor from its packed form ([`Ud::packed`]); the part below the
+    /// diagonal is ignored. `None` unless every entry is finite and `D` is
+    /// strictly positive.
+    pub fn from_packed(packed: &SMatrix<T, N, N>) -> Option<Self> {
+        if packed.iter().any(|v| !v.is_finite()) || packed.diagonal().iter().any(|v| *v <= T::zero())
+        {
+            return None;
+        }
+        Some(Self {
+            m: packed.upper_triangle(),
+        })
+    }
+
+    /// The factor of a symmetric positive definite covariance (rad²), by the
+    /// backward modified Cholesky decomposition; `None` if `p` is not
+    /// positive definite or not finite.
+    pub fn from_covariance(p: &SMatrix<T, N, N>) -> Option<Self> {
+        if p.iter().any(|v| !v.is_finite()) {
+            return None;
+        }
+        let mut m = SMatrix::<T, N, N>::zeros();
+        let a = &mut m.data.0; // a[col][row]
+        let p = &p.data.0;
+        for j in (0..N).rev() {
+            let mut d = p[j][j];
+            for k in j + 1..N {
+                d -= a[k][j] * a[k][j] * a[k][k];
+            }
+            if !(d > T::zero()) || !d.is_finite() {
+                return None;
+            }
+            a[j][j] = d;
+            for i in 0..j {
+                let mut s = p[j][i];
+                for k in j + 1..N {
+                    s -= a[k][i] * a[k][j] * a[k][k];
+                }
+                a[j][i] = s / d;
+            }
+        }
+        Some(Self { m })
+    }
+
+    /// The packed factor: `D` on the diagonal, `U` strictly above.
+    pub fn packed(&self) -> &SMatrix<T, N, N> {
+        &self.m
+    }
+
+    /// The covariance `P = U D Uᵀ` (rad²).
+    pub fn covariance(&self) -> SMatrix<T, N, N> {
+        let a = &self.m.data.0;
+        let mut p = SMatrix::<T, N, N>::zeros();
+        for i in 0..N {
+            for j in i..N {
+                // P_ij = Σ_{k ≥ j} U_ik D_k U_jk (U_kk = 1).
+                let mut s = if i == j {
+                    a[j][j]
+                } else {
+                    a[j][i] * a[j][j]
+                };
+                for k in j + 1..N {
+                    s += a[k][i] * a[k][j] * a[k][k];
+                }
+                p[(i, j)] = s;
+                p[(j, i)] = s;
+            }
+        }
+        p
+    }
+
+    /// The variances `P_ii` (rad²).
+    pub fn variances(&self) -> SVector<T, N> {
+        let a = &self.m.data.0;
+        let mut v = SVector::<T, N>::zeros();
+        for i in 0..N {
+            let mut s = a[i][i];
+            for k in i + 1..N {
+                s += a[k][i] * a[k][i] * a[k][k];
+            }
+            v[i] = s;
+        }
+        v
+    }
+
+    /// `Uᵀ h` and `D Uᵀ h` for a row `h`.
+    fn project(&self, h: &SVector<T, N>) -> (SVector<T, N>, SVector<T, N>) {
+        let a = &self.m.data.0;
+        let mut f = SVector::<T, N>::zeros();
+        let mut v = SVector::<T, N>::zeros();
+        for j in 0..N {
+            let mut s = h[j];
+            for i in 0..j {
+                s += a[j][i] * h[i];
+            }
+            f[j] = s;
+            v[j] = s * a[j][j];
+        }
+        (f, v)
+    }
+
+    /// `h P hᵀ` for a row `h`.
+    pub fn quadratic(&self, h: &SVector<T, N>) -> T {
+        let (f, v) = self.project(h);
+        f.dot(&v)
+    }
+
+    /// `h₁ P h₂ᵀ` for two rows.
+    pub fn bilinear(&self, h1: &SVector<T, N>, h2: &SVector<T, N>) -> T {
+        let (_, v) = self.project(h1);
+        let (f2, _) = self.project(h2);
+        f2.dot(&v)
+    }
+
+    /// Bierman's scalar measurement update for `z = h x + v`, `var v = r`:
+    /// the factor becomes that of `P − P hᵀ h P / α`. Returns the gain and
+    /// `α`; `None` (factor untouched) if `r` is not strictly positive or the
+    /// update would leave `D` non-positive or non-finite.
+    pub fn update(&mut self, h: &SVector<T, N>, r: T) -> Option<ScalarUpdate<T, N>> {
+        if !(r > T::zero()) {
+            return None;
+        }
+        let (f, v) = self.project(h);
+        let mut m = self.m;
+        let a = &mut m.data.0;
+        let mut b = SVector::<T, N>::zeros();
+        let mut alpha = r;
+        for j in 0..N {
+            let beta = alpha;
+            alpha += v[j] * f[j];
+            if !(alpha > T::zero()) {
+                return None;
+            }
+            let lambda = -f[j] / beta;
+            a[j][j] *= beta / alpha;
+            for i in 0..j {
+                let u = a[j][i];
+                a[j][i] = u + b[i] * lambda;
+                b[i] += u * v[j];
+            }
+            b[j] = v[j];
+        }
+        if m.diagonal().iter().any(|d| !(*d > T::zero()) || !d.is_finite()) {
+            return None;
+        }
+        self.m = m;
+        Some(ScalarUpdate {
+            gain: b / alpha,
+            alpha,
+        })
+    }
+
+    /// The time update `P ← Φ P Φᵀ + Q` of a transition `Φ` that is the
+    /// identity but for its first three (attitude) rows `phi_att` (3×N), with
+    /// process noise `q` (3×3, rad²) on the attitude states only. `None`
+    /// (factor untouched) if the new attitude block is not positive definite.
+    pub fn predict_attitude(&mut self, phi_att: &SMatrix<T, 3, N>, q: &Matrix3<T>) -> Option<()> {
+        let mut m = self.m;
+        let a = &mut m.data.0;
+        let phi = &phi_att.data.0; // phi[col][row]
+        // U₁₂ ← A U₁₂ + B U₂₂, column by column (U₂₂ unit upper).
+        for j in 3..N {
+            let mut col = [T::zero(); 3];
+            for (r, c) in col.iter_mut().enumerate() {
+                let mut s = phi[j][r];
+                for k in 0..3 {
+                    s += phi[k][r] * a[j][k];
+                }
+                for k in 3..j {
+                    s += phi[k][r] * a[j][k];
+                }
+                *c = s;
+            }
+            a[j][0] = col[0];
+            a[j][1] = col[1];
+            a[j][2] = col[2];
+        }
+        // W = A U₁₁ (U₁₁ unit upper), then M = W D₁ Wᵀ + Q.
+        let mut w = Matrix3::<T>::zeros();
+        for c in 0..3 {
+            for r in 0..3 {
+                let mut s = if c < N { phi[c][r] } else { T::zero() };
+                for k in 0..c {
+                    s += phi[k][r] * a[c][k];
+                }
+                w[(r, c)] = s;
+            }
+        }
+        let d1 = Matrix3::from_diagonal(&nalgebra::Vector3::new(a[0][0], a[1][1], a[2][2]));
+        let mut mm = w * d1 * w.transpose() + q;
+        mm = (mm + mm.transpose()) * nalgebra::convert::<f64, T>(0.5);
+        let blk = Ud::<T, 3>::from_covariance(&mm)?;
+        let b = &blk.m.data.0;
+        for c in 0..3 {
+            for r in 0..=c {
+                a[c][r] = b[c][r];
+            }
+        }
+        self.m = m;
+        Some(())
+    }
+
+    /// Re-opens the attitude: its covariance becomes `variance · I` (rad²)
+    /// with no correlation to the parameters, whose covariance is kept.
+    pub fn reset_attitude(&mut self, variance: T) {
+        let a = &mut self.m.data.0;
+        for (j, col) in a.iter_mut().enumerate() {
+            for (i, v) in col.iter_mut().enumerate().take(3) {
+                if i < j {
+                    *v = T::zero();
+                } else if i == j {
+                    *v = variance;
+                }
+            }
+        }
+    }
+}
