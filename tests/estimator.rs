@@ -310,7 +310,7 @@ fn slice_log_appends_reads_and_fills_up() {
 #[test]
 fn record_sizes() {
     assert_eq!(core::mem::size_of::<LogRecord<f64>>(), 88);
-    assert_eq!(core::mem::size_of::<LogRecord<f32>>(), 44);
+    assert_eq!(core::mem::size_of::<LogRecord<f32>>(), 64);
 }
 
 /// The estimator over a log equals the filters driven by hand: bit for bit

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use host_sim::report::{group_of, print_table, run_json, write_csv, write_json};
-use host_sim::runner::{expected_observable, run_filter};
+use host_sim::runner::{expected_observable, run_filter, Precision};
 use host_sim::scenario::Scenario;
 use host_sim::truth::{simulate, SimOptions};
 use rollcal::ekf::Options;
@@ -76,6 +76,10 @@ struct MonteCarloArgs {
     /// Scenario file (TOML); default: the paper's scenario.
     #[arg(long, value_name = "FILE")]
     scenario: Option<PathBuf>,
+    /// Precision of the filter's covariance arithmetic (state, nominal and
+    /// residuals are f64 in both).
+    #[arg(long, value_enum, default_value_t = Precision::F64)]
+    precision: Precision,
     /// Write the statistics as JSON to PATH.
     #[arg(long, value_name = "PATH")]
     json: Option<PathBuf>,
@@ -126,6 +130,10 @@ struct CommonArgs {
     /// the estimate moves by less than 0.1σ.
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(1..=8))]
     passes: u8,
+    /// Precision of the filter's covariance arithmetic (state, nominal and
+    /// residuals are f64 in both).
+    #[arg(long, value_enum, default_value_t = Precision::F64)]
+    precision: Precision,
 }
 
 #[derive(clap::Args)]
@@ -197,6 +205,7 @@ impl CommonArgs {
         host_sim::runner::Estimator {
             options: self.remedy.options(),
             passes: self.passes,
+            precision: self.precision,
         }
     }
 }
@@ -364,6 +373,7 @@ fn cmd_remedies(args: &RemediesArgs) -> Result<(), String> {
             Estimator {
                 options: Remedy::Plain.options(),
                 passes: 1,
+                precision: Precision::F64,
             },
         ),
         (
@@ -371,6 +381,7 @@ fn cmd_remedies(args: &RemediesArgs) -> Result<(), String> {
             Estimator {
                 options: Remedy::Iekf.options(),
                 passes: 1,
+                precision: Precision::F64,
             },
         ),
         (
@@ -378,6 +389,7 @@ fn cmd_remedies(args: &RemediesArgs) -> Result<(), String> {
             Estimator {
                 options: Remedy::SecondOrder.options(),
                 passes: 1,
+                precision: Precision::F64,
             },
         ),
         (
@@ -385,6 +397,7 @@ fn cmd_remedies(args: &RemediesArgs) -> Result<(), String> {
             Estimator {
                 options: Remedy::SecondOrderMean.options(),
                 passes: 1,
+                precision: Precision::F64,
             },
         ),
         (
@@ -392,6 +405,7 @@ fn cmd_remedies(args: &RemediesArgs) -> Result<(), String> {
             Estimator {
                 options: Remedy::SecondOrderDynamics.options(),
                 passes: 1,
+                precision: Precision::F64,
             },
         ),
         (
@@ -399,6 +413,7 @@ fn cmd_remedies(args: &RemediesArgs) -> Result<(), String> {
             Estimator {
                 options: Remedy::IekfSecondOrder.options(),
                 passes: 1,
+                precision: Precision::F64,
             },
         ),
         (
@@ -406,6 +421,7 @@ fn cmd_remedies(args: &RemediesArgs) -> Result<(), String> {
             Estimator {
                 options: Remedy::SecondOrder.options(),
                 passes: 4,
+                precision: Precision::F64,
             },
         ),
     ];
@@ -583,7 +599,10 @@ fn cmd_montecarlo(args: &MonteCarloArgs) -> Result<(), String> {
         args.config,
         &scenario,
         runs,
-        host_sim::runner::Estimator::default(),
+        host_sim::runner::Estimator {
+            precision: args.precision,
+            ..host_sim::runner::Estimator::default()
+        },
         &|n| bar.set_position(n as u64),
     )?;
     bar.finish_and_clear();

@@ -61,6 +61,8 @@ pub struct MonteCarlo {
     /// Configuration.
     #[serde(serialize_with = "ser_config")]
     pub config: ConfigId,
+    /// Precision of the filter's covariance arithmetic.
+    pub precision: crate::runner::Precision,
     /// Runs that completed.
     pub runs: usize,
     /// Seeds used (1..=runs).
@@ -268,6 +270,7 @@ pub fn monte_carlo(
     let nis = band(nis_mean, z, nis_count);
     Ok(MonteCarlo {
         config: id,
+        precision: estimator.precision,
         runs: ok.len(),
         seeds,
         states,
@@ -283,8 +286,12 @@ pub fn monte_carlo(
 pub fn print_monte_carlo(mc: &MonteCarlo) {
     use crate::scenario::ARCSEC;
     println!(
-        "{} Monte Carlo: {} runs (seeds 1..={}), {:.1} s wall",
-        mc.config, mc.runs, mc.runs, mc.wall_s
+        "{} Monte Carlo ({}): {} runs (seeds 1..={}), {:.1} s wall",
+        mc.config,
+        mc.precision.as_str(),
+        mc.runs,
+        mc.runs,
+        mc.wall_s
     );
     println!(
         "{:<10} {:>11} {:>11} {:>11} {:>11} {:>9}  block",

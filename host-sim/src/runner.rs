@@ -5,7 +5,7 @@
 //! into a [`SliceLog`], dispatches on the configuration and collects the
 //! time history, NIS and failures of the last pass for the reports.
 
-use nalgebra::SVector;
+use nalgebra::{RealField, SVector};
 use rollcal::ekf::{self, Filter, FilterConfig, Observation, Options};
 use rollcal::estimator::{self, EstimatorError, EstimatorOptions, LogRecord, SliceLog};
 use rollcal::geometry::{wrap_angle, EARTH_RATE};
@@ -15,7 +15,8 @@ use rollcal::observability::Observability;
 use crate::scenario::{Scenario, ARCSEC, DEG};
 use crate::truth::{truth_state, PeriodSample, Simulation};
 
-/// Object-safe view of a filter of any configuration (f64).
+/// Object-safe view of a filter of any configuration and precision
+/// (values reported in f64).
 pub trait DynFilter: Send {
     /// One period.
     fn step(&mut self, s: &PeriodSample) -> Result<f64, ekf::Error>;
@@ -27,23 +28,71 @@ pub trait DynFilter: Send {
     fn covariance(&self) -> Vec<f64>;
 }
 
-impl<M: Model<N, Z> + Send, const N: usize, const Z: usize> DynFilter for Filter<f64, M, N, Z> {
+/// A value of precision `T` in f64 (exact for f32).
+fn f64_of<T: RealField + Copy>(v: T) -> f64 {
+    v.to_subset().unwrap_or(f64::NAN)
+}
+
+impl<T: RealField + Copy + Send, M: Model<N, Z> + Send, const N: usize, const Z: usize> DynFilter
+    for Filter<T, M, N, Z>
+{
     fn step(&mut self, s: &PeriodSample) -> Result<f64, ekf::Error> {
-        let obs = observation(s);
-        Filter::step(self, &s.dtheta_cmd, s.dt, &obs).map(|i| i.nis)
+        let obs = observation_t::<T>(s);
+        Filter::step(self, &s.dtheta_cmd, s.dt, &obs).map(|i| f64_of(i.nis))
     }
     fn state(&self) -> Vec<f64> {
         Filter::state(self).iter().copied().collect()
     }
     fn sigma(&self) -> Vec<f64> {
-        Filter::sigma(self).iter().copied().collect()
+        Filter::sigma(self).iter().map(|v| f64_of(*v)).collect()
     }
     fn covariance(&self) -> Vec<f64> {
         Filter::covariance(self)
             .transpose()
             .iter()
-            .copied()
+            .map(|v| f64_of(*v))
             .collect()
+    }
+}
+
+/// The precision of the filter's covariance arithmetic (its state, nominal
+/// and residuals are f64 in both, see [`rollcal::ekf::Filter`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Precision {
+    /// Double precision (the host's default).
+    #[default]
+    F64,
+    /// Single precision, as on an FPU without f64 (Cortex-M4F).
+    F32,
+}
+
+impl Precision {
+    /// `"f64"` or `"f32"`.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            Precision::F64 => "f64",
+            Precision::F32 => "f32",
+        }
+    }
+}
+
+/// The measurement of a simulated period in precision `T`.
+fn observation_t<T: RealField + Copy>(s: &PeriodSample) -> Observation<T> {
+    Observation {
+        accel_mean: s.accel_mean.map(nalgebra::convert::<f64, T>),
+        gimbal: Some(s.gimbal.map(nalgebra::convert::<f64, T>)),
+    }
+}
+
+/// Filter settings in precision `T`.
+pub fn filter_config_t<T: RealField + Copy>(c: &FilterConfig<f64>) -> FilterConfig<T> {
+    FilterConfig {
+        env: c.env,
+        sigma_accel: nalgebra::convert(c.sigma_accel),
+        sigma_gyro: nalgebra::convert(c.sigma_gyro),
+        sigma_gimbal: nalgebra::convert(c.sigma_gimbal),
+        options: c.options,
     }
 }
 
@@ -144,6 +193,8 @@ pub struct Estimator {
     /// than [`estimator::DEFAULT_TOLERANCE`] of its σ
     /// ([`rollcal::estimator`]).
     pub passes: u8,
+    /// Precision of the covariance arithmetic.
+    pub precision: Precision,
 }
 
 impl Default for Estimator {
@@ -151,6 +202,7 @@ impl Default for Estimator {
         Self {
             options: Options::default(),
             passes: estimator::DEFAULT_MAX_PASSES,
+            precision: Precision::F64,
         }
     }
 }
@@ -178,18 +230,30 @@ struct LastPass {
     failures: Vec<(u32, ekf::Error)>,
 }
 
-fn passes_of<M: Model<N, Z> + Send + 'static, const N: usize, const Z: usize>(
+#[allow(clippy::too_many_arguments)]
+fn passes_of<
+    T: RealField + Copy + Send,
+    M: Model<N, Z> + Send + 'static,
+    const N: usize,
+    const Z: usize,
+>(
     cfg: FilterConfig<f64>,
     sigma0: f64,
     samples: &[PeriodSample],
-    log: &mut SliceLog<'_, f64>,
     options: &EstimatorOptions,
     x0: &[f64],
     keep_history: bool,
 ) -> Result<Passes, EstimatorError> {
-    let (x, s) = initial::<N>(x0, sigma0);
+    let mut storage: Vec<LogRecord<T>> = samples
+        .iter()
+        .map(|s| LogRecord::measured(s.dt, s.dtheta_cmd, observation_t::<T>(s)))
+        .collect();
+    let mut log = SliceLog::from_records(&mut storage);
+    let (x, s64) = initial::<N>(x0, sigma0);
+    let s = s64.map(nalgebra::convert::<f64, T>);
+    let cfg = filter_config_t::<T>(&cfg);
     let mut last = LastPass::default();
-    let out = estimator::estimate::<f64, M, N, Z, _, _>(&cfg, &x, &s, log, options, |ev| {
+    let out = estimator::estimate::<T, M, N, Z, _, _>(&cfg, &x, &s, &mut log, options, |ev| {
         if ev.pass != last.pass {
             last = LastPass {
                 pass: ev.pass,
@@ -199,7 +263,7 @@ fn passes_of<M: Model<N, Z> + Send + 'static, const N: usize, const Z: usize>(
         }
         let sample = samples.get(ev.index);
         match ev.result {
-            Ok(Some(i)) => last.nis.push(i.nis),
+            Ok(Some(i)) => last.nis.push(f64_of(i.nis)),
             Ok(None) => {}
             Err(e) => last.failures.push((sample.map_or(0, |s| s.k), e)),
         }
@@ -231,16 +295,19 @@ pub fn run_passes(
     x0: &[f64],
     keep_history: bool,
 ) -> Result<Passes, ekf::Error> {
-    let mut storage: Vec<LogRecord<f64>> = samples.iter().map(log_record).collect();
-    let mut log = SliceLog::from_records(&mut storage);
     let options = EstimatorOptions {
         max_passes: estimator.passes,
         ..EstimatorOptions::default()
     };
-    let (l, o, h) = (&mut log, &options, keep_history);
-    let out = rollcal::with_config!(id, |M, N, Z| passes_of::<M, N, Z>(
-        cfg, sigma0, samples, l, o, x0, h
-    ));
+    let (o, h) = (&options, keep_history);
+    let out = match estimator.precision {
+        Precision::F64 => rollcal::with_config!(id, |M, N, Z| passes_of::<f64, M, N, Z>(
+            cfg, sigma0, samples, o, x0, h
+        )),
+        Precision::F32 => rollcal::with_config!(id, |M, N, Z| passes_of::<f32, M, N, Z>(
+            cfg, sigma0, samples, o, x0, h
+        )),
+    };
     out.map_err(|e| match e {
         EstimatorError::Filter(e) => e,
         EstimatorError::BackPropagation { .. } => ekf::Error::GimbalLock,

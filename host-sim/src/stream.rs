@@ -21,7 +21,7 @@ use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant as Clock};
 
-use nalgebra::Vector3;
+use nalgebra::{RealField, Vector3};
 use rollcal::calibrator::RejectReason;
 use rollcal::ekf::{self, FilterConfig, Options};
 use rollcal::estimator::{EstimatorOptions, LogError, LogRecord, SampleLog};
@@ -94,6 +94,10 @@ pub struct CalibrateArgs {
     /// answer); more = further linearised passes as in `run`.
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(1..=8))]
     pub passes: u8,
+    /// Precision of the calibrator's covariance arithmetic (f32: as the
+    /// Cortex-M4F firmware; state, nominal and residuals are f64 in both).
+    #[arg(long, value_enum, default_value_t = runner::Precision::F64)]
+    pub precision: runner::Precision,
     /// Write the final states as JSON (as `run --json`) to PATH.
     #[arg(long, value_name = "PATH")]
     pub json: Option<PathBuf>,
@@ -242,11 +246,34 @@ pub fn record(args: &RecordArgs) -> Result<(), String> {
 }
 
 /// The host's sample log: a vector that grows as needed.
-#[derive(Default)]
-pub struct VecLog(pub Vec<LogRecord<f64>>);
+pub struct VecLog<T: RealField + Copy = f64>(pub Vec<LogRecord<T>>);
 
-impl SampleLog<f64> for VecLog {
-    fn append(&mut self, r: &LogRecord<f64>) -> Result<(), LogError> {
+impl<T: RealField + Copy> Default for VecLog<T> {
+    fn default() -> Self {
+        Self(Vec::new())
+    }
+}
+
+impl<T: RealField + Copy> VecLog<T> {
+    /// The records in f64 (exact for f32).
+    pub fn records_f64(&self) -> Vec<LogRecord<f64>> {
+        let f = |v: T| v.to_subset().unwrap_or(f64::NAN);
+        self.0
+            .iter()
+            .map(|r| LogRecord {
+                dt: r.dt,
+                dtheta_cmd: r.dtheta_cmd,
+                observation: r.observation.map(|o| ekf::Observation {
+                    accel_mean: o.accel_mean.map(f),
+                    gimbal: o.gimbal.map(|g| g.map(f)),
+                }),
+            })
+            .collect()
+    }
+}
+
+impl<T: RealField + Copy> SampleLog<T> for VecLog<T> {
+    fn append(&mut self, r: &LogRecord<T>) -> Result<(), LogError> {
         self.0.push(*r);
         Ok(())
     }
@@ -256,7 +283,7 @@ impl SampleLog<f64> for VecLog {
     fn truncate(&mut self, len: usize) {
         self.0.truncate(len);
     }
-    fn get(&mut self, k: usize) -> Option<LogRecord<f64>> {
+    fn get(&mut self, k: usize) -> Option<LogRecord<T>> {
         self.0.get(k).copied()
     }
 }
@@ -270,19 +297,19 @@ struct Final {
 
 /// The no_std session (the protocol, once) with the host's log and records
 /// for the report.
-struct Host {
-    session: Session<f64>,
+struct Host<T: RealField + Copy> {
+    session: Session<T>,
     /// Settings for a stream without a `Configure` message (`--scenario`).
     fallback: CalibratorConfig,
     /// The sample log since the last (re)start, for the final passes.
-    log: VecLog,
+    log: VecLog<T>,
     /// NIS of every accepted update since the last (re)start.
     nis: Vec<f64>,
     /// Filter failures (sequence number, error).
     failures: Vec<(u32, ekf::Error)>,
 }
 
-impl Host {
+impl<T: RealField + Copy> Host<T> {
     fn handle(&mut self, m: Message) -> Result<(), String> {
         match &m {
             Message::Sample(_) if self.session.calibrator().is_none() => {
@@ -332,7 +359,7 @@ impl Host {
                 (pass, nis) = (p, Vec::new());
             }
             if let Some(v) = v {
-                nis.push(v);
+                nis.push(v.to_subset().unwrap_or(f64::NAN));
             }
         });
         Some(Final { estimate, nis })
@@ -447,10 +474,18 @@ fn frames_json(s: &DecoderStats) -> serde_json::Value {
 
 /// `host-sim calibrate`.
 pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
+    match args.precision {
+        runner::Precision::F64 => calibrate_in::<f64>(args),
+        runner::Precision::F32 => calibrate_in::<f32>(args),
+    }
+}
+
+/// `host-sim calibrate` with the calibrator's covariance arithmetic in `T`.
+fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<(), String> {
     let t0 = Clock::now();
     let id = args.config;
     let sc = load_scenario(args.scenario.as_deref())?;
-    let mut host = Host {
+    let mut host = Host::<T> {
         session: Session::new(Some(id), EstimatorOptions::default()),
         fallback: calibrator_config(&sc, id, sc.site.earth_rate),
         log: VecLog::default(),
@@ -528,7 +563,7 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
                 filter_config(&settings),
                 t0,
                 sigma0,
-                &host.log.0,
+                &host.log.records_f64(),
             )
             .map_err(|e| format!("Cramér–Rao bound of the received samples: {e}"))?,
         ),
@@ -623,6 +658,7 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
             json["seed"] = serde_json::Value::Null;
         }
         json["passes"] = r.passes.into();
+        json["precision"] = args.precision.as_str().into();
         json["crlb_sigma_rad"] = serde_json::json!(crlb);
         json["crlb_of"] = if received_bound.is_some() {
             "received samples"
