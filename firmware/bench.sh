@@ -35,7 +35,7 @@ for v in m4f m7; do
 done
 
 echo
-echo "## Static stack use (tools/stack-usage.py: prologue frame sizes summed along the deepest call path)"
+echo "## Static stack use (tools/stack-usage.py: every sp decrement of a function body, summed along the deepest call path)"
 for v in m4f m7; do
     echo "$v:"
     python3 "$ROOT/tools/stack-usage.py" "$(elf_of $v)" '^main @|Filter<.*>::step @' | grep -E 'deepest' | sed 's/^/    /'
