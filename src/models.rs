@@ -440,17 +440,19 @@ fn put3<T: RealField + Copy, const N: usize>(x: &mut SVector<T, N>, i: usize, v:
     }
 }
 
+/// Columns `col..col + 3` of `m` := `block` (columns past `N` are dropped).
+///
+/// On the column arrays of the storage (column-major `[[T; R]; N]`), not a
+/// view: `columns_mut(col, 3)` asserts its runtime offset (a panic path
+/// into `core::panicking` in the firmware, tools/panic-check.py); the
+/// zipped iterators have no bounds check at all.
 fn set_cols<T: RealField + Copy, const R: usize, const N: usize>(
     m: &mut SMatrix<T, R, N>,
     col: usize,
     block: &SMatrix<T, R, 3>,
 ) {
-    for j in 0..3 {
-        if let Some(mut c) = m.columns_mut(col + j, 1).column_iter_mut().next() {
-            if let Some(src) = block.column_iter().nth(j) {
-                c.copy_from(&src);
-            }
-        }
+    for (dst, src) in m.data.0.iter_mut().skip(col).zip(block.data.0.iter()) {
+        *dst = *src;
     }
 }
 
