@@ -336,15 +336,18 @@ impl ConfigId {
     /// The first configuration of this build, in SPEC order (the one a
     /// one-configuration build runs).
     pub const fn first_built() -> ConfigId {
-        let mut k = 0;
-        while k < Self::ALL.len() {
-            if Self::ALL[k].is_built() {
-                return Self::ALL[k];
-            }
-            k += 1;
+        use ConfigId::*;
+        // A build without any configuration does not compile: M4-ps is then
+        // the only one left.
+        match () {
+            () if M1Pa.is_built() => M1Pa,
+            () if M1Ps.is_built() => M1Ps,
+            () if M2Ps.is_built() => M2Ps,
+            () if M3Pa.is_built() => M3Pa,
+            () if M3Ps.is_built() => M3Ps,
+            () if M4Pa.is_built() => M4Pa,
+            () => M4Ps,
         }
-        // Unreachable: a build without any configuration does not compile.
-        ConfigId::M2Ps
     }
 
     /// The SPEC identifier, e.g. `"M2-ps"`.
