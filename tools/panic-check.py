@@ -261,6 +261,8 @@ def main():
             print(f"    {s:#x} {i} in {names[f][:140]}")
         if len(indirect_seen) > 40:
             print(f"    … and {len(indirect_seen) - 40} more")
+    else:
+        print("panic-check: no indirect call reachable: the direct call graph is the whole graph")
     print(f"panic-check: {len(calls)} reachable panicking calls from {len(entries)} entry points "
           f"({reached} functions)")
     if calls and os.environ.get("PANIC_CHECK_ALLOW_FAIL") == "1":
