@@ -9,7 +9,12 @@
 #     `Calibrator::push` (validation + predict + update) on the recorded
 #     paper streams (M2-ps, M1-pa; Options::default() and, with mode=plain,
 #     Options::plain());
-#   - the top functions of an M2-ps period (per-function breakdown).
+#   - the top functions of an M2-ps period (per-function breakdown);
+#   - the flash of one-configuration images (M2-ps, M1-pa; cargo features
+#     config-*) and the panicking calls reachable from the estimator
+#     (tools/panic-check.py);
+# and ends with one line per goal: `goal <name> measured <value> limit
+# <value> met|missed`.
 # Usage: firmware/bench.sh [--quick]   (--quick: skip the recorded streams)
 # Needs defmt-print for the logged numbers (cargo install --locked defmt-print).
 set -euo pipefail
@@ -20,6 +25,20 @@ ensure_tools
 build_host
 build_firmware
 build_plugin
+
+GOALS="$OUT/goals.txt"
+: >"$GOALS"
+# goal NAME MEASURED LIMIT: met when MEASURED <= LIMIT (integers).
+goal() {
+    local verdict=missed
+    [ "$2" -le "$3" ] && verdict=met
+    echo "goal $1 measured $2 limit $3 $verdict" >>"$GOALS"
+}
+print_goals() {
+    echo
+    echo "## Goals"
+    cat "$GOALS"
+}
 
 elf_of() { if [ "$1" = m7 ]; then echo "$M7_ELF"; else echo "$M4F_ELF"; fi; }
 counts() { grep '^insnmark:' "$1" | grep -v 'total insns' | sed 's/^insnmark: /    /'; }
@@ -35,7 +54,34 @@ for v in m4f m7; do
 done
 
 echo
-echo "## Static stack use (tools/stack-usage.py: prologue frame sizes summed along the deepest call path)"
+echo "## Flash of one-configuration images (cargo features config-*; text + data)"
+for feature in config-m2ps config-m1pa; do
+    read -r one_m4f one_m7 < <(build_firmware_one "$feature")
+    for v in m4f m7; do
+        elf=$one_m4f
+        [ "$v" = m7 ] && elf=$one_m7
+        b=$(flash_bytes "$elf")
+        echo "$v $feature: flash $b bytes"
+        goal "flash-one-config-$v-${feature#config-}" "$b" 65536
+        # Inlining differs with one configuration: its panicking calls too.
+        out=$(PANIC_CHECK_ALLOW_FAIL=1 python3 "$ROOT/tools/panic-check.py" --quiet "$elf")
+        echo "$out" | grep -E '^panic-check: [0-9]+ reachable' | sed "s/^/    /"
+        n=$(echo "$out" | sed -nE 's/^panic-check: ([0-9]+) reachable panicking calls.*/\1/p')
+        goal "panic-calls-$v-${feature#config-}" "${n:-999}" 0
+    done
+done
+
+echo
+echo "## Panicking calls reachable from the estimator's entry points (tools/panic-check.py, all-configuration images)"
+for v in m4f m7; do
+    out=$(PANIC_CHECK_ALLOW_FAIL=1 python3 "$ROOT/tools/panic-check.py" --quiet "$(elf_of $v)")
+    echo "$out" | sed "s/^/$v: /"
+    n=$(echo "$out" | sed -nE 's/^panic-check: ([0-9]+) reachable panicking calls.*/\1/p')
+    goal "panic-calls-$v" "${n:-999}" 0
+done
+
+echo
+echo "## Static stack use (tools/stack-usage.py: every sp decrement of a function body, summed along the deepest call path)"
 for v in m4f m7; do
     echo "$v:"
     python3 "$ROOT/tools/stack-usage.py" "$(elf_of $v)" '^main @|Filter<.*>::step @' | grep -E 'deepest' | sed 's/^/    /'
@@ -78,7 +124,10 @@ for v in m4f m7; do
     done
 done
 
-[ "$QUICK" = --quick ] && exit 0
+if [ "$QUICK" = --quick ]; then
+    print_goals
+    exit 0
+fi
 
 echo
 echo "## Instructions per period, recorded paper streams (seed 1, Calibrator::push, paper noise)"
@@ -112,3 +161,5 @@ for c in M2-ps M1-pa; do
     counts "$OUT/bench.plugin"
     logged "$M7_ELF" "$OUT/bench.defmt" 'Finish:|peak stack'
 done
+
+print_goals

@@ -36,7 +36,7 @@ build_firmware() {
     log "building firmware (M4F f32, M7 f64)"
     (cd "$FW" && DEFMT_LOG=info cargo build --release --target-dir target/m4f)
     (cd "$FW" && DEFMT_LOG=info RUSTFLAGS="-C target-cpu=cortex-m7" \
-        cargo build --release --no-default-features --features f64 --target-dir target/m7)
+        cargo build --release --no-default-features --features f64,all-configs --target-dir target/m7)
     # The M7 build must use the double FPU, not soft-float calls.
     local n
     n=$(arm-none-eabi-objdump -d "$M7_ELF" | grep -c 'vmul\.f64' || true)
@@ -45,6 +45,24 @@ build_firmware() {
         return 1
     fi
 }
+
+# build_firmware_one FEATURE (e.g. config-m2ps): both variants with that one
+# configuration (cargo feature of firmware/Cargo.toml), in target/m4f-one and
+# target/m7-one; prints the two ELF paths (M4F, then M7).
+build_firmware_one() {
+    local feature=$1
+    log "building firmware with one configuration ($feature)"
+    (cd "$FW" && DEFMT_LOG=info cargo build --release --no-default-features \
+        --features "f32,$feature" --target-dir target/m4f-one) >&2
+    cp "$FW/target/m4f-one/$THUMB/release/rollcal-firmware" "$OUT/m4f-$feature.elf"
+    (cd "$FW" && DEFMT_LOG=info RUSTFLAGS="-C target-cpu=cortex-m7" cargo build --release \
+        --no-default-features --features "f64,$feature" --target-dir target/m7-one) >&2
+    cp "$FW/target/m7-one/$THUMB/release/rollcal-firmware" "$OUT/m7-$feature.elf"
+    echo "$OUT/m4f-$feature.elf" "$OUT/m7-$feature.elf"
+}
+
+# flash_bytes ELF: text + data (what the image puts in flash).
+flash_bytes() { arm-none-eabi-size "$1" | awk 'NR == 2 { print $1 + $2 }'; }
 
 build_host() {
     log "building host-sim"

@@ -170,6 +170,141 @@ macro_rules! with_config {
     }};
 }
 
+// One helper macro per configuration, defined by the cargo feature of *this*
+// crate (`#[cfg]` inside an exported macro would test the caller's
+// features): it passes its tokens through when the configuration is built,
+// and drops them otherwise.
+#[cfg(feature = "m1-pa")]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m1_pa {
+    ($($t:tt)*) => { $($t)* };
+}
+#[cfg(not(feature = "m1-pa"))]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m1_pa {
+    ($($t:tt)*) => {};
+}
+#[cfg(feature = "m1-ps")]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m1_ps {
+    ($($t:tt)*) => { $($t)* };
+}
+#[cfg(not(feature = "m1-ps"))]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m1_ps {
+    ($($t:tt)*) => {};
+}
+#[cfg(feature = "m2-ps")]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m2_ps {
+    ($($t:tt)*) => { $($t)* };
+}
+#[cfg(not(feature = "m2-ps"))]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m2_ps {
+    ($($t:tt)*) => {};
+}
+#[cfg(feature = "m3-pa")]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m3_pa {
+    ($($t:tt)*) => { $($t)* };
+}
+#[cfg(not(feature = "m3-pa"))]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m3_pa {
+    ($($t:tt)*) => {};
+}
+#[cfg(feature = "m3-ps")]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m3_ps {
+    ($($t:tt)*) => { $($t)* };
+}
+#[cfg(not(feature = "m3-ps"))]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m3_ps {
+    ($($t:tt)*) => {};
+}
+#[cfg(feature = "m4-pa")]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m4_pa {
+    ($($t:tt)*) => { $($t)* };
+}
+#[cfg(not(feature = "m4-pa"))]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m4_pa {
+    ($($t:tt)*) => {};
+}
+#[cfg(feature = "m4-ps")]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m4_ps {
+    ($($t:tt)*) => { $($t)* };
+}
+#[cfg(not(feature = "m4-ps"))]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m4_ps {
+    ($($t:tt)*) => {};
+}
+
+#[cfg(not(any(
+    feature = "m1-pa",
+    feature = "m1-ps",
+    feature = "m2-ps",
+    feature = "m3-pa",
+    feature = "m3-ps",
+    feature = "m4-pa",
+    feature = "m4-ps"
+)))]
+compile_error!("rollcal: enable at least one configuration feature (m1-pa, m1-ps, m2-ps, m3-pa, m3-ps, m4-pa, m4-ps; the default `all-configs` enables the seven)");
+
+/// [`with_config!`] over the configurations built into this crate (cargo
+/// features `m1-pa` … `m4-ps`; the default `all-configs` has the seven):
+/// only their arms are instantiated, and `fallback` is evaluated, with
+/// `other` the [`ConfigId`], for a configuration left out. A firmware image
+/// built with one configuration feature then holds one configuration's code.
+///
+/// ```
+/// use rollcal::models::{ConfigId, Model};
+/// fn states<M: Model<N, Z>, const N: usize, const Z: usize>() -> Option<usize> {
+///     Some(N)
+/// }
+/// let n = rollcal::with_built_config!(ConfigId::M1Pa, |M, N, Z| states::<M, N, Z>(), else |_other| None);
+/// assert_eq!(n, Some(12));
+/// ```
+#[macro_export]
+macro_rules! with_built_config {
+    ($id:expr, |$m:ident, $n:ident, $z:ident| $body:expr, else |$other:ident| $fallback:expr) => {{
+        let id: $crate::models::ConfigId = $id;
+        'dispatch: {
+            $crate::__rollcal_if_m1_pa! { if id == $crate::models::ConfigId::M1Pa { break 'dispatch $crate::with_config!(@arm M1Pa, 12, 3, $m, $n, $z, $body); } }
+            $crate::__rollcal_if_m1_ps! { if id == $crate::models::ConfigId::M1Ps { break 'dispatch $crate::with_config!(@arm M1Ps, 15, 3, $m, $n, $z, $body); } }
+            $crate::__rollcal_if_m2_ps! { if id == $crate::models::ConfigId::M2Ps { break 'dispatch $crate::with_config!(@arm M2Ps, 18, 6, $m, $n, $z, $body); } }
+            $crate::__rollcal_if_m3_pa! { if id == $crate::models::ConfigId::M3Pa { break 'dispatch $crate::with_config!(@arm M3Pa, 15, 3, $m, $n, $z, $body); } }
+            $crate::__rollcal_if_m3_ps! { if id == $crate::models::ConfigId::M3Ps { break 'dispatch $crate::with_config!(@arm M3Ps, 18, 3, $m, $n, $z, $body); } }
+            $crate::__rollcal_if_m4_pa! { if id == $crate::models::ConfigId::M4Pa { break 'dispatch $crate::with_config!(@arm M4Pa, 12, 3, $m, $n, $z, $body); } }
+            $crate::__rollcal_if_m4_ps! { if id == $crate::models::ConfigId::M4Ps { break 'dispatch $crate::with_config!(@arm M4Ps, 15, 3, $m, $n, $z, $body); } }
+            #[allow(unreachable_code)]
+            {
+                let $other = id;
+                $fallback
+            }
+        }
+    }};
+}
+
 impl ConfigId {
     /// All seven, in SPEC order.
     pub const ALL: [ConfigId; 7] = [
@@ -181,6 +316,39 @@ impl ConfigId {
         ConfigId::M4Pa,
         ConfigId::M4Ps,
     ];
+
+    /// Whether this build holds the configuration: its cargo feature
+    /// (`m1-pa` … `m4-ps`, all seven by default) is on. `Session` refuses a
+    /// `Configure` for one that is not, and [`with_built_config!`] takes its
+    /// fallback.
+    pub const fn is_built(self) -> bool {
+        match self {
+            ConfigId::M1Pa => cfg!(feature = "m1-pa"),
+            ConfigId::M1Ps => cfg!(feature = "m1-ps"),
+            ConfigId::M2Ps => cfg!(feature = "m2-ps"),
+            ConfigId::M3Pa => cfg!(feature = "m3-pa"),
+            ConfigId::M3Ps => cfg!(feature = "m3-ps"),
+            ConfigId::M4Pa => cfg!(feature = "m4-pa"),
+            ConfigId::M4Ps => cfg!(feature = "m4-ps"),
+        }
+    }
+
+    /// The first configuration of this build, in SPEC order (the one a
+    /// one-configuration build runs).
+    pub const fn first_built() -> ConfigId {
+        use ConfigId::*;
+        // A build without any configuration does not compile: M4-ps is then
+        // the only one left.
+        match () {
+            () if M1Pa.is_built() => M1Pa,
+            () if M1Ps.is_built() => M1Ps,
+            () if M2Ps.is_built() => M2Ps,
+            () if M3Pa.is_built() => M3Pa,
+            () if M3Ps.is_built() => M3Ps,
+            () if M4Pa.is_built() => M4Pa,
+            () => M4Ps,
+        }
+    }
 
     /// The SPEC identifier, e.g. `"M2-ps"`.
     pub const fn as_str(self) -> &'static str {
@@ -440,17 +608,19 @@ fn put3<T: RealField + Copy, const N: usize>(x: &mut SVector<T, N>, i: usize, v:
     }
 }
 
+/// Columns `col..col + 3` of `m` := `block` (columns past `N` are dropped).
+///
+/// On the column arrays of the storage (column-major `[[T; R]; N]`), not a
+/// view: `columns_mut(col, 3)` asserts its runtime offset (a panic path
+/// into `core::panicking` in the firmware, tools/panic-check.py); the
+/// zipped iterators have no bounds check at all.
 fn set_cols<T: RealField + Copy, const R: usize, const N: usize>(
     m: &mut SMatrix<T, R, N>,
     col: usize,
     block: &SMatrix<T, R, 3>,
 ) {
-    for j in 0..3 {
-        if let Some(mut c) = m.columns_mut(col + j, 1).column_iter_mut().next() {
-            if let Some(src) = block.column_iter().nth(j) {
-                c.copy_from(&src);
-            }
-        }
+    for (dst, src) in m.data.0.iter_mut().skip(col).zip(block.data.0.iter()) {
+        *dst = *src;
     }
 }
 

@@ -21,6 +21,7 @@ use nalgebra::RealField;
 
 use crate::calibrator::{self, Calibrator, RejectReason};
 use crate::estimator::{EstimatorOptions, SampleLog};
+#[allow(unused_imports)] // the configurations left out of a build (cargo features)
 use crate::models::{ConfigId, M1Pa, M1Ps, M2Ps, M3Pa, M3Ps, M4Pa, M4Ps};
 use crate::wire::{CalibratorConfig, Checkpoint, Estimate, Message, Progress};
 
@@ -31,30 +32,44 @@ use crate::wire::{CalibratorConfig, Checkpoint, Estimate, Message, Progress};
 #[derive(Clone, Debug, PartialEq)]
 pub enum AnyCalibrator<T: RealField + Copy> {
     /// M1-pa.
+    #[cfg(feature = "m1-pa")]
     M1Pa(Calibrator<T, M1Pa, 12, 3>),
     /// M1-ps.
+    #[cfg(feature = "m1-ps")]
     M1Ps(Calibrator<T, M1Ps, 15, 3>),
     /// M2-ps.
+    #[cfg(feature = "m2-ps")]
     M2Ps(Calibrator<T, M2Ps, 18, 6>),
     /// M3-pa.
+    #[cfg(feature = "m3-pa")]
     M3Pa(Calibrator<T, M3Pa, 15, 3>),
     /// M3-ps.
+    #[cfg(feature = "m3-ps")]
     M3Ps(Calibrator<T, M3Ps, 18, 3>),
     /// M4-pa.
+    #[cfg(feature = "m4-pa")]
     M4Pa(Calibrator<T, M4Pa, 12, 3>),
     /// M4-ps.
+    #[cfg(feature = "m4-ps")]
     M4Ps(Calibrator<T, M4Ps, 15, 3>),
 }
 
 macro_rules! each {
     ($any:expr, $c:ident => $body:expr) => {
         match $any {
+            #[cfg(feature = "m1-pa")]
             AnyCalibrator::M1Pa($c) => $body,
+            #[cfg(feature = "m1-ps")]
             AnyCalibrator::M1Ps($c) => $body,
+            #[cfg(feature = "m2-ps")]
             AnyCalibrator::M2Ps($c) => $body,
+            #[cfg(feature = "m3-pa")]
             AnyCalibrator::M3Pa($c) => $body,
+            #[cfg(feature = "m3-ps")]
             AnyCalibrator::M3Ps($c) => $body,
+            #[cfg(feature = "m4-pa")]
             AnyCalibrator::M4Pa($c) => $body,
+            #[cfg(feature = "m4-ps")]
             AnyCalibrator::M4Ps($c) => $body,
         }
     };
@@ -65,13 +80,28 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
     #[inline(never)]
     pub fn new(settings: CalibratorConfig) -> Result<Self, calibrator::Error> {
         Ok(match settings.config {
+            #[cfg(feature = "m1-pa")]
             ConfigId::M1Pa => Self::M1Pa(Calibrator::new(settings)?),
+            #[cfg(feature = "m1-ps")]
             ConfigId::M1Ps => Self::M1Ps(Calibrator::new(settings)?),
+            #[cfg(feature = "m2-ps")]
             ConfigId::M2Ps => Self::M2Ps(Calibrator::new(settings)?),
+            #[cfg(feature = "m3-pa")]
             ConfigId::M3Pa => Self::M3Pa(Calibrator::new(settings)?),
+            #[cfg(feature = "m3-ps")]
             ConfigId::M3Ps => Self::M3Ps(Calibrator::new(settings)?),
+            #[cfg(feature = "m4-pa")]
             ConfigId::M4Pa => Self::M4Pa(Calibrator::new(settings)?),
+            #[cfg(feature = "m4-ps")]
             ConfigId::M4Ps => Self::M4Ps(Calibrator::new(settings)?),
+            // A configuration left out of this build (cargo features).
+            #[allow(unreachable_patterns)]
+            found => {
+                return Err(calibrator::Error::ConfigMismatch {
+                    expected: ConfigId::first_built(),
+                    found,
+                })
+            }
         })
     }
 

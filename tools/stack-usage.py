@@ -3,83 +3,151 @@
 
 Usage: tools/stack-usage.py ELF REGEX [REGEX...]
 
-For every function it reads the prologue in `arm-none-eabi-objdump -d`
-(push/stmdb/vpush/sub sp until the first branch) to get its frame size, and
-collects its direct calls (`bl`/`b.w` to a symbol). For each function whose
-(mangled or demangled) name matches a REGEX it prints its own frame and the
-deepest path through the call graph below it (frame sums; indirect calls and
-recursion are not followed: the firmware has neither on these paths).
-The result is an estimate from the binary that runs; the firmware's stack
-painting (logged as "peak stack") measures the same run dynamically.
+For every function it reads the whole body in `arm-none-eabi-objdump -d`
+and adds up every instruction that moves sp down: `push`, `stmdb sp!`,
+`str… [sp, #-n]!`, `vpush`, `vstmdb sp!`, `sub sp, #n` / `sub(w) sp, sp, #n`
+(and `add sp, #-n`). The sum bounds the frame on every path through the
+function, also when the frame is set up after an early exit (shrink-wrapped
+prologues: `Filter::predict` checks its input and returns before it
+allocates its frame, so a reader that stops at the first branch sees only
+the early path's few bytes). An sp adjustment by a register (a dynamic
+allocation) cannot be bounded statically: the function is flagged with `?`.
+Code after an early return's `pop` that pushes again is counted twice,
+never less than once: the figure is an upper bound of the frame, not an
+estimate.
+
+Calls are the direct branches to another function (`bl`, `blx <imm>`,
+`b`/`b.w` and the conditional branches: tail calls), by target address,
+also into the middle of a function. For each function whose (demangled) name
+and address ("name @addr") matches a REGEX it prints its own frame and the
+deepest path through the call graph below it (frame sums; a tail call's
+frame is added to its caller's, which again only over-counts). Indirect
+calls and recursion are not followed: the firmware has neither on these
+paths (tools/panic-check.py lists the indirect calls it meets).
+The firmware's stack painting (logged as "peak stack") measures one run
+dynamically; this figure bounds it on the direct call graph.
 """
+import bisect
 import re
 import subprocess
 import sys
+
+HEAD = re.compile(r"^([0-9a-f]+) <(.*)>:$")
+INSN = re.compile(r"^\s*([0-9a-f]+):\t(\S+)(?:\t(.*))?$")
+TARGET = re.compile(r"^([0-9a-f]+) <")
+BRANCH = re.compile(r"^(bl|blx|b|cbz|cbnz|b(eq|ne|cs|hs|cc|lo|mi|pl|vs|vc|hi|ls|ge|lt|gt|le|al))(\.[nw])?$")
+
+
+def reglist_bytes(args):
+    """Bytes stored by a register list `{r4, r5, ..}` / `{d8-d15}`."""
+    body = args[args.index("{") + 1:args.index("}")] if "{" in args else ""
+    n = 0
+    for item in body.split(","):
+        item = item.strip()
+        if not item:
+            continue
+        m = re.match(r"([rds])(\d+)-[rds](\d+)$", item)
+        size = 8 if item.startswith("d") else 4
+        n += (int(m.group(3)) - int(m.group(2)) + 1) * size if m else size
+    return n
+
+
+def sp_down(op, args):
+    """Bytes this instruction moves sp down (0 if none); None if unknown."""
+    base = op.split(".")[0]
+    if base == "push":
+        return reglist_bytes(args)
+    if base in ("vpush",):
+        return reglist_bytes(args)
+    if base in ("stmdb", "stmfd", "vstmdb") and args.startswith("sp!"):
+        return reglist_bytes(args)
+    if base == "str" or base.startswith("str"):
+        m = re.search(r"\[sp, #-(\d+)\]!", args)
+        return int(m.group(1)) if m else 0
+    if base in ("sub", "subw", "subs"):
+        m = re.match(r"sp, (?:sp, )?#(\d+)", args)
+        if m:
+            return int(m.group(1))
+        if re.match(r"sp, (?:sp, )?(r\d+|ip|lr)", args):
+            return None
+        return 0
+    if base in ("add", "addw"):
+        m = re.match(r"sp, (?:sp, )?#-(\d+)", args)
+        return int(m.group(1)) if m else 0
+    if base == "mov" and re.match(r"sp, ", args):
+        return None
+    return 0
+
 
 def main():
     elf, pats = sys.argv[1], [re.compile(p) for p in sys.argv[2:]]
     dis = subprocess.run(["arm-none-eabi-objdump", "-d", "--no-show-raw-insn", "-C", elf],
                          capture_output=True, text=True, check=True).stdout
-    frames, calls, order = {}, {}, []
-    cur, in_prologue = None, False
-    head = re.compile(r"^[0-9a-f]+ <(.*)>:$")
-    addr_of = {}
+    frames, dynamic, targets, order, start = {}, set(), {}, [], {}
+    cur = None
     for line in dis.splitlines():
-        m = head.match(line)
+        m = HEAD.match(line)
         if m:
-            cur = m.group(1) + " @" + line.split()[0].lstrip("0")
-            frames[cur], calls[cur], in_prologue = 0, set(), True
+            cur = m.group(2) + " @" + m.group(1).lstrip("0")
+            frames[cur], targets[cur] = 0, set()
             order.append(cur)
+            start[cur] = int(m.group(1), 16)
             continue
-        if cur is None or "\t" not in line:
+        if cur is None:
             continue
-        parts = line.split("\t")
-        if len(parts) < 2:
+        m = INSN.match(line)
+        if not m:
             continue
-        op = parts[1].strip()
-        args = parts[2] if len(parts) > 2 else ""
-        t = re.search(r"^([0-9a-f]+) <([^>+]+)>", args.strip())
-        if t and (op in ("bl", "blx") or op in ("b.w", "b")):
-            calls[cur].add(t.group(1).lstrip("0"))
-        if not in_prologue:
+        op, args = m.group(2), (m.group(3) or "").strip()
+        if op in ("cbz", "cbnz"):
+            args = args.split(",", 1)[-1].strip()
+        if BRANCH.match(op):
+            t = TARGET.match(args)
+            if t:
+                targets[cur].add(int(t.group(1), 16))
             continue
-        if op.startswith("b") and not op.startswith("bic"):
-            in_prologue = False
-        elif op == "push" or (op.startswith("stmdb") and args.startswith("sp!")):
-            frames[cur] += 4 * len(re.findall(r"[a-z]+[0-9]*", args.split("{")[1]))
-        elif op == "vpush":
-            regs = args.strip("{} ")
-            m2 = re.match(r"([ds])(\d+)-[ds](\d+)", regs)
-            if m2:
-                n = int(m2.group(3)) - int(m2.group(2)) + 1
-            else:
-                n = len(regs.split(","))
-            frames[cur] += n * (8 if regs.startswith("d") else 4)
-        elif op in ("sub", "sub.w", "subw") and args.startswith("sp, sp, #") or op == "sub" and args.startswith("sp, #"):
-            frames[cur] += int(re.search(r"#(\d+)", args).group(1))
-    by_addr = {f.rsplit(" @", 1)[1]: f for f in order}
-    calls = {f: {by_addr[a] for a in cs if a in by_addr and by_addr[a] != f} for f, cs in calls.items()}
+        d = sp_down(op, args)
+        if d is None:
+            dynamic.add(cur)
+        else:
+            frames[cur] += d
+    starts = sorted(start[f] for f in order)
+    by_addr = {start[f]: f for f in order}
+
+    def owner(addr):
+        i = bisect.bisect_right(starts, addr) - 1
+        return by_addr[starts[i]] if i >= 0 else None
+
+    calls = {f: {owner(a) for a in ts} - {None, f} for f, ts in targets.items()}
     memo = {}
+
     def deepest(f, stack=()):
         if f in memo:
             return memo[f]
         if f in stack or f not in frames:
             return (0, [])
         best = (0, [])
-        for c in calls.get(f, ()):
+        for c in sorted(calls.get(f, ())):
             d = deepest(c, stack + (f,))
             if d[0] > best[0]:
                 best = d
         r = (frames[f] + best[0], [f] + best[1])
         memo[f] = r
         return r
-    short = lambda s: re.sub(r"::h[0-9a-f]{16}", "", s)
+
+    sys.setrecursionlimit(10000)
+
+    def short(s):
+        return re.sub(r"::h[0-9a-f]{16}", "", s)
+
     for f in order:
         if any(p.search(f) for p in pats):
             total, path = deepest(f)
-            print(f"{short(f)}: own frame {frames[f]} B, deepest call path {total} B:")
+            flag = " (? dynamic sp adjustment on the path: not bounded)" if any(g in dynamic for g in path) else ""
+            print(f"{short(f)}: own frame {frames[f]} B, deepest call path {total} B{flag}:")
             for g in path:
-                print(f"    {frames[g]:>7} B  {short(g)[:120]}")
+                print(f"    {frames[g]:>7} B{'?' if g in dynamic else ' '} {short(g)[:120]}")
+
 
 if __name__ == "__main__":
     main()

@@ -98,7 +98,11 @@ impl Args {
             source: Source::Uart,
             exit_on_request: false,
             reply_uart1: false,
-            config: ConfigId::M2Ps,
+            config: if ConfigId::M2Ps.is_built() {
+                ConfigId::M2Ps
+            } else {
+                ConfigId::first_built()
+            },
             mode: Mode::Default,
             periods: 200,
             noise_scale: 1,

@@ -81,7 +81,12 @@ fn run_model<M: Model<N, Z>, const N: usize, const Z: usize>(args: &Args) -> boo
     failures == 0
 }
 
-/// Runs the synthetic workload of `args`; true if every step succeeded.
+/// Runs the synthetic workload of `args`; true if every step succeeded
+/// (false for a configuration this image does not hold: cargo features
+/// `config-*`).
 pub fn run(args: &Args) -> bool {
-    rollcal::with_config!(args.config, |M, N, Z| run_model::<M, N, Z>(args))
+    rollcal::with_built_config!(args.config, |M, N, Z| run_model::<M, N, Z>(args), else |other| {
+        defmt::error!("{} is not in this firmware image (cargo features config-*)", other);
+        false
+    })
 }
