@@ -365,6 +365,10 @@ fn dense_gain<T: RealField + Copy, const N: usize, const Z: usize>(
 impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter<T, M, N, Z> {
     const LAYOUT: Layout = M::LAYOUT;
     const SIZES_AGREE: () = assert!(M::LAYOUT.n() == N && M::LAYOUT.z() == Z);
+    /// The first accelerometer row of the measurement (after the gimbal
+    /// angles in M2). A constant, so that the views at it fold at compile
+    /// time (a runtime offset keeps nalgebra's bounds assert).
+    const ACCEL_ROW: usize = if M::LAYOUT.gimbal_obs { 3 } else { 0 };
 
     /// A filter with initial estimate `x0` (rad) and prior standard
     /// deviations `sigma0` (rad), the computed frame aligned with n.
@@ -660,15 +664,13 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let (za, ha, da) = layout.mean_accel(&self.config.env, &m, &pending.prop, &pending.period);
         let mut z = SVector::<f64, Z>::zeros();
         let mut h = SMatrix::<f64, Z, N>::zeros();
-        let accel_row = if layout.gimbal_obs {
+        if layout.gimbal_obs {
             let att = layout.attitude(x);
             z.fixed_rows_mut::<3>(0).copy_from(&att);
             h.fixed_view_mut::<3, 3>(0, ATT)
                 .copy_from(&Matrix3::identity());
-            3
-        } else {
-            0
-        };
+        }
+        let accel_row = Self::ACCEL_ROW;
         z.fixed_rows_mut::<3>(accel_row).copy_from(&za);
         h.fixed_rows_mut::<3>(accel_row).copy_from(&ha);
         // Unit-variance noise w = σ_g u: x_{k+1} gets G u, z gets D u.
@@ -761,14 +763,12 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let mut z = SVector::<f64, Z>::zeros();
         let mut r = SVector::<T, Z>::zeros();
         let sa2 = self.config.sigma_accel * self.config.sigma_accel;
-        let accel_row = if let Some(g) = gimbal {
+        if let Some(g) = gimbal {
             z.fixed_rows_mut::<3>(0).copy_from(&to_f64(&g));
             let sg2 = self.config.sigma_gimbal * self.config.sigma_gimbal;
             r.fixed_rows_mut::<3>(0).fill(sg2);
-            3
-        } else {
-            0
-        };
+        }
+        let accel_row = Self::ACCEL_ROW;
         z.fixed_rows_mut::<3>(accel_row)
             .copy_from(&to_f64(&obs.accel_mean));
         r.fixed_rows_mut::<3>(accel_row).fill(sa2);

@@ -22,7 +22,7 @@ pub fn filter_config(options: Options, noise_scale: u32) -> FilterConfig<Real> {
     let c = |v: f64| v as Real;
     FilterConfig {
         env: Environment {
-            earth_rate_n: earth_rate_n(c(EARTH_RATE), c(34.25 * DEG)),
+            earth_rate_n: earth_rate_n(EARTH_RATE, 34.25 * DEG),
             gravity_n: gravity_n(),
         },
         sigma_accel: c(1e-6 * k),
@@ -49,14 +49,14 @@ fn run_model<M: Model<N, Z>, const N: usize, const Z: usize>(args: &Args) -> boo
     if args.mode == Mode::Linearised {
         f.set_nominal(Some(SVector::zeros()));
     }
-    let dt: Real = 1.0;
-    let dtheta = Vector3::new(0.0, 0.0, (-0.1 * DEG) as Real);
+    let dt = 1.0;
+    let dtheta = Vector3::new(0.0, 0.0, -0.1 * DEG);
     let mut failures = 0u32;
     for k in 0..args.periods {
         let period = f.command_frame().period(&dtheta, dt);
         let [_, _, c_end] = period.c_cn;
         let obs = Observation {
-            accel_mean: c_end * f.config().env.gravity_n,
+            accel_mean: (c_end * f.config().env.gravity_n).map(|v| v as Real),
             gimbal: Some(Vector3::zeros()),
         };
         rollcal_mark_period_start();

@@ -80,6 +80,11 @@ enum Cmd {
         /// answer is not the estimator of record's with the host's passes.
         #[arg(long)]
         tol: Option<f64>,
+        /// Fail when any state differs by more than this many of the host's
+        /// σ, or when the answer is not the estimator of record's with the
+        /// host's passes (the check of an f32 build against the host's f64).
+        #[arg(long)]
+        tol_sigma: Option<f64>,
         /// Name printed with the result.
         #[arg(long, default_value = "firmware")]
         label: String,
@@ -198,6 +203,7 @@ fn compare(
     firmware: &Path,
     host: &Path,
     tol: Option<f64>,
+    tol_sigma: Option<f64>,
     label: &str,
     run: &RunInfo,
 ) -> Result<bool, String> {
@@ -248,7 +254,11 @@ fn compare(
             tol.unwrap_or(0.0)
         ));
     }
-    if tol.is_some() {
+    if let Some(t) = tol_sigma.filter(|t| max_sigma > *t) {
+        why.push(format!("max |Δ| {max_sigma:.3e}σ > {t}σ"));
+    }
+    let checked = tol.is_some() || tol_sigma.is_some();
+    if checked {
         match (fw_passes, host_passes) {
             (None, _) => why.push(format!(
                 "the firmware's last estimate is not the estimator of record's ({})",
@@ -262,7 +272,7 @@ fn compare(
         }
     }
     let rejected = est.progress.rejects.total();
-    if tol.is_some() && rejected > 0 {
+    if checked && rejected > 0 {
         why.push(format!("{rejected} samples rejected"));
     }
     let within = why.is_empty();
@@ -273,16 +283,20 @@ fn compare(
         kind_str(&est.kind),
         host_passes.map_or("?".to_string(), |p| p.to_string()),
         max_rad / ARCSEC,
-        match tol {
-            Some(t) if within => format!(" — PASS (≤ {t:e} rad)"),
-            Some(t) => format!(" — FAIL (> {t:e} rad or not the answer of record)"),
-            None => String::new(),
+        match (checked, within) {
+            (true, true) => " — PASS".to_string(),
+            (true, false) => format!(" — FAIL ({})", why.join("; ")),
+            (false, _) => String::new(),
         }
     );
+    let limit = match (tol, tol_sigma) {
+        (Some(t), _) => format!("{t:e}"),
+        (None, Some(s)) => format!("{s}sigma"),
+        (None, None) => "none".to_string(),
+    };
     let fields = format!(
-        "passes={} max_dabs_rad={max_rad:.3e} max_dsigma={max_sigma:.3e} limit={}",
+        "passes={} max_dabs_rad={max_rad:.3e} max_dsigma={max_sigma:.3e} limit={limit}",
         kind_str(&est.kind),
-        tol.map_or("none".to_string(), |t| format!("{t:e}"))
     );
     Ok(summary(run, est.config.as_str(), &fields, within, &why))
 }
@@ -426,9 +440,13 @@ fn main() -> ExitCode {
             firmware,
             host,
             tol,
+            tol_sigma,
             label,
             run,
-        } => (compare(firmware, host, *tol, label, run), Some(run)),
+        } => (
+            compare(firmware, host, *tol, *tol_sigma, label, run),
+            Some(run),
+        ),
         Cmd::Identical {
             firmware,
             reference,
