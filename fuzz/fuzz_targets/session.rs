@@ -294,7 +294,7 @@ fn corrupt(u: &mut Unstructured, cp: &mut Checkpoint) -> Result<()> {
             cp.state.pop();
         }
         2 => {
-            let _ = cp.covariance.push(1.0);
+            let _ = cp.factor.push(1.0);
         }
         3 => {
             if let Some(v) = cp.state.iter_mut().next() {
@@ -303,7 +303,7 @@ fn corrupt(u: &mut Unstructured, cp: &mut Checkpoint) -> Result<()> {
         }
         4 => {
             let i = usize::from(u.int_in_range(0..=17u8)?) * 19;
-            if let Some(v) = cp.covariance.get_mut(i) {
+            if let Some(v) = cp.factor.get_mut(i) {
                 *v = value(u, -*v)?;
             }
         }
@@ -429,7 +429,7 @@ fn run<T: RealField + Copy>(u: &mut Unstructured) -> Result<()> {
     } else {
         LOG_CAP
     };
-    let mut buf = vec![LogRecord::<T>::predicted(T::one(), Vector3::zeros()); cap];
+    let mut buf = vec![LogRecord::<T>::predicted(1.0, Vector3::zeros()); cap];
     let mut h = Harness {
         session: Session::<T>::new(expected, passes),
         expected,
@@ -539,7 +539,7 @@ fn run<T: RealField + Copy>(u: &mut Unstructured) -> Result<()> {
                         _ => {
                             let _ = h
                                 .log
-                                .append(&LogRecord::predicted(T::one(), Vector3::zeros()));
+                                .append(&LogRecord::predicted(1.0, Vector3::zeros()));
                         }
                     }
                     continue;
@@ -706,13 +706,13 @@ impl<T: RealField + Copy> Harness<'_, T> {
                 };
                 let n = c.settings().config.layout().n();
                 assert_eq!(cp.config, c.settings().config);
-                assert_eq!((cp.state.len(), cp.covariance.len()), (n, n * n));
+                assert_eq!((cp.state.len(), cp.factor.len()), (n, n * n));
                 assert!(same_progress(&cp.progress, c.progress()));
                 // Its own checkpoint restores, bit-identically — except
-                // once the covariance has a non-positive variance (the f32
-                // filter loses positive definiteness; see README,
-                // "Findings"), which `Filter::from_parts` refuses.
-                let degenerate = (0..n).any(|i| cp.covariance[i * n + i] <= 0.0);
+                // once the factor has a non-positive D (the factored filter
+                // refuses any update that would leave one, so this should
+                // not happen), which `Filter::from_parts` refuses.
+                let degenerate = (0..n).any(|i| cp.factor[i * n + i] <= 0.0);
                 let mut again = c.clone();
                 let restored = again.restore(cp);
                 if degenerate {
