@@ -329,6 +329,44 @@ fn all_finite<T: RealField + Copy>(it: impl IntoIterator<Item = T>) -> bool {
     it.into_iter().all(|v| v.is_finite())
 }
 
+/// Whether `T` is `f64` (then the model is evaluated once, in f64).
+fn is_f64<T: 'static>() -> bool {
+    core::any::TypeId::of::<T>() == core::any::TypeId::of::<f64>()
+}
+
+/// A period in precision `T`.
+fn period_t<T: RealField + Copy>(p: &Period<f64>) -> Period<T> {
+    let [w0, wm, w1] = p.omega_c;
+    let [c0, cm, c1] = p.c_cn;
+    Period {
+        dt: nalgebra::convert(p.dt),
+        omega_c: [to_t(&w0), to_t(&wm), to_t(&w1)],
+        c_cn: [to_t(&c0), to_t(&cm), to_t(&c1)],
+    }
+}
+
+/// A period's trajectory and transition in precision `T`.
+fn propagation_t<T: RealField + Copy, const N: usize>(
+    p: &PeriodPropagation<f64, N>,
+) -> PeriodPropagation<T, N> {
+    let [a0, am, a1] = p.att;
+    PeriodPropagation {
+        att: [to_t(&a0), to_t(&am), to_t(&a1)],
+        phi_att: to_t(&p.phi_att),
+        f_mid: to_t(&p.f_mid),
+        f_end: to_t(&p.f_end),
+        noise_map: to_t(&p.noise_map),
+    }
+}
+
+/// The environment in precision `T`.
+fn env_t<T: RealField + Copy>(e: &Environment<f64>) -> Environment<T> {
+    Environment {
+        earth_rate_n: to_t(&e.earth_rate_n),
+        gravity_n: to_t(&e.gravity_n),
+    }
+}
+
 /// A double-precision matrix in precision `T`.
 fn to_t<T: RealField + Copy, const R: usize, const C: usize>(
     m: &SMatrix<f64, R, C>,
@@ -661,7 +699,23 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     fn measure(&self, x: &SVector<f64, N>, pending: &Pending<T, N>) -> Measured<f64, N, Z> {
         let layout = Self::LAYOUT;
         let m = layout.matrices(x);
-        let (za, ha, da) = layout.mean_accel(&self.config.env, &m, &pending.prop, &pending.period);
+        let env = &self.config.env;
+        let (za, ha, da) = if is_f64::<T>() {
+            layout.mean_accel(env, &m, &pending.prop, &pending.period)
+        } else {
+            // The value in f64 (it must resolve 1e-7 g of 1 g), the
+            // Jacobians in T (they need a few digits; f64 is emulated on an
+            // FPU without it).
+            let za = layout.mean_accel_output(env, &m, &pending.prop, &pending.period);
+            let x_t: SVector<T, N> = to_t(x);
+            let (_, ha, da): (_, SMatrix<T, 3, N>, _) = layout.mean_accel(
+                &env_t(env),
+                &layout.matrices(&x_t),
+                &propagation_t(&pending.prop),
+                &period_t(&pending.period),
+            );
+            (za, to_f64(&ha), to_f64(&da))
+        };
         let mut z = SVector::<f64, Z>::zeros();
         let mut h = SMatrix::<f64, Z, N>::zeros();
         if layout.gimbal_obs {
@@ -727,18 +781,22 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         pending: &Pending<T, N>,
     ) -> (Vector3<f64>, Matrix3<f64>) {
         let layout = Self::LAYOUT;
-        let env = &self.config.env;
+        // In T: a weighting of the update, needed to a few digits.
+        let env: Environment<T> = env_t(&self.config.env);
         let [_, _, c_end] = pending.period.c_cn;
+        let c_end: Matrix3<T> = to_t(&c_end);
+        let x: SVector<T, N> = to_t(x);
         let relevant = |j: usize| {
             j < 3
                 || layout.ac().is_some_and(|i| (i..i + 3).contains(&j))
                 || (layout.at()..layout.at() + 3).contains(&j)
                 || layout.lam().is_some_and(|i| (i..i + 3).contains(&j))
         };
-        hessian_terms(x, &to_f64(&self.settled().covariance()), relevant, |xp| {
-            Some(layout.accel_jacobian(env, &layout.matrices(xp), &layout.attitude(xp), &c_end))
+        let (mean, cov) = hessian_terms(&x, &self.settled().covariance(), relevant, |xp| {
+            Some(layout.accel_jacobian(&env, &layout.matrices(xp), &layout.attitude(xp), &c_end))
         })
-        .unwrap_or((Vector3::zeros(), Matrix3::zeros()))
+        .unwrap_or((Vector3::zeros(), Matrix3::zeros()));
+        (to_f64(&mean), to_f64(&cov))
     }
 
     /// Processes the measurement of the period that [`Filter::predict`] just

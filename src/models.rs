@@ -931,6 +931,28 @@ impl Layout {
 }
 
 impl Layout {
+    /// The mean accelerometer output over the period (g) alone: the value
+    /// of [`Layout::mean_accel`] without its Jacobians (the filter evaluates
+    /// the value in f64 and the Jacobians in its own precision).
+    pub fn mean_accel_output<T: RealField + Copy, const N: usize>(
+        &self,
+        env: &Environment<T>,
+        m: &InstallationMatrices<T>,
+        prop: &PeriodPropagation<T, N>,
+        period: &Period<T>,
+    ) -> Vector3<T> {
+        let six: T = nalgebra::convert(6.0);
+        let four: T = nalgebra::convert(4.0);
+        let weights = [T::one() / six, four / six, T::one() / six];
+        let mut z = Vector3::zeros();
+        for ((att, c_cn), w) in prop.att.iter().zip(period.c_cn.iter()).zip(weights) {
+            z += self.accel_output(env, m, att, c_cn) * w;
+        }
+        z
+    }
+}
+
+impl Layout {
     /// The state at the end of `period` (or at its start, for a
     /// [`Period::reversed`] period) under the model's dynamics; the
     /// parameters are constant. `None` at gimbal lock.
