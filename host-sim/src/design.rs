@@ -53,6 +53,10 @@ use crate::truth::{truth_state, TruthParams};
 pub const DEFAULT_STEP_DEG: f64 = 10.0;
 /// The coarse steps' error budget on σ (relative).
 pub const COARSE_SLACK: f64 = 0.01;
+/// Period by period, a target counts as met at σ ≤ (1 + this)·target: the
+/// library's commanded increments and the truth simulator's agree to this
+/// (tests/design.rs); the written scenario is then checked exactly.
+pub const FINE_SLACK: f64 = 1e-4;
 /// Largest number of periods merged into one coarse step.
 pub const MAX_STEP_PERIODS: u64 = 30;
 /// Coarse angles of stage 1 (°).
@@ -266,6 +270,8 @@ pub struct Problem {
     /// A coarse step counts a target met at σ ≤ (1 + slack)·target (the
     /// coarse steps' error budget; period by period the test is exact).
     pub coarse_slack: f64,
+    /// Largest number of periods per coarse step.
+    pub max_step_periods: u64,
 }
 
 /// The outcome of one evaluation.
@@ -334,6 +340,7 @@ impl Problem {
             targets: Vec::new(),
             step_deg: DEFAULT_STEP_DEG,
             coarse_slack: COARSE_SLACK,
+            max_step_periods: MAX_STEP_PERIODS,
         }
     }
 
@@ -351,7 +358,7 @@ impl Problem {
             max_rate = max_rate.max(r.rate_deg_s);
         }
         let cap = ((self.step_deg / (max_rate * self.period_s)).floor() as u64)
-            .clamp(1, MAX_STEP_PERIODS);
+            .clamp(1, self.max_step_periods.max(1));
         (1..=cap.min(g.max(1)))
             .rev()
             .find(|d| g % d == 0)
@@ -427,7 +434,7 @@ impl Problem {
                 out.history
                     .push((done as f64 * dt1, sigma.iter().copied().collect(), index));
             }
-            let slack = if k > 1 { self.coarse_slack } else { 0.0 };
+            let slack = if k > 1 { self.coarse_slack } else { FINE_SLACK };
             if matches!(goal, Goal::Reach { .. }) && ratio_of(&sigma) <= 1.0 + slack {
                 out.reach = Some(done);
                 break;
@@ -1434,7 +1441,14 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
     if ref_out.sigma_end.is_empty() {
         return Err(format!("{id}: the bound cannot start on this scenario"));
     }
-    problem.targets = targets(id, &ref_out.sigma_end, args.target_scale, &args.targets)?;
+    // The default targets: the reference scenario's σ_CRLB exactly as
+    // `host-sim observability --scenario` computes it.
+    let ref_sigma = {
+        let mut p = problem.clone();
+        p.max_beta = f64::INFINITY;
+        observability_sigma(&p, &base)?
+    };
+    problem.targets = targets(id, &ref_sigma, args.target_scale, &args.targets)?;
     let names = id.states();
 
     let goal = match args.budget_s {
@@ -1469,55 +1483,72 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
         if space.tilted { " (+ tilted)" } else { "" },
         rayon::current_num_threads()
     );
-    let progress = Progress::new();
-    let design = search(&problem, &space, goal, &|st, d, t| {
-        progress.update(st, d, t)
-    });
-    progress.finish();
-    let design = design?;
-    let best = &design.best.pattern;
+    let (design, mut periods, coarse_periods, coarse, coarse_change) = loop {
+        let progress = Progress::new();
+        let design = search(&problem, &space, goal, &|st, d, t| {
+            progress.update(st, d, t)
+        });
+        progress.finish();
+        let design = design?;
+        let best = &design.best.pattern;
 
-    // The designed path, period by period.
-    let (mut periods, coarse_periods) = match goal {
-        Goal::Reach { .. } => {
-            let r = design.fine.as_ref().and_then(|f| f.reach).ok_or_else(|| {
-                "internal: the designed path does not reach the targets period by period"
-                    .to_string()
-            })?;
-            let c = problem.evaluate(
-                best,
-                Goal::Reach {
-                    cutoff: max_periods,
-                },
-                false,
-                false,
-            );
-            (r, c.reach.unwrap_or(c.periods))
+        // The designed path, period by period.
+        let (periods, coarse_periods) = match goal {
+            Goal::Reach { .. } => {
+                let r = design.fine.as_ref().and_then(|f| f.reach).ok_or_else(|| {
+                    "internal: the designed path does not reach the targets period by period"
+                        .to_string()
+                })?;
+                let c = problem.evaluate(
+                    best,
+                    Goal::Reach {
+                        cutoff: max_periods,
+                    },
+                    false,
+                    false,
+                );
+                (r, c.reach.unwrap_or(c.periods))
+            }
+            Goal::Budget { periods } => (periods, periods),
+        };
+        // Coarse steps against period by period at the coarse end.
+        let coarse = problem.evaluate(
+            best,
+            Goal::Budget {
+                periods: coarse_periods,
+            },
+            false,
+            false,
+        );
+        let fine_at = problem.evaluate(
+            best,
+            Goal::Budget {
+                periods: coarse_periods,
+            },
+            true,
+            false,
+        );
+        let coarse_change = problem
+            .targets
+            .iter()
+            .map(|&(i, _)| (coarse.sigma_end[i] / fine_at.sigma_end[i] - 1.0).abs())
+            .fold(0.0, f64::max);
+        // The coarse steps must leave σ within 1 % (the result is then
+        // recomputed period by period anyway): otherwise search again with
+        // steps half as long.
+        if coarse_change <= 0.01 || problem.max_step_periods <= 1 {
+            break (design, periods, coarse_periods, coarse, coarse_change);
         }
-        Goal::Budget { periods } => (periods, periods),
+        problem.max_step_periods = (coarse.k / 2).max(1);
+        problem.step_deg /= 2.0;
+        eprintln!(
+            "design: coarse steps of {} periods moved σ by {:.2} % (> 1 %): searching again with at most {} periods per step",
+            coarse.k,
+            100.0 * coarse_change,
+            problem.max_step_periods
+        );
     };
-    // Coarse steps against period by period at the coarse end.
-    let coarse = problem.evaluate(
-        best,
-        Goal::Budget {
-            periods: coarse_periods,
-        },
-        false,
-        false,
-    );
-    let fine_at = problem.evaluate(
-        best,
-        Goal::Budget {
-            periods: coarse_periods,
-        },
-        true,
-        false,
-    );
-    let coarse_change = problem
-        .targets
-        .iter()
-        .map(|&(i, _)| (coarse.sigma_end[i] / fine_at.sigma_end[i] - 1.0).abs())
-        .fold(0.0, f64::max);
+    let best = &design.best.pattern;
 
     // Check with `host-sim observability`'s computation; one more period at
     // a time in the rare case rounding of the truth simulator's increments
@@ -1550,18 +1581,28 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
         args.max_beta_deg
     );
     match goal {
-        Goal::Reach { .. } => println!(
-            "\nShortest path to every target: {t_design} s ({:.1} % of the reference path's {t_ref} s){}",
-            100.0 * t_design / t_ref,
-            if met { "" } else { "  — WARNING: the observability check misses a target" }
-        ),
+        Goal::Reach { .. } => {
+            println!(
+                "\nShortest path to every target: {t_design} s ({:.1} % of the reference path's {t_ref} s){}",
+                100.0 * t_design / t_ref,
+                if met { "" } else { "  — WARNING: the observability check misses a target" }
+            );
+            if periods >= ref_periods {
+                println!("  No path of the search space reaches the targets sooner than the reference path.");
+            }
+        }
         Goal::Budget { periods: b } => println!(
-            "\nBest worst-case σ/target within {} s: {:.3} (the reference path's {t_ref} s: 1.000 by definition of the default targets)",
+            "\nBest worst-case σ/target within {} s: {:.3} (the reference path in its {t_ref} s: {:.3})",
             b as f64 * period_s,
             problem
                 .targets
                 .iter()
                 .map(|&(i, t)| check[i] / t)
+                .fold(0.0, f64::max),
+            problem
+                .targets
+                .iter()
+                .map(|&(i, t)| ref_sigma[i] / t)
                 .fold(0.0, f64::max)
         ),
     }
@@ -1590,7 +1631,7 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
             "  {:<10} {:>12.4} {:>14.4} {:>14.4} {:>8.3}",
             names[i].name,
             t / ARCSEC,
-            ref_out.sigma_end[i] / ARCSEC,
+            ref_sigma[i] / ARCSEC,
             check[i] / ARCSEC,
             check[i] / t
         );
@@ -1700,7 +1741,7 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
             "reference_duration_s": t_ref,
             "all_targets_met": met,
             "targets": problem.targets.iter().map(|&(i, t)| serde_json::json!({
-                "state": names[i].name, "target_rad": t, "reference_sigma_rad": ref_out.sigma_end[i],
+                "state": names[i].name, "target_rad": t, "reference_sigma_rad": ref_sigma[i],
                 "designed_sigma_rad": check[i]})).collect::<Vec<_>>(),
             "path": designed.path,
             "stages": design.stages,
