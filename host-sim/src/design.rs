@@ -1817,16 +1817,23 @@ fn print_explain(
                 axes.push(a);
             }
         }
-        println!("  by axis:");
+        println!("  by axis (share of the information; in brackets, per second relative to the whole path's average: > 1 excites the group more than the average second):");
+        let total_t = c.last().map_or(1.0, |r| r.t1_s).max(1e-9);
         for a in &axes {
-            print!("  {:<28} {:>13}", a, "");
+            let t: f64 = c
+                .iter()
+                .filter(|r| r.rotation.split(' ').next() == Some(a.as_str()))
+                .map(|r| r.t1_s - r.t0_s)
+                .sum();
+            let tf = t / total_t;
+            print!("  {:<28} {:>13}", a, format!("{:.0} % of t", 100.0 * tf));
             for (gi, _) in groups.iter().enumerate() {
                 let s: f64 = c
                     .iter()
                     .filter(|r| r.rotation.split(' ').next() == Some(a.as_str()))
                     .map(|r| r.shares[gi].1)
                     .sum();
-                print!(" {:>6.1}%", 100.0 * s);
+                print!(" {:>5.1}% ({:.2})", 100.0 * s, s / tf.max(1e-9));
             }
             println!();
         }
