@@ -361,7 +361,7 @@ impl Problem {
             .clamp(1, self.max_step_periods.max(1));
         (1..=cap.min(g.max(1)))
             .rev()
-            .find(|d| g % d == 0)
+            .find(|d| g.is_multiple_of(*d))
             .unwrap_or(1)
     }
 
@@ -575,7 +575,7 @@ pub fn neighbours(p: &Pattern, space: &Space, period_s: f64) -> Vec<Pattern> {
         for d in [-90.0, -60.0, -FINE_ANGLE_DEG, FINE_ANGLE_DEG, 60.0, 90.0] {
             let mut q = p.clone();
             let a = q.rotations[i].angle_deg + d;
-            if a >= FINE_ANGLE_DEG - 1e-9 && a <= 720.0 {
+            if (FINE_ANGLE_DEG - 1e-9..=720.0).contains(&a) {
                 q.rotations[i].angle_deg = a;
                 push(q);
             }
