@@ -6,6 +6,8 @@
 //! - [`runner`]: runs any configuration's estimator over a simulated run;
 //! - [`report`]: tables, JSON and CSV of runs;
 //! - [`observe`]: the observability analysis of every configuration;
+//! - [`design`]: designing the rolling path (the shortest path that reaches
+//!   target σ_CRLB, or the best within a budget);
 //! - [`montecarlo`]: seeded Monte Carlo runs against the Cramér–Rao bound;
 //! - [`paper`]: the whole paper regenerated (tables, runs, figures, summary);
 //! - [`stream`]: `record` and `calibrate` (wire frames, the calibrator);
@@ -13,6 +15,7 @@
 //!   into a recorded stream;
 //! - [`plots`]: PNG figures (error, ±3σ band, σ_CRLB against time).
 
+pub mod design;
 pub mod impair;
 pub mod montecarlo;
 pub mod observe;

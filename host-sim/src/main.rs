@@ -42,6 +42,11 @@ enum Command {
     /// Seeded Monte Carlo runs of one configuration in parallel: RMS error
     /// against the Cramér–Rao bound, parameter-block NEES and NIS.
     Montecarlo(MonteCarloArgs),
+    /// Design the rolling path: the shortest sequence of constant-rate
+    /// rotations whose Cramér–Rao σ reaches every target (default: the
+    /// reference path's final σ), or the best within --budget-s; writes it
+    /// as a scenario file and a σ(t) figure.
+    Design(Box<host_sim::design::DesignArgs>),
     /// Simulate a scenario and write it as a stream of wire frames (docs/wire.md).
     Record(host_sim::stream::RecordArgs),
     /// Run the calibrator on a frame stream from a file, stdin or a serial port.
@@ -244,6 +249,7 @@ fn main() -> ExitCode {
         Some(Command::Observability(args)) => cmd_observability(&args),
         Some(Command::Montecarlo(args)) => cmd_montecarlo(&args),
         Some(Command::Paper(args)) => cmd_paper(&args),
+        Some(Command::Design(args)) => host_sim::design::command(&args),
         Some(Command::Record(args)) => host_sim::stream::record(&args),
         Some(Command::Calibrate(args)) => host_sim::stream::calibrate(&args),
         None => cmd_paper(&PaperArgs {

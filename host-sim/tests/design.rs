@@ -1,0 +1,202 @@
+//! `host-sim design`: the bound it searches on is the bound `observability`
+//! reports, its coarse steps change σ by less than 1 %, it never proposes a
+//! path past the gimbal limit, and the scenario it writes meets its targets
+//! in `host-sim observability` in less time than the reference path.
+
+use std::process::Command;
+
+use host_sim::design::{pattern_of, Goal, NamedAxis, Pattern, Problem, Rotation};
+use host_sim::observe::analyse;
+use host_sim::scenario::{Scenario, ARCSEC};
+use host_sim::truth::{simulate, SimOptions};
+use rollcal::models::ConfigId;
+
+fn host_sim() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_host-sim"))
+}
+
+fn rotation(axis: &str, angle: f64, rate: f64) -> Rotation {
+    Rotation {
+        axis: NamedAxis::named(axis).unwrap(),
+        angle_deg: angle,
+        rate_deg_s: rate,
+    }
+}
+
+#[test]
+fn the_search_bound_is_the_observability_bound() {
+    // The design evaluates paths from the library's commanded increments;
+    // `observability` from the truth simulator's. Same σ to 1e-4.
+    let s = Scenario::paper();
+    let sim = simulate(
+        &s,
+        SimOptions {
+            seed: 0,
+            noise: false,
+            earth_rate: true,
+        },
+    );
+    for id in [ConfigId::M2Ps, ConfigId::M1Pa] {
+        let obs = analyse(id, &s, &sim, true, false).unwrap();
+        let problem = Problem::new(id, &s, 60.0);
+        let p = pattern_of(&s).unwrap();
+        let o = problem.evaluate(&p, Goal::Budget { periods: 5400 }, true, false);
+        assert_eq!(o.k, 1);
+        assert_eq!(o.periods, 5400);
+        for (st, sig) in obs.states.iter().zip(&o.sigma_end) {
+            let rel = (sig / st.sigma_crlb_rad - 1.0).abs();
+            assert!(rel < 1e-4, "{id} {}: {rel:e}", st.name);
+        }
+    }
+}
+
+#[test]
+fn coarse_steps_change_sigma_by_less_than_one_percent() {
+    let s = Scenario::paper();
+    let paper = pattern_of(&s).unwrap();
+    let fast = Pattern {
+        rotations: vec![rotation("south", 180.0, 1.0), rotation("east", 90.0, 1.0)],
+        repeat: true,
+    };
+    for id in [ConfigId::M2Ps, ConfigId::M1Pa] {
+        let problem = Problem::new(id, &s, 60.0);
+        for (p, periods) in [(&paper, 5400), (&fast, 1620)] {
+            let goal = Goal::Budget { periods };
+            let c = problem.evaluate(p, goal, false, false);
+            let f = problem.evaluate(p, goal, true, false);
+            assert!(c.k > 1, "the coarse evaluation merges periods");
+            let worst = id
+                .states()
+                .iter()
+                .enumerate()
+                .filter(|(_, st)| st.group != rollcal::models::Group::Attitude)
+                .map(|(i, _)| (c.sigma_end[i] / f.sigma_end[i] - 1.0).abs())
+                .fold(0.0, f64::max);
+            assert!(worst < 0.01, "{id}, k = {}: {worst}", c.k);
+        }
+    }
+}
+
+#[test]
+fn a_rotation_into_gimbal_lock_is_infeasible() {
+    // About Up from the aligned start the middle gimbal angle β grows with
+    // the rotation: past 60° the candidate stops and is never reached.
+    let s = Scenario::paper();
+    let mut problem = Problem::new(ConfigId::M2Ps, &s, 60.0);
+    problem.targets = vec![(9, 1e-12)];
+    let p = Pattern {
+        rotations: vec![rotation("up", 90.0, 1.0)],
+        repeat: true,
+    };
+    // Coarse steps (10 periods) see it at the end of the step that passes
+    // 60°, period by period (the final check of every design) at once.
+    let o = problem.evaluate(&p, Goal::Reach { cutoff: 600 }, false, false);
+    let at = o.gimbal_lock.expect("β limit");
+    assert!((60..=70).contains(&at), "locked at {at} s");
+    assert!(o.reach.is_none());
+    let o = problem.evaluate(&p, Goal::Reach { cutoff: 600 }, true, false);
+    let at = o.gimbal_lock.expect("β limit");
+    assert!((60..=61).contains(&at), "locked at {at} s");
+    assert!(!o.feasible(Goal::Reach { cutoff: 600 }));
+    let o = problem.evaluate(&p, Goal::Budget { periods: 120 }, false, false);
+    assert!(!o.feasible(Goal::Budget { periods: 120 }));
+}
+
+#[test]
+fn design_writes_a_shorter_scenario_that_meets_its_targets() {
+    let dir = std::env::temp_dir().join(format!("rollcal-design-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (toml, json, png) = (dir.join("d.toml"), dir.join("d.json"), dir.join("d.png"));
+    // A small search (single and paired rotations, no refinement) keeps the
+    // test short; the default search is larger.
+    let out = host_sim()
+        .args([
+            "design",
+            "--config",
+            "m1-pa",
+            "--max-rotations",
+            "2",
+            "--refine-starts",
+            "1",
+            "--axes",
+            "north,east,south",
+            "--target-scale",
+            "2",
+            "--out",
+        ])
+        .arg(&toml)
+        .arg("--json")
+        .arg(&json)
+        .arg("--figure")
+        .arg(&png)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(v["all_targets_met"], true);
+    let duration = v["duration_s"].as_f64().unwrap();
+    assert!(duration < 5400.0, "{duration}");
+    assert!(v["coarse_step_max_change"].as_f64().unwrap() < 0.01);
+    assert!(std::fs::metadata(&png).unwrap().len() > 10_000);
+    // The scenario, read back and analysed as `observability` does.
+    let s = Scenario::from_file(&toml).unwrap();
+    assert_eq!(s.timing.duration_s, duration);
+    let sim = simulate(
+        &s,
+        SimOptions {
+            seed: 0,
+            noise: false,
+            earth_rate: true,
+        },
+    );
+    assert!(sim
+        .samples
+        .iter()
+        .all(|x| x.truth.gimbal.y.abs() <= 60f64.to_radians()));
+    let obs = analyse(ConfigId::M1Pa, &s, &sim, true, false).unwrap();
+    let targets = v["targets"].as_array().unwrap();
+    assert_eq!(targets.len(), 9);
+    for t in targets {
+        let name = t["state"].as_str().unwrap();
+        let st = obs.states.iter().find(|x| x.name == name).unwrap();
+        let target = t["target_rad"].as_f64().unwrap();
+        assert!(
+            st.sigma_crlb_rad <= target,
+            "{name}: {} > {}",
+            st.sigma_crlb_rad / ARCSEC,
+            target / ARCSEC
+        );
+        // Twice the reference σ.
+        let r = t["reference_sigma_rad"].as_f64().unwrap();
+        assert!((target / r - 2.0).abs() < 1e-9);
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn bad_design_arguments_give_one_line_errors() {
+    for args in [
+        vec!["--target", "nope=1"],
+        vec!["--target", "thgC"],
+        vec!["--axes", "sideways"],
+        vec!["--budget-s", "0.5"],
+        vec!["--max-beta-deg", "95"],
+        vec!["--max-rate-deg-s", "-1"],
+    ] {
+        let out = host_sim()
+            .args(["design", "--config", "M2-ps"])
+            .args(&args)
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        let lines: Vec<&str> = err.lines().filter(|l| l.contains("error")).collect();
+        assert_eq!(lines.len(), 1, "{args:?}: {err}");
+    }
+}
