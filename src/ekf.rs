@@ -556,9 +556,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
 
     /// Per-state standard deviations `√P_ii` (rad).
     pub fn sigma(&self) -> SVector<T, N> {
-        self.settled()
-            .variances()
-            .map(|v| v.max(T::zero()).sqrt())
+        self.settled().variances().map(|v| v.max(T::zero()).sqrt())
     }
 
     /// The packed U-D factor of the covariance (rad²; `D` on the diagonal,
@@ -949,9 +947,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let m_e = h.fixed_columns::<3>(ATT) * g_att + to_t::<T, Z, 3>(&noise.d);
         let mut r_e = m_e * m_e.transpose() + r_v;
         r_e = (r_e + r_e.transpose()) * half;
-        let chol = r_e
-            .cholesky()
-            .ok_or(Error::InnovationNotPositiveDefinite)?;
+        let chol = r_e.cholesky().ok_or(Error::InnovationNotPositiveDefinite)?;
         let l = chol.l();
         let nu_w = l
             .solve_lower_triangular(nu)

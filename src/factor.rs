@@ -64,7 +64,8 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
     /// diagonal is ignored. `None` unless every entry is finite and `D` is
     /// strictly positive.
     pub fn from_packed(packed: &SMatrix<T, N, N>) -> Option<Self> {
-        if packed.iter().any(|v| !v.is_finite()) || packed.diagonal().iter().any(|v| *v <= T::zero())
+        if packed.iter().any(|v| !v.is_finite())
+            || packed.diagonal().iter().any(|v| *v <= T::zero())
         {
             return None;
         }
@@ -115,11 +116,7 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         for i in 0..N {
             for j in i..N {
                 // P_ij = Σ_{k ≥ j} U_ik D_k U_jk (U_kk = 1).
-                let mut s = if i == j {
-                    a[j][j]
-                } else {
-                    a[j][i] * a[j][j]
-                };
+                let mut s = if i == j { a[j][j] } else { a[j][i] * a[j][j] };
                 for k in j + 1..N {
                     s += a[k][i] * a[k][j] * a[k][k];
                 }
@@ -201,7 +198,10 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
             }
             b[j] = v[j];
         }
-        if m.diagonal().iter().any(|d| !(*d > T::zero()) || !d.is_finite()) {
+        if m.diagonal()
+            .iter()
+            .any(|d| !(*d > T::zero()) || !d.is_finite())
+        {
             return None;
         }
         self.m = m;
@@ -219,7 +219,7 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         let mut m = self.m;
         let a = &mut m.data.0;
         let phi = &phi_att.data.0; // phi[col][row]
-        // U₁₂ ← A U₁₂ + B U₂₂, column by column (U₂₂ unit upper).
+                                   // U₁₂ ← A U₁₂ + B U₂₂, column by column (U₂₂ unit upper).
         for j in 3..N {
             let mut col = [T::zero(); 3];
             for (r, c) in col.iter_mut().enumerate() {

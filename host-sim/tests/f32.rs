@@ -38,7 +38,9 @@ fn run(id: ConfigId, sc: &Scenario, precision: Precision) -> RunResult {
 
 #[test]
 fn f32_ends_within_a_tenth_of_sigma_of_f64_on_every_scenario() {
-    println!("| scenario | config | passes f64/f32 | max abs(x32 - x64)/sigma64 | sigma32/sigma64 |");
+    println!(
+        "| scenario | config | passes f64/f32 | max abs(x32 - x64)/sigma64 | sigma32/sigma64 |"
+    );
     println!("|---|---|---|---|---|");
     let mut bad = Vec::new();
     for name in ["paper", "reordered-fast", "southern-slow"] {
@@ -56,7 +58,9 @@ fn f32_ends_within_a_tenth_of_sigma_of_f64_on_every_scenario() {
                 a.passes, b.passes
             );
             if !(dx <= 0.1 && hi <= 1.05 && lo >= 1.0 / 1.05) {
-                bad.push(format!("{name} {id}: {dx:.3} sigma, ratio {lo:.4}..{hi:.4}"));
+                bad.push(format!(
+                    "{name} {id}: {dx:.3} sigma, ratio {lo:.4}..{hi:.4}"
+                ));
             }
         }
     }
@@ -89,7 +93,12 @@ fn f32_monte_carlo_of_m2ps_is_at_the_bound_and_consistent() {
         mc.nis.lower,
         mc.nis.upper
     );
-    assert!(worst.0 <= 1.1, "{}: RMS/sigma_CRLB = {:.3}", worst.1, worst.0);
+    assert!(
+        worst.0 <= 1.1,
+        "{}: RMS/sigma_CRLB = {:.3}",
+        worst.1,
+        worst.0
+    );
     assert!(
         mc.nees.inside(),
         "NEES {:.3} outside [{:.3}, {:.3}]",

@@ -61,7 +61,7 @@
 //! use rollcal::ekf::Observation;
 //! use rollcal::estimator::{LogError, LogRecord, SampleLog};
 //!
-//! const SIZE: usize = 44;
+//! const SIZE: usize = 64;
 //!
 //! /// Stand-in for an FRAM chip driver.
 //! struct Fram([u8; 4 * SIZE]);
@@ -83,6 +83,17 @@
 //!     Some(f32::from_le_bytes(bytes.get(at..at + 4)?.try_into().ok()?))
 //! }
 //!
+//! // The period and the commanded increment are f64 in every precision.
+//! fn put64(bytes: &mut [u8], at: usize, v: f64) {
+//!     if let Some(dst) = bytes.get_mut(at..at + 8) {
+//!         dst.copy_from_slice(&v.to_le_bytes());
+//!     }
+//! }
+//!
+//! fn take64(bytes: &[u8], at: usize) -> Option<f64> {
+//!     Some(f64::from_le_bytes(bytes.get(at..at + 8)?.try_into().ok()?))
+//! }
+//!
 //! impl SampleLog<f32> for FramLog {
 //!     fn append(&mut self, r: &LogRecord<f32>) -> Result<(), LogError> {
 //!         if self.len >= self.capacity {
@@ -92,13 +103,13 @@
 //!         let obs = r.observation;
 //!         let gimbal = obs.and_then(|o| o.gimbal);
 //!         b[0] = u8::from(obs.is_some()) | (u8::from(gimbal.is_some()) << 1);
-//!         put(&mut b, 4, r.dt);
+//!         put64(&mut b, 8, r.dt);
 //!         let accel = obs.map_or(Vector3::zeros(), |o| o.accel_mean);
 //!         let g = gimbal.unwrap_or_else(Vector3::zeros);
 //!         for i in 0..3 {
-//!             put(&mut b, 8 + 4 * i, r.dtheta_cmd[i]);
-//!             put(&mut b, 20 + 4 * i, accel[i]);
-//!             put(&mut b, 32 + 4 * i, g[i]);
+//!             put64(&mut b, 16 + 8 * i, r.dtheta_cmd[i]);
+//!             put(&mut b, 40 + 4 * i, accel[i]);
+//!             put(&mut b, 52 + 4 * i, g[i]);
 //!         }
 //!         let at = self.base + self.len * SIZE;
 //!         // Write-ahead: data first, then the commit flag, then the length.
@@ -131,15 +142,15 @@
 //!         };
 //!         let observation = if b[0] & 1 != 0 {
 //!             Some(Observation {
-//!                 accel_mean: v(20)?,
-//!                 gimbal: if b[0] & 2 != 0 { Some(v(32)?) } else { None },
+//!                 accel_mean: v(40)?,
+//!                 gimbal: if b[0] & 2 != 0 { Some(v(52)?) } else { None },
 //!             })
 //!         } else {
 //!             None
 //!         };
 //!         Some(LogRecord {
-//!             dt: take(b, 4)?,
-//!             dtheta_cmd: v(8)?,
+//!             dt: take64(b, 8)?,
+//!             dtheta_cmd: Vector3::new(take64(b, 16)?, take64(b, 24)?, take64(b, 32)?),
 //!             observation,
 //!         })
 //!     }
