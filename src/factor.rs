@@ -23,8 +23,14 @@
 //!
 //! Every index in this module is a loop index below the const size `N` (or
 //! 3), so the indexing cannot be broken by input; `tools/panic-check.py`
-//! verifies that the compiler removed every bounds check.
-#![allow(clippy::indexing_slicing)]
+//! verifies that the compiler removed every bounds check. The loops index
+//! by the matrix's row and column as the algorithms are written (Bierman,
+//! Thornton), and a test `!(v > 0)` is meant to reject NaN too.
+#![allow(
+    clippy::indexing_slicing,
+    clippy::needless_range_loop,
+    clippy::neg_cmp_op_on_partial_ord
+)]
 
 use nalgebra::{Matrix3, RealField, SMatrix, SVector};
 
