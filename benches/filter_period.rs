@@ -14,12 +14,18 @@
 //! periods). Every timed step must succeed too: errors are counted and
 //! checked after each benchmark.
 //!
+//! The same group holds the reference the host goals are set against,
+//! `dense/18x6` and `dense/12x3`: the naive dense covariance arithmetic of
+//! one period of that size in static nalgebra f64 (dense `Φ P Φᵀ + Q`, `S`,
+//! its Cholesky factor, the gain, the Joseph form, symmetrisation), on
+//! fixed well-conditioned matrices; no model evaluation.
+//!
 //! `cargo bench --bench filter_period -- --warm-up-time 1 --measurement-time 3`
 
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use nalgebra::{SVector, Vector3};
+use nalgebra::{SMatrix, SVector, Vector3};
 use rollcal::ekf::{M1PaFilter, M2PsFilter};
 use rollcal::models::Model;
 use rollcal::wire::CalibratorConfig;
@@ -116,7 +122,56 @@ fn bench_period<M: Model<N, Z> + Clone, const N: usize, const Z: usize>(
     );
 }
 
+/// One period of naive dense covariance arithmetic, `N` states and `Z`
+/// measurements.
+fn dense_period<const N: usize, const Z: usize>(
+    phi: &SMatrix<f64, N, N>,
+    p: &SMatrix<f64, N, N>,
+    q: &SMatrix<f64, N, N>,
+    h: &SMatrix<f64, Z, N>,
+    r: &SMatrix<f64, Z, Z>,
+) -> SMatrix<f64, N, N> {
+    let pp = phi * p * phi.transpose() + q;
+    let s = h * pp * h.transpose() + r;
+    let Some(chol) = s.cholesky() else {
+        return pp;
+    };
+    let k = chol.solve(&(h * pp)).transpose();
+    let ikh = SMatrix::<f64, N, N>::identity() - k * h;
+    let out = ikh * pp * ikh.transpose() + k * r * k.transpose();
+    (out + out.transpose()) * 0.5
+}
+
+fn bench_dense<const N: usize, const Z: usize>(c: &mut Criterion, name: &str) {
+    // Fixed, well-conditioned inputs: Φ near the identity, P and Q SPD.
+    let phi = SMatrix::<f64, N, N>::from_fn(|i, j| {
+        if i == j {
+            1.0
+        } else {
+            1e-3 * ((i + 2 * j) % 7) as f64
+        }
+    });
+    let a = SMatrix::<f64, N, N>::from_fn(|i, j| 1e-2 * (((3 * i + j) % 11) as f64 - 5.0));
+    let p = a * a.transpose() + SMatrix::<f64, N, N>::identity() * 1e-4;
+    let q = SMatrix::<f64, N, N>::identity() * 1e-10;
+    let h = SMatrix::<f64, Z, N>::from_fn(|i, j| (((i + 5 * j) % 13) as f64 - 6.0) / 6.0);
+    let r = SMatrix::<f64, Z, Z>::identity() * 1e-12;
+    c.benchmark_group("period").bench_function(name, |b| {
+        b.iter(|| {
+            dense_period(
+                black_box(&phi),
+                black_box(&p),
+                black_box(&q),
+                black_box(&h),
+                black_box(&r),
+            )
+        })
+    });
+}
+
 fn filter_period(c: &mut Criterion) {
+    bench_dense::<18, 6>(c, "dense/18x6");
+    bench_dense::<12, 3>(c, "dense/12x3");
     let (settings, stream) = support::paper_stream();
     let samples: &[PeriodSample] = &stream
         .iter()

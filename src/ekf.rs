@@ -961,22 +961,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             .ok_or(Error::InnovationNotPositiveDefinite)?
             .transpose();
         // S = H Φ P Φᵀ Hᵀ + R_e, for the innovation report.
-        let mut s = r_e;
-        for a in 0..Z {
-            for b in a..Z {
-                if let (Some(ra), Some(rb)) = (hf.row_iter().nth(a), hf.row_iter().nth(b)) {
-                    let v = self.ud.bilinear(&ra.transpose(), &rb.transpose());
-                    if let Some(e) = s.get_mut((a, b)) {
-                        *e += v;
-                    }
-                    if a != b {
-                        if let Some(e) = s.get_mut((b, a)) {
-                            *e += v;
-                        }
-                    }
-                }
-            }
-        }
+        let s = r_e + self.ud.congruence(&hf);
         let mut ud = self.ud;
         let mut dx = SVector::<T, N>::zeros();
         let mut nis = T::zero();

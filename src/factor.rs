@@ -169,11 +169,23 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         f.dot(&v)
     }
 
-    /// `h₁ P h₂ᵀ` for two rows.
-    pub fn bilinear(&self, h1: &SVector<T, N>, h2: &SVector<T, N>) -> T {
-        let (_, v) = self.project(h1);
-        let (f2, _) = self.project(h2);
-        f2.dot(&v)
+    /// `H P Hᵀ` for the `R` rows of `h` (one projection `Uᵀ hᵢᵀ` per row,
+    /// then `Fᵀ D F`).
+    pub fn congruence<const R: usize>(&self, h: &SMatrix<T, R, N>) -> SMatrix<T, R, R> {
+        let mut f = [SVector::<T, N>::zeros(); R];
+        let mut v = [SVector::<T, N>::zeros(); R];
+        for ((row, fi), vi) in h.row_iter().zip(f.iter_mut()).zip(v.iter_mut()) {
+            (*fi, *vi) = self.project(&row.transpose());
+        }
+        let mut out = SMatrix::<T, R, R>::zeros();
+        for a in 0..R {
+            for b in a..R {
+                let x = f[b].dot(&v[a]);
+                out[(a, b)] = x;
+                out[(b, a)] = x;
+            }
+        }
+        out
     }
 
     /// Bierman's scalar measurement update for `z = h x + v`, `var v = r`:
