@@ -1,12 +1,16 @@
 //! The extended Kalman filter over any configuration (SPEC §6).
 //!
 //! One filter period: [`Filter::predict`] propagates the state by one RK4
-//! step over the commanded motion of the period and the covariance with the
-//! structured transition (the parameters are constant, so only the three
-//! attitude rows of `Φ` differ from the identity); [`Filter::update`] then
-//! processes the period's measurement: the mean accelerometer output over the
-//! period and, in M2, the gimbal angles at its end. The covariance update is
-//! in Joseph form and `P` is kept symmetric.
+//! step over the commanded motion of the period; [`Filter::update`] then
+//! processes the period's measurement (the mean accelerometer output over
+//! the period and, in M2, the gimbal angles at its end) together with the
+//! covariance's time update. The covariance is kept as a U-D factor
+//! ([`crate::factor`]): Bierman's scalar updates of the decorrelated,
+//! whitened measurement, and the structured time update (the parameters
+//! are constant, so only the three attitude rows of `Φ` differ from the
+//! identity). The state, the nominal and every model evaluation are `f64`;
+//! the factor and the gains are in the filter's precision `T` (see
+//! [`Filter`]).
 //!
 //! **Cold start.** The accelerometers resolve 1e-6 g while the initial
 //! errors are ≈ 0.3° (5e-3 rad): the measurement's second-order terms
@@ -32,8 +36,8 @@
 //!
 //! **Correlated noise.** The gyro noise of a period moves the attitude
 //! during the same period whose mean the accelerometers report, so it is
-//! both process and measurement noise; the gain and the Joseph form carry
-//! their cross-covariance.
+//! both process and measurement noise; the factored update decorrelates
+//! the two ([`Filter::update`]).
 
 use core::marker::PhantomData;
 
@@ -191,7 +195,7 @@ pub struct Innovation<T: RealField + Copy, const Z: usize> {
 /// noise `u` (3), `x_{k+1} = f(x_k) + G u` and `z = h(x_{k+1}) + D u + v`.
 /// The mean accelerometer output of a period sees the noise of that same
 /// period (≈ half of it, `D ≈ −½ H G`), so the two are correlated:
-/// `C = G Dᵀ` enters the gain and the Joseph form.
+/// `C = G Dᵀ` enters the update (decorrelated there).
 struct Noise<T: RealField + Copy, const N: usize, const Z: usize> {
     g: SMatrix<T, N, 3>,
     d: SMatrix<T, Z, 3>,
