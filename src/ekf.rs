@@ -171,6 +171,20 @@ pub struct FilterConfig<T: RealField + Copy> {
     pub options: Options,
 }
 
+impl FilterConfig<f64> {
+    /// The same settings for a filter of precision `T`: the noise levels
+    /// in `T`, the environment (always f64) and the options as they are.
+    pub fn to_precision<T: RealField + Copy>(&self) -> FilterConfig<T> {
+        FilterConfig {
+            env: self.env,
+            sigma_accel: nalgebra::convert(self.sigma_accel),
+            sigma_gyro: nalgebra::convert(self.sigma_gyro),
+            sigma_gimbal: nalgebra::convert(self.sigma_gimbal),
+            options: self.options,
+        }
+    }
+}
+
 /// The measurement of one period.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Observation<T: RealField + Copy> {

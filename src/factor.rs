@@ -163,12 +163,6 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         (f, v)
     }
 
-    /// `h P hᵀ` for a row `h`.
-    pub fn quadratic(&self, h: &SVector<T, N>) -> T {
-        let (f, v) = self.project(h);
-        f.dot(&v)
-    }
-
     /// `H P Hᵀ` for the `R` rows of `h` (one projection `Uᵀ hᵢᵀ` per row,
     /// then `Fᵀ D F`).
     pub fn congruence<const R: usize>(&self, h: &SMatrix<T, R, N>) -> SMatrix<T, R, R> {

@@ -11,19 +11,6 @@ use rollcal::ekf::{Observation, Options};
 use rollcal::estimator::{estimate, EstimatorOptions, LogRecord, SliceLog};
 use rollcal::models::{M1Pa, M2Ps, M4Pa, Model};
 use rollcal::wire::{CalibratorConfig, Sample};
-use rollcal::FilterConfig;
-
-fn config_t<T: RealField + Copy>(c: &CalibratorConfig) -> FilterConfig<T> {
-    let c = support::filter_config(c, Options::default());
-    let t = |v: f64| nalgebra::convert::<f64, T>(v);
-    FilterConfig {
-        env: c.env,
-        sigma_accel: t(c.sigma_accel),
-        sigma_gyro: t(c.sigma_gyro),
-        sigma_gimbal: t(c.sigma_gimbal),
-        options: c.options,
-    }
-}
 
 fn log_t<T: RealField + Copy>(samples: &[Sample]) -> Vec<LogRecord<T>> {
     let t = |v: f64| nalgebra::convert::<f64, T>(v);
@@ -52,7 +39,7 @@ fn answer<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>(
     let mut log = SliceLog::from_records(&mut records);
     let sigma0 = nalgebra::convert::<f64, T>(settings.prior_sigma_rad);
     let o = estimate::<T, M, N, Z, _, _>(
-        &config_t::<T>(settings),
+        &support::filter_config(settings, Options::default()).to_precision::<T>(),
         &SVector::zeros(),
         &SVector::repeat(sigma0),
         &mut log,

@@ -13,6 +13,8 @@
 //! A seed is the decoder target's input: one byte of chunk size (the target
 //! feeds the decoder in chunks of that many bytes), then the frames.
 
+mod support;
+
 use std::path::PathBuf;
 
 use rollcal::calibrator::Calibrator;
@@ -29,39 +31,15 @@ fn frame(m: &Message) -> Vec<u8> {
     buf
 }
 
-/// COBS of `data`, delimiter appended (the textbook definition).
-fn cobs(data: &[u8]) -> Vec<u8> {
-    let mut out = vec![0u8];
-    let (mut code_idx, mut code) = (0, 1u8);
-    for &b in data {
-        if b == 0 {
-            out[code_idx] = code;
-            code_idx = out.len();
-            out.push(0);
-            code = 1;
-        } else {
-            out.push(b);
-            code += 1;
-            if code == 0xFF {
-                out[code_idx] = code;
-                code_idx = out.len();
-                out.push(0);
-                code = 1;
-            }
-        }
-    }
-    out[code_idx] = code;
-    out.push(0);
-    out
-}
-
 /// A frame with a valid CRC around any version and payload.
 fn raw_frame(version: u8, payload: &[u8]) -> Vec<u8> {
     let mut body = vec![version];
     body.extend_from_slice(payload);
     let crc = crc32(&body);
     body.extend_from_slice(&crc.to_le_bytes());
-    cobs(&body)
+    let mut framed = support::cobs_reference(&body);
+    framed.push(0);
+    framed
 }
 
 fn sample(seq: u32, gimbal: bool) -> Sample {

@@ -2,6 +2,8 @@
 //! independent reference encoder (and `docs/wire.md`), and the decoder
 //! counts and skips every kind of bad input without panicking.
 
+mod support;
+
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -20,41 +22,13 @@ fn frame(msg: &Message) -> Vec<u8> {
     buf
 }
 
-/// Reference COBS encoder, written from the textbook definition (not the
-/// crate's streaming one): blocks of ≤ 254 non-zero bytes, each prefixed by
-/// its length + 1.
-fn cobs_reference(data: &[u8]) -> Vec<u8> {
-    let mut out = vec![0u8];
-    let mut code_idx = 0;
-    let mut code = 1u8;
-    for &b in data {
-        if b == 0 {
-            out[code_idx] = code;
-            code_idx = out.len();
-            out.push(0);
-            code = 1;
-        } else {
-            out.push(b);
-            code += 1;
-            if code == 0xFF {
-                out[code_idx] = code;
-                code_idx = out.len();
-                out.push(0);
-                code = 1;
-            }
-        }
-    }
-    out[code_idx] = code;
-    out
-}
-
 /// A frame built as `docs/wire.md` describes it, from postcard and the CRC.
 fn reference_frame(version: u8, payload: &[u8]) -> Vec<u8> {
     let mut raw = vec![version];
     raw.extend_from_slice(payload);
     let crc = crc32(&raw);
     raw.extend_from_slice(&crc.to_le_bytes());
-    let mut f = cobs_reference(&raw);
+    let mut f = support::cobs_reference(&raw);
     f.push(0);
     f
 }

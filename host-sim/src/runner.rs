@@ -85,17 +85,6 @@ fn observation_t<T: RealField + Copy>(s: &PeriodSample) -> Observation<T> {
     }
 }
 
-/// Filter settings in precision `T`.
-pub fn filter_config_t<T: RealField + Copy>(c: &FilterConfig<f64>) -> FilterConfig<T> {
-    FilterConfig {
-        env: c.env,
-        sigma_accel: nalgebra::convert(c.sigma_accel),
-        sigma_gyro: nalgebra::convert(c.sigma_gyro),
-        sigma_gimbal: nalgebra::convert(c.sigma_gimbal),
-        options: c.options,
-    }
-}
-
 /// The measurement of a simulated period (accelerometer mean, gimbal angles).
 fn observation(s: &PeriodSample) -> Observation<f64> {
     Observation {
@@ -251,7 +240,7 @@ fn passes_of<
     let mut log = SliceLog::from_records(&mut storage);
     let (x, s64) = initial::<N>(x0, sigma0);
     let s = s64.map(nalgebra::convert::<f64, T>);
-    let cfg = filter_config_t::<T>(&cfg);
+    let cfg = cfg.to_precision::<T>();
     let mut last = LastPass::default();
     let out = estimator::estimate::<T, M, N, Z, _, _>(&cfg, &x, &s, &mut log, options, |ev| {
         if ev.pass != last.pass {

@@ -81,3 +81,31 @@ pub fn log_record(s: &Sample) -> LogRecord<f64> {
     let (dt, d) = period(s);
     LogRecord::measured(dt, d, observation(s))
 }
+
+/// Reference COBS encoder, written from the textbook definition (not the
+/// crate's streaming one): blocks of ≤ 254 non-zero bytes, each prefixed by
+/// its length + 1.
+pub fn cobs_reference(data: &[u8]) -> Vec<u8> {
+    let mut out = vec![0u8];
+    let mut code_idx = 0;
+    let mut code = 1u8;
+    for &b in data {
+        if b == 0 {
+            out[code_idx] = code;
+            code_idx = out.len();
+            out.push(0);
+            code = 1;
+        } else {
+            out.push(b);
+            code += 1;
+            if code == 0xFF {
+                out[code_idx] = code;
+                code_idx = out.len();
+                out.push(0);
+                code = 1;
+            }
+        }
+    }
+    out[code_idx] = code;
+    out
+}
