@@ -293,8 +293,10 @@ pub type M4PsFilter<T> = Filter<T, crate::models::M4Ps, 15, 3>;
 
 /// `(½ tr(∇²g_a P), ½ tr(∇²g_a P ∇²g_b P))` of a 3-vector function `g`
 /// whose Jacobian is `jac`, by central differences of `jac` along the
-/// error-state directions `j` with `relevant(j)`.
-fn hessian_terms<T: RealField + Copy, const N: usize>(
+/// error-state directions `j` with `relevant(j)`. Used for the attitude
+/// dynamics (`Options::second_order_dynamics`, off by default), and as the
+/// reference the analytic accelerometer Hessian is tested against.
+pub(crate) fn hessian_terms<T: RealField + Copy, const N: usize>(
     x: &SVector<T, N>,
     p: &SMatrix<T, N, N>,
     relevant: impl Fn(usize) -> bool,
@@ -789,8 +791,9 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     }
 
     /// Second-order terms of the accelerometer rows: returns
-    /// (`½ tr(∇²h_a P)`, `½ tr(∇²h_a P ∇²h_b P)`), by central differences of
-    /// the instantaneous accelerometer Jacobian at the end of the period.
+    /// (`½ tr(∇²h_a P)`, `½ tr(∇²h_a P ∇²h_b P)`) of the instantaneous
+    /// accelerometer output at the end of the period, from its analytic
+    /// Hessian ([`crate::second_order`]).
     fn second_order(
         &self,
         x: &SVector<f64, N>,
@@ -802,17 +805,14 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let [_, _, c_end] = pending.period.c_cn;
         let c_end: Matrix3<T> = to_t(&c_end);
         let x: SVector<T, N> = to_t(x);
-        let relevant = |j: usize| {
-            j < 3
-                || layout.ac().is_some_and(|i| (i..i + 3).contains(&j))
-                || (layout.at()..layout.at() + 3).contains(&j)
-                || layout.lam().is_some_and(|i| (i..i + 3).contains(&j))
-        };
-        let (mean, cov) = hessian_terms(&x, &self.settled().covariance(), relevant, |xp| {
-            Some(layout.accel_jacobian(&env, &layout.matrices(xp), &layout.attitude(xp), &c_end))
-        })
-        .unwrap_or((Vector3::zeros(), Matrix3::zeros()));
-        (to_f64(&mean), to_f64(&cov))
+        let terms = layout.accel_second_order(
+            &env,
+            &layout.matrices(&x),
+            &layout.attitude(&x),
+            &c_end,
+            &self.settled().covariance(),
+        );
+        (to_f64(&terms.mean), to_f64(&terms.cov))
     }
 
     /// Processes the measurement of the period that [`Filter::predict`] just

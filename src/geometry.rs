@@ -176,6 +176,128 @@ pub fn d_dcm_times<T: RealField + Copy>(theta: &Vector3<T>, v: &Vector3<T>) -> M
     skew(&(dcm(theta) * v)) * right_jacobian(theta)
 }
 
+/// `∂J_r(θ)/∂θ_k`, `k = 1, 2, 3` (exact; [`right_jacobian`]): with
+/// `J_r = I − a K + b K²`, `K = [θ×]`, `x = |θ|`, `a = (1 − cos x)/x²`,
+/// `b = (x − sin x)/x³`,
+/// `∂J_r/∂θ_k = −(a′/x) θ_k K − a E_k + (b′/x) θ_k K² + b (E_k K + K E_k)`,
+/// `E_k = [e_k×]`. `a′/x` and `b′/x` lose `1/x⁴` of their digits to
+/// cancellation, so below `x = 0.1` rad they come from their series
+/// (truncation < 3e-12 relative).
+pub fn d_right_jacobian<T: RealField + Copy>(theta: &Vector3<T>) -> [Matrix3<T>; 3] {
+    let x2 = theta.norm_squared();
+    let k = skew(theta);
+    let k2 = k * k;
+    let c = |v: f64| -> T { nalgebra::convert(v) };
+    let (a, b, da, db) = if x2 < c(1e-2) {
+        let x4 = x2 * x2;
+        let x6 = x4 * x2;
+        (
+            c(0.5) - x2 / c(24.0) + x4 / c(720.0) - x6 / c(40_320.0),
+            c(1.0 / 6.0) - x2 / c(120.0) + x4 / c(5040.0) - x6 / c(362_880.0),
+            c(-1.0 / 12.0) + x2 / c(180.0) - x4 / c(6720.0),
+            c(-1.0 / 60.0) + x2 / c(1260.0) - x4 / c(60_480.0),
+        )
+    } else {
+        let x = x2.sqrt();
+        let (s, co) = x.sin_cos();
+        let x3 = x2 * x;
+        let x4 = x2 * x2;
+        let one_c = T::one() - co;
+        let x_s = x - s;
+        (
+            one_c / x2,
+            x_s / x3,
+            s / x3 - c(2.0) * one_c / x4,
+            one_c / x4 - c(3.0) * x_s / (x4 * x),
+        )
+    };
+    let part = |tk: T, e: Vector3<T>| {
+        let ek = skew(&e);
+        -(k * (da * tk)) - ek * a + k2 * (db * tk) + (ek * k + k * ek) * b
+    };
+    [
+        part(theta.x, Vector3::x()),
+        part(theta.y, Vector3::y()),
+        part(theta.z, Vector3::z()),
+    ]
+}
+
+/// The second derivatives of a vector rotated by [`dcm`]: element `k` is
+/// the 3×3 matrix whose column `l` is `∂²(R(θ) v)/∂θ_k ∂θ_l`, i.e.
+/// `∂/∂θ_k` of [`d_dcm_times`] `= [(R v)×] J_r(θ)`:
+/// `[(∂(R v)/∂θ_k)×] J_r + [(R v)×] ∂J_r/∂θ_k`.
+pub fn d2_dcm_times<T: RealField + Copy>(theta: &Vector3<T>, v: &Vector3<T>) -> [Matrix3<T>; 3] {
+    let rv = dcm(theta) * v;
+    let jr = right_jacobian(theta);
+    let srv = skew(&rv);
+    let [c0, c1, c2] = (srv * jr).data.0;
+    let [j0, j1, j2] = d_right_jacobian(theta);
+    [
+        skew(&c0.into()) * jr + srv * j0,
+        skew(&c1.into()) * jr + srv * j1,
+        skew(&c2.into()) * jr + srv * j2,
+    ]
+}
+
+/// An elementary rotation and its first two derivatives with respect to
+/// its angle: `(R, R′, R″)` with `R = P + cos a · C + sin a · S`.
+fn elementary<T: RealField + Copy>(axis: usize, a: T) -> (Matrix3<T>, Matrix3<T>, Matrix3<T>) {
+    let (s, c) = a.sin_cos();
+    let (o, z) = (T::one(), T::zero());
+    // (P, C, S) of R1, R2, R3 (see r1, r2, r3).
+    let (p, cm, sm) = match axis {
+        0 => (
+            Matrix3::new(o, z, z, z, z, z, z, z, z),
+            Matrix3::new(z, z, z, z, o, z, z, z, o),
+            Matrix3::new(z, z, z, z, z, o, z, -o, z),
+        ),
+        1 => (
+            Matrix3::new(z, z, z, z, o, z, z, z, z),
+            Matrix3::new(o, z, z, z, z, z, z, z, o),
+            Matrix3::new(z, z, -o, z, z, z, o, z, z),
+        ),
+        _ => (
+            Matrix3::new(z, z, z, z, z, z, z, z, o),
+            Matrix3::new(o, z, z, z, o, z, z, z, z),
+            Matrix3::new(z, o, z, -o, z, z, z, z, z),
+        ),
+    };
+    (p + cm * c + sm * s, sm * c - cm * s, -(cm * c) - sm * s)
+}
+
+/// The partial derivatives of the Euler DCM `C(θ) = R3(γ) R2(β) R1(α)`
+/// ([`gimbal_dcm`]) with respect to `θ = (α, β, γ)` (rad).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GimbalDcmPartials<T: RealField + Copy> {
+    /// `C(θ)`.
+    pub c: Matrix3<T>,
+    /// `∂C/∂θ_k`.
+    pub d: [Matrix3<T>; 3],
+    /// `∂²C/∂θ_k ∂θ_l` (symmetric in `k`, `l`).
+    pub d2: [[Matrix3<T>; 3]; 3],
+}
+
+/// [`GimbalDcmPartials`] of the Euler angles `gimbal_angles` (rad).
+pub fn gimbal_dcm_partials<T: RealField + Copy>(
+    gimbal_angles: &Vector3<T>,
+) -> GimbalDcmPartials<T> {
+    let (a, da, dda) = elementary(0, gimbal_angles.x);
+    let (b, db, ddb) = elementary(1, gimbal_angles.y);
+    let (g, dg, ddg) = elementary(2, gimbal_angles.z);
+    let ab = g * db * da;
+    let ag = dg * b * da;
+    let bg = dg * db * a;
+    GimbalDcmPartials {
+        c: g * b * a,
+        d: [g * b * da, g * db * a, dg * b * a],
+        d2: [
+            [g * b * dda, ab, ag],
+            [ab, g * ddb * a, bg],
+            [ag, bg, ddg * b * a],
+        ],
+    }
+}
+
 /// Passive rotation about x by `a` (rad): `[[1,0,0],[0,c,s],[0,−s,c]]`.
 pub fn r1<T: RealField + Copy>(a: T) -> Matrix3<T> {
     let (s, c) = a.sin_cos();

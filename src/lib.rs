@@ -21,6 +21,8 @@
 //! - [`command`]: the computed frame and the commanded rate;
 //! - [`models`]: the seven configurations (paper §1.3);
 //! - [`ekf`]: the filter (SPEC §6);
+//! - [`second_order`]: the analytic Hessian of the accelerometer model
+//!   (the filter's second-order terms);
 //! - [`estimator`]: the estimator of record, the multi-pass filter over a
 //!   whole run kept in a caller-provided [`estimator::SampleLog`];
 //! - [`observability`]: information matrix, null space and Cramér–Rao
@@ -56,6 +58,7 @@ pub mod geometry;
 pub mod instruments;
 pub mod models;
 pub mod observability;
+pub mod second_order;
 pub mod session;
 pub mod wire;
 
