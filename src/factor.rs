@@ -191,16 +191,31 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
             return None;
         }
         let (f, v) = self.project(h);
-        let mut m = self.m;
-        let a = &mut m.data.0;
-        let mut b = SVector::<T, N>::zeros();
-        let mut alpha = r;
-        for j in 0..N {
-            let beta = alpha;
-            alpha += v[j] * f[j];
-            if !(alpha > T::zero()) {
-                return None;
+        // The α sequence and the new D depend only on f, v and the old D:
+        // check them first, so the update itself runs in place and cannot
+        // fail half-way (no copy of the factor for a rollback).
+        let mut alphas = [T::zero(); N];
+        {
+            let a = &self.m.data.0;
+            let mut alpha = r;
+            for j in 0..N {
+                let beta = alpha;
+                alpha += v[j] * f[j];
+                if !(alpha > T::zero()) {
+                    return None;
+                }
+                let d = a[j][j] * (beta / alpha);
+                if !(d > T::zero()) || !d.is_finite() {
+                    return None;
+                }
+                alphas[j] = alpha;
             }
+        }
+        let a = &mut self.m.data.0;
+        let mut b = SVector::<T, N>::zeros();
+        let mut beta = r;
+        for j in 0..N {
+            let alpha = alphas[j];
             let lambda = -f[j] / beta;
             a[j][j] *= beta / alpha;
             for i in 0..j {
@@ -209,17 +224,11 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
                 b[i] += u * v[j];
             }
             b[j] = v[j];
+            beta = alpha;
         }
-        if m.diagonal()
-            .iter()
-            .any(|d| !(*d > T::zero()) || !d.is_finite())
-        {
-            return None;
-        }
-        self.m = m;
         Some(ScalarUpdate {
-            gain: b / alpha,
-            alpha,
+            gain: b / beta,
+            alpha: beta,
         })
     }
 
@@ -228,10 +237,30 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
     /// process noise `q` (3×3, rad²) on the attitude states only. `None`
     /// (factor untouched) if the new attitude block is not positive definite.
     pub fn predict_attitude(&mut self, phi_att: &SMatrix<T, 3, N>, q: &Matrix3<T>) -> Option<()> {
-        let mut m = self.m;
-        let a = &mut m.data.0;
         let phi = &phi_att.data.0; // phi[col][row]
-                                   // U₁₂ ← A U₁₂ + B U₂₂, column by column (U₂₂ unit upper).
+                                   // The new attitude block first: W = A U₁₁ (U₁₁ unit upper), then
+                                   // M = W D₁ Wᵀ + Q. It reads only the old U₁₁, D₁, so it can be
+                                   // factored (the one step that can fail) before anything is
+                                   // overwritten, and the rest runs in place.
+        let blk = {
+            let a = &self.m.data.0;
+            let mut w = Matrix3::<T>::zeros();
+            for c in 0..3 {
+                for r in 0..3 {
+                    let mut s = if c < N { phi[c][r] } else { T::zero() };
+                    for k in 0..c {
+                        s += phi[k][r] * a[c][k];
+                    }
+                    w[(r, c)] = s;
+                }
+            }
+            let d1 = Matrix3::from_diagonal(&nalgebra::Vector3::new(a[0][0], a[1][1], a[2][2]));
+            let mut mm = w * d1 * w.transpose() + q;
+            mm = (mm + mm.transpose()) * nalgebra::convert::<f64, T>(0.5);
+            Ud::<T, 3>::from_covariance(&mm)?
+        };
+        let a = &mut self.m.data.0;
+        // U₁₂ ← A U₁₂ + B U₂₂, column by column (U₂₂ unit upper).
         for j in 3..N {
             let mut col = [T::zero(); 3];
             for (r, c) in col.iter_mut().enumerate() {
@@ -248,28 +277,12 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
             a[j][1] = col[1];
             a[j][2] = col[2];
         }
-        // W = A U₁₁ (U₁₁ unit upper), then M = W D₁ Wᵀ + Q.
-        let mut w = Matrix3::<T>::zeros();
-        for c in 0..3 {
-            for r in 0..3 {
-                let mut s = if c < N { phi[c][r] } else { T::zero() };
-                for k in 0..c {
-                    s += phi[k][r] * a[c][k];
-                }
-                w[(r, c)] = s;
-            }
-        }
-        let d1 = Matrix3::from_diagonal(&nalgebra::Vector3::new(a[0][0], a[1][1], a[2][2]));
-        let mut mm = w * d1 * w.transpose() + q;
-        mm = (mm + mm.transpose()) * nalgebra::convert::<f64, T>(0.5);
-        let blk = Ud::<T, 3>::from_covariance(&mm)?;
         let b = &blk.m.data.0;
         for c in 0..3 {
             for r in 0..=c {
                 a[c][r] = b[c][r];
             }
         }
-        self.m = m;
         Some(())
     }
 
