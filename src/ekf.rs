@@ -600,6 +600,19 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         b * b.transpose() + pending.q_extra
     }
 
+    /// Applies the pending period's time update without a measurement, in
+    /// place (the pending period stays recorded; callers clear it). On error
+    /// the factor is untouched.
+    fn settle(&mut self) -> Result<(), Error> {
+        if let Some(pending) = &self.pending {
+            let q = self.process_noise(pending);
+            self.ud
+                .predict_attitude(&to_t(&pending.prop.phi_att), &q)
+                .ok_or(Error::CovarianceNotPositiveDefinite)?;
+        }
+        Ok(())
+    }
+
     /// The factor at the current time: the pending time update applied
     /// without a measurement.
     fn propagated_factor(&self) -> Result<Ud<T, N>, Error> {
@@ -654,8 +667,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let period = self.command.period(dtheta_c, dt);
         // The linearisation point: the estimate (EKF) or the nominal.
         let x_lin = self.reference.unwrap_or(self.x);
-        // A period predicted without a measurement: its time update now.
-        let ud = self.propagated_factor()?;
+        // A period predicted without a measurement: its time update is
+        // applied (in place) once nothing else can fail.
         let prop: PeriodPropagation<f64, N> = layout
             .propagate(
                 &self.config.env,
@@ -674,7 +687,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             x_mid.fixed_rows_mut::<3>(ATT).copy_from(&att_mid);
             let relevant =
                 |j: usize| j < 9 || layout.lam().is_some_and(|i| (i..i + 3).contains(&j));
-            let (_, q2) = hessian_terms(&x_mid, &to_f64(&ud.covariance()), relevant, |xp| {
+            let p_now = to_f64(&self.propagated_factor()?.covariance());
+            let (_, q2) = hessian_terms(&x_mid, &p_now, relevant, |xp| {
                 layout.attitude_rate_jacobian(env, &layout.matrices(xp), &layout.attitude(xp), &wm)
             })
             .ok_or(Error::GimbalLock)?;
@@ -700,8 +714,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         if !all_finite(x_new.iter().copied()) {
             return Err(Error::NonFiniteState);
         }
+        self.settle()?;
         self.x = x_new;
-        self.ud = ud;
         self.command.advance(&period);
         self.pending = Some(Pending {
             period,
@@ -1029,7 +1043,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let above = gate > 0.0 && innovation.nis > nalgebra::convert(gate);
         if above && !self.gate_open && self.gated_run < MAX_GATED_RUN {
             // Predicted only: the time update without the measurement.
-            self.ud = self.propagated_factor()?;
+            self.settle()?;
             self.gated_run += 1;
             self.pending = None;
             return Err(Error::Gated);
@@ -1058,16 +1072,19 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         obs: &Observation<T>,
     ) -> Result<Innovation<T, Z>, Error> {
         if self.pending.is_some() {
-            self.ud = self.propagated_factor()?;
+            self.settle()?;
             self.pending = None;
         }
-        let saved = (self.x, self.ud, self.command, self.reference);
+        // `predict` and `update` leave the factor untouched on error (the
+        // time update is applied in place only once nothing else can fail,
+        // the measurement update works on a copy), so only the state is saved.
+        let saved = (self.x, self.command, self.reference);
         self.predict(dtheta_c, dt)?;
         match self.update(obs) {
             Ok(i) => Ok(i),
             Err(Error::Gated) => Err(Error::Gated),
             Err(e) => {
-                (self.x, self.ud, self.command, self.reference) = saved;
+                (self.x, self.command, self.reference) = saved;
                 self.pending = None;
                 Err(e)
             }
