@@ -13,8 +13,11 @@
 #   - the flash of one-configuration images (M2-ps, M1-pa; cargo features
 #     config-*) and the panicking calls reachable from the estimator
 #     (tools/panic-check.py);
+#   - (full run) the instructions of Finish on both targets and the host
+#     criterion figures of one period;
 # and ends with one line per goal: `goal <name> measured <value> limit
-# <value> met|missed`.
+# <value> met|missed` (and `figure <name> ...` lines for figures without a
+# limit).
 # Usage: firmware/bench.sh [--quick]   (--quick: skip the recorded streams)
 # Needs defmt-print for the logged numbers (cargo install --locked defmt-print).
 set -euo pipefail
@@ -28,12 +31,28 @@ build_plugin
 
 GOALS="$OUT/goals.txt"
 : >"$GOALS"
-# goal NAME MEASURED LIMIT: met when MEASURED <= LIMIT (integers).
+# goal NAME MEASURED LIMIT: met when MEASURED <= LIMIT (integers; a
+# measurement that could not be taken is "unmeasured", never met).
 goal() {
     local verdict=missed
+    if ! [[ "$2" =~ ^[0-9]+$ ]]; then
+        echo "goal $1 measured unmeasured limit $3 missed" >>"$GOALS"
+        return
+    fi
     [ "$2" -le "$3" ] && verdict=met
     echo "goal $1 measured $2 limit $3 $verdict" >>"$GOALS"
 }
+# figure NAME VALUE...: a measured figure without a limit (printed with the goals).
+figure() {
+    local name=$1
+    shift
+    echo "figure $name $*" >>"$GOALS"
+}
+# mean_of FILE: the mean instruction count of all regions (insnmark "all:" line).
+mean_of() { { grep '^insnmark:' "$1" || true; } | sed -nE 's/.*all: regions=[0-9]+ mean=([0-9]+).*/\1/p' | head -1; }
+# peak_of ELF DEFMT: the painted peak stack (bytes) the firmware logged.
+peak_of() { { show_defmt "$1" "$2" || true; } | sed -nE 's/.*peak stack ([0-9]+) bytes.*/\1/p' | tail -1; }
+declare -A INSN
 print_goals() {
     echo
     echo "## Goals"
@@ -84,7 +103,10 @@ echo
 echo "## Static stack use (tools/stack-usage.py: every sp decrement of a function body, summed along the deepest call path)"
 for v in m4f m7; do
     echo "$v:"
-    python3 "$ROOT/tools/stack-usage.py" "$(elf_of $v)" '^main @|Filter<.*>::step @' | grep -E 'deepest' | sed 's/^/    /'
+    su=$(python3 "$ROOT/tools/stack-usage.py" "$(elf_of $v)" '^main @|Filter<.*>::step @' | grep -E 'deepest' || true)
+    echo "$su" | sed 's/^/    /'
+    own=$(echo "$su" | sed -nE 's/.*Filter<.*>::step @[0-9a-f]+: own frame ([0-9]+) B.*/\1/p' | sort -n | tail -1)
+    goal "stack-step-own-frame-$v" "${own:-x}" 8192
 done
 
 # The synthetic runs use 1000× the paper's accelerometer and gimbal noise:
@@ -101,10 +123,33 @@ for v in m4f m7; do
                 "source=synthetic config=$c mode=$m periods=200 noise_scale=1000" "first=3" \
                 2>"$OUT/bench.plugin" || echo "    (exit status $?)"
             counts "$OUT/bench.plugin"
-            logged "$(elf_of $v)" "$OUT/bench.defmt" 'run done'
+            logged "$(elf_of $v)" "$OUT/bench.defmt" 'run done|peak stack'
+            INSN[$v-$c-$m]=$(mean_of "$OUT/bench.plugin")
+            if [ "$m" = default ]; then
+                goal "stack-painted-synthetic-$v-$c" "$(peak_of "$(elf_of $v)" "$OUT/bench.defmt")" 16384
+            fi
         done
+        lin=${INSN[$v-$c-linearised]:-}
+        cc=$(echo "$c" | tr -d - | tr '[:upper:]' '[:lower:]')
+        limit=40000
+        [ "$c" = M2-ps ] && { [ "$v" = m4f ] && limit=100000 || limit=120000; }
+        goal "insn-period-linearised-$v-$cc" "$lin" "$limit"
+        ratio=x
+        [ -n "$lin" ] && [ -n "${INSN[$v-$c-default]:-}" ] && ratio=$((100 * ${INSN[$v-$c-default]} / lin))
+        goal "pass1-over-linearised-x100-$v-$cc" "$ratio" 200
     done
 done
+
+# f32 trigonometry on the M4F: calls into f64 soft-float (__aeabi_d*,
+# __*df3) from libm's sinf/cosf/sincosf bodies in the M4F image.
+echo
+echo "## f64 emulation inside the M4F's f32 trigonometry (calls to __aeabi_d* / __*df3 from libm's sinf, cosf, sincosf)"
+n=$(arm-none-eabi-objdump -d --no-show-raw-insn "$M4F_ELF" | awk '
+    /^[0-9a-f]+ <.*>:$/ { inside = ($0 ~ /libm[0-9a-zA-Z_]*math[0-9a-zA-Z_]*(sinf|cosf|sincosf|k_sinf|k_cosf|rem_pio2f)/) }
+    inside && /\tbl\t/ && /(__aeabi_d|df3|__aeabi_f2d|__aeabi_d2f)/ { n++ }
+    END { print n + 0 }')
+echo "m4f: $n calls"
+goal "f64-calls-in-f32-trig-m4f" "$n" 0
 echo
 echo "## size_of the filters (logged by the firmware)"
 for v in m4f m7; do
@@ -148,18 +193,51 @@ for v in m7 m4f; do
             counts "$OUT/bench.plugin"
             logged "$(elf_of $v)" "$OUT/bench.defmt" 'stream done|peak stack'
             [ "$rc" -eq 0 ] || echo "    (exit status $rc: samples rejected)"
+            if [ "$m" = default ]; then
+                cc=$(echo "$c" | tr -d - | tr '[:upper:]' '[:lower:]')
+                goal "stack-painted-stream-$v-$cc" "$(peak_of "$(elf_of $v)" "$OUT/bench.defmt")" 16384
+            fi
         done
     done
 done
 
 echo
-echo "## Instructions of Finish (Calibrator::finish: the estimator of record over the 5400-record log), m7, recorded streams"
-for c in M2-ps M1-pa; do
-    echo "m7 $c:"
-    MARK=finish run_qemu m7 "$OUT/$c-in.bin" "$OUT/bench.reply" "$OUT/bench.defmt" \
-        "exit=request reply=uart1" "first=1" 2>"$OUT/bench.plugin" || echo "    (exit status $?)"
-    counts "$OUT/bench.plugin"
-    logged "$M7_ELF" "$OUT/bench.defmt" 'Finish:|peak stack'
+echo "## Instructions of Finish (Calibrator::finish: the estimator of record over the 5400-record log), recorded streams"
+for v in m7 m4f; do
+    mhz=400
+    [ "$v" = m4f ] && mhz=168
+    for c in M2-ps M1-pa; do
+        echo "$v $c:"
+        t=${QEMU_TIMEOUT:-600}
+        [ "$v" = m4f ] && t=${QEMU_TIMEOUT_F32:-900}
+        QEMU_TIMEOUT=$t MARK=finish run_qemu "$v" "$OUT/$c-in.bin" "$OUT/bench.reply" "$OUT/bench.defmt" \
+            "exit=request reply=uart1" "first=1" 2>"$OUT/bench.plugin" || echo "    (exit status $?)"
+        counts "$OUT/bench.plugin"
+        logged "$(elf_of $v)" "$OUT/bench.defmt" 'Finish:|peak stack'
+        n=$(mean_of "$OUT/bench.plugin")
+        cc=$(echo "$c" | tr -d - | tr '[:upper:]' '[:lower:]')
+        if [ -n "$n" ]; then
+            figure "finish-insns-$v-$cc" "$n instructions = $(awk -v n="$n" -v f="$mhz" 'BEGIN { printf "%.1f", n / (f * 1e6) }') s at $mhz MHz (1 instruction per cycle)"
+        else
+            figure "finish-insns-$v-$cc" unmeasured
+        fi
+    done
 done
+
+echo
+echo "## Host, one filter period (criterion: cargo bench -p rollcal --bench filter_period)"
+(cd "$ROOT" && cargo bench -q -p rollcal --bench filter_period -- --warm-up-time 1 --measurement-time 5 'period/' 2>&1 | grep -E 'time:' | sed 's/^/    /') || true
+ns() {
+    python3 -c 'import json,sys; print(round(json.load(open(sys.argv[1]))["median"]["point_estimate"]))' \
+        "$ROOT/target/criterion/period/$1/new/estimates.json" 2>/dev/null || echo x
+}
+goal host-ns-period-linearised-m2ps "$(ns m2ps_linearised)" 3000
+goal host-ns-period-linearised-m1pa "$(ns m1pa_linearised)" 1500
+for c in m2ps m1pa; do
+    d=$(ns ${c}_default) l=$(ns ${c}_linearised) r=x
+    [[ "$d$l" =~ ^[0-9]+$ ]] && r=$((100 * d / l))
+    goal "host-pass1-over-linearised-x100-$c" "$r" 200
+done
+figure host-ns-dense-reference "18x6 $(ns dense_18x6) ns, 12x3 $(ns dense_12x3) ns"
 
 print_goals

@@ -145,6 +145,25 @@ impl<T: RealField + Copy> Platform<T> {
     }
 }
 
+/// `out = a b` for square `R×R` matrices, on the column arrays (nalgebra's
+/// generic product of this size goes through its `gemm` with per-element
+/// dispatch; these zipped loops have no bounds checks and unroll).
+fn mul_into<T: RealField + Copy, const R: usize>(
+    a: &SMatrix<T, R, R>,
+    b: &SMatrix<T, R, R>,
+    out: &mut SMatrix<T, R, R>,
+) {
+    let a = &a.data.0; // a[col][row]
+    for (oj, bj) in out.data.0.iter_mut().zip(b.data.0.iter()) {
+        *oj = [T::zero(); R];
+        for (ak, bkj) in a.iter().zip(bj.iter()) {
+            for (o, x) in oj.iter_mut().zip(ak.iter()) {
+                *o += *x * *bkj;
+            }
+        }
+    }
+}
+
 /// `E_k = ∂L(t)/∂t_k` times `m`.
 fn e_times<T: RealField + Copy>(k: usize, m: &Matrix3<T>) -> Matrix3<T> {
     let mut e = Matrix3::zeros();
@@ -301,7 +320,7 @@ impl Layout {
             for &(pj, lj, _) in at.iter().skip(n) {
                 let blk = pieces.block(pi, pj, &c_neg);
                 for (k, mk) in blk.iter().enumerate() {
-                    for (l, v) in mk.column_iter().enumerate() {
+                    for (l, v) in mk.data.0.iter().enumerate() {
                         for (ha, va) in hess.iter_mut().zip(v.iter()) {
                             if let Some(e) = ha.get_mut((li + k, lj + l)) {
                                 *e = *va;
@@ -334,14 +353,21 @@ impl Layout {
         for ((ha, dst), mu) in hess.iter_mut().zip(hp.iter_mut()).zip(mean.iter_mut()) {
             // The diagonal blocks are symmetric only up to rounding.
             *ha = (*ha + ha.transpose()) * half;
-            *dst = *ha * p_r;
+            mul_into(ha, &p_r, dst);
             *mu = dst.trace() * half;
         }
         let mut cov = Matrix3::zeros();
         for (a, ha) in hp.iter().enumerate() {
             for (b, hb) in hp.iter().enumerate().skip(a) {
                 // tr(A B) = Σ_ij A_ij B_ji
-                let t = ha.component_mul(&hb.transpose()).sum() * half;
+                let hbt = hb.transpose();
+                let mut t = T::zero();
+                for (ca, cb) in ha.data.0.iter().zip(hbt.data.0.iter()) {
+                    for (x, y) in ca.iter().zip(cb.iter()) {
+                        t += *x * *y;
+                    }
+                }
+                t *= half;
                 if let Some(v) = cov.get_mut((a, b)) {
                     *v = t;
                 }
