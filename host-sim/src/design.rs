@@ -1185,7 +1185,6 @@ mod tests {
 // The `host-sim design` subcommand.
 // ---------------------------------------------------------------------------
 
-use std::io::IsTerminal;
 use std::path::PathBuf;
 
 /// Arguments of `host-sim design`.
@@ -1276,65 +1275,6 @@ fn parse_positive(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
         _ => Err(format!("'{s}' must be a positive number")),
-    }
-}
-
-/// Progress on stderr: a bar on a terminal, a line every 10 % in a log.
-struct Progress {
-    bar: Option<indicatif::ProgressBar>,
-    last: std::sync::Mutex<(String, usize)>,
-    t0: std::time::Instant,
-}
-
-impl Progress {
-    fn new() -> Self {
-        let bar = std::io::stderr().is_terminal().then(|| {
-            let b = indicatif::ProgressBar::new(1);
-            if let Ok(st) = indicatif::ProgressStyle::with_template(
-                "{msg} [{bar:40}] {pos}/{len} candidates ({elapsed}, eta {eta})",
-            ) {
-                b.set_style(st.progress_chars("=> "));
-            }
-            b
-        });
-        Self {
-            bar,
-            last: std::sync::Mutex::new((String::new(), 0)),
-            t0: std::time::Instant::now(),
-        }
-    }
-
-    fn update(&self, stage: &str, done: usize, total: usize) {
-        if let Some(b) = &self.bar {
-            b.set_message(stage.to_string());
-            b.set_length(total as u64);
-            b.set_position(done as u64);
-            return;
-        }
-        let Ok(mut last) = self.last.lock() else {
-            return;
-        };
-        // A new stage, or 10 % more of a stage whose size is known (stage
-        // 2 grows as it climbs: at most one line per 10 candidates there).
-        let decile = if stage == "stage 2" {
-            done / 10
-        } else {
-            done * 10 / total.max(1)
-        };
-        if last.0 != stage || decile > last.1 {
-            *last = (stage.to_string(), decile);
-            eprintln!(
-                "design: {stage}: {done}/{total} candidates ({} %), {:.1} s",
-                done * 100 / total.max(1),
-                self.t0.elapsed().as_secs_f64()
-            );
-        }
-    }
-
-    fn finish(&self) {
-        if let Some(b) = &self.bar {
-            b.finish_and_clear();
-        }
     }
 }
 
@@ -1484,11 +1424,17 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
         rayon::current_num_threads()
     );
     let (design, mut periods, coarse_periods, coarse, coarse_change) = loop {
-        let progress = Progress::new();
+        let progress = crate::progress::Progress::stderr("design", 1, "candidates");
+        let last = std::sync::Mutex::new(0u64);
         let design = search(&problem, &space, goal, &|st, d, t| {
-            progress.update(st, d, t)
+            if let Ok(mut l) = last.lock() {
+                *l = d as u64;
+            }
+            progress.stage(st, d as u64, t as u64, "")
         });
-        progress.finish();
+        if let Ok(l) = last.lock() {
+            progress.finish(*l, "");
+        }
         let design = design?;
         let best = &design.best.pattern;
 

@@ -397,30 +397,7 @@ pub fn crlb_sigma(
     bound(id, cfg, &truth0, scenario.prior.sigma_deg * DEG, &records)
 }
 
-/// What the run says of one state.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Verdict {
-    /// Claimed observable (SPEC §3) and within 4σ of the truth.
-    Converged,
-    /// Claimed observable but more than 4σ from the truth.
-    Failed,
-    /// Not claimed; σ below 1 % of the prior (observable in practice, SPEC §5).
-    Observable,
-    /// Not claimed; σ at or above 1 % of the prior.
-    NotObservable,
-}
-
-impl Verdict {
-    /// Stable text used in tables and JSON.
-    pub const fn as_str(self) -> &'static str {
-        match self {
-            Verdict::Converged => "converged",
-            Verdict::Failed => "FAILED (> 4 sigma)",
-            Verdict::Observable => "observable",
-            Verdict::NotObservable => "not observable",
-        }
-    }
-}
+pub use crate::verdict::Verdict;
 
 /// The verdict on state `s` of configuration `id` with prior σ `prior` (rad).
 pub fn verdict(id: ConfigId, s: &StateResult, group: Group, prior: f64) -> Verdict {

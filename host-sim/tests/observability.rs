@@ -6,7 +6,8 @@
 use std::sync::OnceLock;
 
 use host_sim::montecarlo::monte_carlo;
-use host_sim::observe::{analyse, ConfigObs, ObsVerdict};
+use host_sim::observe::{analyse, ConfigObs};
+use host_sim::verdict::Verdict;
 use host_sim::runner::{expected_observable, run_filter, Estimator};
 use host_sim::scenario::{Scenario, DEG};
 use host_sim::truth::{simulate, SimOptions, Simulation};
@@ -47,9 +48,9 @@ fn earth_off_verdicts_match_the_paper() {
             }
             let claimed = expected_observable(c.config, s.name, s.group);
             let expected = if claimed {
-                ObsVerdict::Observable
+                Verdict::Observable
             } else {
-                ObsVerdict::StructurallyUnobservable
+                Verdict::StructurallyUnobservable
             };
             assert_eq!(
                 s.verdict, expected,
@@ -82,7 +83,7 @@ fn earth_rate_resolves_the_azimuth_but_not_the_ps_gauge() {
     }
     let m2 = on.iter().find(|c| c.config == ConfigId::M2Ps).unwrap();
     let lam_y = m2.states.iter().find(|s| s.name == "lam_y").unwrap();
-    assert_ne!(lam_y.verdict, ObsVerdict::StructurallyUnobservable);
+    assert_ne!(lam_y.verdict, Verdict::StructurallyUnobservable);
     // Weakly: thousands of times worse than λx, λz.
     let lam_x = m2.states.iter().find(|s| s.name == "lam_x").unwrap();
     assert!(lam_y.sigma_crlb_rad > 20.0 * lam_x.sigma_crlb_rad);
