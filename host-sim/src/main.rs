@@ -579,9 +579,6 @@ Verdicts (x y z per group; yes: observable, weak: σ_CRLB/σ_prior ≥ 0.01, no:
 }
 
 fn cmd_montecarlo(args: &MonteCarloArgs) -> Result<(), String> {
-    if args.runs == 0 {
-        return Err("--runs must be at least 1 (no run, no statistics)".into());
-    }
     let scenario = load_scenario(args.scenario.as_deref())?;
     let runs = usize::try_from(args.runs).map_err(|e| e.to_string())?;
     eprintln!(

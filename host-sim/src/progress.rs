@@ -26,6 +26,8 @@ struct State {
     /// Last log bucket printed (`percent / LOG_STEP_PERCENT`) of this stage.
     bucket: Option<u64>,
     last_draw: Option<Instant>,
+    /// Count and detail of the last line printed.
+    printed: Option<(u64, String)>,
     finished: bool,
     out: Box<dyn Write + Send>,
 }
@@ -65,6 +67,7 @@ impl Progress {
                 total,
                 bucket: None,
                 last_draw: None,
+                printed: None,
                 finished: false,
                 out,
             }),
@@ -120,11 +123,21 @@ impl Progress {
             st.last_draw = Some(now);
         } else {
             let bucket = percent / LOG_STEP_PERCENT;
-            if !last && st.bucket.is_some_and(|b| bucket <= b) {
+            if last {
+                // The final line, unless the log already ends with it.
+                if st
+                    .printed
+                    .as_ref()
+                    .is_some_and(|(n, d)| *n == done && d == detail)
+                {
+                    return;
+                }
+            } else if st.bucket.is_some_and(|b| bucket <= b) {
                 return;
             }
             st.bucket = Some(bucket);
         }
+        st.printed = Some((done, detail.to_string()));
         let line = self.line(st, done, percent, detail, now);
         let text = if self.terminal {
             let filled = usize::try_from(percent.min(100)).unwrap_or(100) * BAR / 100;
@@ -172,7 +185,10 @@ mod tests {
     struct Buf(Arc<Mutex<Vec<u8>>>);
     impl Write for Buf {
         fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
-            self.0.lock().map_err(|_| std::io::ErrorKind::Other)?.extend_from_slice(b);
+            self.0
+                .lock()
+                .map_err(|_| std::io::ErrorKind::Other)?
+                .extend_from_slice(b);
             Ok(b.len())
         }
         fn flush(&mut self) -> std::io::Result<()> {
@@ -199,7 +215,10 @@ mod tests {
         // 0 %, 5 %, …, 90 % (5124 is 94 %), then the final line.
         assert_eq!(lines.len(), 20, "{text}");
         let last = lines.last().unwrap();
-        assert!(last.contains("5400/5400 samples (100 %), 0 rejected"), "{last}");
+        assert!(
+            last.contains("5400/5400 samples (100 %), 0 rejected"),
+            "{last}"
+        );
     }
 
     #[test]

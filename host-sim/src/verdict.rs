@@ -30,6 +30,16 @@ pub enum Verdict {
 }
 
 impl Verdict {
+    /// Every verdict.
+    pub const ALL: [Verdict; 6] = [
+        Verdict::Converged,
+        Verdict::Failed,
+        Verdict::Observable,
+        Verdict::WeaklyObservable,
+        Verdict::StructurallyUnobservable,
+        Verdict::NotObservable,
+    ];
+
     /// The printed word (README "Verdict words").
     pub const fn as_str(self) -> &'static str {
         match self {

@@ -7,10 +7,10 @@ use std::sync::OnceLock;
 
 use host_sim::montecarlo::monte_carlo;
 use host_sim::observe::{analyse, ConfigObs};
-use host_sim::verdict::Verdict;
 use host_sim::runner::{expected_observable, run_filter, Estimator};
 use host_sim::scenario::{Scenario, DEG};
 use host_sim::truth::{simulate, SimOptions, Simulation};
+use host_sim::verdict::Verdict;
 use nalgebra::SVector;
 use rollcal::models::{ConfigId, Group, M1Ps};
 use rollcal::observability::{Observability, RANK_TOLERANCE};
