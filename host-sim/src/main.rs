@@ -20,7 +20,7 @@ use rollcal::models::ConfigId;
     about = "Truth simulator and estimator runs for rollcal (continuous rolling self-calibration)",
     long_about = "Truth simulator and estimator runs for rollcal.\n\n\
         Without a subcommand, regenerates the whole paper (`paper`): observability tables, \
-        all seven estimator runs on the paper's scenario (SPEC §4), figures and a summary \
+        all seven estimator runs on the paper's scenario (docs/model.md §The paper's scenario), figures and a summary \
         in ./paper-out/."
 )]
 struct Cli {

@@ -1,5 +1,5 @@
 //! The observability analysis of every configuration along a scenario's path
-//! (SPEC §5), on top of [`rollcal::observability`].
+//! (docs/model.md §Observability), on top of [`rollcal::observability`].
 
 use nalgebra::SVector;
 use rollcal::ekf;

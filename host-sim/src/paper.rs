@@ -38,7 +38,7 @@ pub struct SummaryState {
     pub observable_earth_off: bool,
     /// Observable in practice with the Earth rate on.
     pub observable_earth_on: bool,
-    /// The paper's claim (SPEC §3), for installation errors and λ; `null`
+    /// The paper's claim (docs/model.md §Configurations), for installation errors and λ; `null`
     /// for the attitude states, on which the paper claims nothing per axis.
     pub paper_observable: Option<bool>,
     /// Whether the Earth-off analysis agrees with the paper's claim.

@@ -126,7 +126,7 @@ fn initial<const N: usize>(x0: &[f64], sigma0: f64) -> (SVector<f64, N>, SVector
 /// One state at the end of a run.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct StateResult {
-    /// SPEC name, e.g. `thgC_x`.
+    /// State name (docs/model.md §State names), e.g. `thgC_x`.
     pub name: &'static str,
     /// Group, e.g. `thgC`.
     pub group: &'static str,
@@ -358,7 +358,7 @@ pub fn result(id: ConfigId, p: &Passes, truth: &[f64], sigma0: f64) -> RunResult
 /// states are zero) with prior σ `sigma0` (rad) on every state and the noise
 /// levels of `cfg` (its options are ignored): [`Observability`] along the
 /// true trajectory, a record without measurement being a period that is
-/// only predicted (SPEC §5.3). The one computation of the bound.
+/// only predicted (docs/model.md §Observability, item 3). The one computation of the bound.
 pub fn bound(
     id: ConfigId,
     cfg: FilterConfig<f64>,
@@ -414,8 +414,8 @@ pub fn verdict(id: ConfigId, s: &StateResult, group: Group, prior: f64) -> Verdi
     }
 }
 
-/// Whether a state is expected to converge in configuration `id` (SPEC §3,
-/// refined verdicts), used for summaries.
+/// Whether a state is expected to converge in configuration `id` (docs/model.md
+/// §Configurations), used for summaries.
 pub fn expected_observable(id: ConfigId, name: &str, group: Group) -> bool {
     use ConfigId::*;
     match group {

@@ -1,5 +1,5 @@
 //! Scenario files (TOML): truth parameters, rolling path, noise, timing and
-//! prior. The paper's scenario (SPEC §4) is the built-in default and is
+//! prior. The paper's scenario (docs/model.md §The paper's scenario) is the built-in default and is
 //! shipped as `scenarios/paper.toml`.
 
 use std::fmt;
@@ -169,7 +169,7 @@ impl Axis {
 }
 
 impl Scenario {
-    /// The paper's scenario (SPEC §4).
+    /// The paper's scenario (docs/model.md §The paper's scenario).
     pub fn paper() -> Self {
         // The shipped file is validated by a test; fall back never happens.
         Self::from_toml(PAPER_TOML)

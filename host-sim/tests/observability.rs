@@ -1,5 +1,5 @@
-//! The observability analysis (SPEC §5) on the paper's scenario: the verdicts
-//! with the Earth rate off reproduce the paper's table (SPEC §3), the M1-ps
+//! The observability analysis (docs/model.md §Observability) on the paper's scenario: the verdicts
+//! with the Earth rate off reproduce the paper's table (docs/model.md §Configurations), the M1-ps
 //! null space is the common rotation of eq. 28, the filter reaches the
 //! Cramér–Rao bound, and a Monte Carlo study is consistent with it.
 
@@ -72,7 +72,7 @@ fn earth_rate_resolves_the_azimuth_but_not_the_ps_gauge() {
         // The Earth rate removes exactly the azimuth direction.
         assert_eq!(b.rank, a.rank + 1, "{}", a.config);
         // The ps frame's gauge (δψ = δθgC = δθaC, paper eq. 28) and M3's
-        // θA/λ ambiguity stay exactly unobservable (a SPEC correction: the
+        // θA/λ ambiguity stay exactly unobservable (a correction of the paper: the
         // Earth rate does not help them).
         let gauge = match a.config {
             ConfigId::M1Ps | ConfigId::M4Ps | ConfigId::M3Pa => 3,
