@@ -59,6 +59,12 @@ pub mod observability;
 pub mod session;
 pub mod wire;
 
+/// The README's Rust examples, compiled and run as doc-tests
+/// (`cargo test --doc`); not part of the API.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;
+
 pub use calibrator::{Calibrator, M1PaCalibrator, M2PsCalibrator, M4PaCalibrator, RejectReason};
 pub use ekf::{Error, Filter, FilterConfig, Innovation, Observation, Options};
 pub use estimator::{EstimatorOptions, LogRecord, SampleLog, SliceLog};
