@@ -557,7 +557,7 @@ fn cmd_observability(args: &ObservabilityArgs) -> Result<(), String> {
     print_report(&configs, earth_rate);
     println!(
         "
-Verdicts (x y z per group; yes: observable, weak: σ_CRLB/σ_prior ≥ 0.01, no: in the null space):\n"
+Verdicts (x y z per group; yes: observable in practice, weak: σ_CRLB/σ_prior ≥ 0.01, no: in the null space):\n"
     );
     print!("{}", verdict_matrix_markdown(&configs));
     if earth_rate {
