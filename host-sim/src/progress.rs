@@ -18,7 +18,7 @@ pub const LOG_STEP_PERCENT: u64 = 5;
 const REDRAW: Duration = Duration::from_millis(100);
 
 /// Width of the terminal bar (characters).
-const BAR: usize = 30;
+const BAR: usize = 20;
 
 struct State {
     stage: String,
@@ -141,12 +141,24 @@ impl Progress {
         let line = self.line(st, done, percent, detail, now);
         let text = if self.terminal {
             let filled = usize::try_from(percent.min(100)).unwrap_or(100) * BAR / 100;
-            format!(
-                "\r{line} [{}{}]\x1b[K{}",
+            // One terminal row, or `\r` would redraw only its last part
+            // (the last line, which ends the row, is written whole).
+            let width = std::env::var("COLUMNS")
+                .ok()
+                .and_then(|c| c.parse::<usize>().ok())
+                .unwrap_or(80)
+                .saturating_sub(1);
+            let full = format!(
+                "[{}{}] {line}",
                 "=".repeat(filled),
-                " ".repeat(BAR - filled),
-                if last { "\n" } else { "" }
-            )
+                " ".repeat(BAR - filled)
+            );
+            let row: String = if last {
+                full
+            } else {
+                full.chars().take(width.max(BAR + 2)).collect()
+            };
+            format!("\r{row}\x1b[K{}", if last { "\n" } else { "" })
         } else {
             format!("{line}\n")
         };
