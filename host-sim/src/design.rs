@@ -1356,6 +1356,12 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
     if max_periods == 0 {
         return Err("--max-duration-s is shorter than one period".into());
     }
+    let limit = crate::scenario::MAX_PERIODS;
+    if max_periods > limit {
+        return Err(format!(
+            "--max-duration-s {max_duration} is {max_periods} periods, more than the {limit} this tool simulates"
+        ));
+    }
     let mut axes = Vec::new();
     for a in &args.axes {
         let ax = NamedAxis::named(a.trim())?;
@@ -1397,6 +1403,11 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
             if p == 0 || ((b / period_s) - p as f64).abs() > 1e-9 {
                 return Err(format!(
                     "--budget-s {b} must be a whole number of {period_s} s periods"
+                ));
+            }
+            if p > limit {
+                return Err(format!(
+                    "--budget-s {b} is {p} periods, more than the {limit} this tool simulates"
                 ));
             }
             Goal::Budget { periods: p }

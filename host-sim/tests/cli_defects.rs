@@ -152,6 +152,18 @@ fn a_huge_duration_is_refused_before_allocating() {
         let out = c.output().unwrap();
         assert_one_line_error(&out, "periods");
     }
+    // The same limit on the durations `design` takes from its arguments
+    // (before it, 1e10 s grew to gigabytes within seconds).
+    for opt in ["--max-duration-s", "--budget-s"] {
+        let out = host_sim()
+            .args(["design", "--config", "m1-pa", opt, "1e10", "--out"])
+            .arg(dir.join("d.toml"))
+            .arg("--figure")
+            .arg(dir.join("d.png"))
+            .output()
+            .unwrap();
+        assert_one_line_error(&out, "periods");
+    }
     std::fs::remove_dir_all(&dir).ok();
 }
 
