@@ -1,6 +1,6 @@
 //! The computed (mathematical) platform frame `c` and the commanded rate
-//! within one filter period (SPEC §3, "The computed frame c follows the
-//! commanded path exactly").
+//! within one filter period (docs/model.md §Frames and §Measurement
+//! timing: the computed frame c follows the commanded path exactly).
 //!
 //! The platform computer commands `ωc = ω^c_ic = C^c_n (ω^n_ie + ω^n_path)`.
 //! A sample carries only the angle increment `Δθc = ∫ωc dt` over the period,
@@ -54,7 +54,7 @@ pub struct CommandFrame<T: RealField + Copy> {
 }
 
 impl<T: RealField + Copy> CommandFrame<T> {
-    /// A computed frame aligned with n (`C^c_n(0) = I`, SPEC §4).
+    /// A computed frame aligned with n (`C^c_n(0) = I`, docs/model.md §The paper's scenario).
     pub fn aligned(earth_rate_n: Vector3<T>) -> Self {
         Self {
             c_cn: Matrix3::identity(),

@@ -1,4 +1,4 @@
-//! The extended Kalman filter over any configuration (SPEC §6).
+//! The extended Kalman filter over any configuration (docs/model.md §Estimator).
 //!
 //! One filter period: [`Filter::predict`] propagates the state by one RK4
 //! step over the commanded motion of the period; [`Filter::update`] then
@@ -947,7 +947,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     }
 
     /// The factored update of one period, measurement and time update
-    /// together (SPEC §6; Anderson & Moore, *Optimal Filtering*, §5.5).
+    /// together (docs/model.md §Measurement timing, the gyro noise; Anderson &
+    /// Moore, *Optimal Filtering*, §5.5).
     ///
     /// The measurement `z = H x_{k+1} + D u + v` shares the period's gyro
     /// noise `u` with the dynamics `x_{k+1} = Φ x_k + G u`. Written as a

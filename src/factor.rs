@@ -1,4 +1,4 @@
-//! The U-D factored state covariance `P = U D Uᵀ` (SPEC §6, single
+//! The U-D factored state covariance `P = U D Uᵀ` (docs/model.md §Estimator, single
 //! precision).
 //!
 //! `U` is unit upper triangular and `D` diagonal and positive. The factor

@@ -1,4 +1,4 @@
-//! Frames, rotations and gimbal kinematics (SPEC §2; paper eqs. 1, 2, 5).
+//! Frames, rotations and gimbal kinematics (docs/model.md §Frames; paper eqs. 1, 2, 5).
 //!
 //! Every function here is pure and allocation-free. Angles are radians,
 //! direction-cosine matrices (DCMs) follow the convention `C^b_a` = "from
@@ -154,7 +154,7 @@ pub fn right_jacobian<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T> {
 }
 
 /// Inverse of [`right_jacobian`]: `J_r⁻¹(θ)`, the map from the angular rate
-/// to the rotation-vector rate, `θ̇ = J_r⁻¹(θ) ω` (SPEC §3, M1 dynamics).
+/// to the rotation-vector rate, `θ̇ = J_r⁻¹(θ) ω` (docs/model.md §Configurations, M1 dynamics).
 pub fn right_jacobian_inv<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T> {
     let angle2 = theta.norm_squared();
     let k = skew(theta);

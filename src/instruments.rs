@@ -1,5 +1,5 @@
-//! Instrument installation models (SPEC §2 "Instrument installation
-//! models"; paper eqs. 6, 10, 11).
+//! Instrument installation models (docs/model.md §Installation models;
+//! paper eqs. 6, 10, 11).
 //!
 //! Angles are radians. `θgC`, `θaC` are the axis-rotation (misalignment)
 //! angles of the gyro and accelerometer triads, `θgT`, `θaT` their

@@ -11,7 +11,7 @@
 //! type with its dimensions fixed at compile time. Generic over the scalar
 //! (`f64` reference; `f32` for FPUs without double precision).
 //!
-//! Conventions (SPEC §2): radians inside, specific force in g, navigation
+//! Conventions (docs/model.md §Notation, §Frames): radians inside, specific force in g, navigation
 //! frame North–Up–East, `C^b_a` maps frame-a coordinates to frame b, and
 //! `R(θ) = exp(−[θ×])`. See [`geometry`] for the frames.
 //!
@@ -20,14 +20,14 @@
 //! - [`instruments`]: installation models `G`, `A` (eqs. 6, 10, 11);
 //! - [`command`]: the computed frame and the commanded rate;
 //! - [`models`]: the seven configurations (paper §1.3);
-//! - [`ekf`]: the filter (SPEC §6);
+//! - [`ekf`]: the filter (docs/model.md §Estimator);
 //! - [`second_order`]: the analytic Hessian of the accelerometer model
 //!   (the filter's second-order terms);
 //! - [`estimator`]: the estimator of record, the multi-pass filter over a
 //!   whole run kept in a caller-provided [`estimator::SampleLog`];
 //! - [`observability`]: information matrix, null space and Cramér–Rao
-//!   bound along a path (SPEC §5);
-//! - [`wire`]: the serial protocol (SPEC §7): messages, frames, decoder;
+//!   bound along a path (docs/model.md §Observability);
+//! - [`wire`]: the serial protocol (docs/wire.md): messages, frames, decoder;
 //! - [`calibrator`]: the front end that validates samples, bridges lost data
 //!   along the commanded motion (or re-acquires the attitude), runs pass 1,
 //!   logs the run, answers `Finish` with the estimator of record, emits
@@ -61,6 +61,12 @@ pub mod observability;
 pub mod second_order;
 pub mod session;
 pub mod wire;
+
+/// The README's Rust examples, compiled and run as doc-tests
+/// (`cargo test --doc`); not part of the API.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;
 
 pub use calibrator::{Calibrator, M1PaCalibrator, M2PsCalibrator, M4PaCalibrator, RejectReason};
 pub use ekf::{Error, Filter, FilterConfig, Innovation, Observation, Options};

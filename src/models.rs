@@ -1,4 +1,4 @@
-//! The seven system configurations of SPEC §3 (paper §1.3).
+//! The seven system configurations of docs/model.md §Configurations (paper §1.3).
 //!
 //! A configuration is composed of four parts:
 //! - the **attitude model** ([`AttitudeKind`]): the misalignment `ψ` of the
@@ -45,7 +45,7 @@ pub enum AttitudeKind {
     Attitude,
 }
 
-/// Which platform frame the filter estimates in (SPEC §2).
+/// Which platform frame the filter estimates in (docs/model.md §Frames).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum PlatformFrame {
@@ -113,7 +113,7 @@ impl Layout {
     }
 }
 
-/// The seven configurations of SPEC §3.
+/// The seven configurations of docs/model.md §Configurations.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[derive(serde::Serialize, serde::Deserialize)]
@@ -306,7 +306,7 @@ macro_rules! with_built_config {
 }
 
 impl ConfigId {
-    /// All seven, in SPEC order.
+    /// All seven, in the order of docs/model.md §Configurations.
     pub const ALL: [ConfigId; 7] = [
         ConfigId::M1Pa,
         ConfigId::M1Ps,
@@ -333,7 +333,8 @@ impl ConfigId {
         }
     }
 
-    /// The first configuration of this build, in SPEC order (the one a
+    /// The first configuration of this build, in the order of docs/model.md
+    /// §Configurations (the one a
     /// one-configuration build runs).
     pub const fn first_built() -> ConfigId {
         use ConfigId::*;
@@ -350,7 +351,7 @@ impl ConfigId {
         }
     }
 
-    /// The SPEC identifier, e.g. `"M2-ps"`.
+    /// The identifier (docs/model.md §Configurations), e.g. `"M2-ps"`.
     pub const fn as_str(self) -> &'static str {
         match self {
             ConfigId::M1Pa => "M1-pa",
@@ -363,7 +364,7 @@ impl ConfigId {
         }
     }
 
-    /// Parses a SPEC identifier, case-insensitively (`m2-ps` = `M2-ps`).
+    /// Parses an identifier (docs/model.md §Configurations), case-insensitively (`m2-ps` = `M2-ps`).
     pub fn parse(s: &str) -> Option<Self> {
         Self::ALL
             .into_iter()
@@ -461,7 +462,7 @@ impl Group {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct StateInfo {
-    /// The ASCII SPEC symbol, e.g. `thgC_x`, `thaT_1`, `lam_z`: a stable
+    /// The ASCII name of the symbol (docs/model.md §State names), e.g. `thgC_x`, `thaT_1`, `lam_z`: a stable
     /// interface of the JSON/CSV outputs.
     pub name: &'static str,
     /// Unit of the state (always `"rad"`).
@@ -701,7 +702,7 @@ impl Layout {
     }
 
     /// The attitude-state rate (rad/s) at attitude `att` under commanded rate
-    /// `omega_c` (SPEC §3): M1 `ψ̇ = J_r⁻¹(ψ)(G ωc − R(ψ) ωc)`;
+    /// `omega_c` (docs/model.md §Configurations): M1 `ψ̇ = J_r⁻¹(ψ)(G ωc − R(ψ) ωc)`;
     /// M2/M3 `θ̇A = T(θA)[G ωc − C^p_r R(λ) ω^n_ie]`;
     /// M4 `θ̇p = T(θp)[G ωc − C^p_n ω^n_ie]`. `None` at gimbal lock.
     pub fn attitude_rate<T: RealField + Copy>(

@@ -1,4 +1,4 @@
-//! Observability of a configuration along a rolling path (SPEC §5; the
+//! Observability of a configuration along a rolling path (docs/model.md §Observability; the
 //! paper's §2 proves by hand what this module computes).
 //!
 //! [`Observability`] follows the *true* trajectory of a configuration (the
@@ -72,7 +72,7 @@ pub const RANK_TOLERANCE: f64 = 1e-12;
 pub const COEF_THRESHOLD: f64 = 1e-6;
 
 /// A parameter is observable in practice when `σ_CRLB / σ_prior` is below
-/// this (SPEC §5).
+/// this (docs/model.md §Observability).
 pub const PRACTICAL_RATIO: f64 = 0.01;
 
 /// Eigen-decomposition of the prior-scaled information matrix.

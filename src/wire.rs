@@ -1,4 +1,4 @@
-//! The serial wire protocol (SPEC §7): messages, framing, and a streaming
+//! The serial wire protocol (docs/wire.md): messages, framing, and a streaming
 //! decoder. The byte layout is specified in `docs/wire.md`.
 //!
 //! A **frame** on the wire is
@@ -22,7 +22,7 @@
 //! bytes in chunks of any size, yields messages and counts rejected frames
 //! by reason ([`DecoderStats`]). Neither allocates nor panics.
 //!
-//! Units and frames of every field are those of the crate (SPEC §2):
+//! Units and frames of every field are those of the crate (docs/model.md §Notation):
 //! radians, seconds, specific force in g, navigation frame North–Up–East.
 
 use heapless::Vec;
@@ -54,7 +54,7 @@ pub const MAX_FRAME_LEN: usize = 4096;
 /// Recommended decoder capacity: [`MAX_FRAME_LEN`].
 pub type FrameDecoder = Decoder<MAX_FRAME_LEN>;
 
-/// One filter period as measured by the platform (SPEC §7). `f32` fields:
+/// One filter period as measured by the platform (docs/wire.md). `f32` fields:
 /// f32 spacing is 1.2e-7 g at 1 g (the accelerometer noise is 1e-6 g) and
 /// 0.05″ at π rad (the gimbal noise is 10″).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -157,7 +157,7 @@ pub struct CalibratorConfig {
 }
 
 impl CalibratorConfig {
-    /// The paper's settings (SPEC §4) for configuration `config`: noise
+    /// The paper's settings (docs/model.md §The paper's scenario) for configuration `config`: noise
     /// 1e-6 g, 0.1°/h, 10″; latitude 34.25° with Earth rate; prior 1°;
     /// default options and limits; an estimate every 60 samples.
     pub fn paper(config: ConfigId) -> Self {
@@ -363,7 +363,7 @@ pub enum EstimateKind {
     },
 }
 
-/// The running estimate (SPEC §7). `f64` even from an f32 build (exact), so
+/// The running estimate (docs/wire.md). `f64` even from an f32 build (exact), so
 /// that an f64 firmware build can be compared with the host to 1e-9 rad.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Estimate {

@@ -1,5 +1,5 @@
-//! Properties of `rollcal::geometry` (SPEC §2) and of the exact pa-frame gyro
-//! misalignment of `rollcal::instruments` (SPEC §2, §4), in f64.
+//! Properties of `rollcal::geometry` (docs/model.md §Frames) and of the exact pa-frame gyro
+//! misalignment of `rollcal::instruments` (docs/model.md §Installation models, §The paper's scenario), in f64.
 //!
 //! Random inputs come from a seeded xorshift64* generator, so every run sees
 //! the same values. Derivatives are checked against the fourth-order central
@@ -97,7 +97,7 @@ fn fd<const R: usize, const C: usize>(
     jac
 }
 
-/// The SPEC §2 elementary rotations, written out independently of the crate.
+/// The elementary rotations of docs/model.md §Notation, written out independently of the crate.
 fn spec_r1(a: f64) -> Matrix3<f64> {
     let (s, c) = a.sin_cos();
     Matrix3::new(1.0, 0.0, 0.0, 0.0, c, s, 0.0, -s, c)
@@ -211,7 +211,7 @@ fn dcm_about_an_axis_is_the_elementary_rotation() {
             assert!((from_dcm - elementary).amax() <= 1e-15, "axis {i}, a = {a}");
             assert!(
                 (elementary - spec).amax() <= 1e-15,
-                "axis {i}, a = {a}: r{} ≠ SPEC",
+                "axis {i}, a = {a}: r{} ≠ docs/model.md",
                 i + 1
             );
         }
@@ -471,7 +471,7 @@ fn gimbal_rate_matrix_and_inverse() {
 
 #[test]
 fn gimbal_kinematics_follow_spec_convention() {
-    // SPEC §2: ω^p_rp = M θ̇A and dC^p_r/dt = −[ω^p_rp×] C^p_r. Over a step
+    // docs/model.md §Frames: ω^p_rp = M θ̇A and dC^p_r/dt = −[ω^p_rp×] C^p_r. Over a step
     // dt: gimbal_dcm(θ + T ω dt) = (I − [ω dt×]) gimbal_dcm(θ) + O(|ω dt|²);
     // with |ω dt| ≤ 1e-4 the O(·) term is ≤ ≈ 14 · 1e-8 (T ≤ 1/cos β ≈ 14
     // turns ω into θ̇A whose second-order terms enter the DCM), while the
@@ -644,7 +644,7 @@ fn wrap_angle_range_and_edges() {
 
 #[test]
 fn theta_g_c_pa_of_the_paper_values() {
-    // SPEC §4: θgC = [0.3, −0.3, 0.2]°, θaC = [0.2, 0.1, −0.1]° give exactly
+    // docs/model.md §The paper's scenario: θgC = [0.3, −0.3, 0.2]°, θaC = [0.2, 0.1, −0.1]° give exactly
     // θgC^pa = [0.099913, −0.400610, 0.299214]° (quoted to 1e-6°, so 5e-7°).
     let g = Vector3::new(0.3, -0.3, 0.2) * DEG;
     let a = Vector3::new(0.2, 0.1, -0.1) * DEG;
@@ -652,19 +652,19 @@ fn theta_g_c_pa_of_the_paper_values() {
     let expected = Vector3::new(0.099913, -0.400610, 0.299214);
     let err_deg = (exact / DEG - expected).amax();
     eprintln!(
-        "θgC^pa = [{:.7}, {:.7}, {:.7}]°, max error vs SPEC {err_deg:.1e}°",
+        "θgC^pa = [{:.7}, {:.7}, {:.7}]°, max error vs docs/model.md {err_deg:.1e}°",
         exact.x / DEG,
         exact.y / DEG,
         exact.z / DEG
     );
     assert!(
         err_deg <= 5e-7,
-        "θgC^pa = {:?}° vs SPEC {expected:?}°",
+        "θgC^pa = {:?}° vs docs/model.md {expected:?}°",
         exact / DEG
     );
     // Its defining property, R(θgC^pa) = R(−θaC) R(θgC).
     assert!((dcm(&exact) - dcm(&(-a)) * dcm(&g)).amax() <= 1e-15);
-    // The first-order value θgC − θaC is off by more than 1″ (SPEC: up to 2.8″).
+    // The first-order value θgC − θaC is off by more than 1″ (docs/model.md: up to 2.8″).
     let first_order = g - a;
     let diff = (exact - first_order).amax();
     eprintln!("θgC^pa − (θgC − θaC): max {:.2}″", diff / ARCSEC);

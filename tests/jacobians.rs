@@ -1,4 +1,4 @@
-//! The analytic Jacobians of every configuration (SPEC §3) against finite
+//! The analytic Jacobians of every configuration (docs/model.md §Configurations) against finite
 //! differences of the model functions they linearise:
 //!
 //! - `accel_jacobian` vs `accel_output` and `attitude_rate_jacobian` vs

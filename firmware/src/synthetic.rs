@@ -16,7 +16,7 @@ use crate::{Args, Mode, Real};
 const EARTH_RATE: f64 = 7.292_115e-5;
 const DEG: f64 = core::f64::consts::PI / 180.0;
 
-/// The paper scenario's noise levels and site (SPEC §4).
+/// The paper scenario's noise levels and site (docs/model.md §The paper's scenario).
 pub fn filter_config(options: Options, noise_scale: u32) -> FilterConfig<Real> {
     let k = f64::from(noise_scale);
     let c = |v: f64| v as Real;

@@ -1185,7 +1185,6 @@ mod tests {
 // The `host-sim design` subcommand.
 // ---------------------------------------------------------------------------
 
-use std::io::IsTerminal;
 use std::path::PathBuf;
 
 /// Arguments of `host-sim design`.
@@ -1279,65 +1278,6 @@ fn parse_positive(s: &str) -> Result<f64, String> {
     }
 }
 
-/// Progress on stderr: a bar on a terminal, a line every 10 % in a log.
-struct Progress {
-    bar: Option<indicatif::ProgressBar>,
-    last: std::sync::Mutex<(String, usize)>,
-    t0: std::time::Instant,
-}
-
-impl Progress {
-    fn new() -> Self {
-        let bar = std::io::stderr().is_terminal().then(|| {
-            let b = indicatif::ProgressBar::new(1);
-            if let Ok(st) = indicatif::ProgressStyle::with_template(
-                "{msg} [{bar:40}] {pos}/{len} candidates ({elapsed}, eta {eta})",
-            ) {
-                b.set_style(st.progress_chars("=> "));
-            }
-            b
-        });
-        Self {
-            bar,
-            last: std::sync::Mutex::new((String::new(), 0)),
-            t0: std::time::Instant::now(),
-        }
-    }
-
-    fn update(&self, stage: &str, done: usize, total: usize) {
-        if let Some(b) = &self.bar {
-            b.set_message(stage.to_string());
-            b.set_length(total as u64);
-            b.set_position(done as u64);
-            return;
-        }
-        let Ok(mut last) = self.last.lock() else {
-            return;
-        };
-        // A new stage, or 10 % more of a stage whose size is known (stage
-        // 2 grows as it climbs: at most one line per 10 candidates there).
-        let decile = if stage == "stage 2" {
-            done / 10
-        } else {
-            done * 10 / total.max(1)
-        };
-        if last.0 != stage || decile > last.1 {
-            *last = (stage.to_string(), decile);
-            eprintln!(
-                "design: {stage}: {done}/{total} candidates ({} %), {:.1} s",
-                done * 100 / total.max(1),
-                self.t0.elapsed().as_secs_f64()
-            );
-        }
-    }
-
-    fn finish(&self) {
-        if let Some(b) = &self.bar {
-            b.finish_and_clear();
-        }
-    }
-}
-
 /// σ of every target of `problem` after the bound of `scenario`'s
 /// simulated run (`host-sim observability --scenario` exactly).
 fn observability_sigma(problem: &Problem, s: &Scenario) -> Result<Vec<f64>, String> {
@@ -1416,6 +1356,12 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
     if max_periods == 0 {
         return Err("--max-duration-s is shorter than one period".into());
     }
+    let limit = crate::scenario::MAX_PERIODS;
+    if max_periods > limit {
+        return Err(format!(
+            "--max-duration-s {max_duration} is {max_periods} periods, more than the {limit} this tool simulates"
+        ));
+    }
     let mut axes = Vec::new();
     for a in &args.axes {
         let ax = NamedAxis::named(a.trim())?;
@@ -1459,6 +1405,11 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
                     "--budget-s {b} must be a whole number of {period_s} s periods"
                 ));
             }
+            if p > limit {
+                return Err(format!(
+                    "--budget-s {b} is {p} periods, more than the {limit} this tool simulates"
+                ));
+            }
             Goal::Budget { periods: p }
         }
         None => Goal::Reach {
@@ -1484,11 +1435,17 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
         rayon::current_num_threads()
     );
     let (design, mut periods, coarse_periods, coarse, coarse_change) = loop {
-        let progress = Progress::new();
+        let progress = crate::progress::Progress::stderr("design", 1, "candidates");
+        let last = std::sync::Mutex::new(0u64);
         let design = search(&problem, &space, goal, &|st, d, t| {
-            progress.update(st, d, t)
+            if let Ok(mut l) = last.lock() {
+                *l = d as u64;
+            }
+            progress.stage(st, d as u64, t as u64, "")
         });
-        progress.finish();
+        if let Ok(l) = last.lock() {
+            progress.finish(*l, "");
+        }
         let design = design?;
         let best = &design.best.pattern;
 

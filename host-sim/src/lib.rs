@@ -13,7 +13,9 @@
 //! - [`stream`]: `record` and `calibrate` (wire frames, the calibrator);
 //! - [`impair`]: lost frames, clock steps, bit flips and outliers injected
 //!   into a recorded stream;
-//! - [`plots`]: PNG figures (error, ±3σ band, σ_CRLB against time).
+//! - [`plots`]: PNG figures (error, ±3σ band, σ_CRLB against time);
+//! - [`verdict`]: the verdict words of every table;
+//! - [`progress`]: progress on stderr (a bar on a terminal, lines in a log).
 
 pub mod design;
 pub mod impair;
@@ -21,8 +23,10 @@ pub mod montecarlo;
 pub mod observe;
 pub mod paper;
 pub mod plots;
+pub mod progress;
 pub mod report;
 pub mod runner;
 pub mod scenario;
 pub mod stream;
 pub mod truth;
+pub mod verdict;

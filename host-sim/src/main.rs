@@ -5,6 +5,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::{Parser, Subcommand, ValueEnum};
+use host_sim::progress::Progress;
 use host_sim::report::{group_of, print_table, run_json, write_csv, write_json};
 use host_sim::runner::{expected_observable, run_filter, Precision};
 use host_sim::scenario::Scenario;
@@ -19,7 +20,7 @@ use rollcal::models::ConfigId;
     about = "Truth simulator and estimator runs for rollcal (continuous rolling self-calibration)",
     long_about = "Truth simulator and estimator runs for rollcal.\n\n\
         Without a subcommand, regenerates the whole paper (`paper`): observability tables, \
-        all seven estimator runs on the paper's scenario (SPEC §4), figures and a summary \
+        all seven estimator runs on the paper's scenario (docs/model.md §The paper's scenario), figures and a summary \
         in ./paper-out/."
 )]
 struct Cli {
@@ -368,6 +369,9 @@ fn cmd_summary(c: &CommonArgs) -> Result<(), String> {
 
 fn cmd_remedies(args: &RemediesArgs) -> Result<(), String> {
     use host_sim::runner::Estimator;
+    if args.seeds == 0 {
+        return Err("--seeds must be at least 1 (no seed, no run to report)".into());
+    }
     let mut scenarios = vec![Scenario::paper()];
     for p in &args.scenarios {
         scenarios.push(Scenario::from_file(p).map_err(|e| e.to_string())?);
@@ -437,7 +441,8 @@ fn cmd_remedies(args: &RemediesArgs) -> Result<(), String> {
         .collect();
     let next = std::sync::atomic::AtomicUsize::new(0);
     let results = std::sync::Mutex::new(Vec::new());
-    let t0 = Instant::now();
+    let progress = Progress::stderr("remedies", jobs.len() as u64, "seeds simulated and run");
+    let done = std::sync::atomic::AtomicU64::new(0);
     std::thread::scope(|scope| {
         for _ in 0..std::thread::available_parallelism().map_or(2, |n| n.get()) {
             scope.spawn(|| loop {
@@ -472,16 +477,12 @@ fn cmd_remedies(args: &RemediesArgs) -> Result<(), String> {
                             .ok();
                     }
                 }
-                eprint!(
-                    "\r{}/{} runs simulated ({:.0} s)",
-                    j + 1,
-                    jobs.len(),
-                    t0.elapsed().as_secs_f64()
-                );
+                let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                progress.update(n, "");
             });
         }
     });
-    eprintln!();
+    progress.finish(done.load(std::sync::atomic::Ordering::Relaxed), "");
     let results = results.into_inner().map_err(|e| e.to_string())?;
     println!(
         "Cold-start remedies: worst |error|/σ over the claimed parameters, per run; a run fails above 4σ.\n\
@@ -556,7 +557,7 @@ fn cmd_observability(args: &ObservabilityArgs) -> Result<(), String> {
     print_report(&configs, earth_rate);
     println!(
         "
-Verdicts (x y z per group; yes: observable, weak: σ_CRLB/σ_prior ≥ 0.01, no: in the null space):\n"
+Verdicts (x y z per group; yes: observable in practice, weak: σ_CRLB/σ_prior ≥ 0.01, no: in the null space):\n"
     );
     print!("{}", verdict_matrix_markdown(&configs));
     if earth_rate {
@@ -577,19 +578,6 @@ Verdicts (x y z per group; yes: observable, weak: σ_CRLB/σ_prior ≥ 0.01, no:
     Ok(())
 }
 
-/// A progress bar on stderr (hidden when stderr is not a terminal).
-fn progress_bar(len: u64, what: &str) -> indicatif::ProgressBar {
-    let bar = indicatif::ProgressBar::new(len);
-    let style = indicatif::ProgressStyle::with_template(
-        "{msg} [{bar:40}] {pos}/{len} ({elapsed}, eta {eta})",
-    )
-    .map(|s| s.progress_chars("=> "))
-    .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar());
-    bar.set_style(style);
-    bar.set_message(what.to_string());
-    bar
-}
-
 fn cmd_montecarlo(args: &MonteCarloArgs) -> Result<(), String> {
     let scenario = load_scenario(args.scenario.as_deref())?;
     let runs = usize::try_from(args.runs).map_err(|e| e.to_string())?;
@@ -600,7 +588,8 @@ fn cmd_montecarlo(args: &MonteCarloArgs) -> Result<(), String> {
         scenario.name,
         rayon::current_num_threads()
     );
-    let bar = progress_bar(args.runs, "runs");
+    let progress = Progress::stderr("montecarlo", args.runs, "runs");
+    let done = std::sync::atomic::AtomicU64::new(0);
     let mc = host_sim::montecarlo::monte_carlo(
         args.config,
         &scenario,
@@ -609,9 +598,13 @@ fn cmd_montecarlo(args: &MonteCarloArgs) -> Result<(), String> {
             precision: args.precision,
             ..host_sim::runner::Estimator::default()
         },
-        &|n| bar.set_position(n as u64),
-    )?;
-    bar.finish_and_clear();
+        &|n| {
+            done.fetch_max(n as u64, std::sync::atomic::Ordering::Relaxed);
+            progress.update(n as u64, "");
+        },
+    );
+    progress.finish(done.load(std::sync::atomic::Ordering::Relaxed), "");
+    let mc = mc?;
     host_sim::montecarlo::print_monte_carlo(&mc);
     if let Some(path) = &args.json {
         let v = serde_json::to_value(&mc).map_err(|e| e.to_string())?;
@@ -630,18 +623,23 @@ fn cmd_paper(args: &PaperArgs) -> Result<(), String> {
         args.out.display(),
         rayon::current_num_threads()
     );
-    let bar = progress_bar(PROGRESS_STEPS, "paper");
+    let progress = Progress::stderr("paper", PROGRESS_STEPS, "steps");
+    let done = std::sync::atomic::AtomicU64::new(0);
     let p = paper(
         &scenario,
         args.scenario.as_deref(),
         args.seed,
         &args.out,
         &|what| {
-            bar.inc(1);
-            bar.set_message(what.to_string());
+            let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            progress.update(n, what);
         },
-    )?;
-    bar.finish_and_clear();
+    );
+    progress.finish(
+        done.load(std::sync::atomic::Ordering::Relaxed),
+        if p.is_ok() { "done" } else { "failed" },
+    );
+    let p = p?;
     println!(
         "Scenario '{}', seed {}, Earth rate {}: {} periods; the seven estimator runs took {:.2} s \
          (in parallel), everything {:.2} s.\n",

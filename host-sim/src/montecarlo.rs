@@ -1,6 +1,6 @@
 //! Monte Carlo runs of one configuration: seeded noise, the estimator of
 //! record, and the statistics that compare it with the Cramér–Rao bound
-//! (SPEC §6: RMS error against σ_CRLB, parameter-block NEES and NIS inside
+//! (docs/model.md §Estimator: RMS error against σ_CRLB, parameter-block NEES and NIS inside
 //! their χ² bands).
 
 use rayon::prelude::*;
@@ -156,7 +156,7 @@ pub fn band(mean: f64, dof: usize, samples: usize) -> Consistency {
 
 /// Whether state `name` of group `group` is in the parameter block of `id`:
 /// the installation errors and base angles the configuration observes
-/// (SPEC §3).
+/// (docs/model.md §Configurations).
 pub fn in_parameter_block(id: ConfigId, name: &str, group: Group) -> bool {
     group != Group::Attitude && crate::runner::expected_observable(id, name, group)
 }

@@ -1,5 +1,5 @@
 //! The observability analysis of every configuration along a scenario's path
-//! (SPEC §5), on top of [`rollcal::observability`].
+//! (docs/model.md §Observability), on top of [`rollcal::observability`].
 
 use nalgebra::SVector;
 use rollcal::ekf;
@@ -21,28 +21,7 @@ pub struct Term {
     pub coef: f64,
 }
 
-/// What the analysis says of one state.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum ObsVerdict {
-    /// Takes part in the null space of the information matrix.
-    StructurallyUnobservable,
-    /// Outside the null space and `σ_CRLB / σ_prior < 0.01`.
-    Observable,
-    /// Outside the null space but `σ_CRLB / σ_prior ≥ 0.01`.
-    WeaklyObservable,
-}
-
-impl ObsVerdict {
-    /// Stable text for tables.
-    pub const fn as_str(self) -> &'static str {
-        match self {
-            ObsVerdict::StructurallyUnobservable => "structurally unobservable",
-            ObsVerdict::Observable => "observable",
-            ObsVerdict::WeaklyObservable => "weakly observable",
-        }
-    }
-}
+pub use crate::verdict::Verdict;
 
 /// One state of the analysis.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -65,7 +44,7 @@ pub struct StateObs {
     /// the null directions by the true errors touches).
     pub null_leak_at_truth: f64,
     /// The verdict.
-    pub verdict: ObsVerdict,
+    pub verdict: Verdict,
 }
 
 /// The analysis of one configuration.
@@ -167,18 +146,18 @@ fn analyse_typed<M: Model<N, Z>, const N: usize, const Z: usize>(
         .map(|(i, info)| {
             let structural = part[i] > COEF_THRESHOLD;
             let verdict = if structural {
-                ObsVerdict::StructurallyUnobservable
+                Verdict::StructurallyUnobservable
             } else if ratio[i] < PRACTICAL_RATIO {
-                ObsVerdict::Observable
+                Verdict::Observable
             } else {
-                ObsVerdict::WeaklyObservable
+                Verdict::WeaklyObservable
             };
             StateObs {
                 name: info.name,
                 group: info.group,
                 sigma_crlb_rad: sigma[i],
                 ratio: ratio[i],
-                observable: verdict == ObsVerdict::Observable,
+                observable: verdict == Verdict::Observable,
                 null_participation: part[i],
                 null_leak_at_truth: leak[i],
                 verdict,
@@ -258,18 +237,9 @@ pub fn print_report(configs: &[ConfigObs], earth_rate: bool) {
                 s.name,
                 s.sigma_crlb_rad / crate::scenario::ARCSEC,
                 s.ratio,
-                s.verdict.as_str()
+                s.verdict
             );
         }
-    }
-}
-
-/// Short cell text of a verdict for the summary matrix.
-fn cell(v: ObsVerdict) -> &'static str {
-    match v {
-        ObsVerdict::Observable => "yes",
-        ObsVerdict::WeaklyObservable => "weak",
-        ObsVerdict::StructurallyUnobservable => "no",
     }
 }
 
@@ -294,7 +264,7 @@ pub fn verdict_matrix_markdown(configs: &[ConfigObs]) -> String {
                 .states
                 .iter()
                 .filter(|s| s.group == g)
-                .map(|s| cell(s.verdict))
+                .map(|s| s.verdict.cell())
                 .collect();
             if cells.is_empty() {
                 out.push_str(" — |");
@@ -324,8 +294,8 @@ pub fn changes(off: &[ConfigObs], on: &[ConfigObs]) -> Vec<String> {
                     "{} {}: {} → {} (σ_CRLB {:.3}″ → {:.3}″, ratio {:.2e} → {:.2e})",
                     a.config,
                     sa.name,
-                    sa.verdict.as_str(),
-                    sb.verdict.as_str(),
+                    sa.verdict,
+                    sb.verdict,
                     sa.sigma_crlb_rad / crate::scenario::ARCSEC,
                     sb.sigma_crlb_rad / crate::scenario::ARCSEC,
                     sa.ratio,

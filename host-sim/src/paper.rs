@@ -13,29 +13,7 @@ use crate::plots::{plot_group, Curve};
 use crate::runner::{expected_observable, run_filter, Estimator, RunResult};
 use crate::scenario::{Scenario, ARCSEC};
 use crate::truth::{simulate, truth_state, SimOptions, Simulation};
-
-/// The verdict on one state at the end of the paper's run.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum StateVerdict {
-    /// Observable (Earth rate as in the run) and within 4σ of the truth.
-    Converged,
-    /// Structurally unobservable, or σ_CRLB/σ_prior ≥ 0.01.
-    NotObservable,
-    /// Observable but more than 4σ from the truth.
-    Failed,
-}
-
-impl StateVerdict {
-    /// Stable text for tables.
-    pub const fn as_str(self) -> &'static str {
-        match self {
-            StateVerdict::Converged => "converged",
-            StateVerdict::NotObservable => "not observable",
-            StateVerdict::Failed => "FAILED",
-        }
-    }
-}
+use crate::verdict::Verdict;
 
 /// One state of the summary.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -55,12 +33,12 @@ pub struct SummaryState {
     /// Posterior Cramér–Rao σ (rad).
     pub sigma_crlb_rad: f64,
     /// The verdict of the run.
-    pub verdict: StateVerdict,
+    pub verdict: Verdict,
     /// Observable in practice with the Earth rate off (the paper's assumption).
     pub observable_earth_off: bool,
     /// Observable in practice with the Earth rate on.
     pub observable_earth_on: bool,
-    /// The paper's claim (SPEC §3), for installation errors and λ; `null`
+    /// The paper's claim (docs/model.md §Configurations), for installation errors and λ; `null`
     /// for the attitude states, on which the paper claims nothing per axis.
     pub paper_observable: Option<bool>,
     /// Whether the Earth-off analysis agrees with the paper's claim.
@@ -197,11 +175,11 @@ fn summarise(
             let group = Group::from_name(s.group).unwrap_or(Group::Attitude);
             let observable = at_run.states[i].observable;
             let verdict = if !observable {
-                StateVerdict::NotObservable
+                Verdict::NotObservable
             } else if s.ratio() <= 4.0 {
-                StateVerdict::Converged
+                Verdict::Converged
             } else {
-                StateVerdict::Failed
+                Verdict::Failed
             };
             let paper = (group != Group::Attitude).then(|| expected_observable(id, s.name, group));
             SummaryState {
@@ -473,7 +451,7 @@ pub fn overview_markdown(p: &Paper) -> String {
         "| config | converged | not observable | failed | agrees with paper | max \\|err\\|/σ (observable) | max σ/σ_CRLB (observable) | mean NIS |\n|---|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for c in &p.configs {
-        let count = |v: StateVerdict| c.states.iter().filter(|s| s.verdict == v).count();
+        let count = |v: Verdict| c.states.iter().filter(|s| s.verdict == v).count();
         let judged: Vec<_> = c
             .states
             .iter()
@@ -486,7 +464,7 @@ pub fn overview_markdown(p: &Paper) -> String {
         let obs: Vec<_> = c
             .states
             .iter()
-            .filter(|s| s.verdict != StateVerdict::NotObservable)
+            .filter(|s| s.verdict != Verdict::NotObservable)
             .collect();
         let max_ratio = obs
             .iter()
@@ -500,9 +478,9 @@ pub fn overview_markdown(p: &Paper) -> String {
             s,
             "| {} | {} | {} | {} | {}/{} | {:.2} | {:.3} | {:.3} |",
             c.config,
-            count(StateVerdict::Converged),
-            count(StateVerdict::NotObservable),
-            count(StateVerdict::Failed),
+            count(Verdict::Converged),
+            count(Verdict::NotObservable),
+            count(Verdict::Failed),
             agree,
             judged.len(),
             max_ratio,
@@ -518,7 +496,7 @@ pub fn all_good(p: &Paper) -> bool {
     p.configs.iter().all(|c| {
         c.states
             .iter()
-            .all(|s| s.verdict != StateVerdict::Failed && s.agrees_with_paper != Some(false))
+            .all(|s| s.verdict != Verdict::Failed && s.agrees_with_paper != Some(false))
     })
 }
 

@@ -55,7 +55,7 @@ pub fn print_table(r: &RunResult, crlb: &[f64]) {
     );
     for (s, c) in r.states.iter().zip(crlb) {
         let group = group_of(s.group);
-        let verdict = crate::runner::verdict(r.config, s, group, r.prior_sigma_rad).as_str();
+        let verdict = crate::runner::verdict(r.config, s, group, r.prior_sigma_rad);
         println!(
             "{:<11} {:>12.3} {:>12.3} {:>10.4} {:>10.4} {:>8.2} {:>10.4} {:>8.3}  {}",
             s.name,

@@ -126,7 +126,7 @@ fn initial<const N: usize>(x0: &[f64], sigma0: f64) -> (SVector<f64, N>, SVector
 /// One state at the end of a run.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct StateResult {
-    /// SPEC name, e.g. `thgC_x`.
+    /// State name (docs/model.md §State names), e.g. `thgC_x`.
     pub name: &'static str,
     /// Group, e.g. `thgC`.
     pub group: &'static str,
@@ -358,7 +358,7 @@ pub fn result(id: ConfigId, p: &Passes, truth: &[f64], sigma0: f64) -> RunResult
 /// states are zero) with prior σ `sigma0` (rad) on every state and the noise
 /// levels of `cfg` (its options are ignored): [`Observability`] along the
 /// true trajectory, a record without measurement being a period that is
-/// only predicted (SPEC §5.3). The one computation of the bound.
+/// only predicted (docs/model.md §Observability, item 3). The one computation of the bound.
 pub fn bound(
     id: ConfigId,
     cfg: FilterConfig<f64>,
@@ -397,30 +397,7 @@ pub fn crlb_sigma(
     bound(id, cfg, &truth0, scenario.prior.sigma_deg * DEG, &records)
 }
 
-/// What the run says of one state.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Verdict {
-    /// Claimed observable (SPEC §3) and within 4σ of the truth.
-    Converged,
-    /// Claimed observable but more than 4σ from the truth.
-    Failed,
-    /// Not claimed; σ below 1 % of the prior (observable in practice, SPEC §5).
-    Observable,
-    /// Not claimed; σ at or above 1 % of the prior.
-    NotObservable,
-}
-
-impl Verdict {
-    /// Stable text used in tables and JSON.
-    pub const fn as_str(self) -> &'static str {
-        match self {
-            Verdict::Converged => "converged",
-            Verdict::Failed => "FAILED (> 4 sigma)",
-            Verdict::Observable => "observable",
-            Verdict::NotObservable => "not observable",
-        }
-    }
-}
+pub use crate::verdict::Verdict;
 
 /// The verdict on state `s` of configuration `id` with prior σ `prior` (rad).
 pub fn verdict(id: ConfigId, s: &StateResult, group: Group, prior: f64) -> Verdict {
@@ -437,8 +414,8 @@ pub fn verdict(id: ConfigId, s: &StateResult, group: Group, prior: f64) -> Verdi
     }
 }
 
-/// Whether a state is expected to converge in configuration `id` (SPEC §3,
-/// refined verdicts), used for summaries.
+/// Whether a state is expected to converge in configuration `id` (docs/model.md
+/// §Configurations), used for summaries.
 pub fn expected_observable(id: ConfigId, name: &str, group: Group) -> bool {
     use ConfigId::*;
     match group {

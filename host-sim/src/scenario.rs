@@ -1,5 +1,5 @@
 //! Scenario files (TOML): truth parameters, rolling path, noise, timing and
-//! prior. The paper's scenario (SPEC §4) is the built-in default and is
+//! prior. The paper's scenario (docs/model.md §The paper's scenario) is the built-in default and is
 //! shipped as `scenarios/paper.toml`.
 
 use std::fmt;
@@ -14,6 +14,13 @@ pub const PAPER_TOML: &str = include_str!("../../scenarios/paper.toml");
 pub const DEG: f64 = std::f64::consts::PI / 180.0;
 /// Arcseconds → radians.
 pub const ARCSEC: f64 = DEG / 3600.0;
+
+/// Most filter periods a scenario may have (≈ 11.6 days at 1 s): the
+/// simulator and the runs keep every period in memory.
+pub const MAX_PERIODS: u64 = 1_000_000;
+
+/// Most truth integration steps a scenario may have.
+pub const MAX_TRUTH_STEPS: u64 = 1_000_000_000;
 
 /// A complete simulation scenario. Angles in the file are degrees unless the
 /// field name says otherwise.
@@ -107,7 +114,8 @@ pub struct Timing {
     pub period_s: f64,
     /// Truth RK4 step (s); `period_s / truth_step_s` must be an even integer.
     pub truth_step_s: f64,
-    /// Total duration (s); the platform holds still after the path ends.
+    /// Total duration (s), at least the path's; the platform holds still
+    /// after the path ends.
     pub duration_s: f64,
 }
 
@@ -161,7 +169,7 @@ impl Axis {
 }
 
 impl Scenario {
-    /// The paper's scenario (SPEC §4).
+    /// The paper's scenario (docs/model.md §The paper's scenario).
     pub fn paper() -> Self {
         // The shipped file is validated by a test; fall back never happens.
         Self::from_toml(PAPER_TOML)
@@ -237,6 +245,21 @@ impl Scenario {
         if (k - k.round()).abs() > 1e-9 {
             return err("timing.duration_s must be a whole number of periods".into());
         }
+        // Resource limits, before anything is allocated: the simulator keeps
+        // every period (≈ 0.3 kB each, more with a time history) and
+        // integrates every truth step.
+        if k.round() > MAX_PERIODS as f64 {
+            return err(format!(
+                "timing.duration_s / period_s = {:.0} periods, more than the {MAX_PERIODS} this tool simulates (every period is kept in memory)",
+                k.round()
+            ));
+        }
+        let steps = k.round() * ratio.round();
+        if steps > MAX_TRUTH_STEPS as f64 {
+            return err(format!(
+                "timing: {steps:.0} truth steps (duration_s / truth_step_s), more than the {MAX_TRUTH_STEPS} this tool integrates; lengthen truth_step_s"
+            ));
+        }
         if self.path.is_empty() {
             return err("path must have at least one segment".into());
         }
@@ -258,6 +281,17 @@ impl Scenario {
                     tm.period_s
                 ));
             }
+        }
+        let path_s: f64 = self
+            .path
+            .iter()
+            .map(|seg| seg.angle_deg / seg.rate_deg_s)
+            .sum();
+        if path_s > tm.duration_s + 1e-6 * tm.period_s {
+            return err(format!(
+                "the path lasts {path_s} s but timing.duration_s is {} s: the path would be cut (lengthen duration_s to at least {path_s}, or shorten the path)",
+                tm.duration_s
+            ));
         }
         let n = &self.noise;
         if !(n.accel_g.is_finite() && n.accel_g > 0.0) {

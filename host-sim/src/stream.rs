@@ -17,7 +17,7 @@
 //! `stream` object (frame and sample counters) and `pass1` (the
 //! calibrator's final estimate and σ, full f64 precision).
 
-use std::io::{Read, Write};
+use std::io::{IsTerminal, Read, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant as Clock};
 
@@ -32,6 +32,7 @@ use rollcal::wire::{
     MAX_FRAME_LEN,
 };
 
+use crate::progress::Progress;
 use crate::report::{print_table, run_json, write_json};
 use crate::runner::{self, Passes, RunResult};
 use crate::scenario::{Scenario, DEG};
@@ -157,6 +158,18 @@ pub fn to_sample(s: &PeriodSample) -> Sample {
     }
 }
 
+/// `record` writes binary frames: to stdout (`out` = `-`) only when stdout
+/// is not a terminal (`stdout_is_terminal`).
+pub fn refuse_terminal(out: &str, stdout_is_terminal: bool) -> Result<(), String> {
+    if out == "-" && stdout_is_terminal {
+        return Err(
+            "record writes binary frames: give --out FILE, or redirect or pipe stdout (e.g. | host-sim calibrate --input -)"
+                .into(),
+        );
+    }
+    Ok(())
+}
+
 /// Appends the frame of `m` to `out`.
 pub fn push_frame(out: &mut Vec<u8>, m: &Message) -> Result<(), String> {
     let mut buf = [0u8; MAX_FRAME_LEN];
@@ -174,6 +187,7 @@ fn load_scenario(path: Option<&Path>) -> Result<Scenario, String> {
 
 /// `host-sim record`.
 pub fn record(args: &RecordArgs) -> Result<(), String> {
+    refuse_terminal(&args.out, std::io::stdout().is_terminal())?;
     let sc = load_scenario(args.scenario.as_deref())?;
     let earth_rate = !args.no_earth_rate && sc.site.earth_rate;
     eprintln!(
@@ -493,29 +507,36 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<(), String>
         failures: Vec::new(),
     };
     let mut decoder = FrameDecoder::new();
-    let mut shown = 0usize;
     eprintln!("calibrating {id} from {}…", args.input);
+    // The expected number of samples: the scenario's periods.
+    let progress = Progress::stderr("calibrate", sc.periods() as u64, "samples accepted");
+    let detail = |host: &Host<T>, decoder: &FrameDecoder| {
+        let p = host.session.calibrator().map(|c| *c.progress());
+        let accepted = p.map_or(0, |p| u64::from(p.accepted));
+        let rejected = p.map_or(0, |p| p.rejects.total());
+        (
+            accepted,
+            format!(
+                "{rejected} rejected, {} bad frames",
+                decoder.stats().errors()
+            ),
+        )
+    };
     let idle = Duration::from_secs_f64(args.idle_timeout.max(0.1));
-    read_input(&args.input, args.baud, idle, |bytes| {
+    let read = read_input(&args.input, args.baud, idle, |bytes| {
         let mut result = Ok(());
         decoder.feed(bytes, |m| {
             if result.is_ok() {
                 result = host.handle(m);
             }
         });
-        let progress = host.session.calibrator().map(|c| *c.progress());
-        let accepted = progress.map_or(0, |p| p.accepted as usize);
-        if accepted >= shown + 500 {
-            shown = accepted;
-            let rejected = progress.map_or(0, |p| p.rejects.total());
-            eprint!(
-                "\r{shown} samples accepted, {rejected} rejected, {} bad frames",
-                decoder.stats().errors()
-            );
-        }
+        let (accepted, text) = detail(&host, &decoder);
+        progress.update(accepted, &text);
         result
-    })?;
-    eprintln!();
+    });
+    let (accepted, text) = detail(&host, &decoder);
+    progress.finish(accepted, &text);
+    read?;
     let stats = *decoder.stats();
     // Read after the stream: `record --truth T | calibrate --truth T` works.
     let sidecar = args

@@ -1,4 +1,5 @@
-//! The truth simulator (SPEC §4): integrates the physical platform.
+//! The truth simulator (docs/model.md §Installation models, §Measurement
+//! timing): integrates the physical platform.
 //!
 //! It integrates the platform attitude `C^ps_n` under the true gyro
 //! installation (`ω^ps_ip = G ωc + w_g`), the computed frame `C^c_n` under

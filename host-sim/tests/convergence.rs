@@ -1,4 +1,4 @@
-//! Convergence from a zero start (SPEC §6): the estimator ends consistent
+//! Convergence from a zero start (docs/model.md §Estimator): the estimator ends consistent
 //! and near the information limit on the paper's scenario and on others.
 //!
 //! The σ bounds are about 2× the information limit (issue 2); a filter far
@@ -179,7 +179,7 @@ fn other_scenarios_converge_too() {
         for id in [ConfigId::M1Pa, ConfigId::M4Pa, ConfigId::M2Ps] {
             let r = run(id, &scenario, 7);
             let worst = check_converged(&r, 7, false);
-            // Observable in practice (SPEC §5): σ below 1 % of the prior.
+            // Observable in practice (docs/model.md §Observability): σ below 1 % of the prior.
             for s in r
                 .states
                 .iter()

@@ -1,4 +1,4 @@
-//! Single precision, proven (SPEC §6): the estimator of record with its
+//! Single precision, proven (docs/model.md §Estimator): the estimator of record with its
 //! covariance arithmetic in f32 ends where the f64 one does, on every
 //! shipped scenario, and its Monte Carlo sits on the Cramér–Rao bound.
 //!

@@ -1,5 +1,5 @@
 //! The truth simulator reproduces the golden vectors of an independent
-//! implementation of SPEC (the root crate's `tests/data/paper_scenario_clean.csv`, see
+//! implementation of docs/model.md (the root crate's `tests/data/paper_scenario_clean.csv`, see
 //! `tests/data/GOLDEN-README.md`) to 1e-10.
 
 use host_sim::scenario::Scenario;

@@ -1,15 +1,16 @@
-//! The observability analysis (SPEC §5) on the paper's scenario: the verdicts
-//! with the Earth rate off reproduce the paper's table (SPEC §3), the M1-ps
+//! The observability analysis (docs/model.md §Observability) on the paper's scenario: the verdicts
+//! with the Earth rate off reproduce the paper's table (docs/model.md §Configurations), the M1-ps
 //! null space is the common rotation of eq. 28, the filter reaches the
 //! Cramér–Rao bound, and a Monte Carlo study is consistent with it.
 
 use std::sync::OnceLock;
 
 use host_sim::montecarlo::monte_carlo;
-use host_sim::observe::{analyse, ConfigObs, ObsVerdict};
+use host_sim::observe::{analyse, ConfigObs};
 use host_sim::runner::{expected_observable, run_filter, Estimator};
 use host_sim::scenario::{Scenario, DEG};
 use host_sim::truth::{simulate, SimOptions, Simulation};
+use host_sim::verdict::Verdict;
 use nalgebra::SVector;
 use rollcal::models::{ConfigId, Group, M1Ps};
 use rollcal::observability::{Observability, RANK_TOLERANCE};
@@ -47,9 +48,9 @@ fn earth_off_verdicts_match_the_paper() {
             }
             let claimed = expected_observable(c.config, s.name, s.group);
             let expected = if claimed {
-                ObsVerdict::Observable
+                Verdict::Observable
             } else {
-                ObsVerdict::StructurallyUnobservable
+                Verdict::StructurallyUnobservable
             };
             assert_eq!(
                 s.verdict, expected,
@@ -71,7 +72,7 @@ fn earth_rate_resolves_the_azimuth_but_not_the_ps_gauge() {
         // The Earth rate removes exactly the azimuth direction.
         assert_eq!(b.rank, a.rank + 1, "{}", a.config);
         // The ps frame's gauge (δψ = δθgC = δθaC, paper eq. 28) and M3's
-        // θA/λ ambiguity stay exactly unobservable (a SPEC correction: the
+        // θA/λ ambiguity stay exactly unobservable (a correction of the paper: the
         // Earth rate does not help them).
         let gauge = match a.config {
             ConfigId::M1Ps | ConfigId::M4Ps | ConfigId::M3Pa => 3,
@@ -82,7 +83,7 @@ fn earth_rate_resolves_the_azimuth_but_not_the_ps_gauge() {
     }
     let m2 = on.iter().find(|c| c.config == ConfigId::M2Ps).unwrap();
     let lam_y = m2.states.iter().find(|s| s.name == "lam_y").unwrap();
-    assert_ne!(lam_y.verdict, ObsVerdict::StructurallyUnobservable);
+    assert_ne!(lam_y.verdict, Verdict::StructurallyUnobservable);
     // Weakly: thousands of times worse than λx, λz.
     let lam_x = m2.states.iter().find(|s| s.name == "lam_x").unwrap();
     assert!(lam_y.sigma_crlb_rad > 20.0 * lam_x.sigma_crlb_rad);

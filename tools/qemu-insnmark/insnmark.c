@@ -2,7 +2,8 @@
  * qemu-system-arm 7.2, which ships no plugin binaries and no plugin header)
  * that counts the guest instructions executed between two marker addresses.
  *
- * Adapted from /work/shared/tools/qemu-insnmark (rollcal project notes).
+ * Adapted from an earlier version kept with the rollcal project notes
+ * (outside this repository; this file is the maintained one).
  * Build:  gcc -shared -fPIC -O2 -o libinsnmark.so insnmark.c
  * Use:    qemu-system-arm ... -plugin ./libinsnmark.so,start=0xADDR,end=0xADDR[,first=N][,syms=N][,out=FILE] -d plugin
  *

@@ -1,0 +1,78 @@
+//! The verdict on one state: the one vocabulary of `run`, `calibrate`,
+//! `observability` and `paper` (README "Verdict words"). The words are
+//! printed by [`Verdict`]'s `Display` and nowhere else.
+
+use std::fmt;
+
+/// What a run or an analysis says of one state.
+///
+/// The JSON values (`serde`) are an interface and stay as they were:
+/// `converged`, `failed`, `observable`, `weakly_observable`,
+/// `structurally_unobservable`, `not_observable`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Verdict {
+    /// Observable in practice and within 4σ of the truth (a run).
+    Converged,
+    /// Observable in practice but more than 4σ from the truth (a run).
+    Failed,
+    /// Observable in practice: outside the null space of the information
+    /// matrix and `σ / σ_prior < 0.01` (`run`: σ of the filter, for a state
+    /// the paper does not claim; `observability`: σ_CRLB).
+    Observable,
+    /// Outside the null space but `σ_CRLB / σ_prior ≥ 0.01`.
+    WeaklyObservable,
+    /// In the null space of the information matrix.
+    StructurallyUnobservable,
+    /// Not observable in practice: in the null space, or
+    /// `σ / σ_prior ≥ 0.01`.
+    NotObservable,
+}
+
+impl Verdict {
+    /// Every verdict.
+    pub const ALL: [Verdict; 6] = [
+        Verdict::Converged,
+        Verdict::Failed,
+        Verdict::Observable,
+        Verdict::WeaklyObservable,
+        Verdict::StructurallyUnobservable,
+        Verdict::NotObservable,
+    ];
+
+    /// The printed word (README "Verdict words").
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            Verdict::Converged => "converged",
+            Verdict::Failed => "FAILED",
+            Verdict::Observable => "observable in practice",
+            Verdict::WeaklyObservable => "weakly observable",
+            Verdict::StructurallyUnobservable => "not observable (null space)",
+            Verdict::NotObservable => "not observable",
+        }
+    }
+
+    /// The cell of the verdict matrices: `yes` (observable in practice),
+    /// `weak`, `no` (not observable).
+    pub const fn cell(self) -> &'static str {
+        match self {
+            Verdict::Converged | Verdict::Failed | Verdict::Observable => "yes",
+            Verdict::WeaklyObservable => "weak",
+            Verdict::StructurallyUnobservable | Verdict::NotObservable => "no",
+        }
+    }
+
+    /// Observable in practice (a converged or failed state included).
+    pub const fn is_observable(self) -> bool {
+        matches!(
+            self,
+            Verdict::Converged | Verdict::Failed | Verdict::Observable
+        )
+    }
+}
+
+impl fmt::Display for Verdict {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
