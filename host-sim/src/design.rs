@@ -43,7 +43,7 @@ use rollcal::command::CommandFrame;
 use rollcal::ekf::{FilterConfig, Options};
 use rollcal::geometry::euler_angles;
 use rollcal::models::{ConfigId, Group, Model};
-use rollcal::observability::Observability;
+use rollcal::observability::Bound;
 
 use crate::runner::filter_config;
 use crate::scenario::{Axis, Scenario, Segment, ARCSEC, DEG};
@@ -401,7 +401,8 @@ impl Problem {
             worst_ratio: f64::INFINITY,
             ..Outcome::default()
         };
-        let Ok(mut obs) = Observability::<f64, M, N, Z>::new(cfg, x0, prior) else {
+        // σ only: the bound without Φ(k,0) and J.
+        let Ok(mut obs) = Bound::<f64, M, N, Z>::bound_only(cfg, x0, prior) else {
             return out;
         };
         let mut frame = CommandFrame::aligned(self.cfg.env.earth_rate_n);
