@@ -233,6 +233,8 @@ struct Gain<T: RealField + Copy, const N: usize, const Z: usize> {
 struct Factored<T: RealField + Copy, const N: usize, const Z: usize> {
     ud: Ud<T, N>,
     dx: SVector<f64, N>,
+    /// The innovation covariance `S`; only its noise part `R_e` for an
+    /// update that does not report it (see [`Filter::factored`]).
     s: SMatrix<T, Z, Z>,
     nis: T,
 }
@@ -896,7 +898,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                     x_lin = x_prior + gain.k * nu;
                 }
                 _ => {
-                    let out = self.factored(&h, &nu, &r_v, &noise, &pending.prop.phi_att)?;
+                    let out = self.factored(&h, &nu, &r_v, &noise, &pending.prop.phi_att, true)?;
                     return self.commit(x_prior + out.dx, out, to_t(&nu));
                 }
             }
@@ -920,7 +922,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// The update of the linearised filter about the nominal `x_nom` with
     /// measurement `z`, or with the nominal's own noise-free measurement
     /// `h(x_nom)` for `None` (then `ν = −H (x̂ − x_nom)`; the covariance
-    /// update does not depend on `z`).
+    /// update does not depend on `z`; the returned innovation's `S` is then
+    /// only its noise part, see [`Filter::factored`]).
     fn update_linearised(
         &mut self,
         x_nom: &SVector<f64, N>,
@@ -941,7 +944,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 *v = wrap_angle(*v);
             }
         }
-        let out = self.factored(&h, &nu, r, &noise, &pending.prop.phi_att)?;
+        // The noise-free step discards the innovation: no S.
+        let out = self.factored(&h, &nu, r, &noise, &pending.prop.phi_att, z.is_some())?;
         let x_new = x_nom + delta + out.dx;
         self.commit(x_new, out, to_t(&nu))
     }
@@ -961,6 +965,10 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// the structured time update (`G` and `J` touch only the attitude rows)
     /// brings the factor to `t_{k+1}`. The result equals the dense filter's
     /// `K = (P⁻ Hᵀ + G Dᵀ) S⁻¹` update in exact arithmetic.
+    ///
+    /// `report`: compute the innovation covariance `S` for the
+    /// [`Innovation`]; without it the result's `s` is `R_e` only (the
+    /// update itself never uses `S`).
     fn factored(
         &self,
         h: &SMatrix<f64, Z, N>,
@@ -968,6 +976,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         r_v: &SMatrix<T, Z, Z>,
         noise: &Noise<f64, N, Z>,
         phi_att: &SMatrix<f64, 3, N>,
+        report: bool,
     ) -> Result<Factored<T, N, Z>, Error> {
         let half: T = nalgebra::convert(0.5);
         let hf: SMatrix<T, Z, N> = to_t(&crate::models::apply_transition(h, phi_att));
@@ -993,7 +1002,11 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             .ok_or(Error::InnovationNotPositiveDefinite)?
             .transpose();
         // S = H Φ P Φᵀ Hᵀ + R_e, for the innovation report.
-        let s = r_e + self.ud.congruence(&hf);
+        let s = if report {
+            r_e + self.ud.congruence(&hf)
+        } else {
+            r_e
+        };
         let mut ud = self.ud;
         let mut dx = SVector::<T, N>::zeros();
         let mut nis = T::zero();
@@ -1080,12 +1093,13 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// [`crate::observability::Observability`] (its covariance update is
     /// [`Filter::step`]'s, which does not depend on the measured values).
     /// [`Error::NoPrediction`] outside the linearised mode (no nominal).
+    /// The innovation is not reported (its covariance `S` is not computed).
     pub(crate) fn step_noise_free(
         &mut self,
         dtheta_c: &Vector3<f64>,
         dt: f64,
-    ) -> Result<Innovation<T, Z>, Error> {
-        self.step_with(dtheta_c, dt, None)
+    ) -> Result<(), Error> {
+        self.step_with(dtheta_c, dt, None).map(|_| ())
     }
 
     /// [`Filter::step`] with `obs`, or [`Filter::step_noise_free`] for
