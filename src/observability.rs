@@ -27,7 +27,10 @@
 //! commanded motion and adds nothing to `J`: the bound of the samples
 //! actually received. This is the one computation of the bound: `host-sim`'s
 //! σ_CRLB columns (`run`, `record --truth`, `calibrate --truth`) and the
-//! observability report all come from it.
+//! observability report all come from it. [`Bound`]
+//! ([`Observability::bound_only`]) runs the same bound without
+//! accumulating `Φ(k,0)` and `J`, for a search that needs `σ_CRLB` only
+//! (`host-sim design`).
 //!
 //! [`Observability::analyse`] decomposes `J` (scaled by the prior,
 //! `J̃ = S J S`, `S = diag(σ_prior)`, so that its eigenvalues are the
