@@ -233,6 +233,8 @@ struct Gain<T: RealField + Copy, const N: usize, const Z: usize> {
 struct Factored<T: RealField + Copy, const N: usize, const Z: usize> {
     ud: Ud<T, N>,
     dx: SVector<f64, N>,
+    /// The innovation covariance `S`; only its noise part `R_e` for an
+    /// update that does not report it (see [`Filter::factored`]).
     s: SMatrix<T, Z, Z>,
     nis: T,
 }
@@ -849,21 +851,16 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             return Err(Error::NonFiniteInput);
         }
         let mut z = SVector::<f64, Z>::zeros();
-        let mut r = SVector::<T, Z>::zeros();
-        let sa2 = self.config.sigma_accel * self.config.sigma_accel;
         if let Some(g) = gimbal {
             z.fixed_rows_mut::<3>(0).copy_from(&to_f64(&g));
-            let sg2 = self.config.sigma_gimbal * self.config.sigma_gimbal;
-            r.fixed_rows_mut::<3>(0).fill(sg2);
         }
         let accel_row = Self::ACCEL_ROW;
         z.fixed_rows_mut::<3>(accel_row)
             .copy_from(&to_f64(&obs.accel_mean));
-        r.fixed_rows_mut::<3>(accel_row).fill(sa2);
-        let r = SMatrix::<T, Z, Z>::from_diagonal(&r);
+        let r = self.measurement_noise();
 
         if let Some(x_nom) = self.reference {
-            return self.update_linearised(&x_nom, &pending, &z, &r, accel_row);
+            return self.update_linearised(&x_nom, &pending, Some(&z), &r, accel_row);
         }
         let opts = self.config.options;
         let (mean2, cov2) = if opts.second_order_covariance || opts.second_order_mean {
@@ -915,7 +912,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                     x_lin = x_prior + gain.k * nu;
                 }
                 _ => {
-                    let out = self.factored(&h, &nu, &r_v, &noise, &pending.prop.phi_att)?;
+                    let out = self.factored(&h, &nu, &r_v, &noise, &pending.prop.phi_att, true)?;
                     return self.commit(x_prior + out.dx, out, to_t(&nu));
                 }
             }
@@ -923,25 +920,46 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         Err(Error::NoPrediction)
     }
 
-    /// The update of the linearised filter about the nominal `x_nom`.
+    /// The measurement noise covariance `R` (diagonal: gimbal σ² (rad²) in
+    /// M2's first three rows, accelerometer σ² (g²) in the others).
+    fn measurement_noise(&self) -> SMatrix<T, Z, Z> {
+        let mut r = SVector::<T, Z>::zeros();
+        if Self::LAYOUT.gimbal_obs {
+            let sg2 = self.config.sigma_gimbal * self.config.sigma_gimbal;
+            r.fixed_rows_mut::<3>(0).fill(sg2);
+        }
+        let sa2 = self.config.sigma_accel * self.config.sigma_accel;
+        r.fixed_rows_mut::<3>(Self::ACCEL_ROW).fill(sa2);
+        SMatrix::<T, Z, Z>::from_diagonal(&r)
+    }
+
+    /// The update of the linearised filter about the nominal `x_nom` with
+    /// measurement `z`, or with the nominal's own noise-free measurement
+    /// `h(x_nom)` for `None` (then `ν = −H (x̂ − x_nom)`; the covariance
+    /// update does not depend on `z`; the returned innovation's `S` is then
+    /// only its noise part, see [`Filter::factored`]).
     fn update_linearised(
         &mut self,
         x_nom: &SVector<f64, N>,
         pending: &Pending<T, N>,
-        z: &SVector<f64, Z>,
+        z: Option<&SVector<f64, Z>>,
         r: &SMatrix<T, Z, Z>,
         accel_row: usize,
     ) -> Result<Innovation<T, Z>, Error> {
         let layout = Self::LAYOUT;
         let Measured { z: z_nom, h, noise } = self.measure(x_nom, pending);
         let delta = layout.difference(&self.x, x_nom);
-        let mut nu = z - z_nom - h * delta;
+        let mut nu = match z {
+            Some(z) => z - z_nom - h * delta,
+            None => -(h * delta),
+        };
         if layout.gimbal_obs {
             for v in nu.iter_mut().take(accel_row) {
                 *v = wrap_angle(*v);
             }
         }
-        let out = self.factored(&h, &nu, r, &noise, &pending.prop.phi_att)?;
+        // The noise-free step discards the innovation: no S.
+        let out = self.factored(&h, &nu, r, &noise, &pending.prop.phi_att, z.is_some())?;
         let x_new = x_nom + delta + out.dx;
         self.commit(x_new, out, to_t(&nu))
     }
@@ -962,6 +980,10 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// the structured time update (`G` and `J` touch only the attitude rows)
     /// brings the factor to `t_{k+1}`. The result equals the dense filter's
     /// `K = (P⁻ Hᵀ + G Dᵀ) S⁻¹` update in exact arithmetic.
+    ///
+    /// `report`: compute the innovation covariance `S` for the
+    /// [`Innovation`]; without it the result's `s` is `R_e` only (the
+    /// update itself never uses `S`).
     fn factored(
         &self,
         h: &SMatrix<f64, Z, N>,
@@ -969,6 +991,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         r_v: &SMatrix<T, Z, Z>,
         noise: &Noise<f64, N, Z>,
         phi_att: &SMatrix<f64, 3, N>,
+        report: bool,
     ) -> Result<Factored<T, N, Z>, Error> {
         let half: T = nalgebra::convert(0.5);
         let hf: SMatrix<T, Z, N> = to_t(&crate::models::apply_transition(h, phi_att));
@@ -994,7 +1017,11 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             .ok_or(Error::InnovationNotPositiveDefinite)?
             .transpose();
         // S = H Φ P Φᵀ Hᵀ + R_e, for the innovation report.
-        let s = r_e + self.ud.congruence(&hf);
+        let s = if report {
+            r_e + self.ud.congruence(&hf)
+        } else {
+            r_e
+        };
         let mut ud = self.ud;
         let mut dx = SVector::<T, N>::zeros();
         let mut nis = T::zero();
@@ -1072,6 +1099,35 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         dt: f64,
         obs: &Observation<T>,
     ) -> Result<Innovation<T, Z>, Error> {
+        self.step_with(dtheta_c, dt, Some(obs))
+    }
+
+    /// One period of the linearised filter fed the noise-free measurement
+    /// of its own nominal, `h(x_nom)`, without the caller computing it: the
+    /// posterior Cramér–Rao recursion of
+    /// [`crate::observability::Observability`] (its covariance update is
+    /// [`Filter::step`]'s, which does not depend on the measured values).
+    /// [`Error::NoPrediction`] outside the linearised mode (no nominal).
+    /// The innovation is not reported (its covariance `S` is not computed).
+    pub(crate) fn step_noise_free(
+        &mut self,
+        dtheta_c: &Vector3<f64>,
+        dt: f64,
+    ) -> Result<(), Error> {
+        self.step_with(dtheta_c, dt, None).map(|_| ())
+    }
+
+    /// [`Filter::step`] with `obs`, or [`Filter::step_noise_free`] for
+    /// `None`.
+    fn step_with(
+        &mut self,
+        dtheta_c: &Vector3<f64>,
+        dt: f64,
+        obs: Option<&Observation<T>>,
+    ) -> Result<Innovation<T, Z>, Error> {
+        if obs.is_none() && self.reference.is_none() {
+            return Err(Error::NoPrediction);
+        }
         if self.pending.is_some() {
             self.settle()?;
             self.pending = None;
@@ -1081,7 +1137,15 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         // the measurement update works on a copy), so only the state is saved.
         let saved = (self.x, self.command, self.reference);
         self.predict(dtheta_c, dt)?;
-        match self.update(obs) {
+        let updated = match (obs, self.reference, self.pending) {
+            (Some(obs), _, _) => self.update(obs),
+            (None, Some(x_nom), Some(pending)) => {
+                let r = self.measurement_noise();
+                self.update_linearised(&x_nom, &pending, None, &r, Self::ACCEL_ROW)
+            }
+            (None, _, _) => Err(Error::NoPrediction),
+        };
+        match updated {
             Ok(i) => Ok(i),
             Err(Error::Gated) => Err(Error::Gated),
             Err(e) => {

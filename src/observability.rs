@@ -27,7 +27,10 @@
 //! commanded motion and adds nothing to `J`: the bound of the samples
 //! actually received. This is the one computation of the bound: `host-sim`'s
 //! σ_CRLB columns (`run`, `record --truth`, `calibrate --truth`) and the
-//! observability report all come from it.
+//! observability report all come from it. [`Bound`]
+//! ([`Observability::bound_only`]) runs the same bound without
+//! accumulating `Φ(k,0)` and `J`, for a search that needs `σ_CRLB` only
+//! (`host-sim design`).
 //!
 //! [`Observability::analyse`] decomposes `J` (scaled by the prior,
 //! `J̃ = S J S`, `S = diag(σ_prior)`, so that its eigenvalues are the
@@ -50,8 +53,7 @@
 
 use nalgebra::{RealField, SMatrix, SVector};
 
-use crate::command::CommandFrame;
-use crate::ekf::{Error, Filter, FilterConfig, Observation, Options};
+use crate::ekf::{Error, Filter, FilterConfig, Options};
 use crate::estimator::LogRecord;
 use crate::models::{Layout, Model, PeriodPropagation};
 
@@ -207,29 +209,43 @@ impl<T: RealField + Copy, const N: usize> Spectrum<T, N> {
 
 /// Information matrix and posterior Cramér–Rao bound of configuration `M`
 /// along the true trajectory, accumulated one filter period at a time.
+///
+/// `FULL = false` ([`Bound`], built by [`Observability::bound_only`])
+/// advances the bound only: the true state and the bound's recursion are
+/// the same code as in the full mode (the bound comes out bit-identical,
+/// `host-sim/tests/design.rs`), but `Φ(k,0)` and `J` are not accumulated,
+/// so [`Observability::transition`], [`Observability::information`] and
+/// [`Observability::analyse`] exist only for `FULL = true`. It is what a
+/// search over candidate paths that only needs `σ_CRLB` runs.
 #[derive(Clone, Debug)]
-pub struct Observability<T: RealField + Copy, M, const N: usize, const Z: usize> {
+pub struct Observability<
+    T: RealField + Copy,
+    M,
+    const N: usize,
+    const Z: usize,
+    const FULL: bool = true,
+> {
     /// The Kalman filter linearised about the true trajectory: its
-    /// covariance is the posterior Cramér–Rao bound.
+    /// covariance is the posterior Cramér–Rao bound, its nominal the true
+    /// (noise-free model) state, its computed frame the commanded one.
     crlb: Filter<T, M, N, Z>,
-    /// The true (noise-free model) state at the current time (double
-    /// precision, as the filter's nominal).
+    /// The true state at the current time (rad; the filter's nominal, in
+    /// double precision).
     x_true: SVector<f64, N>,
-    /// The computed frame, advanced by the commands.
-    command: CommandFrame<f64>,
-    /// `Φ(k,0)`.
+    /// `Φ(k,0)` (`FULL` only; the identity otherwise).
     phi: SMatrix<T, N, N>,
-    /// `J` (rad⁻²).
+    /// `J` (rad⁻²; `FULL` only, zero otherwise).
     info: SMatrix<T, N, N>,
     sigma_prior: SVector<T, N>,
     periods: u32,
 }
 
-impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>
-    Observability<T, M, N, Z>
-{
-    const LAYOUT: Layout = M::LAYOUT;
+/// The bound-only [`Observability`]: `σ_CRLB` without `Φ(k,0)` and `J`.
+pub type Bound<T, M, const N: usize, const Z: usize> = Observability<T, M, N, Z, false>;
 
+impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>
+    Observability<T, M, N, Z, true>
+{
     /// Starts at the true initial state `x_true0` (rad) with prior σ
     /// `sigma_prior` (rad) of every state. The filter options of `config`
     /// are ignored: the bound is the plain linearised recursion.
@@ -238,132 +254,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>
         x_true0: SVector<f64, N>,
         sigma_prior: SVector<T, N>,
     ) -> Result<Self, Error> {
-        let config = FilterConfig {
-            options: Options::plain(),
-            ..config
-        };
-        let mut crlb = Filter::new(config, x_true0, sigma_prior)?;
-        crlb.set_nominal(Some(x_true0));
-        Ok(Self {
-            crlb,
-            x_true: x_true0,
-            command: CommandFrame::aligned(config.env.earth_rate_n),
-            phi: SMatrix::identity(),
-            info: SMatrix::zeros(),
-            sigma_prior,
-            periods: 0,
-        })
-    }
-
-    /// One filter period of length `dt` (s) with commanded angle increment
-    /// `dtheta_c` (rad, c frame) and a measurement: propagates the true
-    /// state and the bound, adds the period's measurement to `J` and updates
-    /// the bound with it. On error nothing changes.
-    pub fn step(&mut self, dtheta_c: &nalgebra::Vector3<f64>, dt: f64) -> Result<(), Error> {
-        self.period(dtheta_c, dt, true)
-    }
-
-    /// One filter period without a measurement (e.g. a sample lost and
-    /// bridged along the commanded motion): the true state, `Φ(k,0)` and the
-    /// bound are propagated (the bound grows by the process noise), `J`
-    /// gains nothing. On error nothing changes.
-    pub fn predict(&mut self, dtheta_c: &nalgebra::Vector3<f64>, dt: f64) -> Result<(), Error> {
-        self.period(dtheta_c, dt, false)
-    }
-
-    /// One logged period: [`Observability::step`] for a record with a
-    /// measurement, [`Observability::predict`] for one without. Only the
-    /// record's period and increment are used (the bound's measurements are
-    /// the noise-free ones of the true trajectory; the covariance of the
-    /// linearised filter does not depend on their values).
-    pub fn record(&mut self, r: &LogRecord<T>) -> Result<(), Error> {
-        self.period(&r.dtheta_cmd, r.dt, r.observation.is_some())
-    }
-
-    fn period(
-        &mut self,
-        dtheta_c: &nalgebra::Vector3<f64>,
-        dt: f64,
-        measured: bool,
-    ) -> Result<(), Error> {
-        let layout = Self::LAYOUT;
-        if !dtheta_c.iter().chain([dt].iter()).all(|v| v.is_finite()) {
-            return Err(Error::NonFiniteInput);
-        }
-        if dt <= 0.0 {
-            return Err(Error::InvalidPeriod);
-        }
-        let env = self.crlb.config().env;
-        let period = self.command.period(dtheta_c, dt);
-        let m = layout.matrices(&self.x_true);
-        let prop: PeriodPropagation<f64, N> = layout
-            .propagate(&env, &m, &layout.attitude(&self.x_true), &period)
-            .ok_or(Error::GimbalLock)?;
-        let [_, _, att_end] = prop.att;
-        let mut x_end = self.x_true;
-        x_end
-            .fixed_rows_mut::<3>(crate::models::ATT)
-            .copy_from(&att_end);
-
-        // Φ_k: identity with the attitude rows from the propagation.
-        let mut phi_k = SMatrix::<T, N, N>::identity();
-        phi_k
-            .fixed_rows_mut::<3>(crate::models::ATT)
-            .copy_from(&prop.phi_att.map(nalgebra::convert::<f64, T>));
-        let phi = phi_k * self.phi;
-        if !phi.iter().all(|v| v.is_finite()) {
-            return Err(Error::NonFiniteState);
-        }
-
-        let info = if measured {
-            let (z_accel, h_accel, _) = layout.mean_accel(&env, &m, &prop, &period);
-            // H_k Φ(k,0) and R⁻¹ (diagonal).
-            let cfg = self.crlb.config();
-            let mut h = SMatrix::<T, Z, N>::zeros();
-            let mut r_inv = SVector::<T, Z>::zeros();
-            let accel_row = if layout.gimbal_obs {
-                h.fixed_view_mut::<3, 3>(0, crate::models::ATT)
-                    .copy_from(&nalgebra::Matrix3::identity());
-                r_inv
-                    .fixed_rows_mut::<3>(0)
-                    .fill(T::one() / (cfg.sigma_gimbal * cfg.sigma_gimbal));
-                3
-            } else {
-                0
-            };
-            h.fixed_rows_mut::<3>(accel_row)
-                .copy_from(&h_accel.map(nalgebra::convert::<f64, T>));
-            r_inv
-                .fixed_rows_mut::<3>(accel_row)
-                .fill(T::one() / (cfg.sigma_accel * cfg.sigma_accel));
-            let hphi = h * phi;
-            let weighted = SMatrix::<T, Z, Z>::from_diagonal(&r_inv) * hphi;
-            let info = self.info + hphi.transpose() * weighted;
-            if !info.iter().all(|v| v.is_finite()) {
-                return Err(Error::NonFiniteState);
-            }
-
-            // The bound: the linearised filter fed the noise-free
-            // measurement (Filter::step leaves the filter untouched on
-            // error).
-            let obs = Observation {
-                accel_mean: z_accel.map(nalgebra::convert::<f64, T>),
-                gimbal: Some(layout.attitude(&x_end).map(nalgebra::convert::<f64, T>)),
-            };
-            self.crlb.step(dtheta_c, dt, &obs)?;
-            info
-        } else {
-            // Filter::predict leaves the filter untouched on error.
-            self.crlb.predict(dtheta_c, dt)?;
-            self.info
-        };
-
-        self.x_true = x_end;
-        self.command.advance(&period);
-        self.phi = phi;
-        self.info = info;
-        self.periods = self.periods.saturating_add(1);
-        Ok(())
+        Self::start(config, x_true0, sigma_prior)
     }
 
     /// The transition `Φ(k,0)` of the linearised model from the initial
@@ -376,31 +267,6 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>
     /// The information matrix `J` of the initial state (rad⁻²).
     pub fn information(&self) -> &SMatrix<T, N, N> {
         &self.info
-    }
-
-    /// Periods processed (measured or predicted only).
-    pub fn periods(&self) -> u32 {
-        self.periods
-    }
-
-    /// The true (noise-free model) state at the current time (rad).
-    pub fn true_state(&self) -> &SVector<f64, N> {
-        &self.x_true
-    }
-
-    /// Posterior Cramér–Rao covariance at the current time (rad²).
-    pub fn crlb_covariance(&self) -> SMatrix<T, N, N> {
-        self.crlb.covariance()
-    }
-
-    /// Posterior Cramér–Rao σ of every state at the current time (rad).
-    pub fn crlb_sigma(&self) -> SVector<T, N> {
-        self.crlb.sigma()
-    }
-
-    /// The degree of observability `σ_CRLB / σ_prior` of every state.
-    pub fn ratio(&self) -> SVector<T, N> {
-        self.crlb.sigma().component_div(&self.sigma_prior)
     }
 
     /// Eigen-decomposition of the prior-scaled information matrix with the
@@ -442,6 +308,189 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>
             rel_tol,
             rank,
         })
+    }
+}
+
+impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>
+    Observability<T, M, N, Z, false>
+{
+    /// [`Observability::new`] for the bound only ([`Bound`]): the same
+    /// start, and every period updates the bound and the true state but not
+    /// `Φ(k,0)` and `J`.
+    pub fn bound_only(
+        config: FilterConfig<T>,
+        x_true0: SVector<f64, N>,
+        sigma_prior: SVector<T, N>,
+    ) -> Result<Self, Error> {
+        Self::start(config, x_true0, sigma_prior)
+    }
+}
+
+impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize, const FULL: bool>
+    Observability<T, M, N, Z, FULL>
+{
+    const LAYOUT: Layout = M::LAYOUT;
+
+    fn start(
+        config: FilterConfig<T>,
+        x_true0: SVector<f64, N>,
+        sigma_prior: SVector<T, N>,
+    ) -> Result<Self, Error> {
+        let config = FilterConfig {
+            options: Options::plain(),
+            ..config
+        };
+        let mut crlb = Filter::new(config, x_true0, sigma_prior)?;
+        crlb.set_nominal(Some(x_true0));
+        Ok(Self {
+            crlb,
+            x_true: x_true0,
+            phi: SMatrix::identity(),
+            info: SMatrix::zeros(),
+            sigma_prior,
+            periods: 0,
+        })
+    }
+
+    /// One filter period of length `dt` (s) with commanded angle increment
+    /// `dtheta_c` (rad, c frame) and a measurement: propagates the true
+    /// state and the bound, adds the period's measurement to `J` (`FULL`)
+    /// and updates the bound with it. On error nothing changes.
+    pub fn step(&mut self, dtheta_c: &nalgebra::Vector3<f64>, dt: f64) -> Result<(), Error> {
+        self.period(dtheta_c, dt, true)
+    }
+
+    /// One filter period without a measurement (e.g. a sample lost and
+    /// bridged along the commanded motion): the true state, `Φ(k,0)`
+    /// (`FULL`) and the bound are propagated (the bound grows by the process
+    /// noise), `J` gains nothing. On error nothing changes.
+    pub fn predict(&mut self, dtheta_c: &nalgebra::Vector3<f64>, dt: f64) -> Result<(), Error> {
+        self.period(dtheta_c, dt, false)
+    }
+
+    /// One logged period: [`Observability::step`] for a record with a
+    /// measurement, [`Observability::predict`] for one without. Only the
+    /// record's period and increment are used (the bound's measurements are
+    /// the noise-free ones of the true trajectory; the covariance of the
+    /// linearised filter does not depend on their values).
+    pub fn record(&mut self, r: &LogRecord<T>) -> Result<(), Error> {
+        self.period(&r.dtheta_cmd, r.dt, r.observation.is_some())
+    }
+
+    fn period(
+        &mut self,
+        dtheta_c: &nalgebra::Vector3<f64>,
+        dt: f64,
+        measured: bool,
+    ) -> Result<(), Error> {
+        if !dtheta_c.iter().chain([dt].iter()).all(|v| v.is_finite()) {
+            return Err(Error::NonFiniteInput);
+        }
+        if dt <= 0.0 {
+            return Err(Error::InvalidPeriod);
+        }
+        let (phi, info) = if FULL {
+            self.accumulated(dtheta_c, dt, measured)?
+        } else {
+            (self.phi, self.info)
+        };
+        // The bound: the linearised filter fed the noise-free measurement of
+        // its nominal, the true trajectory (the filter is left untouched on
+        // error). The one recursion of both modes.
+        if measured {
+            self.crlb.step_noise_free(dtheta_c, dt)?;
+        } else {
+            self.crlb.predict(dtheta_c, dt)?;
+        }
+        if let Some(x) = self.crlb.nominal() {
+            self.x_true = *x;
+        }
+        self.phi = phi;
+        self.info = info;
+        self.periods = self.periods.saturating_add(1);
+        Ok(())
+    }
+
+    /// `Φ(k+1,0)` and `J` with the period's measurement (if `measured`),
+    /// from the propagation of the true state over the period.
+    fn accumulated(
+        &self,
+        dtheta_c: &nalgebra::Vector3<f64>,
+        dt: f64,
+        measured: bool,
+    ) -> Result<(SMatrix<T, N, N>, SMatrix<T, N, N>), Error> {
+        let layout = Self::LAYOUT;
+        let env = self.crlb.config().env;
+        let period = self.crlb.command_frame().period(dtheta_c, dt);
+        let m = layout.matrices(&self.x_true);
+        let prop: PeriodPropagation<f64, N> = layout
+            .propagate(&env, &m, &layout.attitude(&self.x_true), &period)
+            .ok_or(Error::GimbalLock)?;
+
+        // Φ_k: identity with the attitude rows from the propagation.
+        let mut phi_k = SMatrix::<T, N, N>::identity();
+        phi_k
+            .fixed_rows_mut::<3>(crate::models::ATT)
+            .copy_from(&prop.phi_att.map(nalgebra::convert::<f64, T>));
+        let phi = phi_k * self.phi;
+        if !phi.iter().all(|v| v.is_finite()) {
+            return Err(Error::NonFiniteState);
+        }
+        if !measured {
+            return Ok((phi, self.info));
+        }
+        let (_, h_accel, _) = layout.mean_accel(&env, &m, &prop, &period);
+        // H_k Φ(k,0) and R⁻¹ (diagonal).
+        let cfg = self.crlb.config();
+        let mut h = SMatrix::<T, Z, N>::zeros();
+        let mut r_inv = SVector::<T, Z>::zeros();
+        let accel_row = if layout.gimbal_obs {
+            h.fixed_view_mut::<3, 3>(0, crate::models::ATT)
+                .copy_from(&nalgebra::Matrix3::identity());
+            r_inv
+                .fixed_rows_mut::<3>(0)
+                .fill(T::one() / (cfg.sigma_gimbal * cfg.sigma_gimbal));
+            3
+        } else {
+            0
+        };
+        h.fixed_rows_mut::<3>(accel_row)
+            .copy_from(&h_accel.map(nalgebra::convert::<f64, T>));
+        r_inv
+            .fixed_rows_mut::<3>(accel_row)
+            .fill(T::one() / (cfg.sigma_accel * cfg.sigma_accel));
+        let hphi = h * phi;
+        let weighted = SMatrix::<T, Z, Z>::from_diagonal(&r_inv) * hphi;
+        let info = self.info + hphi.transpose() * weighted;
+        if !info.iter().all(|v| v.is_finite()) {
+            return Err(Error::NonFiniteState);
+        }
+        Ok((phi, info))
+    }
+
+    /// Periods processed (measured or predicted only).
+    pub fn periods(&self) -> u32 {
+        self.periods
+    }
+
+    /// The true (noise-free model) state at the current time (rad).
+    pub fn true_state(&self) -> &SVector<f64, N> {
+        &self.x_true
+    }
+
+    /// Posterior Cramér–Rao covariance at the current time (rad²).
+    pub fn crlb_covariance(&self) -> SMatrix<T, N, N> {
+        self.crlb.covariance()
+    }
+
+    /// Posterior Cramér–Rao σ of every state at the current time (rad).
+    pub fn crlb_sigma(&self) -> SVector<T, N> {
+        self.crlb.sigma()
+    }
+
+    /// The degree of observability `σ_CRLB / σ_prior` of every state.
+    pub fn ratio(&self) -> SVector<T, N> {
+        self.crlb.sigma().component_div(&self.sigma_prior)
     }
 }
 
