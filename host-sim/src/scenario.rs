@@ -178,8 +178,8 @@ impl Scenario {
 
     /// Parses and validates a scenario.
     pub fn from_toml(text: &str) -> Result<Self, ScenarioError> {
-        let s: Scenario =
-            toml::from_str(text).map_err(|e| ScenarioError(format!("scenario file: {e}")))?;
+        let s: Scenario = toml::from_str(text)
+            .map_err(|e| ScenarioError(format!("scenario file: {}", toml_error(text, &e))))?;
         s.validate()?;
         Ok(s)
     }
@@ -278,6 +278,18 @@ impl Scenario {
     }
 }
 
+/// A TOML error on one line: `line N: message`.
+fn toml_error(text: &str, e: &toml::de::Error) -> String {
+    let msg = e.message().trim().replace('\n', "; ");
+    match e.span() {
+        Some(span) => {
+            let line = text.get(..span.start).map_or(0, |t| t.matches('\n').count()) + 1;
+            format!("line {line}: {msg}")
+        }
+        None => msg,
+    }
+}
+
 fn check_site(site: &Site) -> Result<(), ScenarioError> {
     if !site.latitude_deg.is_finite() || site.latitude_deg.abs() > 90.0 {
         return Err(ScenarioError("site.latitude_deg must be within ±90°".into()));
@@ -373,13 +385,12 @@ impl Platform {
     /// Parses and validates a platform file; a scenario file (one with a
     /// `[truth]` table) is read as a scenario and its truth ignored.
     pub fn from_toml(text: &str) -> Result<Self, ScenarioError> {
-        let value: toml::Table =
-            toml::from_str(text).map_err(|e| ScenarioError(format!("platform file: {e}")))?;
+        let err = |e: toml::de::Error| ScenarioError(format!("platform file: {}", toml_error(text, &e)));
+        let value: toml::Table = toml::from_str(text).map_err(err)?;
         if value.contains_key("truth") {
             return Scenario::from_toml(text).map(|s| Self::of_scenario(&s));
         }
-        let p: Platform =
-            toml::from_str(text).map_err(|e| ScenarioError(format!("platform file: {e}")))?;
+        let p: Platform = toml::from_str(text).map_err(err)?;
         p.validate()?;
         Ok(p)
     }
