@@ -155,7 +155,7 @@ pub fn parse(text: &str) -> Result<Log, String> {
         })?;
         let t = f64_at(1)?;
         let t_us = t * 1e6;
-        if !(t_us.is_finite() && t_us >= 0.0 && t_us < 1.8e19) {
+        if !(0.0..1.8e19).contains(&t_us) {
             return Err(format!(
                 "line {n}: column t_s: {t} is not a time ≥ 0 s (microseconds must fit in 64 bits)"
             ));
@@ -166,7 +166,12 @@ pub fn parse(text: &str) -> Result<Log, String> {
             None
         };
         let c_cn_quat = if has_frames {
-            [f32_at(QUAT)?, f32_at(QUAT + 1)?, f32_at(QUAT + 2)?, f32_at(QUAT + 3)?]
+            [
+                f32_at(QUAT)?,
+                f32_at(QUAT + 1)?,
+                f32_at(QUAT + 2)?,
+                f32_at(QUAT + 3)?,
+            ]
         } else {
             [0.0; 4]
         };

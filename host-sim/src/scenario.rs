@@ -283,7 +283,10 @@ fn toml_error(text: &str, e: &toml::de::Error) -> String {
     let msg = e.message().trim().replace('\n', "; ");
     match e.span() {
         Some(span) => {
-            let line = text.get(..span.start).map_or(0, |t| t.matches('\n').count()) + 1;
+            let line = text
+                .get(..span.start)
+                .map_or(0, |t| t.matches('\n').count())
+                + 1;
             format!("line {line}: {msg}")
         }
         None => msg,
@@ -292,7 +295,9 @@ fn toml_error(text: &str, e: &toml::de::Error) -> String {
 
 fn check_site(site: &Site) -> Result<(), ScenarioError> {
     if !site.latitude_deg.is_finite() || site.latitude_deg.abs() > 90.0 {
-        return Err(ScenarioError("site.latitude_deg must be within ±90°".into()));
+        return Err(ScenarioError(
+            "site.latitude_deg must be within ±90°".into(),
+        ));
     }
     Ok(())
 }
@@ -385,7 +390,8 @@ impl Platform {
     /// Parses and validates a platform file; a scenario file (one with a
     /// `[truth]` table) is read as a scenario and its truth ignored.
     pub fn from_toml(text: &str) -> Result<Self, ScenarioError> {
-        let err = |e: toml::de::Error| ScenarioError(format!("platform file: {}", toml_error(text, &e)));
+        let err =
+            |e: toml::de::Error| ScenarioError(format!("platform file: {}", toml_error(text, &e)));
         let value: toml::Table = toml::from_str(text).map_err(err)?;
         if value.contains_key("truth") {
             return Scenario::from_toml(text).map(|s| Self::of_scenario(&s));

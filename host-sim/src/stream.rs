@@ -559,13 +559,13 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
 /// `host-sim calibrate` with the calibrator's covariance arithmetic in `T`.
 fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<(), String> {
     let t0 = Clock::now();
-    let format = args.format.unwrap_or(
-        if args.input.to_ascii_lowercase().ends_with(".csv") {
+    let format = args
+        .format
+        .unwrap_or(if args.input.to_ascii_lowercase().ends_with(".csv") {
             Format::Csv
         } else {
             Format::Frames
-        },
-    );
+        });
     // The settings without a Configure message: the platform file's, else
     // the scenario's (default: the paper's).
     let (platform, source) = match &args.platform {
@@ -599,7 +599,10 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<(), String>
         fallback_of: source.clone(),
     };
     let mut decoder = FrameDecoder::new();
-    let runs = expected.map_or_else(|| "the stream's configuration".to_string(), |id| id.to_string());
+    let runs = expected.map_or_else(
+        || "the stream's configuration".to_string(),
+        |id| id.to_string(),
+    );
     eprintln!("calibrating {runs} from {}…", args.input);
     // The expected number of samples: the platform's (scenario's) periods.
     let mut total = platform.periods() as u64;

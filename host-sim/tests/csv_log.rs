@@ -37,7 +37,9 @@ fn json_file(path: &Path) -> serde_json::Value {
 
 fn record(config: &str, seed: &str, format: &str, out: &Path) {
     ok(host_sim()
-        .args(["record", "--config", config, "--seed", seed, "--format", format])
+        .args([
+            "record", "--config", config, "--seed", seed, "--format", format,
+        ])
         .arg("--out")
         .arg(out)
         .output()
@@ -126,9 +128,18 @@ fn calibrating_the_csv_equals_calibrating_the_frames() {
         assert_eq!(c["stream"]["format"], "csv");
         assert_eq!(f["stream"]["accepted"], c["stream"]["accepted"]);
         assert_eq!(f["passes"], c["passes"]);
-        for (a, b) in f["states"].as_array().unwrap().iter().zip(c["states"].as_array().unwrap()) {
+        for (a, b) in f["states"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .zip(c["states"].as_array().unwrap())
+        {
             assert_eq!(a["name"], b["name"]);
-            assert_eq!(a["estimate_rad"], b["estimate_rad"], "{config} {}", a["name"]);
+            assert_eq!(
+                a["estimate_rad"], b["estimate_rad"],
+                "{config} {}",
+                a["name"]
+            );
             assert_eq!(a["sigma_rad"], b["sigma_rad"], "{config} {}", a["name"]);
         }
         assert_eq!(f["pass1"], c["pass1"], "{config}");
