@@ -9,6 +9,12 @@
 //! recorded configuration) that `calibrate --truth PATH` reads to fill the
 //! truth and σ_CRLB columns (NaN without it).
 //!
+//! `record --format csv` writes the same samples as a CSV log
+//! ([`crate::csvlog`], docs/csv.md), without the `Configure`; `calibrate`
+//! reads such a log with the settings of a platform file (`--platform`),
+//! sending the calibrator the `Configure` of those settings and then the
+//! samples, as a frame stream would.
+//!
 //! `calibrate` decodes the stream, validates and processes every sample
 //! with the no_std [`rollcal::calibrator::Calibrator`] (f64) — pass 1,
 //! exactly what the firmware computes — and then, like `run`, runs the
