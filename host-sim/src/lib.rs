@@ -17,6 +17,7 @@
 //! - [`verdict`]: the verdict words of every table;
 //! - [`progress`]: progress on stderr (a bar on a terminal, lines in a log).
 
+pub mod csvlog;
 pub mod design;
 pub mod impair;
 pub mod montecarlo;

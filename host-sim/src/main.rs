@@ -48,9 +48,11 @@ enum Command {
     /// reference path's final σ), or the best within --budget-s; writes it
     /// as a scenario file and a σ(t) figure.
     Design(Box<host_sim::design::DesignArgs>),
-    /// Simulate a scenario and write it as a stream of wire frames (docs/wire.md).
+    /// Simulate a scenario and write it as a stream of wire frames
+    /// (docs/wire.md) or, with --format csv, as a CSV log (docs/csv.md).
     Record(host_sim::stream::RecordArgs),
-    /// Run the calibrator on a frame stream from a file, stdin or a serial port.
+    /// Run the calibrator on a frame stream from a file, stdin or a serial
+    /// port, or on a CSV log with a platform file (docs/csv.md).
     Calibrate(host_sim::stream::CalibrateArgs),
     /// The whole paper regenerated (the default): observability tables with
     /// the Earth rate on and off, all seven estimator runs, one PNG figure

@@ -100,20 +100,31 @@ pub fn log_record(s: &PeriodSample) -> LogRecord<f64> {
 
 /// Filter settings derived from a scenario.
 pub fn filter_config(s: &Scenario, earth_rate: bool, options: Options) -> FilterConfig<f64> {
-    let omega = if s.site.earth_rate && earth_rate {
+    filter_config_of(&s.site, &s.noise, earth_rate, options)
+}
+
+/// [`filter_config`] of a site and noise levels (a scenario's or a
+/// platform file's).
+pub fn filter_config_of(
+    site: &crate::scenario::Site,
+    noise: &crate::scenario::Noise,
+    earth_rate: bool,
+    options: Options,
+) -> FilterConfig<f64> {
+    let omega = if site.earth_rate && earth_rate {
         EARTH_RATE
     } else {
         0.0
     };
-    let lat = s.site.latitude_deg * DEG;
+    let lat = site.latitude_deg * DEG;
     FilterConfig {
         env: Environment {
             earth_rate_n: rollcal::geometry::earth_rate_n(omega, lat),
             gravity_n: rollcal::geometry::gravity_n(),
         },
-        sigma_accel: s.noise.accel_g,
-        sigma_gyro: s.noise.gyro_deg_h * DEG / 3600.0,
-        sigma_gimbal: s.noise.gimbal_arcsec * ARCSEC,
+        sigma_accel: noise.accel_g,
+        sigma_gyro: noise.gyro_deg_h * DEG / 3600.0,
+        sigma_gimbal: noise.gimbal_arcsec * ARCSEC,
         options,
     }
 }

@@ -178,8 +178,8 @@ impl Scenario {
 
     /// Parses and validates a scenario.
     pub fn from_toml(text: &str) -> Result<Self, ScenarioError> {
-        let s: Scenario =
-            toml::from_str(text).map_err(|e| ScenarioError(format!("scenario file: {e}")))?;
+        let s: Scenario = toml::from_str(text)
+            .map_err(|e| ScenarioError(format!("scenario file: {}", toml_error(text, &e))))?;
         s.validate()?;
         Ok(s)
     }
@@ -221,9 +221,7 @@ impl Scenario {
                 "truth.gimbal0_deg must be finite with |β| ≤ 80° (gimbal lock at ±90°)".into(),
             );
         }
-        if !self.site.latitude_deg.is_finite() || self.site.latitude_deg.abs() > 90.0 {
-            return err("site.latitude_deg must be within ±90°".into());
-        }
+        check_site(&self.site)?;
         let tm = &self.timing;
         if !(tm.period_s.is_finite() && tm.period_s > 0.0) {
             return err("timing.period_s must be > 0".into());
@@ -263,25 +261,7 @@ impl Scenario {
         if self.path.is_empty() {
             return err("path must have at least one segment".into());
         }
-        for (i, seg) in self.path.iter().enumerate() {
-            seg.axis
-                .unit()
-                .map_err(|e| ScenarioError(format!("path[{i}]: {e}")))?;
-            if !(seg.rate_deg_s.is_finite() && seg.rate_deg_s > 0.0 && seg.rate_deg_s <= 10.0) {
-                return err(format!("path[{i}].rate_deg_s must be in (0, 10] °/s"));
-            }
-            if !(seg.angle_deg.is_finite() && seg.angle_deg > 0.0) {
-                return err(format!("path[{i}].angle_deg must be > 0"));
-            }
-            let d = seg.angle_deg / seg.rate_deg_s / tm.period_s;
-            if (d - d.round()).abs() > 1e-6 {
-                return err(format!(
-                    "path[{i}] lasts {} s, not a whole number of {} s periods: the filter assumes a constant path rate over each period",
-                    seg.angle_deg / seg.rate_deg_s,
-                    tm.period_s
-                ));
-            }
-        }
+        check_path(&self.path, tm.period_s)?;
         let path_s: f64 = self
             .path
             .iter()
@@ -293,20 +273,203 @@ impl Scenario {
                 tm.duration_s
             ));
         }
-        let n = &self.noise;
-        if !(n.accel_g.is_finite() && n.accel_g > 0.0) {
-            return err("noise.accel_g must be > 0".into());
+        check_noise(&self.noise)?;
+        check_prior(&self.prior)
+    }
+}
+
+/// A TOML error on one line: `line N: message`.
+fn toml_error(text: &str, e: &toml::de::Error) -> String {
+    let msg = e.message().trim().replace('\n', "; ");
+    match e.span() {
+        Some(span) => {
+            let line = text
+                .get(..span.start)
+                .map_or(0, |t| t.matches('\n').count())
+                + 1;
+            format!("line {line}: {msg}")
         }
-        if !(n.gyro_deg_h.is_finite() && n.gyro_deg_h >= 0.0) {
-            return err("noise.gyro_deg_h must be ≥ 0".into());
+        None => msg,
+    }
+}
+
+fn check_site(site: &Site) -> Result<(), ScenarioError> {
+    if !site.latitude_deg.is_finite() || site.latitude_deg.abs() > 90.0 {
+        return Err(ScenarioError(
+            "site.latitude_deg must be within ±90°".into(),
+        ));
+    }
+    Ok(())
+}
+
+fn check_path(path: &[Segment], period_s: f64) -> Result<(), ScenarioError> {
+    let err = |m: String| Err(ScenarioError(m));
+    for (i, seg) in path.iter().enumerate() {
+        seg.axis
+            .unit()
+            .map_err(|e| ScenarioError(format!("path[{i}]: {e}")))?;
+        if !(seg.rate_deg_s.is_finite() && seg.rate_deg_s > 0.0 && seg.rate_deg_s <= 10.0) {
+            return err(format!("path[{i}].rate_deg_s must be in (0, 10] °/s"));
         }
-        if !(n.gimbal_arcsec.is_finite() && n.gimbal_arcsec > 0.0) {
-            return err("noise.gimbal_arcsec must be > 0".into());
+        if !(seg.angle_deg.is_finite() && seg.angle_deg > 0.0) {
+            return err(format!("path[{i}].angle_deg must be > 0"));
         }
-        if !(self.prior.sigma_deg.is_finite() && self.prior.sigma_deg > 0.0) {
-            return err("prior.sigma_deg must be > 0".into());
+        let d = seg.angle_deg / seg.rate_deg_s / period_s;
+        if (d - d.round()).abs() > 1e-6 {
+            return err(format!(
+                "path[{i}] lasts {} s, not a whole number of {} s periods: the filter assumes a constant path rate over each period",
+                seg.angle_deg / seg.rate_deg_s,
+                period_s
+            ));
         }
-        Ok(())
+    }
+    Ok(())
+}
+
+fn check_noise(n: &Noise) -> Result<(), ScenarioError> {
+    let err = |m: &str| Err(ScenarioError(m.into()));
+    if !(n.accel_g.is_finite() && n.accel_g > 0.0) {
+        return err("noise.accel_g must be > 0");
+    }
+    if !(n.gyro_deg_h.is_finite() && n.gyro_deg_h >= 0.0) {
+        return err("noise.gyro_deg_h must be ≥ 0");
+    }
+    if !(n.gimbal_arcsec.is_finite() && n.gimbal_arcsec > 0.0) {
+        return err("noise.gimbal_arcsec must be > 0");
+    }
+    Ok(())
+}
+
+fn check_prior(p: &Prior) -> Result<(), ScenarioError> {
+    if !(p.sigma_deg.is_finite() && p.sigma_deg > 0.0) {
+        return Err(ScenarioError("prior.sigma_deg must be > 0".into()));
+    }
+    Ok(())
+}
+
+/// A platform file (TOML): what the calibrator needs to know of a real
+/// platform — configuration, site, noise levels, period, prior and
+/// optionally the nominal rolling path (for reporting) — and no truth.
+/// The tables are those of a scenario file; a scenario file is also
+/// accepted as a platform file (its truth is then ignored).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Platform {
+    /// Free-text name.
+    #[serde(default)]
+    pub name: String,
+    /// Configuration (M1-pa, M1-ps, M2-ps, M3-pa, M3-ps, M4-pa, M4-ps;
+    /// case-insensitive). Optional: `calibrate --config` may give it.
+    #[serde(default)]
+    pub config: Option<String>,
+    /// Site and Earth rate.
+    pub site: Site,
+    /// Noise levels.
+    pub noise: Noise,
+    /// Timing.
+    pub timing: PlatformTiming,
+    /// Filter prior.
+    pub prior: Prior,
+    /// The nominal rolling path (optional; for reporting only).
+    #[serde(default)]
+    pub path: Vec<Segment>,
+}
+
+/// Timing of a platform.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct PlatformTiming {
+    /// Filter period T (s).
+    pub period_s: f64,
+    /// Expected duration of a log (s), for the progress line (optional).
+    #[serde(default)]
+    pub duration_s: Option<f64>,
+}
+
+impl Platform {
+    /// Parses and validates a platform file; a scenario file (one with a
+    /// `[truth]` table) is read as a scenario and its truth ignored.
+    pub fn from_toml(text: &str) -> Result<Self, ScenarioError> {
+        let err =
+            |e: toml::de::Error| ScenarioError(format!("platform file: {}", toml_error(text, &e)));
+        let value: toml::Table = toml::from_str(text).map_err(err)?;
+        if value.contains_key("truth") {
+            return Scenario::from_toml(text).map(|s| Self::of_scenario(&s));
+        }
+        let p: Platform = toml::from_str(text).map_err(err)?;
+        p.validate()?;
+        Ok(p)
+    }
+
+    /// Reads, parses and validates a platform file.
+    pub fn from_file(path: &Path) -> Result<Self, ScenarioError> {
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            ScenarioError(format!("cannot read platform file {}: {e}", path.display()))
+        })?;
+        Self::from_toml(&text).map_err(|e| ScenarioError(format!("{}: {}", path.display(), e.0)))
+    }
+
+    /// The platform part of a scenario (no configuration).
+    pub fn of_scenario(s: &Scenario) -> Self {
+        Self {
+            name: s.name.clone(),
+            config: None,
+            site: s.site.clone(),
+            noise: s.noise.clone(),
+            timing: PlatformTiming {
+                period_s: s.timing.period_s,
+                duration_s: Some(s.timing.duration_s),
+            },
+            prior: s.prior.clone(),
+            path: s.path.clone(),
+        }
+    }
+
+    /// The configuration the file names, if any.
+    pub fn config_id(&self) -> Option<rollcal::models::ConfigId> {
+        self.config
+            .as_deref()
+            .and_then(rollcal::models::ConfigId::parse)
+    }
+
+    /// Expected number of periods of a log (`timing.duration_s`, else the
+    /// path's length), 0 when unknown.
+    pub fn periods(&self) -> usize {
+        let path_s: f64 = self
+            .path
+            .iter()
+            .map(|seg| seg.angle_deg / seg.rate_deg_s)
+            .sum();
+        (self.timing.duration_s.unwrap_or(path_s) / self.timing.period_s).round() as usize
+    }
+
+    /// Checks every field; errors say which and why.
+    pub fn validate(&self) -> Result<(), ScenarioError> {
+        if let Some(c) = &self.config {
+            if rollcal::models::ConfigId::parse(c).is_none() {
+                let ids: Vec<&str> = rollcal::models::ConfigId::ALL
+                    .iter()
+                    .map(|c| c.as_str())
+                    .collect();
+                return Err(ScenarioError(format!(
+                    "config: unknown configuration '{c}' (expected one of {})",
+                    ids.join(", ")
+                )));
+            }
+        }
+        check_site(&self.site)?;
+        let tm = &self.timing;
+        if !(tm.period_s.is_finite() && tm.period_s > 0.0) {
+            return Err(ScenarioError("timing.period_s must be > 0".into()));
+        }
+        if let Some(d) = tm.duration_s {
+            if !(d.is_finite() && d >= tm.period_s) {
+                return Err(ScenarioError("timing.duration_s must be ≥ period_s".into()));
+            }
+        }
+        check_path(&self.path, tm.period_s)?;
+        check_noise(&self.noise)?;
+        check_prior(&self.prior)
     }
 }
 

@@ -9,6 +9,12 @@
 //! recorded configuration) that `calibrate --truth PATH` reads to fill the
 //! truth and σ_CRLB columns (NaN without it).
 //!
+//! `record --format csv` writes the same samples as a CSV log
+//! ([`crate::csvlog`], docs/csv.md), without the `Configure`; `calibrate`
+//! reads such a log with the settings of a platform file (`--platform`),
+//! sending the calibrator the `Configure` of those settings and then the
+//! samples, as a frame stream would.
+//!
 //! `calibrate` decodes the stream, validates and processes every sample
 //! with the no_std [`rollcal::calibrator::Calibrator`] (f64) — pass 1,
 //! exactly what the firmware computes — and then, like `run`, runs the
@@ -35,7 +41,7 @@ use rollcal::wire::{
 use crate::progress::Progress;
 use crate::report::{print_table, run_json, write_json};
 use crate::runner::{self, Passes, RunResult};
-use crate::scenario::{Scenario, DEG};
+use crate::scenario::{Platform, Scenario, DEG};
 use crate::truth::{simulate, truth_state, PeriodSample, SimOptions};
 
 /// Arguments of `host-sim record`.
@@ -67,17 +73,39 @@ pub struct RecordArgs {
     /// bit flips, outliers), applied after the simulation.
     #[command(flatten)]
     pub impair: crate::impair::Impairments,
+    /// Output format: wire frames (docs/wire.md), or a CSV log
+    /// (docs/csv.md; no `Configure`: calibrate it with --platform).
+    #[arg(long, value_enum, default_value_t = Format::Frames)]
+    pub format: Format,
+}
+
+/// Format of a recorded log.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Format {
+    /// Binary wire frames (docs/wire.md).
+    Frames,
+    /// CSV, one line per period (docs/csv.md).
+    Csv,
 }
 
 /// Arguments of `host-sim calibrate`.
 #[derive(clap::Args, Clone, Debug)]
 pub struct CalibrateArgs {
-    /// Configuration to run (overrides the stream's `Configure` message).
+    /// Configuration to run: must agree with the stream's `Configure`
+    /// message and the platform file's `config` (default: theirs).
     #[arg(long, value_parser = parse_config)]
-    pub config: ConfigId,
+    pub config: Option<ConfigId>,
     /// Input: a file, `-` for stdin, or a serial device (e.g. /dev/ttyUSB0).
     #[arg(long, value_name = "FILE|-|SERIAL_DEVICE", default_value = "-")]
     pub input: String,
+    /// Input format (default: `csv` for a name ending in `.csv`, else frames).
+    #[arg(long, value_enum)]
+    pub format: Option<Format>,
+    /// Platform file (TOML, docs/csv.md): configuration, site, noise,
+    /// period, prior; the settings of a CSV log or of a stream without a
+    /// `Configure` message.
+    #[arg(long, value_name = "FILE", conflicts_with = "scenario")]
+    pub platform: Option<PathBuf>,
     /// Baud rate of a serial device.
     #[arg(long, default_value_t = 115_200)]
     pub baud: u32,
@@ -117,15 +145,21 @@ fn parse_config(s: &str) -> Result<ConfigId, String> {
 /// Calibrator settings equal to `runner::filter_config` of the scenario
 /// (so that the stream's filter is `run`'s filter).
 pub fn calibrator_config(sc: &Scenario, id: ConfigId, earth_rate: bool) -> CalibratorConfig {
-    let f = runner::filter_config(sc, earth_rate, Options::default());
+    platform_config(&Platform::of_scenario(sc), id, earth_rate)
+}
+
+/// Calibrator settings of a platform file (the `Configure` message a
+/// platform with these settings would send).
+pub fn platform_config(p: &Platform, id: ConfigId, earth_rate: bool) -> CalibratorConfig {
+    let f = runner::filter_config_of(&p.site, &p.noise, earth_rate, Options::default());
     let mut c = CalibratorConfig::paper(id);
     c.sigma_accel_g = f.sigma_accel;
     c.sigma_gyro_rad_s = f.sigma_gyro;
     c.sigma_gimbal_rad = f.sigma_gimbal;
     c.earth_rate_n = f.env.earth_rate_n.into();
     c.gravity_n = f.env.gravity_n.into();
-    c.prior_sigma_rad = sc.prior.sigma_deg * DEG;
-    c.limits.period_s = sc.timing.period_s;
+    c.prior_sigma_rad = p.prior.sigma_deg * DEG;
+    c.limits.period_s = p.timing.period_s;
     c
 }
 
@@ -187,7 +221,13 @@ fn load_scenario(path: Option<&Path>) -> Result<Scenario, String> {
 
 /// `host-sim record`.
 pub fn record(args: &RecordArgs) -> Result<(), String> {
-    refuse_terminal(&args.out, std::io::stdout().is_terminal())?;
+    let csv = args.format == Format::Csv;
+    if csv && args.impair.bit_flips > 0.0 {
+        return Err("--bit-flips impairs the frame bytes: not with --format csv".into());
+    }
+    if !csv {
+        refuse_terminal(&args.out, std::io::stdout().is_terminal())?;
+    }
     let sc = load_scenario(args.scenario.as_deref())?;
     let earth_rate = !args.no_earth_rate && sc.site.earth_rate;
     eprintln!(
@@ -217,11 +257,15 @@ pub fn record(args: &RecordArgs) -> Result<(), String> {
         &mut applied,
     );
     let mut bytes = Vec::with_capacity(samples.len() * 80);
-    push_frame(&mut bytes, &Message::Configure(settings))?;
-    for s in &samples {
-        push_frame(&mut bytes, &Message::Sample(*s))?;
+    if csv {
+        bytes = crate::csvlog::write(&samples).into_bytes();
+    } else {
+        push_frame(&mut bytes, &Message::Configure(settings))?;
+        for s in &samples {
+            push_frame(&mut bytes, &Message::Sample(*s))?;
+        }
+        imp.apply_to_bytes(&mut bytes, args.seed, &mut applied);
     }
-    imp.apply_to_bytes(&mut bytes, args.seed, &mut applied);
     if imp.any() {
         eprintln!(
             "impaired: {} sample frames dropped, {} outliers, {} timestamps shifted, {} bits flipped",
@@ -236,7 +280,11 @@ pub fn record(args: &RecordArgs) -> Result<(), String> {
     } else {
         std::fs::write(&args.out, &bytes).map_err(|e| format!("cannot write {}: {e}", args.out))?;
     }
-    eprintln!("{} frames, {} bytes", samples.len() + 1, bytes.len());
+    if csv {
+        eprintln!("{} lines, {} bytes", samples.len() + 1, bytes.len());
+    } else {
+        eprintln!("{} frames, {} bytes", samples.len() + 1, bytes.len());
+    }
     if let Some(path) = &args.truth {
         let last = sim.samples.last().map_or(sim.initial, |s| s.truth);
         let truth = truth_state(args.config, &sim.params, &last);
@@ -313,25 +361,32 @@ struct Final {
 /// for the report.
 struct Host<T: RealField + Copy> {
     session: Session<T>,
-    /// Settings for a stream without a `Configure` message (`--scenario`).
-    fallback: CalibratorConfig,
+    /// Settings for a stream without a `Configure` message (`--platform`
+    /// or `--scenario`), when the configuration is known.
+    fallback: Option<CalibratorConfig>,
     /// The sample log since the last (re)start, for the final passes.
     log: VecLog<T>,
     /// NIS of every accepted update since the last (re)start.
     nis: Vec<f64>,
     /// Filter failures (sequence number, error).
     failures: Vec<(u32, ekf::Error)>,
+    /// Where the fallback settings come from, for the note.
+    fallback_of: String,
 }
 
 impl<T: RealField + Copy> Host<T> {
     fn handle(&mut self, m: Message) -> Result<(), String> {
         match &m {
             Message::Sample(_) if self.session.calibrator().is_none() => {
+                let Some(fallback) = self.fallback else {
+                    return Err("the stream has no Configure message: give --config (and --platform FILE for the platform's settings)".into());
+                };
                 eprintln!(
-                    "note: the stream has no Configure message; using the scenario's settings"
+                    "note: the stream has no Configure message; using the settings of {}",
+                    self.fallback_of
                 );
                 self.session
-                    .configure(self.fallback)
+                    .configure(fallback)
                     .map_err(|e| format!("calibrator: {e}"))?;
             }
             Message::Configure(_) | Message::Reset => {
@@ -441,6 +496,19 @@ fn read_input(
     }
 }
 
+/// The whole of a text input (a file or `-` for stdin).
+fn read_text(input: &str) -> Result<String, String> {
+    if input == "-" {
+        let mut text = String::new();
+        std::io::stdin()
+            .lock()
+            .read_to_string(&mut text)
+            .map_err(|e| format!("cannot read stdin: {e}"))?;
+        return Ok(text);
+    }
+    std::fs::read_to_string(input).map_err(|e| format!("cannot open {input}: {e}"))
+}
+
 /// The truth sidecar written by `record --truth`.
 struct Sidecar {
     truth: Vec<f64>,
@@ -497,19 +565,73 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
 /// `host-sim calibrate` with the calibrator's covariance arithmetic in `T`.
 fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<(), String> {
     let t0 = Clock::now();
-    let id = args.config;
-    let sc = load_scenario(args.scenario.as_deref())?;
+    let format = args
+        .format
+        .unwrap_or(if args.input.to_ascii_lowercase().ends_with(".csv") {
+            Format::Csv
+        } else {
+            Format::Frames
+        });
+    // The settings without a Configure message: the platform file's, else
+    // the scenario's (default: the paper's).
+    let (platform, source) = match &args.platform {
+        Some(path) => (
+            Platform::from_file(path).map_err(|e| e.to_string())?,
+            format!("the platform file {}", path.display()),
+        ),
+        None => {
+            let sc = load_scenario(args.scenario.as_deref())?;
+            let what = args.scenario.as_ref().map_or_else(
+                || "the paper's scenario".to_string(),
+                |p| format!("the scenario {}", p.display()),
+            );
+            (Platform::of_scenario(&sc), what)
+        }
+    };
+    let expected = match (args.config, platform.config_id()) {
+        (Some(a), Some(b)) if a != b => {
+            return Err(format!(
+                "--config {a} contradicts the configuration {b} of {source}"
+            ))
+        }
+        (a, b) => a.or(b),
+    };
     let mut host = Host::<T> {
-        session: Session::new(Some(id), EstimatorOptions::default()),
-        fallback: calibrator_config(&sc, id, sc.site.earth_rate),
+        session: Session::new(expected, EstimatorOptions::default()),
+        fallback: expected.map(|id| platform_config(&platform, id, platform.site.earth_rate)),
         log: VecLog::default(),
         nis: Vec::new(),
         failures: Vec::new(),
+        fallback_of: source.clone(),
     };
     let mut decoder = FrameDecoder::new();
-    eprintln!("calibrating {id} from {}…", args.input);
-    // The expected number of samples: the scenario's periods.
-    let progress = Progress::stderr("calibrate", sc.periods() as u64, "samples accepted");
+    let runs = expected.map_or_else(
+        || "the stream's configuration".to_string(),
+        |id| id.to_string(),
+    );
+    eprintln!("calibrating {runs} from {}…", args.input);
+    // The expected number of samples: the platform's (scenario's) periods.
+    let mut total = platform.periods() as u64;
+    let csv = if format == Format::Csv {
+        let Some(id) = expected else {
+            return Err(format!(
+                "a CSV log has no Configure message: give --config, or --platform FILE with config = \"…\" ({source} names none)"
+            ));
+        };
+        let text = read_text(&args.input)?;
+        let mut log = crate::csvlog::parse(&text).map_err(|e| format!("{}: {e}", args.input))?;
+        let settings = host.fallback.unwrap_or_else(|| CalibratorConfig::paper(id));
+        if !log.has_frames {
+            crate::csvlog::fill_frames(&mut log.samples, settings.earth_rate_n)
+                .map_err(|e| format!("{}: {e}", args.input))?;
+        }
+        total = log.samples.len() as u64;
+        eprintln!("settings of {source}");
+        Some((log.samples, settings))
+    } else {
+        None
+    };
+    let progress = Progress::stderr("calibrate", total, "samples accepted");
     let detail = |host: &Host<T>, decoder: &FrameDecoder| {
         let p = host.session.calibrator().map(|c| *c.progress());
         let accepted = p.map_or(0, |p| u64::from(p.accepted));
@@ -523,21 +645,55 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<(), String>
         )
     };
     let idle = Duration::from_secs_f64(args.idle_timeout.max(0.1));
-    let read = read_input(&args.input, args.baud, idle, |bytes| {
-        let mut result = Ok(());
-        decoder.feed(bytes, |m| {
-            if result.is_ok() {
-                result = host.handle(m);
+    let read = match csv {
+        // Driven exactly as a frame stream: the Configure, then the samples.
+        Some((samples, settings)) => {
+            let mut result = host.handle(Message::Configure(settings));
+            for (k, s) in samples.into_iter().enumerate() {
+                if result.is_err() {
+                    break;
+                }
+                result = host.handle(Message::Sample(s));
+                if k % 256 == 0 {
+                    let (accepted, text) = detail(&host, &decoder);
+                    progress.update(accepted, &text);
+                }
             }
-        });
-        let (accepted, text) = detail(&host, &decoder);
-        progress.update(accepted, &text);
-        result
-    });
+            result
+        }
+        None => read_input(&args.input, args.baud, idle, |bytes| {
+            let mut result = Ok(());
+            decoder.feed(bytes, |m| {
+                if result.is_ok() {
+                    result = host.handle(m);
+                }
+            });
+            let (accepted, text) = detail(&host, &decoder);
+            progress.update(accepted, &text);
+            result
+        }),
+    };
     let (accepted, text) = detail(&host, &decoder);
     progress.finish(accepted, &text);
-    read?;
+    read.map_err(|e| {
+        if e.starts_with("the stream configures") {
+            match (args.config, &args.platform) {
+                (Some(_), _) => format!("{e} (--config)"),
+                (None, Some(_)) => format!("{e} ({source})"),
+                _ => e,
+            }
+        } else {
+            e
+        }
+    })?;
     let stats = *decoder.stats();
+    let Some(id) = host.session.calibrator().map(|c| c.settings().config) else {
+        return Err(format!(
+            "no samples in the stream ({} frames decoded, {} rejected)",
+            stats.ok,
+            stats.errors()
+        ));
+    };
     // Read after the stream: `record --truth T | calibrate --truth T` works.
     let sidecar = args
         .truth
@@ -646,11 +802,18 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<(), String>
     );
     print_table(&r, crlb);
     let rj = reject_json(&p.rejects);
+    let frames = if format == Format::Csv {
+        "CSV log".to_string()
+    } else {
+        format!(
+            "{} frames ok, {} rejected {}",
+            stats.ok,
+            stats.errors(),
+            frames_json(&stats)
+        )
+    };
     println!(
-        "stream: {} frames ok, {} rejected {}; samples: {} accepted, {} bridged, {} rejected {}",
-        stats.ok,
-        stats.errors(),
-        frames_json(&stats),
+        "stream: {frames}; samples: {} accepted, {} bridged, {} rejected {}",
         p.accepted,
         p.bridged,
         p.rejects.total(),
@@ -705,6 +868,7 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<(), String>
             "sigma_rad": est.sigma.to_vec(),
         });
         json["stream"] = serde_json::json!({
+            "format": if format == Format::Csv { "csv" } else { "frames" },
             "frames": frames_json(&stats),
             "accepted": p.accepted,
             "bridged": p.bridged,

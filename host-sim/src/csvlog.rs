@@ -1,0 +1,216 @@
+//! The CSV log (docs/csv.md): one line per filter period with the
+//! quantities of a wire [`Sample`] (docs/wire.md), for platforms that log
+//! to a file rather than send frames.
+//!
+//! Floats are written with Rust's shortest round-trip representation
+//! (`{}` of `f32`/`f64`) and the time as an exact decimal of its
+//! microseconds, so frames → CSV → frames is lossless: every field of
+//! every sample comes back bit for bit.
+
+use nalgebra::Vector3;
+use rollcal::command::CommandFrame;
+use rollcal::wire::Sample;
+
+/// Column names, in the order `record --format csv` writes them.
+pub const COLUMNS: [&str; 16] = [
+    "seq",
+    "t_s",
+    "dt_s",
+    "dtheta_x_rad",
+    "dtheta_y_rad",
+    "dtheta_z_rad",
+    "accel_x_g",
+    "accel_y_g",
+    "accel_z_g",
+    "gimbal_alpha_rad",
+    "gimbal_beta_rad",
+    "gimbal_gamma_rad",
+    "ccn_qw",
+    "ccn_qx",
+    "ccn_qy",
+    "ccn_qz",
+];
+
+/// Columns every log must have (the first nine).
+const REQUIRED: usize = 9;
+/// Index of the first gimbal column and of the first quaternion column.
+const GIMBAL: usize = 9;
+const QUAT: usize = 12;
+
+/// The header line (no newline).
+pub fn header() -> String {
+    COLUMNS.join(",")
+}
+
+/// One sample as a CSV line (no newline); empty gimbal fields without
+/// gimbal angles.
+pub fn line(s: &Sample) -> String {
+    let mut f: Vec<String> = Vec::with_capacity(COLUMNS.len());
+    f.push(s.seq.to_string());
+    f.push(format!("{}.{:06}", s.t_us / 1_000_000, s.t_us % 1_000_000));
+    f.push(s.dt.to_string());
+    f.extend(s.dtheta_cmd.iter().map(|v| v.to_string()));
+    f.extend(s.accel_mean.iter().map(|v| v.to_string()));
+    match s.gimbal {
+        Some(g) => f.extend(g.iter().map(|v| v.to_string())),
+        None => f.extend([String::new(), String::new(), String::new()]),
+    }
+    f.extend(s.c_cn_quat.iter().map(|v| v.to_string()));
+    f.join(",")
+}
+
+/// The whole log: header, then one line per sample.
+pub fn write(samples: &[Sample]) -> String {
+    let mut out = String::with_capacity(samples.len() * 200 + 200);
+    out.push_str(&header());
+    out.push('\n');
+    for s in samples {
+        out.push_str(&line(s));
+        out.push('\n');
+    }
+    out
+}
+
+/// A parsed log.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Log {
+    /// The samples, in file order.
+    pub samples: Vec<Sample>,
+    /// Whether the log had the `ccn_q*` columns (else the quaternions are
+    /// zero until [`fill_frames`]).
+    pub has_frames: bool,
+}
+
+/// Parses a log. Blank lines and lines starting with `#` are skipped; the
+/// first other line is the header. Errors are one line and name the line
+/// number (1-based) and the column.
+pub fn parse(text: &str) -> Result<Log, String> {
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.trim_end_matches('\r')))
+        .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+    let Some((hline, head)) = lines.next() else {
+        return Err("the CSV log is empty (no header line)".into());
+    };
+    // Column index of each named column in the file.
+    let mut index = [None::<usize>; COLUMNS.len()];
+    let names: Vec<&str> = head.split(',').map(str::trim).collect();
+    for (pos, name) in names.iter().enumerate() {
+        let Some(k) = COLUMNS.iter().position(|c| c == name) else {
+            return Err(format!(
+                "line {hline}: unknown column '{name}' (expected {})",
+                header()
+            ));
+        };
+        if index[k].replace(pos).is_some() {
+            return Err(format!("line {hline}: column '{name}' appears twice"));
+        }
+    }
+    if let Some(k) = (0..REQUIRED).find(|k| index[*k].is_none()) {
+        return Err(format!(
+            "line {hline}: the header has no column '{}' (required: {})",
+            COLUMNS[k],
+            COLUMNS[..REQUIRED].join(",")
+        ));
+    }
+    let group = |from: usize, n: usize, what: &str| -> Result<bool, String> {
+        let present = (from..from + n).filter(|k| index[*k].is_some()).count();
+        if present != 0 && present != n {
+            return Err(format!(
+                "line {hline}: {what} columns {} must all be present or all absent",
+                COLUMNS[from..from + n].join(",")
+            ));
+        }
+        Ok(present == n)
+    };
+    let has_gimbal = group(GIMBAL, 3, "the gimbal")?;
+    let has_frames = group(QUAT, 4, "the quaternion")?;
+    let mut samples = Vec::new();
+    for (n, l) in lines {
+        let fields: Vec<&str> = l.split(',').map(str::trim).collect();
+        if fields.len() != names.len() {
+            return Err(format!(
+                "line {n}: {} columns, the header has {}",
+                fields.len(),
+                names.len()
+            ));
+        }
+        let field = |k: usize| index[k].and_then(|i| fields.get(i).copied()).unwrap_or("");
+        let bad = |k: usize| {
+            format!(
+                "line {n}: column {}: '{}' is not a number",
+                COLUMNS[k],
+                field(k)
+            )
+        };
+        let f32_at = |k: usize| field(k).parse::<f32>().map_err(|_| bad(k));
+        let f64_at = |k: usize| field(k).parse::<f64>().map_err(|_| bad(k));
+        let seq = field(0).parse::<u32>().map_err(|_| {
+            format!(
+                "line {n}: column seq: '{}' is not a sequence number (0 to {})",
+                field(0),
+                u32::MAX
+            )
+        })?;
+        let t = f64_at(1)?;
+        let t_us = t * 1e6;
+        if !(0.0..1.8e19).contains(&t_us) {
+            return Err(format!(
+                "line {n}: column t_s: {t} is not a time ≥ 0 s (microseconds must fit in 64 bits)"
+            ));
+        }
+        let gimbal = if has_gimbal && (GIMBAL..GIMBAL + 3).any(|k| !field(k).is_empty()) {
+            Some([f32_at(GIMBAL)?, f32_at(GIMBAL + 1)?, f32_at(GIMBAL + 2)?])
+        } else {
+            None
+        };
+        let c_cn_quat = if has_frames {
+            [
+                f32_at(QUAT)?,
+                f32_at(QUAT + 1)?,
+                f32_at(QUAT + 2)?,
+                f32_at(QUAT + 3)?,
+            ]
+        } else {
+            [0.0; 4]
+        };
+        samples.push(Sample {
+            seq,
+            t_us: t_us.round() as u64,
+            dt: f32_at(2)?,
+            dtheta_cmd: [f64_at(3)?, f64_at(4)?, f64_at(5)?],
+            accel_mean: [f32_at(6)?, f32_at(7)?, f32_at(8)?],
+            gimbal,
+            c_cn_quat,
+        });
+    }
+    Ok(Log {
+        samples,
+        has_frames,
+    })
+}
+
+/// Fills the computed frame `C^c_n` of a log without `ccn_q*` columns by
+/// integrating its commanded increments from `C^c_n(0) = I` (docs/model.md
+/// §Measurement timing), as the filter does. Such a log must have no
+/// missing sequence numbers: across a gap the motion is unknown.
+pub fn fill_frames(samples: &mut [Sample], earth_rate_n: [f64; 3]) -> Result<(), String> {
+    let mut frame = CommandFrame::aligned(Vector3::from(earth_rate_n));
+    let mut last: Option<u32> = None;
+    for s in samples.iter_mut() {
+        if let Some(prev) = last {
+            if s.seq != prev.wrapping_add(1) {
+                return Err(format!(
+                    "sequence {prev} is followed by {}: a log without the ccn_q* columns must have no gaps (the commanded motion across them is unknown)",
+                    s.seq
+                ));
+            }
+        }
+        last = Some(s.seq);
+        let period = frame.period(&Vector3::from(s.dtheta_cmd), f64::from(s.dt));
+        frame.advance(&period);
+        s.c_cn_quat = rollcal::geometry::quaternion_from_dcm(&frame.c_cn).map(|v| v as f32);
+    }
+    Ok(())
+}

@@ -1,0 +1,305 @@
+//! The CSV log and platform files (docs/csv.md): a real platform's inputs.
+//! Deterministic: every record is seeded.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use host_sim::csvlog;
+use host_sim::scenario::Platform;
+use rollcal::wire::{FrameDecoder, Message, Sample};
+
+fn host_sim() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_host-sim"))
+}
+
+fn repo(path: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path)
+}
+
+fn dir(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("rollcal-csv-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn ok(out: Output) -> Output {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+fn json_file(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+fn record(config: &str, seed: &str, format: &str, out: &Path) {
+    ok(host_sim()
+        .args([
+            "record", "--config", config, "--seed", seed, "--format", format,
+        ])
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap());
+}
+
+fn frame_samples(path: &Path) -> Vec<Sample> {
+    let mut d = FrameDecoder::new();
+    let mut v = Vec::new();
+    d.feed(&std::fs::read(path).unwrap(), |m| {
+        if let Message::Sample(s) = m {
+            v.push(s);
+        }
+    });
+    v
+}
+
+/// `record --format csv` writes the samples of `record` (frames) of the same
+/// seed, and parsing the CSV gives them back bit for bit: floats are written
+/// in Rust's shortest round-trip form, the time as exact microseconds.
+#[test]
+fn csv_round_trips_the_frame_samples() {
+    let d = dir("roundtrip");
+    let (bin, csv) = (d.join("a.bin"), d.join("a.csv"));
+    record("M2-ps", "4", "frames", &bin);
+    record("M2-ps", "4", "csv", &csv);
+    let frames = frame_samples(&bin);
+    assert_eq!(frames.len(), 5400);
+    let text = std::fs::read_to_string(&csv).unwrap();
+    assert_eq!(text.lines().next().unwrap(), csvlog::header());
+    let log = csvlog::parse(&text).unwrap();
+    assert!(log.has_frames);
+    assert_eq!(log.samples, frames);
+    // And back: writing the parsed samples reproduces the file.
+    assert_eq!(csvlog::write(&log.samples), text);
+    // Without the ccn_q* columns the computed frame is integrated from the
+    // increments: the same quaternions to f32 rounding.
+    let short: String = text
+        .lines()
+        .map(|l| l.split(',').take(12).collect::<Vec<_>>().join(",") + "\n")
+        .collect();
+    let mut log = csvlog::parse(&short).unwrap();
+    assert!(!log.has_frames);
+    let er = rollcal::wire::CalibratorConfig::paper(rollcal::models::ConfigId::M2Ps).earth_rate_n;
+    csvlog::fill_frames(&mut log.samples, er).unwrap();
+    for (a, b) in log.samples.iter().zip(&frames) {
+        for (x, y) in a.c_cn_quat.iter().zip(&b.c_cn_quat) {
+            assert!((x - y).abs() < 1e-6, "seq {}: {x} vs {y}", a.seq);
+        }
+    }
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// Frames → CSV → calibrate gives bit-identical final estimates and σ to
+/// calibrating the frames: the samples are bit-identical (above), the
+/// platform file's settings are the `Configure` message's to the bit (the
+/// same arithmetic from the same numbers), and the calibrator is driven
+/// the same way (`Configure`, then the samples).
+#[test]
+fn calibrating_the_csv_equals_calibrating_the_frames() {
+    let d = dir("same");
+    let (bin, csv) = (d.join("b.bin"), d.join("b.csv"));
+    for config in ["M2-ps", "M1-pa"] {
+        record(config, "2", "frames", &bin);
+        record(config, "2", "csv", &csv);
+        let (fj, cj, pj) = (d.join("f.json"), d.join("c.json"), d.join("p.json"));
+        ok(host_sim()
+            .args(["calibrate", "--input"])
+            .arg(&bin)
+            .arg("--json")
+            .arg(&fj)
+            .output()
+            .unwrap());
+        // A scenario file read as a platform file (its truth ignored).
+        ok(host_sim()
+            .args(["calibrate", "--config", config, "--input"])
+            .arg(&csv)
+            .arg("--platform")
+            .arg(repo("scenarios/paper.toml"))
+            .arg("--json")
+            .arg(&cj)
+            .output()
+            .unwrap());
+        let (f, c) = (json_file(&fj), json_file(&cj));
+        assert_eq!(f["config"], config);
+        assert_eq!(c["stream"]["format"], "csv");
+        assert_eq!(f["stream"]["accepted"], c["stream"]["accepted"]);
+        assert_eq!(f["passes"], c["passes"]);
+        for (a, b) in f["states"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .zip(c["states"].as_array().unwrap())
+        {
+            assert_eq!(a["name"], b["name"]);
+            assert_eq!(
+                a["estimate_rad"], b["estimate_rad"],
+                "{config} {}",
+                a["name"]
+            );
+            assert_eq!(a["sigma_rad"], b["sigma_rad"], "{config} {}", a["name"]);
+        }
+        assert_eq!(f["pass1"], c["pass1"], "{config}");
+        if config == "M2-ps" {
+            // The example platform file (no truth, names M2-ps): the same answer.
+            ok(host_sim()
+                .args(["calibrate", "--input"])
+                .arg(&csv)
+                .arg("--platform")
+                .arg(repo("scenarios/platform-example.toml"))
+                .arg("--json")
+                .arg(&pj)
+                .output()
+                .unwrap());
+            let p = json_file(&pj);
+            assert_eq!(p["states"], c["states"]);
+        }
+    }
+    std::fs::remove_dir_all(&d).ok();
+}
+
+#[test]
+fn a_platform_file_needs_no_truth() {
+    let text = "config = \"m4-pa\"\n\
+        [site]\nlatitude_deg = -30.0\nearth_rate = true\n\
+        [noise]\naccel_g = 5e-7\ngyro_deg_h = 0.2\ngimbal_arcsec = 20.0\n\
+        [timing]\nperiod_s = 1.0\n\
+        [prior]\nsigma_deg = 1.0\n";
+    let p = Platform::from_toml(text).unwrap();
+    assert_eq!(p.config_id(), Some(rollcal::models::ConfigId::M4Pa));
+    assert!(p.path.is_empty());
+    let p = Platform::from_file(&repo("scenarios/platform-example.toml")).unwrap();
+    assert_eq!(p.config_id(), Some(rollcal::models::ConfigId::M2Ps));
+    // Bad fields: one line naming the field.
+    for (bad, word) in [
+        (text.replace("-30.0", "-95.0"), "latitude_deg"),
+        (text.replace("m4-pa", "M9-xx"), "unknown configuration"),
+        (text.replace("accel_g = 5e-7", "accel_g = 0.0"), "accel_g"),
+        (text.replace("[prior]\nsigma_deg = 1.0\n", ""), "prior"),
+        (text.replace("period_s", "periode_s"), "periode_s"),
+    ] {
+        let e = Platform::from_toml(&bad).unwrap_err().to_string();
+        assert!(e.contains(word) && !e.trim().contains('\n'), "{word}: {e}");
+    }
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// The error line (the last line of stderr).
+fn error_line(out: &Output) -> String {
+    let e = stderr(out);
+    let last = e.lines().last().unwrap_or_default().to_string();
+    assert!(last.starts_with("host-sim: error: "), "{e}");
+    assert!(!e.contains("panicked"), "{e}");
+    last
+}
+
+#[test]
+fn a_contradicting_config_is_an_error_naming_both() {
+    let d = dir("contra");
+    let (bin, csv) = (d.join("c.bin"), d.join("c.csv"));
+    record("M2-ps", "1", "frames", &bin);
+    record("M2-ps", "1", "csv", &csv);
+    // Against the platform file's configuration.
+    let out = host_sim()
+        .args(["calibrate", "--config", "M1-pa", "--input"])
+        .arg(&csv)
+        .arg("--platform")
+        .arg(repo("scenarios/platform-example.toml"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let e = error_line(&out);
+    assert!(e.contains("M1-pa") && e.contains("M2-ps"), "{e}");
+    assert_eq!(stderr(&out).lines().count(), 1, "{}", stderr(&out));
+    // Against the stream's Configure.
+    let out = host_sim()
+        .args(["calibrate", "--config", "M1-pa", "--input"])
+        .arg(&bin)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let e = error_line(&out);
+    assert!(e.contains("M1-pa") && e.contains("M2-ps"), "{e}");
+    // The stream's Configure against the platform file's configuration.
+    let m1 = d.join("m1.toml");
+    std::fs::write(
+        &m1,
+        std::fs::read_to_string(repo("scenarios/platform-example.toml"))
+            .unwrap()
+            .replace("config = \"M2-ps\"", "config = \"M1-pa\""),
+    )
+    .unwrap();
+    let out = host_sim()
+        .args(["calibrate", "--input"])
+        .arg(&bin)
+        .arg("--platform")
+        .arg(&m1)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let e = error_line(&out);
+    assert!(e.contains("M1-pa") && e.contains("M2-ps"), "{e}");
+    // A CSV log without any configuration.
+    let out = host_sim()
+        .args(["calibrate", "--input"])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(error_line(&out).contains("--config"));
+    std::fs::remove_dir_all(&d).ok();
+}
+
+#[test]
+fn a_malformed_csv_line_is_a_one_line_error_with_its_number() {
+    let h = csvlog::header();
+    let good = "1,1.000000,1,0.001,0,0,0,1,0,0,0,0,1,0,0,0";
+    let cases = [
+        (format!("{h}\n{good}\n1,2.0,1,0,0\n"), "line 3", "5 columns"),
+        (
+            format!("# a comment\n{h}\n{good}\n2,2.0,1,0.001,0,0,zero,1,0,0,0,0,1,0,0,0\n"),
+            "line 4",
+            "accel_x_g",
+        ),
+        (format!("{h}\n-1,{}\n", &good[2..]), "line 2", "seq"),
+        ("seq,t_s\n".to_string(), "line 1", "dt_s"),
+        ("seq,t_s,bogus\n".to_string(), "line 1", "bogus"),
+    ];
+    for (text, line, word) in &cases {
+        let e = csvlog::parse(text).unwrap_err();
+        assert!(e.contains(line) && e.contains(word), "{e}");
+        assert!(!e.contains('\n'), "{e}");
+    }
+    // Through the command line: exit 1, the file and the line named.
+    let d = dir("malformed");
+    let bad = d.join("bad.csv");
+    std::fs::write(&bad, &cases[1].0).unwrap();
+    let out = host_sim()
+        .args(["calibrate", "--input"])
+        .arg(&bad)
+        .arg("--platform")
+        .arg(repo("scenarios/platform-example.toml"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let e = error_line(&out);
+    assert!(e.contains("bad.csv: line 4: column accel_x_g"), "{e}");
+    // --format overrides the extension: a CSV named .log is read as CSV.
+    let log = d.join("good.log");
+    std::fs::write(&log, format!("{h}\n{good}\n")).unwrap();
+    let out = host_sim()
+        .args(["calibrate", "--format", "csv", "--passes", "1", "--input"])
+        .arg(&log)
+        .arg("--platform")
+        .arg(repo("scenarios/platform-example.toml"))
+        .output()
+        .unwrap();
+    assert!(!stderr(&out).contains("panicked"), "{}", stderr(&out));
+    std::fs::remove_dir_all(&d).ok();
+}
