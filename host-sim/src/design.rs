@@ -178,6 +178,7 @@ impl Pattern {
                 axis: r.axis.to_axis(),
                 angle_deg: round_angle(angle),
                 rate_deg_s: r.rate_deg_s,
+                dwell_s: 0.0,
             });
             last = Some(r);
         }
@@ -913,6 +914,12 @@ pub fn pattern_of(s: &Scenario) -> Result<Pattern, String> {
         .path
         .iter()
         .map(|seg| {
+            if seg.dwell_s != 0.0 {
+                return Err(
+                    "design: the reference path has a dwell (dwell_s); the design search models rotations only, so give a reference without dwells"
+                        .to_string(),
+                );
+            }
             let unit = seg.axis.unit().map_err(|e| e.to_string())?;
             let name = match &seg.axis {
                 Axis::Named(n) => n.to_ascii_lowercase(),

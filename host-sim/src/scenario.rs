@@ -82,6 +82,29 @@ pub struct Segment {
     pub angle_deg: f64,
     /// Rotation rate (°/s, > 0).
     pub rate_deg_s: f64,
+    /// Hold still for this long after the rotation (s, ≥ 0, a whole number
+    /// of periods): zero commanded path rate. Optional, default 0; a
+    /// segment with `angle_deg = 0` and `dwell_s > 0` is a pure dwell.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub dwell_s: f64,
+}
+
+/// `skip_serializing_if` for an optional dwell: absent when zero, so paths
+/// without dwells serialise as before.
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
+}
+
+impl Segment {
+    /// Time spent rotating (s).
+    pub fn rotation_s(&self) -> f64 {
+        self.angle_deg / self.rate_deg_s
+    }
+
+    /// The segment's whole duration, rotation then dwell (s).
+    pub fn duration_s(&self) -> f64 {
+        self.rotation_s() + self.dwell_s
+    }
 }
 
 /// A rotation axis.
@@ -262,11 +285,7 @@ impl Scenario {
             return err("path must have at least one segment".into());
         }
         check_path(&self.path, tm.period_s)?;
-        let path_s: f64 = self
-            .path
-            .iter()
-            .map(|seg| seg.angle_deg / seg.rate_deg_s)
-            .sum();
+        let path_s: f64 = self.path.iter().map(Segment::duration_s).sum();
         if path_s > tm.duration_s + 1e-6 * tm.period_s {
             return err(format!(
                 "the path lasts {path_s} s but timing.duration_s is {} s: the path would be cut (lengthen duration_s to at least {path_s}, or shorten the path)",
@@ -311,8 +330,21 @@ fn check_path(path: &[Segment], period_s: f64) -> Result<(), ScenarioError> {
         if !(seg.rate_deg_s.is_finite() && seg.rate_deg_s > 0.0 && seg.rate_deg_s <= 10.0) {
             return err(format!("path[{i}].rate_deg_s must be in (0, 10] °/s"));
         }
-        if !(seg.angle_deg.is_finite() && seg.angle_deg > 0.0) {
-            return err(format!("path[{i}].angle_deg must be > 0"));
+        if !(seg.dwell_s.is_finite() && seg.dwell_s >= 0.0) {
+            return err(format!("path[{i}].dwell_s must be finite and ≥ 0 s"));
+        }
+        let pure_dwell = seg.angle_deg == 0.0 && seg.dwell_s > 0.0;
+        if !(seg.angle_deg.is_finite() && (seg.angle_deg > 0.0 || pure_dwell)) {
+            return err(format!(
+                "path[{i}].angle_deg must be > 0 (or 0 with dwell_s > 0, a pure dwell)"
+            ));
+        }
+        let w = seg.dwell_s / period_s;
+        if (w - w.round()).abs() > 1e-6 {
+            return err(format!(
+                "path[{i}].dwell_s = {} s is not a whole number of {} s periods",
+                seg.dwell_s, period_s
+            ));
         }
         let d = seg.angle_deg / seg.rate_deg_s / period_s;
         if (d - d.round()).abs() > 1e-6 {
@@ -435,11 +467,7 @@ impl Platform {
     /// Expected number of periods of a log (`timing.duration_s`, else the
     /// path's length), 0 when unknown.
     pub fn periods(&self) -> usize {
-        let path_s: f64 = self
-            .path
-            .iter()
-            .map(|seg| seg.angle_deg / seg.rate_deg_s)
-            .sum();
+        let path_s: f64 = self.path.iter().map(Segment::duration_s).sum();
         (self.timing.duration_s.unwrap_or(path_s) / self.timing.period_s).round() as usize
     }
 

@@ -163,15 +163,17 @@ struct Path {
 impl Path {
     fn new(s: &Scenario) -> Self {
         let mut t = 0.0;
-        let segments = s
-            .path
-            .iter()
-            .map(|seg| {
-                let u = seg.axis.unit().unwrap_or([0.0; 3]);
-                t += seg.angle_deg / seg.rate_deg_s;
-                (t, Vector3::new(u[0], u[1], u[2]) * (seg.rate_deg_s * DEG))
-            })
-            .collect();
+        let mut segments = Vec::with_capacity(s.path.len());
+        for seg in &s.path {
+            let u = seg.axis.unit().unwrap_or([0.0; 3]);
+            t += seg.rotation_s();
+            segments.push((t, Vector3::new(u[0], u[1], u[2]) * (seg.rate_deg_s * DEG)));
+            // A dwell: zero path rate until its end.
+            if seg.dwell_s > 0.0 {
+                t += seg.dwell_s;
+                segments.push((t, Vector3::zeros()));
+            }
+        }
         Self { segments }
     }
 
