@@ -223,9 +223,7 @@ impl Compensation {
     /// The JSON document of `--matrices`.
     pub fn to_json(&self) -> serde_json::Value {
         let m = |a: &Matrix3<f64>| -> Vec<[f64; 3]> {
-            (0..3)
-                .map(|i| [a[(i, 0)], a[(i, 1)], a[(i, 2)]])
-                .collect()
+            (0..3).map(|i| [a[(i, 0)], a[(i, 1)], a[(i, 2)]]).collect()
         };
         let finite_or_null = |v: f64| {
             if v.is_finite() {
@@ -301,8 +299,16 @@ impl Compensation {
             t,
             "  gyro rate ω_g (its torquing command) into the platform: ω^{frame}_ip = G ω_g"
         );
-        mat(&mut t, "G⁻¹: the command for a wanted platform rate, ω_g = G⁻¹ ω^p", &self.platform_to_gyro_command());
-        mat(&mut t, "A⁻¹: accelerometer output into the platform, f^p = A⁻¹ Z_a", &self.accel_to_platform());
+        mat(
+            &mut t,
+            "G⁻¹: the command for a wanted platform rate, ω_g = G⁻¹ ω^p",
+            &self.platform_to_gyro_command(),
+        );
+        mat(
+            &mut t,
+            "A⁻¹: accelerometer output into the platform, f^p = A⁻¹ Z_a",
+            &self.accel_to_platform(),
+        );
         if let Some(b) = &self.base_dcm {
             mat(&mut t, "C^r_n = R(λ)  (base mounting)", b);
         }
@@ -332,7 +338,11 @@ impl Compensation {
             pairs.sort_by(|a, b| b.0.abs().total_cmp(&a.0.abs()));
             let _ = writeln!(t, "Strongest correlations (full matrix in the JSON):");
             for (r, i, j) in pairs.iter().take(5) {
-                let _ = writeln!(t, "  {:<11} {:<11} {:>+7.3}", self.names[*i], self.names[*j], r);
+                let _ = writeln!(
+                    t,
+                    "  {:<11} {:<11} {:>+7.3}",
+                    self.names[*i], self.names[*j], r
+                );
             }
         } else {
             let _ = writeln!(t, "Correlations: not available (σ only).");
@@ -446,7 +456,8 @@ pub fn covariance_of_packed_ud(n: usize, packed: &[f64]) -> Vec<f64> {
     let p = &u * DMatrix::from_diagonal(&d) * u.transpose();
     (0..n)
         .flat_map(|i| (0..n).map(move |j| (i, j)))
-        .map(|(i, j)| p[(i, j)])
+        // Symmetric by construction (the product rounds differently).
+        .map(|(i, j)| 0.5 * (p[(i, j)] + p[(j, i)]))
         .collect()
 }
 
@@ -480,7 +491,12 @@ mod tests {
         assert_eq!(c.accel_matrix, accel_matrix(&v(9), &v(12)));
         assert_eq!(c.base_dcm, Some(dcm(&v(15))));
         let i = Matrix3::identity();
-        assert!((c.platform_to_gyro_command() * c.gyro_matrix - i).abs().max() < 1e-15);
+        assert!(
+            (c.platform_to_gyro_command() * c.gyro_matrix - i)
+                .abs()
+                .max()
+                < 1e-15
+        );
         assert!((c.accel_to_platform() * c.accel_matrix - i).abs().max() < 1e-15);
         assert!(!c.covariance_known);
         assert!(c.correlation[0][1].is_nan());

@@ -374,14 +374,15 @@ impl<T: RealField + Copy> Host<T> {
         };
         let cal = self.session.calibrator()?;
         let (mut nis, mut pass) = (Vec::new(), 0);
-        let (estimate, covariance) = finish_with_covariance(cal, &mut self.log, &opts, &mut |p, v| {
-            if p != pass {
-                (pass, nis) = (p, Vec::new());
-            }
-            if let Some(v) = v {
-                nis.push(v.to_subset().unwrap_or(f64::NAN));
-            }
-        });
+        let (estimate, covariance) =
+            finish_with_covariance(cal, &mut self.log, &opts, &mut |p, v| {
+                if p != pass {
+                    (pass, nis) = (p, Vec::new());
+                }
+                if let Some(v) = v {
+                    nis.push(v.to_subset().unwrap_or(f64::NAN));
+                }
+            });
         Some(Final {
             estimate,
             nis,
@@ -611,10 +612,8 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<(), String>
     let settings = *cal.settings();
     let est = cal.estimate();
     // The running filter's covariance (the answer when the passes do not run).
-    let running_covariance = crate::compensation::covariance_of_packed_ud(
-        id.layout().n(),
-        &cal.checkpoint().factor,
-    );
+    let running_covariance =
+        crate::compensation::covariance_of_packed_ud(id.layout().n(), &cal.checkpoint().factor);
     let p = est.progress;
     if p.accepted == 0 {
         return Err(format!(

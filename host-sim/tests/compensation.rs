@@ -8,8 +8,8 @@ use host_sim::compensation::{of_run, Compensation};
 use host_sim::runner::{run_filter, Estimator};
 use host_sim::scenario::Scenario;
 use host_sim::truth::{simulate, truth_state, SimOptions, Simulation, TruthParams};
-use nalgebra::Matrix3;
-use rollcal::geometry::dcm;
+use nalgebra::{Matrix3, Vector3};
+use rollcal::geometry::{dcm, right_jacobian};
 use rollcal::models::{ConfigId, Group, PlatformFrame};
 
 /// The true G, A (in the configuration's frame) and R(λ), from the truth's
@@ -54,7 +54,21 @@ fn worst_ratio(id: ConfigId, sc: &Scenario, sim: &Simulation) -> f64 {
             assert!(res[i].is_nan());
             continue;
         }
-        let sigma = c.sigma[i];
+        // The base residual is a rotation, R(λ_true) R(λ)ᵀ ≈ I − [(J_r(λ) δλ)×]
+        // (geometry::right_jacobian): its σ is that of J_r(λ) δλ.
+        let (sigma, err) = if s.group == Group::Lambda {
+            let il = id.layout().lam().unwrap();
+            let k = i - il;
+            let lam = Vector3::new(c.estimate[il], c.estimate[il + 1], c.estimate[il + 2]);
+            let j = right_jacobian(&lam);
+            let n = c.sigma.len();
+            let p = Matrix3::from_fn(|a, b| r.covariance[(il + a) * n + il + b]);
+            let d =
+                Vector3::from_fn(|a, _| r.states[il + a].truth_rad - r.states[il + a].estimate_rad);
+            ((j * p * j.transpose())[(k, k)].sqrt(), (j * d)[k])
+        } else {
+            (c.sigma[i], r.states[i].truth_rad - r.states[i].estimate_rad)
+        };
         let ratio = res[i].abs() / sigma;
         println!(
             "{id} {:<9} residual {:>+10.4}″  σ {:>8.4}″  ratio {ratio:.2}",
@@ -70,7 +84,6 @@ fn worst_ratio(id: ConfigId, sc: &Scenario, sim: &Simulation) -> f64 {
         );
         // The residual angle is the parameter error truth − estimate, to
         // first order (products of 0.4° and a few σ).
-        let err = r.states[i].truth_rad - r.states[i].estimate_rad;
         assert!(
             (res[i] - err).abs() <= 0.1 * sigma,
             "{id} {}: residual {:e}, parameter error {err:e}",
@@ -149,7 +162,7 @@ fn with_the_true_parameters_the_compensation_of_the_raw_outputs_is_exact() {
             worst = worst.max((c.compensate_accel(&s.truth.accel_at_t) - f_p).abs().max());
         }
         // The platform rate of the gyro triad's rate, and back.
-        let w = nalgebra::Vector3::new(1e-3, -2e-3, 5e-4);
+        let w = Vector3::new(1e-3, -2e-3, 5e-4);
         worst = worst.max((c.compensate_gyro(&w) - g * w).abs().max() / w.norm());
         worst = worst.max((g * (c.platform_to_gyro_command() * w) - w).abs().max() / w.norm());
         println!("{id}: worst residual with the true parameters {worst:e}");
@@ -173,11 +186,25 @@ fn run_and_calibrate_write_the_matrices() {
         .arg(&run_txt)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(!stdout.contains("Apply:"), "the text went to --matrices-txt");
+    assert!(
+        !stdout.contains("Apply:"),
+        "the text went to --matrices-txt"
+    );
     let txt = std::fs::read_to_string(&run_txt).unwrap();
-    for needle in ["M1-pa", "platform frame pa", "G = R(θgC)", "A⁻¹", "thaT_3", "correlations"] {
+    for needle in [
+        "M1-pa",
+        "platform frame pa",
+        "G = R(θgC)",
+        "A⁻¹",
+        "thaT_3",
+        "correlations",
+    ] {
         assert!(txt.contains(needle), "{needle} in\n{txt}");
     }
     let v: serde_json::Value =
@@ -198,7 +225,13 @@ fn run_and_calibrate_write_the_matrices() {
         key.as_array()
             .unwrap()
             .iter()
-            .map(|r| r.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect())
+            .map(|r| {
+                r.as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|x| x.as_f64().unwrap())
+                    .collect()
+            })
             .collect()
     };
     let g = rows(&v["gyro_matrix"]);
@@ -221,7 +254,9 @@ fn run_and_calibrate_write_the_matrices() {
     }
     let corr = rows(&v["correlation"]);
     assert_eq!(corr.len(), 12);
-    assert!(corr.iter().all(|r| r.len() == 12 && r.iter().all(|x| x.abs() <= 1.0 + 1e-9)));
+    assert!(corr
+        .iter()
+        .all(|r| r.len() == 12 && r.iter().all(|x| x.abs() <= 1.0 + 1e-9)));
     assert_eq!(v["sigma_rad"].as_array().unwrap().len(), 12);
 
     // record | calibrate --matrices (M2-ps): the text on stdout, R(λ), the
@@ -232,7 +267,11 @@ fn run_and_calibrate_write_the_matrices() {
         .arg(&bin_file)
         .output()
         .unwrap();
-    assert!(rec.status.success(), "{}", String::from_utf8_lossy(&rec.stderr));
+    assert!(
+        rec.status.success(),
+        "{}",
+        String::from_utf8_lossy(&rec.stderr)
+    );
     let out = Command::new(bin)
         .args(["calibrate", "--config", "M2-ps", "--input"])
         .arg(&bin_file)
@@ -240,7 +279,11 @@ fn run_and_calibrate_write_the_matrices() {
         .arg(&cal_json)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("Calibration result, M2-ps"), "{stdout}");
     assert!(stdout.contains("C^r_n = R(λ)"), "{stdout}");
