@@ -284,7 +284,15 @@ impl Compensation {
                 );
             }
         };
-        mat(&mut t, "G = R(θgC)(I + L(θgT))  (gyros)", &self.gyro_matrix);
+        mat(
+            &mut t,
+            if frame == "pa" {
+                "G = R(θgC^pa)(I + L(θgT))  (gyros)"
+            } else {
+                "G = R(θgC)(I + L(θgT))  (gyros)"
+            },
+            &self.gyro_matrix,
+        );
         mat(
             &mut t,
             &if frame == "pa" {
