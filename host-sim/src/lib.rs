@@ -5,6 +5,8 @@
 //!   estimator's models);
 //! - [`runner`]: runs any configuration's estimator over a simulated run;
 //! - [`report`]: tables, JSON and CSV of runs;
+//! - [`compensation`]: the calibrated matrices and the compensation of the
+//!   raw outputs (`--matrices`);
 //! - [`observe`]: the observability analysis of every configuration;
 //! - [`design`]: designing the rolling path (the shortest path that reaches
 //!   target σ_CRLB, or the best within a budget);
@@ -17,6 +19,7 @@
 //! - [`verdict`]: the verdict words of every table;
 //! - [`progress`]: progress on stderr (a bar on a terminal, lines in a log).
 
+pub mod compensation;
 pub mod csvlog;
 pub mod design;
 pub mod impair;

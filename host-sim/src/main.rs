@@ -157,6 +157,8 @@ struct RunArgs {
     /// Write the time history (t, then estimate and σ of every state) as CSV to PATH.
     #[arg(long, value_name = "PATH")]
     csv: Option<PathBuf>,
+    #[command(flatten)]
+    matrices: host_sim::compensation::MatricesArgs,
 }
 
 /// Cold-start remedies (see the `ekf` module docs and the README).
@@ -311,6 +313,7 @@ fn cmd_run(args: &RunArgs) -> Result<(), String> {
     if let Some(path) = &args.csv {
         write_csv(path, &r).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
     }
+    args.matrices.write(&r)?;
     Ok(())
 }
 

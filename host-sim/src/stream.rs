@@ -28,11 +28,11 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant as Clock};
 
 use nalgebra::{RealField, Vector3};
-use rollcal::calibrator::RejectReason;
+use rollcal::calibrator::{Calibrator, RejectReason};
 use rollcal::ekf::{self, FilterConfig, Options};
 use rollcal::estimator::{EstimatorOptions, LogError, LogRecord, SampleLog};
-use rollcal::models::{ConfigId, Environment};
-use rollcal::session::{Reply, Session};
+use rollcal::models::{ConfigId, Environment, Model};
+use rollcal::session::{AnyCalibrator, Reply, Session};
 use rollcal::wire::{
     encode, CalibratorConfig, DecoderStats, Estimate, EstimateKind, FrameDecoder, Message, Sample,
     MAX_FRAME_LEN,
@@ -130,6 +130,9 @@ pub struct CalibrateArgs {
     /// Write the final states as JSON (as `run --json`) to PATH.
     #[arg(long, value_name = "PATH")]
     pub json: Option<PathBuf>,
+    /// `--matrices`, `--matrices-txt`: the result as matrices to apply.
+    #[command(flatten)]
+    pub matrices: crate::compensation::MatricesArgs,
 }
 
 fn parse_config(s: &str) -> Result<ConfigId, String> {
@@ -355,6 +358,9 @@ struct Final {
     estimate: Estimate,
     /// NIS of every update of the last pass.
     nis: Vec<f64>,
+    /// Covariance of the final filter, row-major (rad²; empty when the
+    /// passes did not run).
+    covariance: Vec<f64>,
 }
 
 /// The no_std session (the protocol, once) with the host's log and records
@@ -423,15 +429,60 @@ impl<T: RealField + Copy> Host<T> {
         };
         let cal = self.session.calibrator()?;
         let (mut nis, mut pass) = (Vec::new(), 0);
-        let estimate = cal.finish(&mut self.log, &opts, &mut |p, v| {
-            if p != pass {
-                (pass, nis) = (p, Vec::new());
-            }
-            if let Some(v) = v {
-                nis.push(v.to_subset().unwrap_or(f64::NAN));
-            }
+        let (estimate, covariance) =
+            finish_with_covariance(cal, &mut self.log, &opts, &mut |p, v| {
+                if p != pass {
+                    (pass, nis) = (p, Vec::new());
+                }
+                if let Some(v) = v {
+                    nis.push(v.to_subset().unwrap_or(f64::NAN));
+                }
+            });
+        Some(Final {
+            estimate,
+            nis,
+            covariance,
+        })
+    }
+}
+
+/// [`AnyCalibrator::finish`], also returning the final filter's covariance
+/// (row-major, rad²; empty when the passes did not run).
+fn finish_with_covariance<T: RealField + Copy>(
+    cal: &AnyCalibrator<T>,
+    log: &mut (dyn SampleLog<T> + '_),
+    passes: &EstimatorOptions,
+    on_update: &mut dyn FnMut(u8, Option<T>),
+) -> (Estimate, Vec<f64>) {
+    fn one<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize>(
+        c: &Calibrator<T, M, N, Z>,
+        log: &mut (dyn SampleLog<T> + '_),
+        passes: &EstimatorOptions,
+        on_update: &mut dyn FnMut(u8, Option<T>),
+    ) -> (Estimate, Vec<f64>) {
+        let (estimate, filter) = c.finish(log, passes, |e| {
+            on_update(
+                e.pass,
+                e.result.as_ref().ok().and_then(|r| r.map(|i| i.nis)),
+            )
         });
-        Some(Final { estimate, nis })
+        let covariance = filter.map_or_else(Vec::new, |f| {
+            f.covariance()
+                .transpose()
+                .iter()
+                .map(|v| v.to_subset().unwrap_or(f64::NAN))
+                .collect()
+        });
+        (estimate, covariance)
+    }
+    match cal {
+        AnyCalibrator::M1Pa(c) => one(c, log, passes, on_update),
+        AnyCalibrator::M1Ps(c) => one(c, log, passes, on_update),
+        AnyCalibrator::M2Ps(c) => one(c, log, passes, on_update),
+        AnyCalibrator::M3Pa(c) => one(c, log, passes, on_update),
+        AnyCalibrator::M3Ps(c) => one(c, log, passes, on_update),
+        AnyCalibrator::M4Pa(c) => one(c, log, passes, on_update),
+        AnyCalibrator::M4Ps(c) => one(c, log, passes, on_update),
     }
 }
 
@@ -716,6 +767,9 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<(), String>
     cal.set_frame_errors(stats.errors());
     let settings = *cal.settings();
     let est = cal.estimate();
+    // The running filter's covariance (the answer when the passes do not run).
+    let running_covariance =
+        crate::compensation::covariance_of_packed_ud(id.layout().n(), &cal.checkpoint().factor);
     let p = est.progress;
     if p.accepted == 0 {
         return Err(format!(
@@ -761,7 +815,9 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<(), String>
         eprintln!("note: {reason}: the final answer is the calibrator's pass 1");
     }
     let (state, sigma, nis, failures, passes) = match &fin {
-        Some(Final { estimate, nis }) if matches!(estimate.kind, EstimateKind::Final { .. }) => {
+        Some(Final { estimate, nis, .. })
+            if matches!(estimate.kind, EstimateKind::Final { .. }) =>
+        {
             let passes = match estimate.kind {
                 EstimateKind::Final { passes, .. } => passes,
                 _ => 1,
@@ -790,7 +846,12 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<(), String>
             filter: Box::new(CalibratorView {
                 state: state.to_vec(),
                 sigma: sigma.to_vec(),
-                covariance: Vec::new(),
+                covariance: match &fin {
+                    Some(f) if matches!(f.estimate.kind, EstimateKind::Final { .. }) => {
+                        f.covariance.clone()
+                    }
+                    _ => running_covariance,
+                },
             }),
             history: Vec::new(),
             nis,
@@ -882,6 +943,7 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<(), String>
         });
         write_json(path, &json)?;
     }
+    args.matrices.write(&r)?;
     Ok(())
 }
 
