@@ -4,6 +4,7 @@
 //! - [`truth`]: the truth simulator (physical platform, independent of the
 //!   estimator's models);
 //! - [`runner`]: runs any configuration's estimator over a simulated run;
+//! - [`segments`]: path segments recovered from the commanded increments;
 //! - [`report`]: tables, JSON and CSV of runs;
 //! - [`compensation`]: the calibrated matrices and the compensation of the
 //!   raw outputs (`--matrices`);
@@ -31,6 +32,7 @@ pub mod progress;
 pub mod report;
 pub mod runner;
 pub mod scenario;
+pub mod segments;
 pub mod stream;
 pub mod truth;
 pub mod verdict;

@@ -13,6 +13,7 @@ use rollcal::models::{ConfigId, Environment, Group, Model};
 use rollcal::observability::Observability;
 
 use crate::scenario::{Scenario, ARCSEC, DEG};
+use crate::segments::{command_segments, CommandSegment};
 use crate::truth::{truth_state, PeriodSample, Simulation};
 
 /// Object-safe view of a filter of any configuration and precision
@@ -160,6 +161,45 @@ impl StateResult {
     }
 }
 
+/// One accepted measurement update of the last pass.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Update {
+    /// Index of its record in the log (0-based).
+    pub index: usize,
+    /// Time at the end of its period (s from the start of the log).
+    pub t_s: f64,
+    /// Normalised innovation squared `νᵀ S⁻¹ ν`.
+    pub nis: f64,
+    /// The whitened innovation `L⁻¹ ν` with `S = L Lᵀ` (Cholesky):
+    /// independent unit-variance components when the model holds, in the
+    /// order of the measurement (M2: the gimbal angles α, β, γ, then the
+    /// accelerometer x, y, z; the accelerometer alone otherwise); empty
+    /// when `S` was not positive definite.
+    pub white: Vec<f64>,
+}
+
+impl Update {
+    /// The update of record `index` at time `t_s` from its innovation.
+    pub fn of<T: RealField + Copy, const Z: usize>(
+        index: usize,
+        t_s: f64,
+        i: &ekf::Innovation<T, Z>,
+    ) -> Self {
+        let nu = i.nu.map(f64_of);
+        let s = i.s.map(f64_of);
+        let white = s
+            .cholesky()
+            .and_then(|c| c.l().solve_lower_triangular(&nu))
+            .map_or_else(Vec::new, |w| w.iter().copied().collect());
+        Self {
+            index,
+            t_s,
+            nis: f64_of(i.nis),
+            white,
+        }
+    }
+}
+
 /// A whole run.
 #[derive(Clone, Debug)]
 pub struct RunResult {
@@ -173,6 +213,11 @@ pub struct RunResult {
     pub history: Vec<(f64, Vec<f64>, Vec<f64>)>,
     /// NIS per period.
     pub nis: Vec<f64>,
+    /// The accepted updates of the last pass (NIS and whitened innovation).
+    pub updates: Vec<Update>,
+    /// The path's constant-command segments, from the commanded increments
+    /// ([`crate::segments::command_segments`]).
+    pub segments: Vec<CommandSegment>,
     /// Prior σ of every state (rad).
     pub prior_sigma_rad: f64,
     /// Passes over the data that were run.
@@ -215,6 +260,10 @@ pub struct Passes {
     pub history: Vec<(f64, Vec<f64>, Vec<f64>)>,
     /// NIS per period of the last pass.
     pub nis: Vec<f64>,
+    /// The accepted updates of the last pass.
+    pub updates: Vec<Update>,
+    /// The constant-command segments of the log.
+    pub segments: Vec<CommandSegment>,
     /// Failed updates of the last pass.
     pub failures: Vec<(u32, ekf::Error)>,
     /// Passes run.
@@ -227,6 +276,7 @@ struct LastPass {
     pass: u8,
     history: Vec<(f64, Vec<f64>, Vec<f64>)>,
     nis: Vec<f64>,
+    updates: Vec<Update>,
     failures: Vec<(u32, ekf::Error)>,
 }
 
@@ -263,7 +313,11 @@ fn passes_of<
         }
         let sample = samples.get(ev.index);
         match ev.result {
-            Ok(Some(i)) => last.nis.push(f64_of(i.nis)),
+            Ok(Some(i)) => {
+                last.nis.push(f64_of(i.nis));
+                let t = sample.map_or(f64::NAN, |s| s.truth.t);
+                last.updates.push(Update::of(ev.index, t, &i));
+            }
             Ok(None) => {}
             Err(e) => last.failures.push((sample.map_or(0, |s| s.k), e)),
         }
@@ -277,9 +331,16 @@ fn passes_of<
         filter: Box::new(out.filter),
         history: last.history,
         nis: last.nis,
+        updates: last.updates,
+        segments: segments_of_samples(samples),
         failures: last.failures,
         passes: out.report.passes,
     })
+}
+
+/// The constant-command segments of simulated periods.
+pub fn segments_of_samples(samples: &[PeriodSample]) -> Vec<CommandSegment> {
+    command_segments(samples.iter().map(|s| (s.dt, s.dtheta_cmd.into())))
 }
 
 /// The multi-pass estimator ([`rollcal::estimator::estimate`]) of
@@ -358,6 +419,8 @@ pub fn result(id: ConfigId, p: &Passes, truth: &[f64], sigma0: f64) -> RunResult
         covariance: f.covariance(),
         history: p.history.clone(),
         nis: p.nis.clone(),
+        updates: p.updates.clone(),
+        segments: p.segments.clone(),
         prior_sigma_rad: sigma0,
         passes: p.passes,
         failures: p.failures.clone(),

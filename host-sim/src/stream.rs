@@ -42,6 +42,7 @@ use crate::progress::Progress;
 use crate::report::{print_table, run_json, write_json};
 use crate::runner::{self, Passes, RunResult};
 use crate::scenario::{Platform, Scenario, DEG};
+use crate::segments;
 use crate::truth::{simulate, truth_state, PeriodSample, SimOptions};
 
 /// Arguments of `host-sim record`.
@@ -358,6 +359,10 @@ struct Final {
     estimate: Estimate,
     /// NIS of every update of the last pass.
     nis: Vec<f64>,
+    /// The accepted updates of the last pass.
+    updates: Vec<runner::Update>,
+    /// Time history of the last pass: (t, estimate, σ) per record.
+    history: Vec<(f64, Vec<f64>, Vec<f64>)>,
     /// Covariance of the final filter, row-major (rad²; empty when the
     /// passes did not run).
     covariance: Vec<f64>,
@@ -428,22 +433,39 @@ impl<T: RealField + Copy> Host<T> {
             ..EstimatorOptions::default()
         };
         let cal = self.session.calibrator()?;
-        let (mut nis, mut pass) = (Vec::new(), 0);
-        let (estimate, covariance) =
-            finish_with_covariance(cal, &mut self.log, &opts, &mut |p, v| {
-                if p != pass {
-                    (pass, nis) = (p, Vec::new());
-                }
-                if let Some(v) = v {
-                    nis.push(v.to_subset().unwrap_or(f64::NAN));
-                }
-            });
+        let (mut nis, mut updates, mut history, mut pass) = (Vec::new(), Vec::new(), Vec::new(), 0);
+        let (estimate, covariance) = finish_with_covariance(cal, &mut self.log, &opts, &mut |ev| {
+            if ev.pass != pass {
+                (pass, nis, updates, history) = (ev.pass, Vec::new(), Vec::new(), Vec::new());
+            }
+            if let Some(u) = ev.update {
+                nis.push(u.nis);
+                updates.push(u);
+            }
+            history.push((ev.t_s, ev.state, ev.sigma));
+        });
         Some(Final {
             estimate,
             nis,
+            updates,
+            history,
             covariance,
         })
     }
+}
+
+/// One record of a pass of [`finish_with_covariance`].
+struct FinishEvent {
+    /// Pass number, from 1.
+    pass: u8,
+    /// Time at the end of the record's period (s from the start of the log).
+    t_s: f64,
+    /// The accepted update of the record, if any.
+    update: Option<runner::Update>,
+    /// Estimate after the record (rad).
+    state: Vec<f64>,
+    /// σ after the record (rad).
+    sigma: Vec<f64>,
 }
 
 /// [`AnyCalibrator::finish`], also returning the final filter's covariance
@@ -452,19 +474,28 @@ fn finish_with_covariance<T: RealField + Copy>(
     cal: &AnyCalibrator<T>,
     log: &mut (dyn SampleLog<T> + '_),
     passes: &EstimatorOptions,
-    on_update: &mut dyn FnMut(u8, Option<T>),
+    on_record: &mut dyn FnMut(FinishEvent),
 ) -> (Estimate, Vec<f64>) {
     fn one<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize>(
         c: &Calibrator<T, M, N, Z>,
         log: &mut (dyn SampleLog<T> + '_),
         passes: &EstimatorOptions,
-        on_update: &mut dyn FnMut(u8, Option<T>),
+        on_record: &mut dyn FnMut(FinishEvent),
     ) -> (Estimate, Vec<f64>) {
+        let f = |v: &T| v.to_subset().unwrap_or(f64::NAN);
+        let mut t = 0.0;
         let (estimate, filter) = c.finish(log, passes, |e| {
-            on_update(
-                e.pass,
-                e.result.as_ref().ok().and_then(|r| r.map(|i| i.nis)),
-            )
+            t = if e.index == 0 { 0.0 } else { t } + e.record.dt;
+            on_record(FinishEvent {
+                pass: e.pass,
+                t_s: t,
+                update: match &e.result {
+                    Ok(Some(i)) => Some(runner::Update::of(e.index, t, i)),
+                    _ => None,
+                },
+                state: e.filter.state().iter().copied().collect(),
+                sigma: e.filter.sigma().iter().map(f).collect(),
+            })
         });
         let covariance = filter.map_or_else(Vec::new, |f| {
             f.covariance()
@@ -476,13 +507,13 @@ fn finish_with_covariance<T: RealField + Copy>(
         (estimate, covariance)
     }
     match cal {
-        AnyCalibrator::M1Pa(c) => one(c, log, passes, on_update),
-        AnyCalibrator::M1Ps(c) => one(c, log, passes, on_update),
-        AnyCalibrator::M2Ps(c) => one(c, log, passes, on_update),
-        AnyCalibrator::M3Pa(c) => one(c, log, passes, on_update),
-        AnyCalibrator::M3Ps(c) => one(c, log, passes, on_update),
-        AnyCalibrator::M4Pa(c) => one(c, log, passes, on_update),
-        AnyCalibrator::M4Ps(c) => one(c, log, passes, on_update),
+        AnyCalibrator::M1Pa(c) => one(c, log, passes, on_record),
+        AnyCalibrator::M1Ps(c) => one(c, log, passes, on_record),
+        AnyCalibrator::M2Ps(c) => one(c, log, passes, on_record),
+        AnyCalibrator::M3Pa(c) => one(c, log, passes, on_record),
+        AnyCalibrator::M3Ps(c) => one(c, log, passes, on_record),
+        AnyCalibrator::M4Pa(c) => one(c, log, passes, on_record),
+        AnyCalibrator::M4Ps(c) => one(c, log, passes, on_record),
     }
 }
 
@@ -840,6 +871,11 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<(), String>
             1,
         ),
     };
+    // The last pass of the estimator of record (None: pass 1 is the answer,
+    // whose innovations and history were not kept).
+    let final_pass = fin
+        .as_ref()
+        .filter(|f| matches!(f.estimate.kind, EstimateKind::Final { .. }));
     let r: RunResult = runner::result(
         id,
         &Passes {
@@ -853,8 +889,12 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<(), String>
                     _ => running_covariance,
                 },
             }),
-            history: Vec::new(),
+            history: final_pass.map(|f| f.history.clone()).unwrap_or_default(),
             nis,
+            updates: final_pass.map(|f| f.updates.clone()).unwrap_or_default(),
+            segments: segments::command_segments(
+                host.log.0.iter().map(|r| (r.dt, r.dtheta_cmd.into())),
+            ),
             failures,
             passes,
         },
