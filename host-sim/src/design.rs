@@ -115,24 +115,75 @@ impl NamedAxis {
     }
 }
 
-/// One constant-rate rotation of a path.
+/// One constant-rate rotation of a path, then an optional dwell.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Rotation {
     /// The axis.
     pub axis: NamedAxis,
-    /// Angle (°).
+    /// Angle (°); 0 only with a dwell (a pure dwell, e.g. in a reference
+    /// path).
     pub angle_deg: f64,
     /// Rate (°/s).
     pub rate_deg_s: f64,
+    /// Hold still this long after the rotation (s, whole periods): zero
+    /// commanded path rate, as `dwell_s` of a scenario segment.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub dwell_s: f64,
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
+}
+
+/// `x / period_s` if it is a whole number ≥ 0.
+fn whole_periods(x: f64, period_s: f64) -> Option<u64> {
+    let d = x / period_s;
+    let r = d.round();
+    (d.is_finite() && (d - r).abs() <= 1e-6 && r >= 0.0).then_some(r as u64)
 }
 
 impl Rotation {
-    /// Whole periods of length `period_s` the rotation lasts, if whole.
-    pub fn periods(&self, period_s: f64) -> Option<u64> {
-        let d = self.angle_deg / self.rate_deg_s / period_s;
-        let r = d.round();
-        ((d - r).abs() <= 1e-6 && r >= 1.0).then_some(r as u64)
+    /// A rotation without a dwell.
+    pub fn new(axis: NamedAxis, angle_deg: f64, rate_deg_s: f64) -> Self {
+        Self {
+            axis,
+            angle_deg,
+            rate_deg_s,
+            dwell_s: 0.0,
+        }
     }
+
+    /// Whole periods of length `period_s` the rotation lasts (without the
+    /// dwell), if whole and at least one (zero for a pure dwell).
+    pub fn periods(&self, period_s: f64) -> Option<u64> {
+        let r = whole_periods(self.angle_deg / self.rate_deg_s, period_s)?;
+        let dwell = self.dwell_periods(period_s)?;
+        (r >= 1 || (r == 0 && dwell >= 1)).then_some(r)
+    }
+
+    /// Whole periods of the dwell after the rotation, if whole.
+    pub fn dwell_periods(&self, period_s: f64) -> Option<u64> {
+        whole_periods(self.dwell_s, period_s)
+    }
+
+    /// Whole periods of the rotation and its dwell, if both are whole.
+    pub fn total_periods(&self, period_s: f64) -> Option<u64> {
+        Some(self.periods(period_s)? + self.dwell_periods(period_s)?)
+    }
+}
+
+/// A piece of a path: `periods` periods of rotation `index` of the pattern,
+/// rotating or (`dwell`) holding still after it.
+#[derive(Clone, Copy, Debug)]
+pub struct Piece<'a> {
+    /// Index of the rotation in the pattern.
+    pub index: usize,
+    /// The rotation.
+    pub rotation: &'a Rotation,
+    /// Its dwell (zero path rate), not its rotation.
+    pub dwell: bool,
+    /// Whole periods.
+    pub periods: u64,
 }
 
 /// A candidate: a pattern of rotations repeated until the path ends.
@@ -146,12 +197,18 @@ pub struct Pattern {
 }
 
 impl Pattern {
-    /// Short text, e.g. `(south 180° @0.1, east 90° @0.1)*`.
+    /// Short text, e.g. `(south 180° @0.1°/s, east 90° @0.1°/s + dwell 60 s) repeated`.
     pub fn describe(&self) -> String {
         let parts: Vec<String> = self
             .rotations
             .iter()
-            .map(|r| format!("{} {}° @{}°/s", r.axis.name, r.angle_deg, r.rate_deg_s))
+            .map(|r| {
+                let mut t = format!("{} {}° @{}°/s", r.axis.name, r.angle_deg, r.rate_deg_s);
+                if r.dwell_s > 0.0 {
+                    t.push_str(&format!(" + dwell {} s", r.dwell_s));
+                }
+                t
+            })
             .collect();
         format!(
             "({}){}",
@@ -160,17 +217,53 @@ impl Pattern {
         )
     }
 
+    /// Whether any rotation has a dwell.
+    pub fn has_dwell(&self) -> bool {
+        self.rotations.iter().any(|r| r.dwell_s > 0.0)
+    }
+
+    /// Every rotation and dwell is a whole number of periods.
+    pub fn whole(&self, period_s: f64) -> bool {
+        self.rotations
+            .iter()
+            .all(|r| r.total_periods(period_s).is_some())
+    }
+
     /// The path's segments over its first `periods` periods (the last one
-    /// cut at a whole period), as scenario segments.
+    /// cut at a whole period, within its rotation or its dwell), as
+    /// scenario segments.
     pub fn segments(&self, periods: u64, period_s: f64) -> Vec<Segment> {
         let mut out: Vec<Segment> = Vec::new();
-        let mut last: Option<&Rotation> = None;
-        for (_, r, n) in self.chunks(periods, period_s, u64::MAX) {
-            let angle = r.rate_deg_s * period_s * n as f64;
-            // A single repeated rotation is one continuous segment.
-            if let (Some(prev), Some(seg)) = (last, out.last_mut()) {
-                if prev.axis == r.axis && prev.rate_deg_s == r.rate_deg_s {
+        // The previous piece: (rotation index, dwell).
+        let mut last: Option<(usize, bool)> = None;
+        for piece in self.chunks(periods, period_s, u64::MAX) {
+            let r = piece.rotation;
+            let span = period_s * piece.periods as f64;
+            if piece.dwell {
+                // After its own rotation: that segment's dwell; else (a pure
+                // dwell) a segment of its own.
+                match (last, out.last_mut()) {
+                    (Some((i, _)), Some(seg)) if i == piece.index => {
+                        seg.dwell_s = round_angle(seg.dwell_s + span);
+                    }
+                    _ => out.push(Segment {
+                        axis: r.axis.to_axis(),
+                        angle_deg: 0.0,
+                        rate_deg_s: r.rate_deg_s,
+                        dwell_s: round_angle(span),
+                    }),
+                }
+                last = Some((piece.index, true));
+                continue;
+            }
+            let angle = r.rate_deg_s * span;
+            // A single repeated rotation (without dwells) is one continuous
+            // segment.
+            if let (Some((i, false)), Some(seg)) = (last, out.last_mut()) {
+                let prev = &self.rotations[i];
+                if prev.axis == r.axis && prev.rate_deg_s == r.rate_deg_s && seg.dwell_s == 0.0 {
                     seg.angle_deg = round_angle(seg.angle_deg + angle);
+                    last = Some((piece.index, false));
                     continue;
                 }
             }
@@ -180,14 +273,14 @@ impl Pattern {
                 rate_deg_s: r.rate_deg_s,
                 dwell_s: 0.0,
             });
-            last = Some(r);
+            last = Some((piece.index, false));
         }
         out
     }
 
-    /// `(rotation, periods)` pieces of at most `k` periods covering the
-    /// first `periods` periods.
-    fn chunks(&self, periods: u64, period_s: f64, k: u64) -> Vec<(usize, &Rotation, u64)> {
+    /// Pieces of at most `k` periods covering the first `periods` periods:
+    /// every rotation, then its dwell.
+    pub fn chunks(&self, periods: u64, period_s: f64, k: u64) -> Vec<Piece<'_>> {
         let mut out = Vec::new();
         let mut left = periods;
         if self.rotations.is_empty() {
@@ -195,14 +288,22 @@ impl Pattern {
         }
         'cycle: loop {
             for (i, r) in self.rotations.iter().enumerate() {
-                let Some(mut n) = r.periods(period_s) else {
+                let (Some(rot), Some(dwell)) = (r.periods(period_s), r.dwell_periods(period_s))
+                else {
                     return out;
                 };
-                while n > 0 && left > 0 {
-                    let m = n.min(k).min(left);
-                    out.push((i, r, m));
-                    n -= m;
-                    left -= m;
+                for (mut n, is_dwell) in [(rot, false), (dwell, true)] {
+                    while n > 0 && left > 0 {
+                        let m = n.min(k).min(left);
+                        out.push(Piece {
+                            index: i,
+                            rotation: r,
+                            dwell: is_dwell,
+                            periods: m,
+                        });
+                        n -= m;
+                        left -= m;
+                    }
                 }
                 if left == 0 {
                     break 'cycle;
@@ -215,9 +316,12 @@ impl Pattern {
         out
     }
 
-    /// Periods of one cycle.
+    /// Periods of one cycle, dwells included.
     pub fn cycle_periods(&self, period_s: f64) -> Option<u64> {
-        self.rotations.iter().map(|r| r.periods(period_s)).sum()
+        self.rotations
+            .iter()
+            .map(|r| r.total_periods(period_s))
+            .sum()
     }
 }
 
@@ -292,8 +396,8 @@ pub struct Outcome {
     /// Periods per step used.
     pub k: u64,
     /// Per step, when recorded: (t in s, σ of every state in rad, rotation
-    /// index within the pattern).
-    pub history: Vec<(f64, Vec<f64>, usize)>,
+    /// index within the pattern, whether the step is the rotation's dwell).
+    pub history: Vec<(f64, Vec<f64>, usize, bool)>,
 }
 
 impl Outcome {
@@ -346,8 +450,10 @@ impl Problem {
     }
 
     /// Periods per coarse step of `p` (1 with `fine`): the largest divisor
-    /// of every rotation's period count (and of `extra`) that keeps a step
-    /// within `step_deg` of rotation and [`MAX_STEP_PERIODS`].
+    /// of every rotation's and every dwell's period count (and of `extra`)
+    /// that keeps a step within `step_deg` of rotation and
+    /// [`MAX_STEP_PERIODS`]. A step therefore never straddles the end of a
+    /// rotation or of a dwell.
     pub fn step_periods(&self, p: &Pattern, extra: u64, fine: bool) -> u64 {
         if fine {
             return 1;
@@ -356,7 +462,13 @@ impl Problem {
         let mut max_rate: f64 = 0.0;
         for r in &p.rotations {
             g = gcd(g, r.periods(self.period_s).unwrap_or(1));
-            max_rate = max_rate.max(r.rate_deg_s);
+            g = gcd(g, r.dwell_periods(self.period_s).unwrap_or(1));
+            if r.angle_deg > 0.0 {
+                max_rate = max_rate.max(r.rate_deg_s);
+            }
+        }
+        if max_rate == 0.0 {
+            max_rate = 1e-12;
         }
         let cap = ((self.step_deg / (max_rate * self.period_s)).floor() as u64)
             .clamp(1, self.max_step_periods.max(1));
@@ -415,8 +527,16 @@ impl Problem {
                 .map(|&(i, t)| s.get(i).copied().unwrap_or(f64::INFINITY) / t)
                 .fold(0.0, f64::max)
         };
-        for (index, r, m) in p.chunks(limit, dt1, k) {
-            let w = Vector3::from(r.axis.unit) * (r.rate_deg_s * DEG);
+        for piece in p.chunks(limit, dt1, k) {
+            let (r, m) = (piece.rotation, piece.periods);
+            // A dwell: zero commanded path rate (the increments are the
+            // Earth rate alone and the frame stays put), as the truth
+            // simulator holds a scenario's `dwell_s`.
+            let w = if piece.dwell {
+                Vector3::zeros()
+            } else {
+                Vector3::from(r.axis.unit) * (r.rate_deg_s * DEG)
+            };
             let u = frame.c_cn * w;
             let dt = dt1 * m as f64;
             let dtheta = frame.increment(&u, dt);
@@ -433,8 +553,12 @@ impl Problem {
             }
             let sigma = obs.crlb_sigma();
             if record {
-                out.history
-                    .push((done as f64 * dt1, sigma.iter().copied().collect(), index));
+                out.history.push((
+                    done as f64 * dt1,
+                    sigma.iter().copied().collect(),
+                    piece.index,
+                    piece.dwell,
+                ));
             }
             let slack = if k > 1 { self.coarse_slack } else { FINE_SLACK };
             if matches!(goal, Goal::Reach { .. }) && ratio_of(&sigma) <= 1.0 + slack {
@@ -466,7 +590,15 @@ pub struct Space {
     pub max_rotations: usize,
     /// Hill-climbing starts of the refinement (best stage-1 patterns).
     pub refine_starts: usize,
+    /// Dwell moves of the refinement (s): after each rotation a dwell is
+    /// inserted, lengthened or shortened by each of these, or removed;
+    /// empty: no dwells (`--no-dwells`).
+    pub dwell_steps: Vec<f64>,
 }
+
+/// The refinement's dwell moves (s): insert, lengthen or shorten a dwell
+/// after a rotation by each of these, or remove it.
+pub const DWELL_STEPS_S: [f64; 3] = [60.0, 180.0, 600.0];
 
 /// One evaluated candidate.
 #[derive(Clone, Debug)]
@@ -528,15 +660,11 @@ pub fn coarse_patterns(space: &Space, period_s: f64) -> Vec<Pattern> {
                 let p = Pattern {
                     rotations: seq
                         .iter()
-                        .map(|&(a, g)| Rotation {
-                            axis: space.axes[a].clone(),
-                            angle_deg: g,
-                            rate_deg_s: rate,
-                        })
+                        .map(|&(a, g)| Rotation::new(space.axes[a].clone(), g, rate))
                         .collect(),
                     repeat: true,
                 };
-                if p.rotations.iter().all(|r| r.periods(period_s).is_some()) {
+                if p.whole(period_s) {
                     out.push(p);
                 }
             }
@@ -564,12 +692,14 @@ pub fn coarse_patterns(space: &Space, period_s: f64) -> Vec<Pattern> {
 /// The neighbours of a pattern in the refinement: each rotation's angle
 /// ±30°, ±60°, ±90°; its rate at ¾ and ½ of the maximum (or back to the
 /// maximum); with `tilted`, its axis tilted 45° towards each perpendicular
-/// allowed axis; whole periods only.
+/// allowed axis; the dwell after it (`space.dwell_steps`) inserted,
+/// lengthened or shortened by each step, or removed; whole periods only
+/// (a dwell that is not a whole number of periods is never proposed).
 pub fn neighbours(p: &Pattern, space: &Space, period_s: f64) -> Vec<Pattern> {
     let mut out = Vec::new();
     let max = space.max_rate_deg_s;
     let mut push = |q: Pattern| {
-        if q.rotations.iter().all(|r| r.periods(period_s).is_some()) && !out.contains(&q) {
+        if q.whole(period_s) && !out.contains(&q) {
             out.push(q);
         }
     };
@@ -587,6 +717,24 @@ pub fn neighbours(p: &Pattern, space: &Space, period_s: f64) -> Vec<Pattern> {
             if (rate - p.rotations[i].rate_deg_s).abs() > 1e-12 {
                 let mut q = p.clone();
                 q.rotations[i].rate_deg_s = rate;
+                push(q);
+            }
+        }
+        if !space.dwell_steps.is_empty() {
+            let d = p.rotations[i].dwell_s;
+            let mut dwells: Vec<f64> = Vec::new();
+            for &step in &space.dwell_steps {
+                dwells.push(d + step);
+                if d - step > 0.0 {
+                    dwells.push(d - step);
+                }
+            }
+            if d > 0.0 {
+                dwells.push(0.0);
+            }
+            for w in dwells {
+                let mut q = p.clone();
+                q.rotations[i].dwell_s = round_angle(w);
                 push(q);
             }
         }
@@ -616,7 +764,7 @@ pub fn polish_neighbours(p: &Pattern, period_s: f64) -> Vec<Pattern> {
             let a = q.rotations[i].angle_deg + d;
             if a >= 5.0 - 1e-9 {
                 q.rotations[i].angle_deg = a;
-                if q.rotations.iter().all(|r| r.periods(period_s).is_some()) && !out.contains(&q) {
+                if q.whole(period_s) && !out.contains(&q) {
                     out.push(q);
                 }
             }
@@ -744,7 +892,7 @@ pub fn search(
     let mut best = starts.first().cloned();
     let mut seen: Vec<Pattern> = starts.iter().map(|s| s.pattern.clone()).collect();
     let mut refine = StageStats {
-        name: "stage 2: hill climbing (angles, rates, tilted axes)".into(),
+        name: "stage 2: hill climbing (angles, rates, tilted axes, dwells)".into(),
         candidates: 0,
         pruned: 0,
         infeasible: 0,
@@ -908,18 +1056,14 @@ pub fn search(
     })
 }
 
-/// The reference path (e.g. the paper's) as a non-repeating pattern.
+/// The reference path (e.g. the paper's) as a non-repeating pattern, its
+/// dwells included; the scenario's time after the path's end (the platform
+/// holds still) is a dwell after the last segment.
 pub fn pattern_of(s: &Scenario) -> Result<Pattern, String> {
-    let rotations = s
+    let mut rotations = s
         .path
         .iter()
         .map(|seg| {
-            if seg.dwell_s != 0.0 {
-                return Err(
-                    "design: the reference path has a dwell (dwell_s); the design search models rotations only, so give a reference without dwells"
-                        .to_string(),
-                );
-            }
             let unit = seg.axis.unit().map_err(|e| e.to_string())?;
             let name = match &seg.axis {
                 Axis::Named(n) => n.to_ascii_lowercase(),
@@ -929,9 +1073,17 @@ pub fn pattern_of(s: &Scenario) -> Result<Pattern, String> {
                 axis: NamedAxis { name, unit },
                 angle_deg: seg.angle_deg,
                 rate_deg_s: seg.rate_deg_s,
+                dwell_s: seg.dwell_s,
             })
         })
         .collect::<Result<Vec<_>, String>>()?;
+    let path_s: f64 = s.path.iter().map(Segment::duration_s).sum();
+    let rest = round_angle(s.timing.duration_s - path_s);
+    if let Some(last) = rotations.last_mut() {
+        if rest > 0.0 {
+            last.dwell_s = round_angle(last.dwell_s + rest);
+        }
+    }
     Ok(Pattern {
         rotations,
         repeat: false,
@@ -1071,12 +1223,12 @@ pub fn contributions(problem: &Problem, p: &Pattern, o: &Outcome) -> Vec<Contrib
     let mut t0 = 0.0;
     let mut i = 0;
     while i < o.history.len() {
-        let idx = o.history[i].2;
+        let (idx, dwell) = (o.history[i].2, o.history[i].3);
         let mut j = i;
-        while j + 1 < o.history.len() && o.history[j + 1].2 == idx {
+        while j + 1 < o.history.len() && o.history[j + 1].2 == idx && o.history[j + 1].3 == dwell {
             j += 1;
         }
-        let (t1, ref end, _) = o.history[j];
+        let (t1, ref end, _, _) = o.history[j];
         let r = &p.rotations[idx];
         let shares = groups
             .iter()
@@ -1084,7 +1236,11 @@ pub fn contributions(problem: &Problem, p: &Pattern, o: &Outcome) -> Vec<Contrib
             .map(|(&g, &tot)| (g.as_str(), (info(end, g) - info(&start_sigma, g)) / tot))
             .collect();
         out.push(Contribution {
-            rotation: format!("{} @{}°/s", r.axis.name, r.rate_deg_s),
+            rotation: if dwell {
+                format!("dwell (after {})", r.axis.name)
+            } else {
+                format!("{} @{}°/s", r.axis.name, r.rate_deg_s)
+            },
             t0_s: t0,
             t1_s: t1,
             shares,
@@ -1111,6 +1267,7 @@ mod tests {
             max_duration_s: 5400.0,
             max_rotations: 2,
             refine_starts: 1,
+            dwell_steps: DWELL_STEPS_S.to_vec(),
         }
     }
 
@@ -1133,16 +1290,8 @@ mod tests {
         let s = space();
         let p = Pattern {
             rotations: vec![
-                Rotation {
-                    axis: s.axes[0].clone(),
-                    angle_deg: 90.0,
-                    rate_deg_s: 0.1,
-                },
-                Rotation {
-                    axis: s.axes[2].clone(),
-                    angle_deg: 45.0,
-                    rate_deg_s: 0.05,
-                },
+                Rotation::new(s.axes[0].clone(), 90.0, 0.1),
+                Rotation::new(s.axes[2].clone(), 45.0, 0.05),
             ],
             repeat: true,
         };
@@ -1150,9 +1299,112 @@ mod tests {
         let segs = p.segments(2000, 1.0);
         assert_eq!(segs.len(), 3);
         assert!((segs[2].angle_deg - 20.0).abs() < 1e-9);
-        let total: u64 = p.chunks(2000, 1.0, 7).iter().map(|c| c.2).sum();
+        let total: u64 = p.chunks(2000, 1.0, 7).iter().map(|c| c.periods).sum();
         assert_eq!(total, 2000);
-        assert!(p.chunks(2000, 1.0, 7).iter().all(|c| c.2 <= 7));
+        assert!(p.chunks(2000, 1.0, 7).iter().all(|c| c.periods <= 7));
+    }
+
+    /// North 90° at 1°/s, dwell 60 s, east 180° at 1°/s, dwell 180 s.
+    fn with_dwells() -> Pattern {
+        let s = space();
+        let mut a = Rotation::new(s.axes[0].clone(), 90.0, 1.0);
+        a.dwell_s = 60.0;
+        let mut b = Rotation::new(s.axes[2].clone(), 180.0, 1.0);
+        b.dwell_s = 180.0;
+        Pattern {
+            rotations: vec![a, b],
+            repeat: true,
+        }
+    }
+
+    #[test]
+    fn a_dwell_is_whole_periods_and_divides_the_coarse_step() {
+        let p = with_dwells();
+        assert_eq!(p.cycle_periods(1.0), Some(90 + 60 + 180 + 180));
+        let problem = Problem::new(ConfigId::M1Pa, &Scenario::paper(), 60.0);
+        // gcd(90, 60, 180, 180) = 30, within 10° at 1°/s: 10.
+        let k = problem.step_periods(&p, 0, false);
+        assert_eq!(k, 10);
+        for (n, r) in [(90, false), (60, true), (180, false), (180, true)] {
+            assert_eq!(n % k, 0, "{n} periods, dwell {r}");
+        }
+        // Every coarse piece is k whole periods (the last one cut at the
+        // requested end), rotations and dwells alike, and the dwells are
+        // exactly where they belong.
+        let pieces = p.chunks(1234, 1.0, k);
+        assert_eq!(pieces.iter().map(|c| c.periods).sum::<u64>(), 1234);
+        let (last, body) = pieces.split_last().unwrap();
+        assert!(body.iter().all(|c| c.periods == k));
+        assert_eq!(last.periods, 1234 % k);
+        let dwell: u64 = pieces.iter().filter(|c| c.dwell).map(|c| c.periods).sum();
+        // Two whole cycles (1020 s, 480 s of dwell), then 90 + 60 + 64.
+        assert_eq!(dwell, 2 * 240 + 60);
+        // A budget that is not a multiple of the dwells' divisor shrinks k.
+        assert_eq!(problem.step_periods(&p, 1234, false), 2);
+        // The segments carry the dwells; the last rotation is cut.
+        let segs = p.segments(1234, 1.0);
+        let ds: Vec<(f64, f64)> = segs.iter().map(|g| (g.angle_deg, g.dwell_s)).collect();
+        assert_eq!(
+            ds,
+            [
+                (90.0, 60.0),
+                (180.0, 180.0),
+                (90.0, 60.0),
+                (180.0, 180.0),
+                (90.0, 60.0),
+                (64.0, 0.0)
+            ]
+        );
+        // Cut within a dwell: the dwell is cut at a whole period.
+        let segs = p.segments(90 + 30, 1.0);
+        assert_eq!(segs.len(), 1);
+        assert_eq!((segs[0].angle_deg, segs[0].dwell_s), (90.0, 30.0));
+    }
+
+    #[test]
+    fn dwell_moves_are_proposed_in_whole_periods_only() {
+        let s = space();
+        let p = Pattern {
+            rotations: vec![Rotation::new(s.axes[0].clone(), 90.0, 0.1)],
+            repeat: true,
+        };
+        // The dwells of the neighbours that differ from `base` in the dwell
+        // alone.
+        let dwells = |q: &[Pattern], base: &Pattern| -> Vec<f64> {
+            let b = &base.rotations[0];
+            let mut d: Vec<f64> = q
+                .iter()
+                .map(|x| &x.rotations[0])
+                .filter(|r| {
+                    r.axis == b.axis && r.angle_deg == b.angle_deg && r.rate_deg_s == b.rate_deg_s
+                })
+                .map(|r| r.dwell_s)
+                .collect();
+            d.sort_by(f64::total_cmp);
+            d
+        };
+        // Insert 60, 180, 600 s.
+        assert_eq!(dwells(&neighbours(&p, &s, 1.0), &p), [60.0, 180.0, 600.0]);
+        // Lengthen, shorten, remove.
+        let mut q = p.clone();
+        q.rotations[0].dwell_s = 180.0;
+        let n = neighbours(&q, &s, 1.0);
+        assert_eq!(dwells(&n, &q), [0.0, 120.0, 240.0, 360.0, 780.0]);
+        // With 40 s periods (90° at 0.1°/s = 900 s = 22.5 periods is not
+        // whole; 120° is 30 periods): 60 and 180 s are not whole periods
+        // and are never proposed, 600 s (15 periods) is.
+        let mut r = p.clone();
+        r.rotations[0].angle_deg = 120.0;
+        assert_eq!(dwells(&neighbours(&r, &s, 40.0), &r), [600.0]);
+        // No dwell moves without dwell steps (--no-dwells).
+        let mut none = space();
+        none.dwell_steps.clear();
+        assert!(dwells(&neighbours(&p, &none, 1.0), &p).is_empty());
+        // A dwell that is not whole periods makes the pattern unusable.
+        let mut bad = p.clone();
+        bad.rotations[0].dwell_s = 0.5;
+        assert!(!bad.whole(1.0));
+        assert!(bad.chunks(100, 1.0, 1).is_empty());
     }
 
     #[test]
@@ -1239,6 +1491,11 @@ pub struct DesignArgs {
     /// Hill-climbing starts of the refinement (the best exhaustive patterns).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(1..=32))]
     pub refine_starts: u8,
+    /// Do not search dwells (by default the hill climbing also inserts,
+    /// lengthens, shortens or removes a dwell of 60, 180 or 600 s after each
+    /// rotation: zero commanded rate for whole periods).
+    #[arg(long)]
+    pub no_dwells: bool,
     /// Instead of the shortest path to the targets: the path with the best
     /// worst-case σ/target within this duration (s).
     #[arg(long, value_name = "S", value_parser = parse_positive)]
@@ -1431,15 +1688,21 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
         max_duration_s: max_duration,
         max_rotations: usize::from(args.max_rotations),
         refine_starts: usize::from(args.refine_starts),
+        dwell_steps: if args.no_dwells {
+            Vec::new()
+        } else {
+            DWELL_STEPS_S.to_vec()
+        },
     };
     eprintln!(
-        "design: {id} on '{}': {} targets, max rate {max_rate} °/s, {} s at most, |β| ≤ {}°, axes {}{}; {} threads",
+        "design: {id} on '{}': {} targets, max rate {max_rate} °/s, {} s at most, |β| ≤ {}°, axes {}{}, {}; {} threads",
         base.name,
         problem.targets.len(),
         max_duration,
         args.max_beta_deg,
         space.axes.iter().map(|a| a.name.as_str()).collect::<Vec<_>>().join(","),
         if space.tilted { " (+ tilted)" } else { "" },
+        if space.dwell_steps.is_empty() { "no dwells" } else { "dwells" },
         rayon::current_num_threads()
     );
     let (design, mut periods, coarse_periods, coarse, coarse_change) = loop {
@@ -1534,6 +1797,11 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
     }
     let met = problem.targets.iter().all(|&(i, t)| check[i] <= t);
     let fine_rec = problem.evaluate(best, Goal::Budget { periods }, true, true);
+    let probe = if space.dwell_steps.is_empty() {
+        None
+    } else {
+        dwell_probe(&problem, best, goal, max_periods, &space.dwell_steps)
+    };
 
     // Report.
     let t_design = periods as f64 * period_s;
@@ -1578,8 +1846,13 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
             Axis::Named(n) => n.clone(),
             Axis::Vector(v) => format!("[{:.4}, {:.4}, {:.4}]", v[0], v[1], v[2]),
         };
+        let dwell = if s.dwell_s > 0.0 {
+            format!(", then dwell {} s", s.dwell_s)
+        } else {
+            String::new()
+        };
         println!(
-            "    {:>2}. {:<24} {:>8.2}° at {} °/s ({} s)",
+            "    {:>2}. {:<24} {:>8.2}° at {} °/s ({} s){dwell}",
             i + 1,
             ax,
             s.angle_deg,
@@ -1623,10 +1896,30 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
     );
     if let Goal::Reach { .. } = goal {
         println!(
-            "  optimality: exact over the exhaustive grammar (patterns of ≤ {} rotations about {} axes by 90°·n at {max_rate} °/s, repeated) to one coarse step; the refinement only improves on it (local optimum over 30° angles, ¾ and ½ rates{})",
+            "  optimality: exact over the exhaustive grammar (patterns of ≤ {} rotations about {} axes by 90°·n at {max_rate} °/s, repeated) to one coarse step; the refinement only improves on it (local optimum over 30° angles, ¾ and ½ rates{}{})",
             space.max_rotations,
             space.axes.len(),
-            if space.tilted { ", tilted axes" } else { "" }
+            if space.tilted { ", tilted axes" } else { "" },
+            if space.dwell_steps.is_empty() { "" } else { ", dwells of ±60, ±180, ±600 s" }
+        );
+    }
+
+    if let Some(pr) = &probe {
+        let what = match goal {
+            Goal::Reach { .. } => "reaches every target in",
+            Goal::Budget { .. } => "worst σ/target",
+        };
+        let unit = if matches!(goal, Goal::Reach { .. }) {
+            " s"
+        } else {
+            ""
+        };
+        println!(
+            "  dwells: the best single dwell move on the designed pattern, {}: {what} {}{unit} against {}{unit} without it ({:+.2} %), period by period",
+            pr.pattern.describe(),
+            pr.score,
+            pr.base,
+            100.0 * (pr.score / pr.base - 1.0)
         );
     }
 
@@ -1700,7 +1993,8 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
             "scenario": base.name,
             "goal": match goal { Goal::Reach{..} => "shortest".to_string(), Goal::Budget{periods} => format!("budget {} s", periods as f64 * period_s) },
             "limits": {"max_rate_deg_s": max_rate, "max_duration_s": max_duration, "max_beta_deg": args.max_beta_deg,
-                "axes": space.axes.iter().map(|a| a.name.clone()).collect::<Vec<_>>(), "tilted": space.tilted},
+                "axes": space.axes.iter().map(|a| a.name.clone()).collect::<Vec<_>>(), "tilted": space.tilted,
+                "dwell_steps_s": space.dwell_steps},
             "pattern": best,
             "duration_s": t_design,
             "reference_duration_s": t_ref,
@@ -1713,6 +2007,8 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
             "coarse_step_periods": coarse.k,
             "coarse_step_max_change": coarse_change,
             "speed": speed,
+            "dwell_probe": probe.as_ref().map(|p| serde_json::json!({
+                "pattern": p.pattern, "score": p.score, "without": p.base})),
             "wall_s": t_all.elapsed().as_secs_f64(),
         });
         crate::report::write_json(p, &json)?;
@@ -1722,6 +2018,72 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
         return Err("the designed path misses a target in the observability check".into());
     }
     Ok(())
+}
+
+/// The best single dwell move on a designed pattern, period by period.
+#[derive(Clone, Debug)]
+pub struct DwellProbe {
+    /// The pattern with the move.
+    pub pattern: Pattern,
+    /// Its score: reach time (s) or worst σ/target.
+    pub score: f64,
+    /// The designed pattern's score, alike.
+    pub base: f64,
+}
+
+/// Every dwell move of the refinement (a dwell of each step inserted,
+/// lengthened, shortened or removed after each rotation) applied to `best`,
+/// evaluated period by period without pruning: how much the best of them
+/// gains or loses against `best` (reach time in s, or worst σ/target).
+pub fn dwell_probe(
+    problem: &Problem,
+    best: &Pattern,
+    goal: Goal,
+    max_periods: u64,
+    steps: &[f64],
+) -> Option<DwellProbe> {
+    let space = Space {
+        axes: Vec::new(),
+        tilted: false,
+        max_rate_deg_s: 0.0,
+        max_duration_s: 0.0,
+        max_rotations: 0,
+        refine_starts: 0,
+        dwell_steps: steps.to_vec(),
+    };
+    let g = match goal {
+        Goal::Reach { .. } => Goal::Reach {
+            cutoff: max_periods,
+        },
+        b => b,
+    };
+    let value = |o: &Outcome| match g {
+        Goal::Reach { .. } => o.score(g) * problem.period_s,
+        Goal::Budget { .. } => o.score(g),
+    };
+    // Only the dwell moves: the same axes, angles and rates.
+    let moves: Vec<Pattern> = neighbours(best, &space, problem.period_s)
+        .into_iter()
+        .filter(|q| {
+            q.rotations.iter().zip(&best.rotations).all(|(a, b)| {
+                a.axis == b.axis && a.angle_deg == b.angle_deg && a.rate_deg_s == b.rate_deg_s
+            })
+        })
+        .collect();
+    let base = value(&problem.evaluate(best, g, true, false));
+    moves
+        .into_par_iter()
+        .map(|q| {
+            let score = value(&problem.evaluate(&q, g, true, false));
+            DwellProbe {
+                pattern: q,
+                score,
+                base,
+            }
+        })
+        .collect::<Vec<_>>()
+        .into_iter()
+        .min_by(|a, b| a.score.total_cmp(&b.score))
 }
 
 fn write_sigma_csv(

@@ -16,11 +16,7 @@ fn host_sim() -> Command {
 }
 
 fn rotation(axis: &str, angle: f64, rate: f64) -> Rotation {
-    Rotation {
-        axis: NamedAxis::named(axis).unwrap(),
-        angle_deg: angle,
-        rate_deg_s: rate,
-    }
+    Rotation::new(NamedAxis::named(axis).unwrap(), angle, rate)
 }
 
 #[test]
