@@ -861,7 +861,10 @@ pub struct Design {
 
 /// Searches `space` towards `goal`: stage 1 exhaustive over the coarse
 /// grammar with branch and bound, stage 2 hill climbing from the best
-/// `refine_starts` stage-1 patterns. `progress(stage, done, total)`.
+/// `refine_starts` stage-1 patterns, stage 2b (with `space.dwell_steps`)
+/// hill climbing with the dwell moves too from the stage-2 optima; the best
+/// without and the best with dwells are polished and the better wins.
+/// `progress(stage, done, total)`.
 pub fn search(
     problem: &Problem,
     space: &Space,
@@ -889,10 +892,159 @@ pub fn search(
     scored.sort_by(|a, b| a.score.total_cmp(&b.score));
     let starts: Vec<Scored> = scored.iter().take(space.refine_starts).cloned().collect();
     let mut pool: Vec<Scored> = scored.into_iter().take(FINAL_CHECKS).collect();
-    let mut best = starts.first().cloned();
     let mut seen: Vec<Pattern> = starts.iter().map(|s| s.pattern.clone()).collect();
-    let mut refine = StageStats {
-        name: "stage 2: hill climbing (angles, rates, tilted axes, dwells)".into(),
+    // Stage 2 without dwells, then (stage 2b) the dwell moves from its
+    // optima: the search with dwells finds everything the search without
+    // them finds, and its result is never worse.
+    let no_dwells = Space {
+        dwell_steps: Vec::new(),
+        ..space.clone()
+    };
+    let (optima, best_a, st) = climb(
+        problem,
+        &no_dwells,
+        goal,
+        &incumbent,
+        starts,
+        &mut seen,
+        &mut pool,
+        "stage 2: hill climbing (angles, rates, tilted axes)",
+        &|d, t| progress("stage 2", d, t),
+    );
+    stages.push(st);
+    let mut pool_b: Vec<Scored> = Vec::new();
+    let mut best_b = None;
+    if !space.dwell_steps.is_empty() {
+        let (_, b, st) = climb(
+            problem,
+            space,
+            goal,
+            &incumbent,
+            optima,
+            &mut seen,
+            &mut pool_b,
+            "stage 2b: hill climbing with dwells (from the stage-2 optima)",
+            &|d, t| progress("stage 2b", d, t),
+        );
+        stages.push(st);
+        best_b = b;
+    }
+    // The candidates to polish, without and with dwells. Reach: the coarse
+    // reach times are within the coarse steps' slack, so the best few of
+    // each are re-evaluated period by period and the exact fastest wins
+    // (ties: the better coarse score, then the earlier candidate).
+    let mut finalists: Vec<(Scored, Option<Outcome>)> = Vec::new();
+    if let Goal::Reach { .. } = goal {
+        let t0 = std::time::Instant::now();
+        let mut n = 0;
+        for mut p in [pool, pool_b] {
+            p.sort_by(|a, b| a.score.total_cmp(&b.score));
+            p.dedup_by(|a, b| a.pattern == b.pattern);
+            p.truncate(FINAL_CHECKS);
+            let checked: Vec<(Scored, Outcome)> = p
+                .into_par_iter()
+                .map(|s| {
+                    let o = problem.evaluate(&s.pattern, Goal::Reach { cutoff }, true, false);
+                    (s, o)
+                })
+                .collect();
+            n += checked.len();
+            if let Some((s, o)) = checked
+                .into_iter()
+                .filter(|(_, o)| o.reach.is_some())
+                .min_by_key(|(_, o)| o.reach)
+            {
+                if !finalists.iter().any(|f| f.0.pattern == s.pattern) {
+                    finalists.push((s, Some(o)));
+                }
+            }
+        }
+        let best_reach = finalists
+            .iter()
+            .filter_map(|f| f.1.as_ref().and_then(|o| o.reach))
+            .min();
+        stages.push(StageStats {
+            name: "final: the best candidates period by period".into(),
+            candidates: n,
+            pruned: 0,
+            infeasible: 0,
+            periods: 0,
+            wall_s: t0.elapsed().as_secs_f64(),
+            best_score: best_reach.map_or(f64::INFINITY, |r| r as f64),
+        });
+    } else {
+        for b in [best_a, best_b].into_iter().flatten() {
+            if !finalists.iter().any(|f| f.0.pattern == b.pattern) {
+                finalists.push((b, None));
+            }
+        }
+    }
+    // Polish: finer angles around each finalist, every candidate period by
+    // period (exact: no coarse-step error), hill climbing; the best wins
+    // (ties: the one without dwells).
+    let mut st = StageStats {
+        name: "polish: ±15°, ±5° angles, period by period".into(),
+        candidates: 0,
+        pruned: 0,
+        infeasible: 0,
+        periods: 0,
+        wall_s: 0.0,
+        best_score: f64::INFINITY,
+    };
+    let t0 = std::time::Instant::now();
+    let mut chosen: Option<(Scored, Scored, Outcome)> = None;
+    for (searched, fine0) in finalists {
+        let (pattern, outcome) = polish(problem, goal, cutoff, &searched, fine0, &mut st, progress);
+        let score = outcome.score(goal);
+        if chosen.as_ref().is_none_or(|c| score < c.2.score(goal)) {
+            let best = Scored {
+                pattern,
+                outcome: searched.outcome.clone(),
+                score: searched.score,
+            };
+            chosen = Some((best, searched, outcome));
+        }
+    }
+    st.wall_s = t0.elapsed().as_secs_f64();
+    st.best_score = chosen.as_ref().map_or(f64::INFINITY, |c| c.2.score(goal));
+    if chosen.is_some() {
+        stages.push(st);
+    }
+    let (best, searched, outcome) = chosen.ok_or_else(|| match goal {
+        Goal::Reach { .. } => format!(
+            "no path in the search space reaches every target within {} s (raise --max-duration-s or --max-rate-deg-s, or loosen the targets)",
+            cutoff as f64 * problem.period_s
+        ),
+        Goal::Budget { .. } => "every path in the search space hits the gimbal limit within the budget".to_string(),
+    })?;
+    let fine = matches!(goal, Goal::Reach { .. }).then_some(outcome);
+    Ok(Design {
+        best,
+        stages,
+        fine,
+        searched,
+    })
+}
+
+/// Hill climbing from each of `starts` over the neighbours in `space`
+/// (best neighbour first, at most 20 rounds), skipping `seen` patterns; the
+/// finite candidates go to `pool`. Returns each start's local optimum, the
+/// best of them, and the stage's statistics.
+#[allow(clippy::too_many_arguments)]
+fn climb(
+    problem: &Problem,
+    space: &Space,
+    goal: Goal,
+    incumbent: &AtomicU64,
+    starts: Vec<Scored>,
+    seen: &mut Vec<Pattern>,
+    pool: &mut Vec<Scored>,
+    name: &str,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> (Vec<Scored>, Option<Scored>, StageStats) {
+    let mut best: Option<Scored> = starts.first().cloned();
+    let mut stats = StageStats {
+        name: name.into(),
         candidates: 0,
         pruned: 0,
         infeasible: 0,
@@ -901,6 +1053,7 @@ pub fn search(
         best_score: best.as_ref().map_or(f64::INFINITY, |b| b.score),
     };
     let t0 = std::time::Instant::now();
+    let mut optima = Vec::new();
     for start in starts {
         let mut current = start;
         for _round in 0..20 {
@@ -913,13 +1066,14 @@ pub fn search(
             }
             seen.extend(cands.iter().cloned());
             let n = cands.len();
-            let (sc, st) = score_all(problem, cands, goal, &incumbent, "", &|i| {
-                progress("stage 2", refine.candidates + i, refine.candidates + n)
+            let done0 = stats.candidates;
+            let (sc, st) = score_all(problem, cands, goal, incumbent, "", &|i| {
+                progress(done0 + i, done0 + n)
             });
-            refine.candidates += st.candidates;
-            refine.pruned += st.pruned;
-            refine.infeasible += st.infeasible;
-            refine.periods += st.periods;
+            stats.candidates += st.candidates;
+            stats.pruned += st.pruned;
+            stats.infeasible += st.infeasible;
+            stats.periods += st.periods;
             pool.extend(sc.iter().filter(|s| s.score.is_finite()).cloned());
             match best_of(&sc) {
                 Some(b) if b.score < current.score => current = b.clone(),
@@ -927,133 +1081,79 @@ pub fn search(
             }
         }
         if best.as_ref().is_none_or(|b| current.score < b.score) {
-            best = Some(current);
+            best = Some(current.clone());
+        }
+        if !optima.iter().any(|o: &Scored| o.pattern == current.pattern) {
+            optima.push(current);
         }
     }
-    refine.wall_s = t0.elapsed().as_secs_f64();
-    refine.best_score = best.as_ref().map_or(f64::INFINITY, |b| b.score);
-    stages.push(refine);
-    // Reach: the coarse reach times are within the coarse steps' slack, so
-    // the best few are re-evaluated period by period and the exact fastest
-    // wins (ties: the better coarse score, then the earlier candidate).
-    let mut fine = None;
-    if let Goal::Reach { .. } = goal {
-        let t0 = std::time::Instant::now();
-        pool.sort_by(|a, b| a.score.total_cmp(&b.score));
-        pool.dedup_by(|a, b| a.pattern == b.pattern);
-        pool.truncate(FINAL_CHECKS);
-        let checked: Vec<(Scored, Outcome)> = pool
+    stats.wall_s = t0.elapsed().as_secs_f64();
+    stats.best_score = best.as_ref().map_or(f64::INFINITY, |b| b.score);
+    (optima, best, stats)
+}
+
+/// The polish of one finalist: ±15°, ±5° angle moves, every candidate
+/// period by period, hill climbing (at most 12 rounds). `fine0`: the
+/// finalist's period-by-period outcome, if known.
+fn polish(
+    problem: &Problem,
+    goal: Goal,
+    cutoff: u64,
+    start: &Scored,
+    fine0: Option<Outcome>,
+    st: &mut StageStats,
+    progress: &(dyn Fn(&str, usize, usize) + Sync),
+) -> (Pattern, Outcome) {
+    let mut pattern = start.pattern.clone();
+    let mut current = fine0.unwrap_or_else(|| problem.evaluate(&pattern, goal, true, false));
+    let mut cur_score = current.score(goal);
+    let mut seen = vec![pattern.clone()];
+    for _round in 0..12 {
+        let cands: Vec<Pattern> = polish_neighbours(&pattern, problem.period_s)
+            .into_iter()
+            .filter(|q| !seen.contains(q))
+            .collect();
+        if cands.is_empty() {
+            break;
+        }
+        seen.extend(cands.iter().cloned());
+        let g = match goal {
+            Goal::Reach { .. } => Goal::Reach {
+                cutoff: current.reach.unwrap_or(cutoff),
+            },
+            other => other,
+        };
+        let n0 = st.candidates;
+        let total = n0 + cands.len();
+        let done = AtomicUsize::new(0);
+        let res: Vec<(Pattern, Outcome)> = cands
             .into_par_iter()
-            .map(|s| {
-                let o = problem.evaluate(&s.pattern, Goal::Reach { cutoff }, true, false);
-                (s, o)
+            .map(|q| {
+                let o = problem.evaluate(&q, g, true, false);
+                progress(
+                    "polish",
+                    n0 + done.fetch_add(1, Ordering::Relaxed) + 1,
+                    total,
+                );
+                (q, o)
             })
             .collect();
-        let n = checked.len();
-        let winner = checked
+        st.candidates = total;
+        st.periods += res.iter().map(|r| r.1.periods).sum::<u64>();
+        let winner = res
             .into_iter()
-            .filter(|(_, o)| o.reach.is_some())
-            .min_by_key(|(_, o)| o.reach);
-        stages.push(StageStats {
-            name: "final: the best candidates period by period".into(),
-            candidates: n,
-            pruned: 0,
-            infeasible: 0,
-            periods: 0,
-            wall_s: t0.elapsed().as_secs_f64(),
-            best_score: winner
-                .as_ref()
-                .and_then(|w| w.1.reach)
-                .map_or(f64::INFINITY, |r| r as f64),
-        });
-        best = winner.as_ref().map(|w| w.0.clone());
-        fine = winner.map(|w| w.1);
-    }
-    let searched = best.clone();
-    // Polish: finer angles around the winner, every candidate period by
-    // period (exact: no coarse-step error), hill climbing.
-    if let Some(b) = best.as_mut() {
-        let t0 = std::time::Instant::now();
-        let mut st = StageStats {
-            name: "polish: ±15°, ±5° angles, period by period".into(),
-            candidates: 0,
-            pruned: 0,
-            infeasible: 0,
-            periods: 0,
-            wall_s: 0.0,
-            best_score: f64::INFINITY,
-        };
-        let mut current = fine
-            .clone()
-            .unwrap_or_else(|| problem.evaluate(&b.pattern, goal, true, false));
-        let mut cur_score = current.score(goal);
-        let mut seen = vec![b.pattern.clone()];
-        for _round in 0..12 {
-            let cands: Vec<Pattern> = polish_neighbours(&b.pattern, problem.period_s)
-                .into_iter()
-                .filter(|q| !seen.contains(q))
-                .collect();
-            if cands.is_empty() {
-                break;
+            .filter(|r| r.1.score(goal).is_finite())
+            .min_by(|a, b| a.1.score(goal).total_cmp(&b.1.score(goal)));
+        match winner {
+            Some((q, o)) if o.score(goal) < cur_score => {
+                cur_score = o.score(goal);
+                pattern = q;
+                current = o;
             }
-            seen.extend(cands.iter().cloned());
-            let g = match goal {
-                Goal::Reach { .. } => Goal::Reach {
-                    cutoff: current.reach.unwrap_or(cutoff),
-                },
-                other => other,
-            };
-            let n0 = st.candidates;
-            let total = n0 + cands.len();
-            let done = AtomicUsize::new(0);
-            let res: Vec<(Pattern, Outcome)> = cands
-                .into_par_iter()
-                .map(|q| {
-                    let o = problem.evaluate(&q, g, true, false);
-                    progress(
-                        "polish",
-                        n0 + done.fetch_add(1, Ordering::Relaxed) + 1,
-                        total,
-                    );
-                    (q, o)
-                })
-                .collect();
-            st.candidates = total;
-            st.periods += res.iter().map(|r| r.1.periods).sum::<u64>();
-            let winner = res
-                .into_iter()
-                .filter(|r| r.1.score(goal).is_finite())
-                .min_by(|a, b| a.1.score(goal).total_cmp(&b.1.score(goal)));
-            match winner {
-                Some((q, o)) if o.score(goal) < cur_score => {
-                    cur_score = o.score(goal);
-                    b.pattern = q;
-                    current = o;
-                }
-                _ => break,
-            }
-        }
-        st.wall_s = t0.elapsed().as_secs_f64();
-        st.best_score = cur_score;
-        stages.push(st);
-        if matches!(goal, Goal::Reach { .. }) {
-            fine = Some(current);
+            _ => break,
         }
     }
-    let best = best.ok_or_else(|| match goal {
-        Goal::Reach { .. } => format!(
-            "no path in the search space reaches every target within {} s (raise --max-duration-s or --max-rate-deg-s, or loosen the targets)",
-            cutoff as f64 * problem.period_s
-        ),
-        Goal::Budget { .. } => "every path in the search space hits the gimbal limit within the budget".to_string(),
-    })?;
-    let searched = searched.unwrap_or_else(|| best.clone());
-    Ok(Design {
-        best,
-        stages,
-        fine,
-        searched,
-    })
+    (pattern, current)
 }
 
 /// The reference path (e.g. the paper's) as a non-repeating pattern, its
@@ -2033,8 +2133,9 @@ pub struct DwellProbe {
 
 /// Every dwell move of the refinement (a dwell of each step inserted,
 /// lengthened, shortened or removed after each rotation) applied to `best`,
-/// evaluated period by period without pruning: how much the best of them
-/// gains or loses against `best` (reach time in s, or worst σ/target).
+/// evaluated period by period without pruning (a reach up to twice the
+/// duration limit): how much the best of them gains or loses against
+/// `best` (reach time in s, or worst σ/target).
 pub fn dwell_probe(
     problem: &Problem,
     best: &Pattern,
@@ -2051,9 +2152,11 @@ pub fn dwell_probe(
         refine_starts: 0,
         dwell_steps: steps.to_vec(),
     };
+    // Past the duration limit too (up to twice it): how much later a dwell
+    // reaches the targets, not only that it misses the limit.
     let g = match goal {
         Goal::Reach { .. } => Goal::Reach {
-            cutoff: max_periods,
+            cutoff: (2 * max_periods).min(crate::scenario::MAX_PERIODS),
         },
         b => b,
     };
