@@ -905,7 +905,7 @@ pub fn search(
         &no_dwells,
         goal,
         &incumbent,
-        starts,
+        starts.clone(),
         &mut seen,
         &mut pool,
         "stage 2: hill climbing (angles, rates, tilted axes)",
@@ -915,15 +915,25 @@ pub fn search(
     let mut pool_b: Vec<Scored> = Vec::new();
     let mut best_b = None;
     if !space.dwell_steps.is_empty() {
+        // From the stage-1 starts (every move at once, which can lead to
+        // another optimum than stage 2's) and from the stage-2 optima (the
+        // dwell moves on top of them); its own list of seen patterns.
+        let mut from = starts;
+        for o in optima {
+            if !from.iter().any(|s| s.pattern == o.pattern) {
+                from.push(o);
+            }
+        }
+        let mut seen_b: Vec<Pattern> = from.iter().map(|s| s.pattern.clone()).collect();
         let (_, b, st) = climb(
             problem,
             space,
             goal,
             &incumbent,
-            optima,
-            &mut seen,
+            from,
+            &mut seen_b,
             &mut pool_b,
-            "stage 2b: hill climbing with dwells (from the stage-2 optima)",
+            "stage 2b: hill climbing with dwells (from the stage-1 starts and the stage-2 optima)",
             &|d, t| progress("stage 2b", d, t),
         );
         stages.push(st);
@@ -2173,8 +2183,15 @@ pub fn dwell_probe(
             })
         })
         .collect();
-    let base = value(&problem.evaluate(best, g, true, false));
+    let base_o = problem.evaluate(best, g, true, false);
+    let base = value(&base_o);
+    // A dwell past the end of the evaluated path changes nothing: skipped.
+    let n = base_o.periods;
+    let same = best.segments(n, problem.period_s);
     moves
+        .into_iter()
+        .filter(|q| q.segments(n, problem.period_s) != same)
+        .collect::<Vec<_>>()
         .into_par_iter()
         .map(|q| {
             let score = value(&problem.evaluate(&q, g, true, false));
