@@ -32,8 +32,14 @@
 //! far, so within the coarse grammar the result is optimal (to one coarse
 //! step). Stage 2 refines the best stage-1 patterns by hill climbing on
 //! finer angles (30° steps, which keep the coarse step), slower rates, and, with `--tilted`, axes tilted
-//! 45° between two allowed axes. A candidate whose middle gimbal angle |β|
-//! exceeds the limit before it reaches the targets is infeasible.
+//! 45° between two allowed axes. Stage 2b (unless `--no-dwells`) climbs
+//! again with dwell moves too: a dwell of 60, 180 or 600 s after a rotation
+//! inserted, lengthened, shortened or removed (zero commanded path rate for
+//! whole periods, as a scenario's `dwell_s`; the coarse step divides every
+//! dwell). The best without and the best with dwells are both polished, so
+//! the search with dwells is never worse than without. A candidate whose
+//! middle gimbal angle |β| exceeds the limit before it reaches the targets
+//! is infeasible.
 
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
@@ -1601,9 +1607,11 @@ pub struct DesignArgs {
     /// Hill-climbing starts of the refinement (the best exhaustive patterns).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(1..=32))]
     pub refine_starts: u8,
-    /// Do not search dwells (by default the hill climbing also inserts,
-    /// lengthens, shortens or removes a dwell of 60, 180 or 600 s after each
-    /// rotation: zero commanded rate for whole periods).
+    /// Do not search dwells. By default a second hill climbing (stage 2b)
+    /// also inserts, lengthens, shortens or removes a dwell of 60, 180 or
+    /// 600 s after each rotation (zero commanded rate for whole periods);
+    /// the better of the searches without and with dwells wins, and it
+    /// costs 1–22 % more search time (README, "Dwells").
     #[arg(long)]
     pub no_dwells: bool,
     /// Instead of the shortest path to the targets: the path with the best
