@@ -32,8 +32,14 @@
 //! far, so within the coarse grammar the result is optimal (to one coarse
 //! step). Stage 2 refines the best stage-1 patterns by hill climbing on
 //! finer angles (30° steps, which keep the coarse step), slower rates, and, with `--tilted`, axes tilted
-//! 45° between two allowed axes. A candidate whose middle gimbal angle |β|
-//! exceeds the limit before it reaches the targets is infeasible.
+//! 45° between two allowed axes. Stage 2b (unless `--no-dwells`) climbs
+//! again with dwell moves too: a dwell of 60, 180 or 600 s after a rotation
+//! inserted, lengthened, shortened or removed (zero commanded path rate for
+//! whole periods, as a scenario's `dwell_s`; the coarse step divides every
+//! dwell). The best without and the best with dwells are both polished, so
+//! the search with dwells is never worse than without. A candidate whose
+//! middle gimbal angle |β| exceeds the limit before it reaches the targets
+//! is infeasible.
 
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
@@ -115,24 +121,75 @@ impl NamedAxis {
     }
 }
 
-/// One constant-rate rotation of a path.
+/// One constant-rate rotation of a path, then an optional dwell.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Rotation {
     /// The axis.
     pub axis: NamedAxis,
-    /// Angle (°).
+    /// Angle (°); 0 only with a dwell (a pure dwell, e.g. in a reference
+    /// path).
     pub angle_deg: f64,
     /// Rate (°/s).
     pub rate_deg_s: f64,
+    /// Hold still this long after the rotation (s, whole periods): zero
+    /// commanded path rate, as `dwell_s` of a scenario segment.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub dwell_s: f64,
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
+}
+
+/// `x / period_s` if it is a whole number ≥ 0.
+fn whole_periods(x: f64, period_s: f64) -> Option<u64> {
+    let d = x / period_s;
+    let r = d.round();
+    (d.is_finite() && (d - r).abs() <= 1e-6 && r >= 0.0).then_some(r as u64)
 }
 
 impl Rotation {
-    /// Whole periods of length `period_s` the rotation lasts, if whole.
-    pub fn periods(&self, period_s: f64) -> Option<u64> {
-        let d = self.angle_deg / self.rate_deg_s / period_s;
-        let r = d.round();
-        ((d - r).abs() <= 1e-6 && r >= 1.0).then_some(r as u64)
+    /// A rotation without a dwell.
+    pub fn new(axis: NamedAxis, angle_deg: f64, rate_deg_s: f64) -> Self {
+        Self {
+            axis,
+            angle_deg,
+            rate_deg_s,
+            dwell_s: 0.0,
+        }
     }
+
+    /// Whole periods of length `period_s` the rotation lasts (without the
+    /// dwell), if whole and at least one (zero for a pure dwell).
+    pub fn periods(&self, period_s: f64) -> Option<u64> {
+        let r = whole_periods(self.angle_deg / self.rate_deg_s, period_s)?;
+        let dwell = self.dwell_periods(period_s)?;
+        (r >= 1 || (r == 0 && dwell >= 1)).then_some(r)
+    }
+
+    /// Whole periods of the dwell after the rotation, if whole.
+    pub fn dwell_periods(&self, period_s: f64) -> Option<u64> {
+        whole_periods(self.dwell_s, period_s)
+    }
+
+    /// Whole periods of the rotation and its dwell, if both are whole.
+    pub fn total_periods(&self, period_s: f64) -> Option<u64> {
+        Some(self.periods(period_s)? + self.dwell_periods(period_s)?)
+    }
+}
+
+/// A piece of a path: `periods` periods of rotation `index` of the pattern,
+/// rotating or (`dwell`) holding still after it.
+#[derive(Clone, Copy, Debug)]
+pub struct Piece<'a> {
+    /// Index of the rotation in the pattern.
+    pub index: usize,
+    /// The rotation.
+    pub rotation: &'a Rotation,
+    /// Its dwell (zero path rate), not its rotation.
+    pub dwell: bool,
+    /// Whole periods.
+    pub periods: u64,
 }
 
 /// A candidate: a pattern of rotations repeated until the path ends.
@@ -146,12 +203,18 @@ pub struct Pattern {
 }
 
 impl Pattern {
-    /// Short text, e.g. `(south 180° @0.1, east 90° @0.1)*`.
+    /// Short text, e.g. `(south 180° @0.1°/s, east 90° @0.1°/s + dwell 60 s) repeated`.
     pub fn describe(&self) -> String {
         let parts: Vec<String> = self
             .rotations
             .iter()
-            .map(|r| format!("{} {}° @{}°/s", r.axis.name, r.angle_deg, r.rate_deg_s))
+            .map(|r| {
+                let mut t = format!("{} {}° @{}°/s", r.axis.name, r.angle_deg, r.rate_deg_s);
+                if r.dwell_s > 0.0 {
+                    t.push_str(&format!(" + dwell {} s", r.dwell_s));
+                }
+                t
+            })
             .collect();
         format!(
             "({}){}",
@@ -160,17 +223,53 @@ impl Pattern {
         )
     }
 
+    /// Whether any rotation has a dwell.
+    pub fn has_dwell(&self) -> bool {
+        self.rotations.iter().any(|r| r.dwell_s > 0.0)
+    }
+
+    /// Every rotation and dwell is a whole number of periods.
+    pub fn whole(&self, period_s: f64) -> bool {
+        self.rotations
+            .iter()
+            .all(|r| r.total_periods(period_s).is_some())
+    }
+
     /// The path's segments over its first `periods` periods (the last one
-    /// cut at a whole period), as scenario segments.
+    /// cut at a whole period, within its rotation or its dwell), as
+    /// scenario segments.
     pub fn segments(&self, periods: u64, period_s: f64) -> Vec<Segment> {
         let mut out: Vec<Segment> = Vec::new();
-        let mut last: Option<&Rotation> = None;
-        for (_, r, n) in self.chunks(periods, period_s, u64::MAX) {
-            let angle = r.rate_deg_s * period_s * n as f64;
-            // A single repeated rotation is one continuous segment.
-            if let (Some(prev), Some(seg)) = (last, out.last_mut()) {
-                if prev.axis == r.axis && prev.rate_deg_s == r.rate_deg_s {
+        // The previous piece: (rotation index, dwell).
+        let mut last: Option<(usize, bool)> = None;
+        for piece in self.chunks(periods, period_s, u64::MAX) {
+            let r = piece.rotation;
+            let span = period_s * piece.periods as f64;
+            if piece.dwell {
+                // After its own rotation: that segment's dwell; else (a pure
+                // dwell) a segment of its own.
+                match (last, out.last_mut()) {
+                    (Some((i, _)), Some(seg)) if i == piece.index => {
+                        seg.dwell_s = round_angle(seg.dwell_s + span);
+                    }
+                    _ => out.push(Segment {
+                        axis: r.axis.to_axis(),
+                        angle_deg: 0.0,
+                        rate_deg_s: r.rate_deg_s,
+                        dwell_s: round_angle(span),
+                    }),
+                }
+                last = Some((piece.index, true));
+                continue;
+            }
+            let angle = r.rate_deg_s * span;
+            // A single repeated rotation (without dwells) is one continuous
+            // segment.
+            if let (Some((i, false)), Some(seg)) = (last, out.last_mut()) {
+                let prev = &self.rotations[i];
+                if prev.axis == r.axis && prev.rate_deg_s == r.rate_deg_s && seg.dwell_s == 0.0 {
                     seg.angle_deg = round_angle(seg.angle_deg + angle);
+                    last = Some((piece.index, false));
                     continue;
                 }
             }
@@ -180,14 +279,14 @@ impl Pattern {
                 rate_deg_s: r.rate_deg_s,
                 dwell_s: 0.0,
             });
-            last = Some(r);
+            last = Some((piece.index, false));
         }
         out
     }
 
-    /// `(rotation, periods)` pieces of at most `k` periods covering the
-    /// first `periods` periods.
-    fn chunks(&self, periods: u64, period_s: f64, k: u64) -> Vec<(usize, &Rotation, u64)> {
+    /// Pieces of at most `k` periods covering the first `periods` periods:
+    /// every rotation, then its dwell.
+    pub fn chunks(&self, periods: u64, period_s: f64, k: u64) -> Vec<Piece<'_>> {
         let mut out = Vec::new();
         let mut left = periods;
         if self.rotations.is_empty() {
@@ -195,14 +294,22 @@ impl Pattern {
         }
         'cycle: loop {
             for (i, r) in self.rotations.iter().enumerate() {
-                let Some(mut n) = r.periods(period_s) else {
+                let (Some(rot), Some(dwell)) = (r.periods(period_s), r.dwell_periods(period_s))
+                else {
                     return out;
                 };
-                while n > 0 && left > 0 {
-                    let m = n.min(k).min(left);
-                    out.push((i, r, m));
-                    n -= m;
-                    left -= m;
+                for (mut n, is_dwell) in [(rot, false), (dwell, true)] {
+                    while n > 0 && left > 0 {
+                        let m = n.min(k).min(left);
+                        out.push(Piece {
+                            index: i,
+                            rotation: r,
+                            dwell: is_dwell,
+                            periods: m,
+                        });
+                        n -= m;
+                        left -= m;
+                    }
                 }
                 if left == 0 {
                     break 'cycle;
@@ -215,9 +322,12 @@ impl Pattern {
         out
     }
 
-    /// Periods of one cycle.
+    /// Periods of one cycle, dwells included.
     pub fn cycle_periods(&self, period_s: f64) -> Option<u64> {
-        self.rotations.iter().map(|r| r.periods(period_s)).sum()
+        self.rotations
+            .iter()
+            .map(|r| r.total_periods(period_s))
+            .sum()
     }
 }
 
@@ -292,8 +402,8 @@ pub struct Outcome {
     /// Periods per step used.
     pub k: u64,
     /// Per step, when recorded: (t in s, σ of every state in rad, rotation
-    /// index within the pattern).
-    pub history: Vec<(f64, Vec<f64>, usize)>,
+    /// index within the pattern, whether the step is the rotation's dwell).
+    pub history: Vec<(f64, Vec<f64>, usize, bool)>,
 }
 
 impl Outcome {
@@ -346,8 +456,10 @@ impl Problem {
     }
 
     /// Periods per coarse step of `p` (1 with `fine`): the largest divisor
-    /// of every rotation's period count (and of `extra`) that keeps a step
-    /// within `step_deg` of rotation and [`MAX_STEP_PERIODS`].
+    /// of every rotation's and every dwell's period count (and of `extra`)
+    /// that keeps a step within `step_deg` of rotation and
+    /// [`MAX_STEP_PERIODS`]. A step therefore never straddles the end of a
+    /// rotation or of a dwell.
     pub fn step_periods(&self, p: &Pattern, extra: u64, fine: bool) -> u64 {
         if fine {
             return 1;
@@ -356,7 +468,13 @@ impl Problem {
         let mut max_rate: f64 = 0.0;
         for r in &p.rotations {
             g = gcd(g, r.periods(self.period_s).unwrap_or(1));
-            max_rate = max_rate.max(r.rate_deg_s);
+            g = gcd(g, r.dwell_periods(self.period_s).unwrap_or(1));
+            if r.angle_deg > 0.0 {
+                max_rate = max_rate.max(r.rate_deg_s);
+            }
+        }
+        if max_rate == 0.0 {
+            max_rate = 1e-12;
         }
         let cap = ((self.step_deg / (max_rate * self.period_s)).floor() as u64)
             .clamp(1, self.max_step_periods.max(1));
@@ -415,8 +533,16 @@ impl Problem {
                 .map(|&(i, t)| s.get(i).copied().unwrap_or(f64::INFINITY) / t)
                 .fold(0.0, f64::max)
         };
-        for (index, r, m) in p.chunks(limit, dt1, k) {
-            let w = Vector3::from(r.axis.unit) * (r.rate_deg_s * DEG);
+        for piece in p.chunks(limit, dt1, k) {
+            let (r, m) = (piece.rotation, piece.periods);
+            // A dwell: zero commanded path rate (the increments are the
+            // Earth rate alone and the frame stays put), as the truth
+            // simulator holds a scenario's `dwell_s`.
+            let w = if piece.dwell {
+                Vector3::zeros()
+            } else {
+                Vector3::from(r.axis.unit) * (r.rate_deg_s * DEG)
+            };
             let u = frame.c_cn * w;
             let dt = dt1 * m as f64;
             let dtheta = frame.increment(&u, dt);
@@ -433,8 +559,12 @@ impl Problem {
             }
             let sigma = obs.crlb_sigma();
             if record {
-                out.history
-                    .push((done as f64 * dt1, sigma.iter().copied().collect(), index));
+                out.history.push((
+                    done as f64 * dt1,
+                    sigma.iter().copied().collect(),
+                    piece.index,
+                    piece.dwell,
+                ));
             }
             let slack = if k > 1 { self.coarse_slack } else { FINE_SLACK };
             if matches!(goal, Goal::Reach { .. }) && ratio_of(&sigma) <= 1.0 + slack {
@@ -466,7 +596,15 @@ pub struct Space {
     pub max_rotations: usize,
     /// Hill-climbing starts of the refinement (best stage-1 patterns).
     pub refine_starts: usize,
+    /// Dwell moves of the refinement (s): after each rotation a dwell is
+    /// inserted, lengthened or shortened by each of these, or removed;
+    /// empty: no dwells (`--no-dwells`).
+    pub dwell_steps: Vec<f64>,
 }
+
+/// The refinement's dwell moves (s): insert, lengthen or shorten a dwell
+/// after a rotation by each of these, or remove it.
+pub const DWELL_STEPS_S: [f64; 3] = [60.0, 180.0, 600.0];
 
 /// One evaluated candidate.
 #[derive(Clone, Debug)]
@@ -528,15 +666,11 @@ pub fn coarse_patterns(space: &Space, period_s: f64) -> Vec<Pattern> {
                 let p = Pattern {
                     rotations: seq
                         .iter()
-                        .map(|&(a, g)| Rotation {
-                            axis: space.axes[a].clone(),
-                            angle_deg: g,
-                            rate_deg_s: rate,
-                        })
+                        .map(|&(a, g)| Rotation::new(space.axes[a].clone(), g, rate))
                         .collect(),
                     repeat: true,
                 };
-                if p.rotations.iter().all(|r| r.periods(period_s).is_some()) {
+                if p.whole(period_s) {
                     out.push(p);
                 }
             }
@@ -564,12 +698,14 @@ pub fn coarse_patterns(space: &Space, period_s: f64) -> Vec<Pattern> {
 /// The neighbours of a pattern in the refinement: each rotation's angle
 /// ±30°, ±60°, ±90°; its rate at ¾ and ½ of the maximum (or back to the
 /// maximum); with `tilted`, its axis tilted 45° towards each perpendicular
-/// allowed axis; whole periods only.
+/// allowed axis; the dwell after it (`space.dwell_steps`) inserted,
+/// lengthened or shortened by each step, or removed; whole periods only
+/// (a dwell that is not a whole number of periods is never proposed).
 pub fn neighbours(p: &Pattern, space: &Space, period_s: f64) -> Vec<Pattern> {
     let mut out = Vec::new();
     let max = space.max_rate_deg_s;
     let mut push = |q: Pattern| {
-        if q.rotations.iter().all(|r| r.periods(period_s).is_some()) && !out.contains(&q) {
+        if q.whole(period_s) && !out.contains(&q) {
             out.push(q);
         }
     };
@@ -587,6 +723,24 @@ pub fn neighbours(p: &Pattern, space: &Space, period_s: f64) -> Vec<Pattern> {
             if (rate - p.rotations[i].rate_deg_s).abs() > 1e-12 {
                 let mut q = p.clone();
                 q.rotations[i].rate_deg_s = rate;
+                push(q);
+            }
+        }
+        if !space.dwell_steps.is_empty() {
+            let d = p.rotations[i].dwell_s;
+            let mut dwells: Vec<f64> = Vec::new();
+            for &step in &space.dwell_steps {
+                dwells.push(d + step);
+                if d - step > 0.0 {
+                    dwells.push(d - step);
+                }
+            }
+            if d > 0.0 {
+                dwells.push(0.0);
+            }
+            for w in dwells {
+                let mut q = p.clone();
+                q.rotations[i].dwell_s = round_angle(w);
                 push(q);
             }
         }
@@ -616,7 +770,7 @@ pub fn polish_neighbours(p: &Pattern, period_s: f64) -> Vec<Pattern> {
             let a = q.rotations[i].angle_deg + d;
             if a >= 5.0 - 1e-9 {
                 q.rotations[i].angle_deg = a;
-                if q.rotations.iter().all(|r| r.periods(period_s).is_some()) && !out.contains(&q) {
+                if q.whole(period_s) && !out.contains(&q) {
                     out.push(q);
                 }
             }
@@ -713,7 +867,10 @@ pub struct Design {
 
 /// Searches `space` towards `goal`: stage 1 exhaustive over the coarse
 /// grammar with branch and bound, stage 2 hill climbing from the best
-/// `refine_starts` stage-1 patterns. `progress(stage, done, total)`.
+/// `refine_starts` stage-1 patterns, stage 2b (with `space.dwell_steps`)
+/// hill climbing with the dwell moves too from the stage-2 optima; the best
+/// without and the best with dwells are polished and the better wins.
+/// `progress(stage, done, total)`.
 pub fn search(
     problem: &Problem,
     space: &Space,
@@ -741,10 +898,169 @@ pub fn search(
     scored.sort_by(|a, b| a.score.total_cmp(&b.score));
     let starts: Vec<Scored> = scored.iter().take(space.refine_starts).cloned().collect();
     let mut pool: Vec<Scored> = scored.into_iter().take(FINAL_CHECKS).collect();
-    let mut best = starts.first().cloned();
     let mut seen: Vec<Pattern> = starts.iter().map(|s| s.pattern.clone()).collect();
-    let mut refine = StageStats {
-        name: "stage 2: hill climbing (angles, rates, tilted axes)".into(),
+    // Stage 2 without dwells, then (stage 2b) the dwell moves from its
+    // optima: the search with dwells finds everything the search without
+    // them finds, and its result is never worse.
+    let no_dwells = Space {
+        dwell_steps: Vec::new(),
+        ..space.clone()
+    };
+    let (optima, best_a, st) = climb(
+        problem,
+        &no_dwells,
+        goal,
+        &incumbent,
+        starts.clone(),
+        &mut seen,
+        &mut pool,
+        "stage 2: hill climbing (angles, rates, tilted axes)",
+        &|d, t| progress("stage 2", d, t),
+    );
+    stages.push(st);
+    let mut pool_b: Vec<Scored> = Vec::new();
+    let mut best_b = None;
+    if !space.dwell_steps.is_empty() {
+        // From the stage-1 starts (every move at once, which can lead to
+        // another optimum than stage 2's) and from the stage-2 optima (the
+        // dwell moves on top of them); its own list of seen patterns.
+        let mut from = starts;
+        for o in optima {
+            if !from.iter().any(|s| s.pattern == o.pattern) {
+                from.push(o);
+            }
+        }
+        let mut seen_b: Vec<Pattern> = from.iter().map(|s| s.pattern.clone()).collect();
+        let (_, b, st) = climb(
+            problem,
+            space,
+            goal,
+            &incumbent,
+            from,
+            &mut seen_b,
+            &mut pool_b,
+            "stage 2b: hill climbing with dwells (from the stage-1 starts and the stage-2 optima)",
+            &|d, t| progress("stage 2b", d, t),
+        );
+        stages.push(st);
+        best_b = b;
+    }
+    // The candidates to polish, without and with dwells. Reach: the coarse
+    // reach times are within the coarse steps' slack, so the best few of
+    // each are re-evaluated period by period and the exact fastest wins
+    // (ties: the better coarse score, then the earlier candidate).
+    let mut finalists: Vec<(Scored, Option<Outcome>)> = Vec::new();
+    if let Goal::Reach { .. } = goal {
+        let t0 = std::time::Instant::now();
+        let mut n = 0;
+        for mut p in [pool, pool_b] {
+            p.sort_by(|a, b| a.score.total_cmp(&b.score));
+            p.dedup_by(|a, b| a.pattern == b.pattern);
+            p.truncate(FINAL_CHECKS);
+            let checked: Vec<(Scored, Outcome)> = p
+                .into_par_iter()
+                .map(|s| {
+                    let o = problem.evaluate(&s.pattern, Goal::Reach { cutoff }, true, false);
+                    (s, o)
+                })
+                .collect();
+            n += checked.len();
+            if let Some((s, o)) = checked
+                .into_iter()
+                .filter(|(_, o)| o.reach.is_some())
+                .min_by_key(|(_, o)| o.reach)
+            {
+                if !finalists.iter().any(|f| f.0.pattern == s.pattern) {
+                    finalists.push((s, Some(o)));
+                }
+            }
+        }
+        let best_reach = finalists
+            .iter()
+            .filter_map(|f| f.1.as_ref().and_then(|o| o.reach))
+            .min();
+        stages.push(StageStats {
+            name: "final: the best candidates period by period".into(),
+            candidates: n,
+            pruned: 0,
+            infeasible: 0,
+            periods: 0,
+            wall_s: t0.elapsed().as_secs_f64(),
+            best_score: best_reach.map_or(f64::INFINITY, |r| r as f64),
+        });
+    } else {
+        for b in [best_a, best_b].into_iter().flatten() {
+            if !finalists.iter().any(|f| f.0.pattern == b.pattern) {
+                finalists.push((b, None));
+            }
+        }
+    }
+    // Polish: finer angles around each finalist, every candidate period by
+    // period (exact: no coarse-step error), hill climbing; the best wins
+    // (ties: the one without dwells).
+    let mut st = StageStats {
+        name: "polish: ±15°, ±5° angles, period by period".into(),
+        candidates: 0,
+        pruned: 0,
+        infeasible: 0,
+        periods: 0,
+        wall_s: 0.0,
+        best_score: f64::INFINITY,
+    };
+    let t0 = std::time::Instant::now();
+    let mut chosen: Option<(Scored, Scored, Outcome)> = None;
+    for (searched, fine0) in finalists {
+        let (pattern, outcome) = polish(problem, goal, cutoff, &searched, fine0, &mut st, progress);
+        let score = outcome.score(goal);
+        if chosen.as_ref().is_none_or(|c| score < c.2.score(goal)) {
+            let best = Scored {
+                pattern,
+                outcome: searched.outcome.clone(),
+                score: searched.score,
+            };
+            chosen = Some((best, searched, outcome));
+        }
+    }
+    st.wall_s = t0.elapsed().as_secs_f64();
+    st.best_score = chosen.as_ref().map_or(f64::INFINITY, |c| c.2.score(goal));
+    if chosen.is_some() {
+        stages.push(st);
+    }
+    let (best, searched, outcome) = chosen.ok_or_else(|| match goal {
+        Goal::Reach { .. } => format!(
+            "no path in the search space reaches every target within {} s (raise --max-duration-s or --max-rate-deg-s, or loosen the targets)",
+            cutoff as f64 * problem.period_s
+        ),
+        Goal::Budget { .. } => "every path in the search space hits the gimbal limit within the budget".to_string(),
+    })?;
+    let fine = matches!(goal, Goal::Reach { .. }).then_some(outcome);
+    Ok(Design {
+        best,
+        stages,
+        fine,
+        searched,
+    })
+}
+
+/// Hill climbing from each of `starts` over the neighbours in `space`
+/// (best neighbour first, at most 20 rounds), skipping `seen` patterns; the
+/// finite candidates go to `pool`. Returns each start's local optimum, the
+/// best of them, and the stage's statistics.
+#[allow(clippy::too_many_arguments)]
+fn climb(
+    problem: &Problem,
+    space: &Space,
+    goal: Goal,
+    incumbent: &AtomicU64,
+    starts: Vec<Scored>,
+    seen: &mut Vec<Pattern>,
+    pool: &mut Vec<Scored>,
+    name: &str,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> (Vec<Scored>, Option<Scored>, StageStats) {
+    let mut best: Option<Scored> = starts.first().cloned();
+    let mut stats = StageStats {
+        name: name.into(),
         candidates: 0,
         pruned: 0,
         infeasible: 0,
@@ -753,6 +1069,7 @@ pub fn search(
         best_score: best.as_ref().map_or(f64::INFINITY, |b| b.score),
     };
     let t0 = std::time::Instant::now();
+    let mut optima = Vec::new();
     for start in starts {
         let mut current = start;
         for _round in 0..20 {
@@ -765,13 +1082,14 @@ pub fn search(
             }
             seen.extend(cands.iter().cloned());
             let n = cands.len();
-            let (sc, st) = score_all(problem, cands, goal, &incumbent, "", &|i| {
-                progress("stage 2", refine.candidates + i, refine.candidates + n)
+            let done0 = stats.candidates;
+            let (sc, st) = score_all(problem, cands, goal, incumbent, "", &|i| {
+                progress(done0 + i, done0 + n)
             });
-            refine.candidates += st.candidates;
-            refine.pruned += st.pruned;
-            refine.infeasible += st.infeasible;
-            refine.periods += st.periods;
+            stats.candidates += st.candidates;
+            stats.pruned += st.pruned;
+            stats.infeasible += st.infeasible;
+            stats.periods += st.periods;
             pool.extend(sc.iter().filter(|s| s.score.is_finite()).cloned());
             match best_of(&sc) {
                 Some(b) if b.score < current.score => current = b.clone(),
@@ -779,147 +1097,89 @@ pub fn search(
             }
         }
         if best.as_ref().is_none_or(|b| current.score < b.score) {
-            best = Some(current);
+            best = Some(current.clone());
+        }
+        if !optima.iter().any(|o: &Scored| o.pattern == current.pattern) {
+            optima.push(current);
         }
     }
-    refine.wall_s = t0.elapsed().as_secs_f64();
-    refine.best_score = best.as_ref().map_or(f64::INFINITY, |b| b.score);
-    stages.push(refine);
-    // Reach: the coarse reach times are within the coarse steps' slack, so
-    // the best few are re-evaluated period by period and the exact fastest
-    // wins (ties: the better coarse score, then the earlier candidate).
-    let mut fine = None;
-    if let Goal::Reach { .. } = goal {
-        let t0 = std::time::Instant::now();
-        pool.sort_by(|a, b| a.score.total_cmp(&b.score));
-        pool.dedup_by(|a, b| a.pattern == b.pattern);
-        pool.truncate(FINAL_CHECKS);
-        let checked: Vec<(Scored, Outcome)> = pool
-            .into_par_iter()
-            .map(|s| {
-                let o = problem.evaluate(&s.pattern, Goal::Reach { cutoff }, true, false);
-                (s, o)
-            })
-            .collect();
-        let n = checked.len();
-        let winner = checked
-            .into_iter()
-            .filter(|(_, o)| o.reach.is_some())
-            .min_by_key(|(_, o)| o.reach);
-        stages.push(StageStats {
-            name: "final: the best candidates period by period".into(),
-            candidates: n,
-            pruned: 0,
-            infeasible: 0,
-            periods: 0,
-            wall_s: t0.elapsed().as_secs_f64(),
-            best_score: winner
-                .as_ref()
-                .and_then(|w| w.1.reach)
-                .map_or(f64::INFINITY, |r| r as f64),
-        });
-        best = winner.as_ref().map(|w| w.0.clone());
-        fine = winner.map(|w| w.1);
-    }
-    let searched = best.clone();
-    // Polish: finer angles around the winner, every candidate period by
-    // period (exact: no coarse-step error), hill climbing.
-    if let Some(b) = best.as_mut() {
-        let t0 = std::time::Instant::now();
-        let mut st = StageStats {
-            name: "polish: ±15°, ±5° angles, period by period".into(),
-            candidates: 0,
-            pruned: 0,
-            infeasible: 0,
-            periods: 0,
-            wall_s: 0.0,
-            best_score: f64::INFINITY,
-        };
-        let mut current = fine
-            .clone()
-            .unwrap_or_else(|| problem.evaluate(&b.pattern, goal, true, false));
-        let mut cur_score = current.score(goal);
-        let mut seen = vec![b.pattern.clone()];
-        for _round in 0..12 {
-            let cands: Vec<Pattern> = polish_neighbours(&b.pattern, problem.period_s)
-                .into_iter()
-                .filter(|q| !seen.contains(q))
-                .collect();
-            if cands.is_empty() {
-                break;
-            }
-            seen.extend(cands.iter().cloned());
-            let g = match goal {
-                Goal::Reach { .. } => Goal::Reach {
-                    cutoff: current.reach.unwrap_or(cutoff),
-                },
-                other => other,
-            };
-            let n0 = st.candidates;
-            let total = n0 + cands.len();
-            let done = AtomicUsize::new(0);
-            let res: Vec<(Pattern, Outcome)> = cands
-                .into_par_iter()
-                .map(|q| {
-                    let o = problem.evaluate(&q, g, true, false);
-                    progress(
-                        "polish",
-                        n0 + done.fetch_add(1, Ordering::Relaxed) + 1,
-                        total,
-                    );
-                    (q, o)
-                })
-                .collect();
-            st.candidates = total;
-            st.periods += res.iter().map(|r| r.1.periods).sum::<u64>();
-            let winner = res
-                .into_iter()
-                .filter(|r| r.1.score(goal).is_finite())
-                .min_by(|a, b| a.1.score(goal).total_cmp(&b.1.score(goal)));
-            match winner {
-                Some((q, o)) if o.score(goal) < cur_score => {
-                    cur_score = o.score(goal);
-                    b.pattern = q;
-                    current = o;
-                }
-                _ => break,
-            }
-        }
-        st.wall_s = t0.elapsed().as_secs_f64();
-        st.best_score = cur_score;
-        stages.push(st);
-        if matches!(goal, Goal::Reach { .. }) {
-            fine = Some(current);
-        }
-    }
-    let best = best.ok_or_else(|| match goal {
-        Goal::Reach { .. } => format!(
-            "no path in the search space reaches every target within {} s (raise --max-duration-s or --max-rate-deg-s, or loosen the targets)",
-            cutoff as f64 * problem.period_s
-        ),
-        Goal::Budget { .. } => "every path in the search space hits the gimbal limit within the budget".to_string(),
-    })?;
-    let searched = searched.unwrap_or_else(|| best.clone());
-    Ok(Design {
-        best,
-        stages,
-        fine,
-        searched,
-    })
+    stats.wall_s = t0.elapsed().as_secs_f64();
+    stats.best_score = best.as_ref().map_or(f64::INFINITY, |b| b.score);
+    (optima, best, stats)
 }
 
-/// The reference path (e.g. the paper's) as a non-repeating pattern.
+/// The polish of one finalist: ±15°, ±5° angle moves, every candidate
+/// period by period, hill climbing (at most 12 rounds). `fine0`: the
+/// finalist's period-by-period outcome, if known.
+fn polish(
+    problem: &Problem,
+    goal: Goal,
+    cutoff: u64,
+    start: &Scored,
+    fine0: Option<Outcome>,
+    st: &mut StageStats,
+    progress: &(dyn Fn(&str, usize, usize) + Sync),
+) -> (Pattern, Outcome) {
+    let mut pattern = start.pattern.clone();
+    let mut current = fine0.unwrap_or_else(|| problem.evaluate(&pattern, goal, true, false));
+    let mut cur_score = current.score(goal);
+    let mut seen = vec![pattern.clone()];
+    for _round in 0..12 {
+        let cands: Vec<Pattern> = polish_neighbours(&pattern, problem.period_s)
+            .into_iter()
+            .filter(|q| !seen.contains(q))
+            .collect();
+        if cands.is_empty() {
+            break;
+        }
+        seen.extend(cands.iter().cloned());
+        let g = match goal {
+            Goal::Reach { .. } => Goal::Reach {
+                cutoff: current.reach.unwrap_or(cutoff),
+            },
+            other => other,
+        };
+        let n0 = st.candidates;
+        let total = n0 + cands.len();
+        let done = AtomicUsize::new(0);
+        let res: Vec<(Pattern, Outcome)> = cands
+            .into_par_iter()
+            .map(|q| {
+                let o = problem.evaluate(&q, g, true, false);
+                progress(
+                    "polish",
+                    n0 + done.fetch_add(1, Ordering::Relaxed) + 1,
+                    total,
+                );
+                (q, o)
+            })
+            .collect();
+        st.candidates = total;
+        st.periods += res.iter().map(|r| r.1.periods).sum::<u64>();
+        let winner = res
+            .into_iter()
+            .filter(|r| r.1.score(goal).is_finite())
+            .min_by(|a, b| a.1.score(goal).total_cmp(&b.1.score(goal)));
+        match winner {
+            Some((q, o)) if o.score(goal) < cur_score => {
+                cur_score = o.score(goal);
+                pattern = q;
+                current = o;
+            }
+            _ => break,
+        }
+    }
+    (pattern, current)
+}
+
+/// The reference path (e.g. the paper's) as a non-repeating pattern, its
+/// dwells included; the scenario's time after the path's end (the platform
+/// holds still) is a dwell after the last segment.
 pub fn pattern_of(s: &Scenario) -> Result<Pattern, String> {
-    let rotations = s
+    let mut rotations = s
         .path
         .iter()
         .map(|seg| {
-            if seg.dwell_s != 0.0 {
-                return Err(
-                    "design: the reference path has a dwell (dwell_s); the design search models rotations only, so give a reference without dwells"
-                        .to_string(),
-                );
-            }
             let unit = seg.axis.unit().map_err(|e| e.to_string())?;
             let name = match &seg.axis {
                 Axis::Named(n) => n.to_ascii_lowercase(),
@@ -929,9 +1189,17 @@ pub fn pattern_of(s: &Scenario) -> Result<Pattern, String> {
                 axis: NamedAxis { name, unit },
                 angle_deg: seg.angle_deg,
                 rate_deg_s: seg.rate_deg_s,
+                dwell_s: seg.dwell_s,
             })
         })
         .collect::<Result<Vec<_>, String>>()?;
+    let path_s: f64 = s.path.iter().map(Segment::duration_s).sum();
+    let rest = round_angle(s.timing.duration_s - path_s);
+    if let Some(last) = rotations.last_mut() {
+        if rest > 0.0 {
+            last.dwell_s = round_angle(last.dwell_s + rest);
+        }
+    }
     Ok(Pattern {
         rotations,
         repeat: false,
@@ -1071,12 +1339,12 @@ pub fn contributions(problem: &Problem, p: &Pattern, o: &Outcome) -> Vec<Contrib
     let mut t0 = 0.0;
     let mut i = 0;
     while i < o.history.len() {
-        let idx = o.history[i].2;
+        let (idx, dwell) = (o.history[i].2, o.history[i].3);
         let mut j = i;
-        while j + 1 < o.history.len() && o.history[j + 1].2 == idx {
+        while j + 1 < o.history.len() && o.history[j + 1].2 == idx && o.history[j + 1].3 == dwell {
             j += 1;
         }
-        let (t1, ref end, _) = o.history[j];
+        let (t1, ref end, _, _) = o.history[j];
         let r = &p.rotations[idx];
         let shares = groups
             .iter()
@@ -1084,7 +1352,11 @@ pub fn contributions(problem: &Problem, p: &Pattern, o: &Outcome) -> Vec<Contrib
             .map(|(&g, &tot)| (g.as_str(), (info(end, g) - info(&start_sigma, g)) / tot))
             .collect();
         out.push(Contribution {
-            rotation: format!("{} @{}°/s", r.axis.name, r.rate_deg_s),
+            rotation: if dwell {
+                format!("dwell (after {})", r.axis.name)
+            } else {
+                format!("{} @{}°/s", r.axis.name, r.rate_deg_s)
+            },
             t0_s: t0,
             t1_s: t1,
             shares,
@@ -1111,6 +1383,7 @@ mod tests {
             max_duration_s: 5400.0,
             max_rotations: 2,
             refine_starts: 1,
+            dwell_steps: DWELL_STEPS_S.to_vec(),
         }
     }
 
@@ -1133,16 +1406,8 @@ mod tests {
         let s = space();
         let p = Pattern {
             rotations: vec![
-                Rotation {
-                    axis: s.axes[0].clone(),
-                    angle_deg: 90.0,
-                    rate_deg_s: 0.1,
-                },
-                Rotation {
-                    axis: s.axes[2].clone(),
-                    angle_deg: 45.0,
-                    rate_deg_s: 0.05,
-                },
+                Rotation::new(s.axes[0].clone(), 90.0, 0.1),
+                Rotation::new(s.axes[2].clone(), 45.0, 0.05),
             ],
             repeat: true,
         };
@@ -1150,9 +1415,112 @@ mod tests {
         let segs = p.segments(2000, 1.0);
         assert_eq!(segs.len(), 3);
         assert!((segs[2].angle_deg - 20.0).abs() < 1e-9);
-        let total: u64 = p.chunks(2000, 1.0, 7).iter().map(|c| c.2).sum();
+        let total: u64 = p.chunks(2000, 1.0, 7).iter().map(|c| c.periods).sum();
         assert_eq!(total, 2000);
-        assert!(p.chunks(2000, 1.0, 7).iter().all(|c| c.2 <= 7));
+        assert!(p.chunks(2000, 1.0, 7).iter().all(|c| c.periods <= 7));
+    }
+
+    /// North 90° at 1°/s, dwell 60 s, east 180° at 1°/s, dwell 180 s.
+    fn with_dwells() -> Pattern {
+        let s = space();
+        let mut a = Rotation::new(s.axes[0].clone(), 90.0, 1.0);
+        a.dwell_s = 60.0;
+        let mut b = Rotation::new(s.axes[2].clone(), 180.0, 1.0);
+        b.dwell_s = 180.0;
+        Pattern {
+            rotations: vec![a, b],
+            repeat: true,
+        }
+    }
+
+    #[test]
+    fn a_dwell_is_whole_periods_and_divides_the_coarse_step() {
+        let p = with_dwells();
+        assert_eq!(p.cycle_periods(1.0), Some(90 + 60 + 180 + 180));
+        let problem = Problem::new(ConfigId::M1Pa, &Scenario::paper(), 60.0);
+        // gcd(90, 60, 180, 180) = 30, within 10° at 1°/s: 10.
+        let k = problem.step_periods(&p, 0, false);
+        assert_eq!(k, 10);
+        for (n, r) in [(90, false), (60, true), (180, false), (180, true)] {
+            assert_eq!(n % k, 0, "{n} periods, dwell {r}");
+        }
+        // Every coarse piece is k whole periods (the last one cut at the
+        // requested end), rotations and dwells alike, and the dwells are
+        // exactly where they belong.
+        let pieces = p.chunks(1234, 1.0, k);
+        assert_eq!(pieces.iter().map(|c| c.periods).sum::<u64>(), 1234);
+        let (last, body) = pieces.split_last().unwrap();
+        assert!(body.iter().all(|c| c.periods == k));
+        assert_eq!(last.periods, 1234 % k);
+        let dwell: u64 = pieces.iter().filter(|c| c.dwell).map(|c| c.periods).sum();
+        // Two whole cycles (1020 s, 480 s of dwell), then 90 + 60 + 64.
+        assert_eq!(dwell, 2 * 240 + 60);
+        // A budget that is not a multiple of the dwells' divisor shrinks k.
+        assert_eq!(problem.step_periods(&p, 1234, false), 2);
+        // The segments carry the dwells; the last rotation is cut.
+        let segs = p.segments(1234, 1.0);
+        let ds: Vec<(f64, f64)> = segs.iter().map(|g| (g.angle_deg, g.dwell_s)).collect();
+        assert_eq!(
+            ds,
+            [
+                (90.0, 60.0),
+                (180.0, 180.0),
+                (90.0, 60.0),
+                (180.0, 180.0),
+                (90.0, 60.0),
+                (64.0, 0.0)
+            ]
+        );
+        // Cut within a dwell: the dwell is cut at a whole period.
+        let segs = p.segments(90 + 30, 1.0);
+        assert_eq!(segs.len(), 1);
+        assert_eq!((segs[0].angle_deg, segs[0].dwell_s), (90.0, 30.0));
+    }
+
+    #[test]
+    fn dwell_moves_are_proposed_in_whole_periods_only() {
+        let s = space();
+        let p = Pattern {
+            rotations: vec![Rotation::new(s.axes[0].clone(), 90.0, 0.1)],
+            repeat: true,
+        };
+        // The dwells of the neighbours that differ from `base` in the dwell
+        // alone.
+        let dwells = |q: &[Pattern], base: &Pattern| -> Vec<f64> {
+            let b = &base.rotations[0];
+            let mut d: Vec<f64> = q
+                .iter()
+                .map(|x| &x.rotations[0])
+                .filter(|r| {
+                    r.axis == b.axis && r.angle_deg == b.angle_deg && r.rate_deg_s == b.rate_deg_s
+                })
+                .map(|r| r.dwell_s)
+                .collect();
+            d.sort_by(f64::total_cmp);
+            d
+        };
+        // Insert 60, 180, 600 s.
+        assert_eq!(dwells(&neighbours(&p, &s, 1.0), &p), [60.0, 180.0, 600.0]);
+        // Lengthen, shorten, remove.
+        let mut q = p.clone();
+        q.rotations[0].dwell_s = 180.0;
+        let n = neighbours(&q, &s, 1.0);
+        assert_eq!(dwells(&n, &q), [0.0, 120.0, 240.0, 360.0, 780.0]);
+        // With 40 s periods (90° at 0.1°/s = 900 s = 22.5 periods is not
+        // whole; 120° is 30 periods): 60 and 180 s are not whole periods
+        // and are never proposed, 600 s (15 periods) is.
+        let mut r = p.clone();
+        r.rotations[0].angle_deg = 120.0;
+        assert_eq!(dwells(&neighbours(&r, &s, 40.0), &r), [600.0]);
+        // No dwell moves without dwell steps (--no-dwells).
+        let mut none = space();
+        none.dwell_steps.clear();
+        assert!(dwells(&neighbours(&p, &none, 1.0), &p).is_empty());
+        // A dwell that is not whole periods makes the pattern unusable.
+        let mut bad = p.clone();
+        bad.rotations[0].dwell_s = 0.5;
+        assert!(!bad.whole(1.0));
+        assert!(bad.chunks(100, 1.0, 1).is_empty());
     }
 
     #[test]
@@ -1239,6 +1607,13 @@ pub struct DesignArgs {
     /// Hill-climbing starts of the refinement (the best exhaustive patterns).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(1..=32))]
     pub refine_starts: u8,
+    /// Do not search dwells. By default a second hill climbing (stage 2b)
+    /// also inserts, lengthens, shortens or removes a dwell of 60, 180 or
+    /// 600 s after each rotation (zero commanded rate for whole periods);
+    /// the better of the searches without and with dwells wins, and it
+    /// costs 1–22 % more search time (README, "Dwells").
+    #[arg(long)]
+    pub no_dwells: bool,
     /// Instead of the shortest path to the targets: the path with the best
     /// worst-case σ/target within this duration (s).
     #[arg(long, value_name = "S", value_parser = parse_positive)]
@@ -1431,15 +1806,21 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
         max_duration_s: max_duration,
         max_rotations: usize::from(args.max_rotations),
         refine_starts: usize::from(args.refine_starts),
+        dwell_steps: if args.no_dwells {
+            Vec::new()
+        } else {
+            DWELL_STEPS_S.to_vec()
+        },
     };
     eprintln!(
-        "design: {id} on '{}': {} targets, max rate {max_rate} °/s, {} s at most, |β| ≤ {}°, axes {}{}; {} threads",
+        "design: {id} on '{}': {} targets, max rate {max_rate} °/s, {} s at most, |β| ≤ {}°, axes {}{}, {}; {} threads",
         base.name,
         problem.targets.len(),
         max_duration,
         args.max_beta_deg,
         space.axes.iter().map(|a| a.name.as_str()).collect::<Vec<_>>().join(","),
         if space.tilted { " (+ tilted)" } else { "" },
+        if space.dwell_steps.is_empty() { "no dwells" } else { "dwells" },
         rayon::current_num_threads()
     );
     let (design, mut periods, coarse_periods, coarse, coarse_change) = loop {
@@ -1534,6 +1915,11 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
     }
     let met = problem.targets.iter().all(|&(i, t)| check[i] <= t);
     let fine_rec = problem.evaluate(best, Goal::Budget { periods }, true, true);
+    let probe = if space.dwell_steps.is_empty() {
+        None
+    } else {
+        dwell_probe(&problem, best, goal, max_periods, &space.dwell_steps)
+    };
 
     // Report.
     let t_design = periods as f64 * period_s;
@@ -1578,8 +1964,13 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
             Axis::Named(n) => n.clone(),
             Axis::Vector(v) => format!("[{:.4}, {:.4}, {:.4}]", v[0], v[1], v[2]),
         };
+        let dwell = if s.dwell_s > 0.0 {
+            format!(", then dwell {} s", s.dwell_s)
+        } else {
+            String::new()
+        };
         println!(
-            "    {:>2}. {:<24} {:>8.2}° at {} °/s ({} s)",
+            "    {:>2}. {:<24} {:>8.2}° at {} °/s ({} s){dwell}",
             i + 1,
             ax,
             s.angle_deg,
@@ -1623,10 +2014,30 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
     );
     if let Goal::Reach { .. } = goal {
         println!(
-            "  optimality: exact over the exhaustive grammar (patterns of ≤ {} rotations about {} axes by 90°·n at {max_rate} °/s, repeated) to one coarse step; the refinement only improves on it (local optimum over 30° angles, ¾ and ½ rates{})",
+            "  optimality: exact over the exhaustive grammar (patterns of ≤ {} rotations about {} axes by 90°·n at {max_rate} °/s, repeated) to one coarse step; the refinement only improves on it (local optimum over 30° angles, ¾ and ½ rates{}{})",
             space.max_rotations,
             space.axes.len(),
-            if space.tilted { ", tilted axes" } else { "" }
+            if space.tilted { ", tilted axes" } else { "" },
+            if space.dwell_steps.is_empty() { "" } else { ", dwells of ±60, ±180, ±600 s" }
+        );
+    }
+
+    if let Some(pr) = &probe {
+        let what = match goal {
+            Goal::Reach { .. } => "reaches every target in",
+            Goal::Budget { .. } => "worst σ/target",
+        };
+        let unit = if matches!(goal, Goal::Reach { .. }) {
+            " s"
+        } else {
+            ""
+        };
+        println!(
+            "  dwells: the best single dwell move on the designed pattern, {}: {what} {}{unit} against {}{unit} without it ({:+.2} %), period by period",
+            pr.pattern.describe(),
+            pr.score,
+            pr.base,
+            100.0 * (pr.score / pr.base - 1.0)
         );
     }
 
@@ -1700,7 +2111,8 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
             "scenario": base.name,
             "goal": match goal { Goal::Reach{..} => "shortest".to_string(), Goal::Budget{periods} => format!("budget {} s", periods as f64 * period_s) },
             "limits": {"max_rate_deg_s": max_rate, "max_duration_s": max_duration, "max_beta_deg": args.max_beta_deg,
-                "axes": space.axes.iter().map(|a| a.name.clone()).collect::<Vec<_>>(), "tilted": space.tilted},
+                "axes": space.axes.iter().map(|a| a.name.clone()).collect::<Vec<_>>(), "tilted": space.tilted,
+                "dwell_steps_s": space.dwell_steps},
             "pattern": best,
             "duration_s": t_design,
             "reference_duration_s": t_ref,
@@ -1713,6 +2125,8 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
             "coarse_step_periods": coarse.k,
             "coarse_step_max_change": coarse_change,
             "speed": speed,
+            "dwell_probe": probe.as_ref().map(|p| serde_json::json!({
+                "pattern": p.pattern, "score": p.score, "without": p.base})),
             "wall_s": t_all.elapsed().as_secs_f64(),
         });
         crate::report::write_json(p, &json)?;
@@ -1722,6 +2136,82 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
         return Err("the designed path misses a target in the observability check".into());
     }
     Ok(())
+}
+
+/// The best single dwell move on a designed pattern, period by period.
+#[derive(Clone, Debug)]
+pub struct DwellProbe {
+    /// The pattern with the move.
+    pub pattern: Pattern,
+    /// Its score: reach time (s) or worst σ/target.
+    pub score: f64,
+    /// The designed pattern's score, alike.
+    pub base: f64,
+}
+
+/// Every dwell move of the refinement (a dwell of each step inserted,
+/// lengthened, shortened or removed after each rotation) applied to `best`,
+/// evaluated period by period without pruning (a reach up to twice the
+/// duration limit): how much the best of them gains or loses against
+/// `best` (reach time in s, or worst σ/target).
+pub fn dwell_probe(
+    problem: &Problem,
+    best: &Pattern,
+    goal: Goal,
+    max_periods: u64,
+    steps: &[f64],
+) -> Option<DwellProbe> {
+    let space = Space {
+        axes: Vec::new(),
+        tilted: false,
+        max_rate_deg_s: 0.0,
+        max_duration_s: 0.0,
+        max_rotations: 0,
+        refine_starts: 0,
+        dwell_steps: steps.to_vec(),
+    };
+    // Past the duration limit too (up to twice it): how much later a dwell
+    // reaches the targets, not only that it misses the limit.
+    let g = match goal {
+        Goal::Reach { .. } => Goal::Reach {
+            cutoff: (2 * max_periods).min(crate::scenario::MAX_PERIODS),
+        },
+        b => b,
+    };
+    let value = |o: &Outcome| match g {
+        Goal::Reach { .. } => o.score(g) * problem.period_s,
+        Goal::Budget { .. } => o.score(g),
+    };
+    // Only the dwell moves: the same axes, angles and rates.
+    let moves: Vec<Pattern> = neighbours(best, &space, problem.period_s)
+        .into_iter()
+        .filter(|q| {
+            q.rotations.iter().zip(&best.rotations).all(|(a, b)| {
+                a.axis == b.axis && a.angle_deg == b.angle_deg && a.rate_deg_s == b.rate_deg_s
+            })
+        })
+        .collect();
+    let base_o = problem.evaluate(best, g, true, false);
+    let base = value(&base_o);
+    // A dwell past the end of the evaluated path changes nothing: skipped.
+    let n = base_o.periods;
+    let same = best.segments(n, problem.period_s);
+    moves
+        .into_iter()
+        .filter(|q| q.segments(n, problem.period_s) != same)
+        .collect::<Vec<_>>()
+        .into_par_iter()
+        .map(|q| {
+            let score = value(&problem.evaluate(&q, g, true, false));
+            DwellProbe {
+                pattern: q,
+                score,
+                base,
+            }
+        })
+        .collect::<Vec<_>>()
+        .into_iter()
+        .min_by(|a, b| a.score.total_cmp(&b.score))
 }
 
 fn write_sigma_csv(

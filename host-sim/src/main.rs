@@ -44,9 +44,10 @@ enum Command {
     /// against the Cramér–Rao bound, parameter-block NEES and NIS.
     Montecarlo(MonteCarloArgs),
     /// Design the rolling path: the shortest sequence of constant-rate
-    /// rotations whose Cramér–Rao σ reaches every target (default: the
-    /// reference path's final σ), or the best within --budget-s; writes it
-    /// as a scenario file and a σ(t) figure.
+    /// rotations (each optionally followed by a dwell) whose Cramér–Rao σ
+    /// reaches every target (default: the reference path's final σ), or the
+    /// best within --budget-s; writes it as a scenario file and a σ(t)
+    /// figure.
     Design(Box<host_sim::design::DesignArgs>),
     /// Simulate a scenario and write it as a stream of wire frames
     /// (docs/wire.md) or, with --format csv, as a CSV log (docs/csv.md).
