@@ -119,6 +119,12 @@ pub fn command_segments(records: impl IntoIterator<Item = (f64, [f64; 3])>) -> V
     out
 }
 
+/// The switch times of `segments` (s): the start of every segment but the
+/// first.
+pub fn switch_times(segments: &[CommandSegment]) -> Vec<f64> {
+    segments.iter().skip(1).map(|s| s.t0_s).collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
