@@ -574,3 +574,32 @@ pub fn failure_warnings(r: &RunResult) -> Vec<String> {
         None => Vec::new(),
     }
 }
+
+/// The report of `host-sim calibrate`: the truth (the sidecar's final
+/// values) when `has_truth`, σ_CRLB when known; writes `dir/index.html`.
+pub fn report_of_calibration(
+    dir: &Path,
+    r: &RunResult,
+    crlb: Option<&[f64]>,
+    crlb_history: Option<&[Vec<f64>]>,
+    has_truth: bool,
+    header: Vec<(String, String)>,
+) -> Result<PathBuf, String> {
+    let checks: Vec<CheckRow> = mean_nis_check(&r.updates).into_iter().collect();
+    let verdict = verdict_of(&checks);
+    write_report(
+        dir,
+        &Report {
+            title: format!("calibrate {}", r.config),
+            header,
+            result: r,
+            crlb,
+            crlb_history,
+            has_truth,
+            truth_history: None,
+            checks: &checks,
+            verdict: &verdict,
+            warnings: failure_warnings(r),
+        },
+    )
+}
