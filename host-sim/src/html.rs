@@ -91,25 +91,16 @@ pub fn nis_band(n: usize, dof: usize) -> (f64, f64) {
     )
 }
 
-/// Degrees of freedom of one update: the commonest length of the whitened
-/// innovations (0 without any).
-pub fn update_dof(updates: &[Update]) -> usize {
-    let mut counts = [0usize; 16];
-    for u in updates {
-        if let Some(c) = counts.get_mut(u.white.len()) {
-            *c += 1;
-        }
-    }
-    (1..counts.len())
-        .max_by_key(|&m| counts.get(m).copied().unwrap_or(0))
-        .filter(|&m| counts.get(m).copied().unwrap_or(0) > 0)
-        .unwrap_or(0)
+/// Degrees of freedom of one update of configuration `id`: the
+/// measurement size.
+pub fn update_dof(id: rollcal::models::ConfigId) -> usize {
+    id.layout().z()
 }
 
-/// The overall mean NIS of `updates` against its 99 % χ² band (None
-/// without updates).
-pub fn mean_nis_check(updates: &[Update]) -> Option<CheckRow> {
-    let dof = update_dof(updates);
+/// The overall mean NIS of `updates` (of configuration `id`) against its
+/// 99 % χ² band (None without updates).
+pub fn mean_nis_check(id: rollcal::models::ConfigId, updates: &[Update]) -> Option<CheckRow> {
+    let dof = update_dof(id);
     if updates.is_empty() || dof == 0 {
         return None;
     }
@@ -203,8 +194,11 @@ fn write_figures(dir: &Path, rep: &Report<'_>) -> Result<[Vec<Figure>; 3], Strin
         return Ok(out);
     }
     let t: Vec<f64> = r.history.iter().map(|h| h.0).collect();
-    let col = |i: usize, f: &dyn Fn(&(f64, Vec<f64>, Vec<f64>), usize) -> f64| -> Vec<f64> {
-        r.history.iter().map(|h| f(h, i) / ARCSEC).collect()
+    let sigma_col = |i: usize| -> Vec<f64> {
+        r.history
+            .iter()
+            .map(|h| h.2.get(i).copied().unwrap_or(f64::NAN) / ARCSEC)
+            .collect()
     };
     let crlb_hist = rep.crlb_history.filter(|c| c.len() == r.history.len());
     let crlb_col = |i: usize| -> Option<Vec<f64>> {
@@ -215,7 +209,7 @@ fn write_figures(dir: &Path, rep: &Report<'_>) -> Result<[Vec<Figure>; 3], Strin
         })
     };
     for (g, idx) in groups(r) {
-        let sig: Vec<Vec<f64>> = idx.iter().map(|&i| col(i, &|h, i| h.2[i])).collect();
+        let sig: Vec<Vec<f64>> = idx.iter().map(|&i| sigma_col(i)).collect();
         let cr: Vec<Option<Vec<f64>>> = idx.iter().map(|&i| crlb_col(i)).collect();
         let series: Vec<SigmaSeries<'_>> = idx
             .iter()
@@ -266,12 +260,14 @@ fn write_figures(dir: &Path, rep: &Report<'_>) -> Result<[Vec<Figure>; 3], Strin
                                 .and_then(|th| th.get(k))
                                 .and_then(|v| v.get(i).copied())
                                 .unwrap_or(r.states[i].truth_rad);
-                            rollcal::geometry::wrap_angle(h.1[i] - truth) / ARCSEC
+                            rollcal::geometry::wrap_angle(
+                                h.1.get(i).copied().unwrap_or(f64::NAN) - truth,
+                            ) / ARCSEC
                         })
                         .collect()
                 })
                 .collect();
-            let sig: Vec<Vec<f64>> = idx.iter().map(|&i| col(i, &|h, i| h.2[i])).collect();
+            let sig: Vec<Vec<f64>> = idx.iter().map(|&i| sigma_col(i)).collect();
             let nan = vec![f64::NAN; t.len()];
             let cr: Vec<Vec<f64>> = idx
                 .iter()
@@ -306,7 +302,7 @@ fn write_figures(dir: &Path, rep: &Report<'_>) -> Result<[Vec<Figure>; 3], Strin
         }
     }
     let u = &r.updates;
-    let dof = update_dof(u);
+    let dof = update_dof(id);
     if !u.is_empty() && dof > 0 {
         let t_u: Vec<f64> = u.iter().map(|u| u.t_s).collect();
         let nis: Vec<f64> = u.iter().map(|u| u.nis).collect();
@@ -374,9 +370,9 @@ pub fn write_report(dir: &Path, rep: &Report<'_>) -> Result<PathBuf, String> {
     } else {
         "fail"
     };
-    let _ = write!(
+    let _ = writeln!(
         h,
-        "<dt>verdict on the data</dt><dd class=\"{verdict_class}\">{}</dd></dl>\n",
+        "<dt>verdict on the data</dt><dd class=\"{verdict_class}\">{}</dd></dl>",
         esc(rep.verdict)
     );
     // Warnings: the given ones and every failed check.
@@ -545,7 +541,7 @@ pub fn report_of_run(
         .iter()
         .map(|s| crate::truth::truth_state(id, &sim.params, &s.truth))
         .collect();
-    let checks: Vec<CheckRow> = mean_nis_check(&r.updates).into_iter().collect();
+    let checks: Vec<CheckRow> = mean_nis_check(r.config, &r.updates).into_iter().collect();
     let verdict = verdict_of(&checks);
     write_report(
         dir,
@@ -585,7 +581,7 @@ pub fn report_of_calibration(
     has_truth: bool,
     header: Vec<(String, String)>,
 ) -> Result<PathBuf, String> {
-    let checks: Vec<CheckRow> = mean_nis_check(&r.updates).into_iter().collect();
+    let checks: Vec<CheckRow> = mean_nis_check(r.config, &r.updates).into_iter().collect();
     let verdict = verdict_of(&checks);
     write_report(
         dir,

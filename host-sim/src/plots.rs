@@ -628,7 +628,6 @@ fn draw_zoom_panel<'a>(
         .label_style(font(12.0))
         .axis_desc_style(font(13.0))
         .draw()?;
-    draw_switches(&mut chart, switches, &t, (lo, hi))?;
     // ±3σ band (inside the frame: the range covers it).
     let plus: Vec<f64> = sigma.iter().map(|s| 3.0 * s.abs()).collect();
     let minus: Vec<f64> = plus.iter().map(|v| -v).collect();
@@ -637,6 +636,7 @@ fn draw_zoom_panel<'a>(
         poly.extend(run.iter().rev().map(|&(x, v)| (x, (-v).clamp(lo, hi))));
         chart.draw_series(std::iter::once(Polygon::new(poly, BAND_COLOUR.filled())))?;
     }
+    draw_switches(&mut chart, switches, &t, (lo, hi))?;
     let crlb_plus: Vec<f64> = crlb.iter().map(|s| 3.0 * s.abs()).collect();
     let crlb_minus: Vec<f64> = crlb_plus.iter().map(|v| -v).collect();
     for v in [&crlb_plus, &crlb_minus] {
