@@ -6,7 +6,8 @@
 # missing) and fails unless the page's own check script reported
 # data-report-check="ok": every figure loaded (complete, naturalWidth > 0),
 # the expected number of figures present, no script error. With
-# SCREENSHOT.png, also writes a screenshot of the page (1280 px wide).
+# SCREENSHOT.png, also writes a screenshot of the top of the page (1280 px
+# wide, $CHECK_REPORT_HEIGHT px high, default 2400).
 #
 # Self-test (proves the check can fail): tools/check-report.sh --self-test DIR
 # copies DIR, deletes one figure of the copy and expects the check to fail,
@@ -85,7 +86,7 @@ check "$1" || die "the report in $1 failed the browser check"
 if [ $# -eq 2 ]; then
     shot=$(cd "$(dirname "$2")" && pwd)/$(basename "$2")
     page="$(cd "$1" && pwd)/index.html"
-    browser --hide-scrollbars --window-size=1280,2400 --screenshot="$shot" "file://$page" ||
+    browser --hide-scrollbars --window-size="1280,${CHECK_REPORT_HEIGHT:-2400}" --screenshot="$shot" "file://$page" ||
         die "chromium could not write the screenshot $shot"
     [ -s "$shot" ] || die "no screenshot written to $shot"
     echo "check-report: screenshot $shot"
