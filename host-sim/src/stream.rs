@@ -96,7 +96,8 @@ pub struct CalibrateArgs {
     /// message and the platform file's `config` (default: theirs).
     #[arg(long, value_parser = parse_config)]
     pub config: Option<ConfigId>,
-    /// Input: a file, `-` for stdin, or a serial device (e.g. /dev/ttyUSB0).
+    /// Input: a file, `-` for stdin, or a serial device (e.g. /dev/ttyUSB0,
+    /// or a pseudo-terminal such as /dev/pts/3), read until --idle-timeout.
     #[arg(long, value_name = "FILE|-|SERIAL_DEVICE", default_value = "-")]
     pub input: String,
     /// Input format (default: `csv` for a name ending in `.csv`, else frames).

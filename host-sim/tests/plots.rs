@@ -457,7 +457,14 @@ fn real_run_figures() {
             })
             .collect();
         let path = dir.join(format!("{}-{g}.png", id.as_str()));
-        plot_group(&path, &format!("{}: {g}, seed 1", id.as_str()), &t, &c).unwrap();
+        plot_group_marked(
+            &path,
+            &format!("{}: {g}, seed 1", id.as_str()),
+            &t,
+            &c,
+            &host_sim::segments::switch_times(&run.segments),
+        )
+        .unwrap();
         let img = decode(&path);
         assert_eq!((img.0, img.1), figure_size(c.len()));
         println!("wrote {}", path.display());
