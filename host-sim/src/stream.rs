@@ -97,7 +97,8 @@ pub struct CalibrateArgs {
     #[arg(long, value_parser = parse_config)]
     pub config: Option<ConfigId>,
     /// Input: a file, `-` for stdin, or a serial device (e.g. /dev/ttyUSB0,
-    /// or a pseudo-terminal such as /dev/pts/3), read until --idle-timeout.
+    /// or a pseudo-terminal such as /dev/pts/3; a device is read until it
+    /// has been idle for --idle-timeout).
     #[arg(long, value_name = "FILE|-|SERIAL_DEVICE", default_value = "-")]
     pub input: String,
     /// Input format (default: `csv` for a name ending in `.csv`, else frames).

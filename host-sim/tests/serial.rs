@@ -152,7 +152,7 @@ fn calibrate_on_a_pty_at_115200_baud_equals_the_file_run() {
     let stderr_path = dir.join("pty.stderr");
     let mut child = host_sim()
         .args(["calibrate", "--input", &slave_path, "--baud", "115200"])
-        .args(["--idle-timeout", "1.5", "--json"])
+        .args(["--idle-timeout", "3", "--json"])
         .arg(&pty_json)
         .stdout(Stdio::null())
         .stderr(std::fs::File::create(&stderr_path).unwrap())
@@ -201,7 +201,7 @@ fn calibrate_on_a_pty_at_115200_baud_equals_the_file_run() {
     let stderr = std::fs::read_to_string(&stderr_path).unwrap();
     assert!(status.success(), "{stderr}");
     assert!(
-        stderr.contains("no data for 1.5 s: end of stream"),
+        stderr.contains("no data for 3.0 s: end of stream"),
         "not read as a serial device: {stderr}"
     );
 
