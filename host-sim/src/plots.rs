@@ -962,13 +962,15 @@ pub fn plot_convergence(
             FILTER_COLOUR.stroke_width(2),
         ))?;
         header.draw(&Text::new("filter σ [″]", (78, y), label.clone()))?;
-        header.draw(&DashedPathElement::new(
-            vec![(260, y), (290, y)],
-            6,
-            4,
-            CRLB_COLOUR.stroke_width(CRLB_WIDTH),
-        ))?;
-        header.draw(&Text::new("σ_CRLB [″]", (298, y), label.clone()))?;
+        if series.iter().any(|s| s.crlb.is_some()) {
+            header.draw(&DashedPathElement::new(
+                vec![(260, y), (290, y)],
+                6,
+                4,
+                CRLB_COLOUR.stroke_width(CRLB_WIDTH),
+            ))?;
+            header.draw(&Text::new("σ_CRLB [″]", (298, y), label.clone()))?;
+        }
         header.draw(&PathElement::new(
             vec![(475, y - 9), (475, y + 9)],
             SWITCH_COLOUR.stroke_width(2),
