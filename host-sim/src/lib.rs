@@ -14,6 +14,7 @@
 //! - [`montecarlo`]: seeded Monte Carlo runs against the Cramér–Rao bound;
 //! - [`paper`]: the whole paper regenerated (tables, runs, figures, summary);
 //! - [`stream`]: `record` and `calibrate` (wire frames, the calibrator);
+//! - [`html`]: the HTML report (`--report DIR`) with its figures;
 //! - [`impair`]: lost frames, clock steps, bit flips and outliers injected
 //!   into a recorded stream;
 //! - [`plots`]: PNG figures (error, ±3σ band, σ_CRLB against time);
@@ -23,6 +24,7 @@
 pub mod compensation;
 pub mod csvlog;
 pub mod design;
+pub mod html;
 pub mod impair;
 pub mod montecarlo;
 pub mod observe;

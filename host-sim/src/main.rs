@@ -160,6 +160,11 @@ struct RunArgs {
     csv: Option<PathBuf>,
     #[command(flatten)]
     matrices: host_sim::compensation::MatricesArgs,
+    /// Write an HTML report to DIR/index.html (created if missing), with its
+    /// PNG figures beside it: parameter table, σ(t), error, NIS and
+    /// innovation figures with the segment switches, consistency checks.
+    #[arg(long, value_name = "DIR")]
+    report: Option<PathBuf>,
 }
 
 /// Cold-start remedies (see the `ekf` module docs and the README).
@@ -277,6 +282,9 @@ fn cmd_run(args: &RunArgs) -> Result<(), String> {
     let c = &args.common;
     let scenario = load_scenario(c.scenario.as_deref())?;
     let earth_rate = !c.no_earth_rate && scenario.site.earth_rate;
+    if let Some(dir) = &args.report {
+        host_sim::html::prepare_dir(dir)?;
+    }
     let t0 = Instant::now();
     eprintln!(
         "simulating '{}' ({} periods, seed {})…",
@@ -300,7 +308,7 @@ fn cmd_run(args: &RunArgs) -> Result<(), String> {
         earth_rate,
         c.estimator(),
         None,
-        args.csv.is_some(),
+        args.csv.is_some() || args.report.is_some(),
     )
     .map_err(|e| format!("cannot start the filter: {e}"))?;
     let crlb = host_sim::runner::crlb_sigma(args.config, &scenario, &sim, earth_rate)
@@ -315,6 +323,24 @@ fn cmd_run(args: &RunArgs) -> Result<(), String> {
         write_csv(path, &r).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
     }
     args.matrices.write(&r)?;
+    if let Some(dir) = &args.report {
+        let header = vec![
+            ("configuration".into(), r.config.to_string()),
+            (
+                "input".into(),
+                format!("simulated '{}', seed {}", scenario.name, c.seed),
+            ),
+            (
+                "Earth rate".into(),
+                if earth_rate { "on" } else { "off" }.into(),
+            ),
+            ("passes".into(), r.passes.to_string()),
+            ("precision".into(), c.precision.as_str().into()),
+        ];
+        let page =
+            host_sim::html::report_of_run(dir, &r, &scenario, &sim, earth_rate, &crlb, header)?;
+        eprintln!("report: {}", page.display());
+    }
     Ok(())
 }
 

@@ -9,7 +9,7 @@ use rayon::prelude::*;
 use rollcal::models::{ConfigId, Group};
 
 use crate::observe::{self, ConfigObs};
-use crate::plots::{plot_group, Curve};
+use crate::plots::{plot_group_marked, Curve};
 use crate::runner::{expected_observable, run_filter, Estimator, RunResult};
 use crate::scenario::{Scenario, ARCSEC};
 use crate::truth::{simulate, truth_state, SimOptions, Simulation};
@@ -152,7 +152,13 @@ fn figures(
             })
             .collect();
         let file = format!("{}-{stem}.png", id.as_str());
-        plot_group(&out.join(&file), &figure_title(id, g), &t, &curves)?;
+        plot_group_marked(
+            &out.join(&file),
+            &figure_title(id, g),
+            &t,
+            &curves,
+            &crate::segments::switch_times(&run.segments),
+        )?;
         names.push(file);
     }
     Ok(names)

@@ -7,10 +7,17 @@
 //!   3σ_CRLB (shows the convergence from the prior, ~3600″, down to the
 //!   converged level, and how σ compares to σ_CRLB);
 //! - right, **linear zoom** on the converged part: the signed error, the
-//!   shaded ±3σ band and the ±3σ_CRLB lines. The y-range is
-//!   ±1.5 × max(|error|, 3σ, 3σ_CRLB) over the converged part: after 20 % of
-//!   the run and after 3σ has settled within twice its final value; the
-//!   early transient is clipped at the frame (it is visible on the left).
+//!   shaded ±3σ band and the ±3σ_CRLB lines, from the time the converged
+//!   part starts (after 20 % of the run and after 3σ has settled within
+//!   twice its final value) to the end. The y-range is
+//!   ±1.5 × max(|error|, 3σ, 3σ_CRLB) over that part, so nothing is clipped:
+//!   the early transient is not in this panel (it is on the left, whole).
+//!
+//! The filter's 3σ is a solid vermilion line drawn *over* a wide dark
+//! dashed 3σ_CRLB line: where the filter reaches the bound both stay
+//! visible (the dashes stick out on both sides of the solid line). Path
+//! segment switches ([`crate::segments`]) are thin vertical purple lines in
+//! every panel ([`plot_group_marked`]).
 //!
 //! Text is rendered with the DejaVu Sans font embedded in the binary
 //! (`assets/DejaVuSans.ttf`, licence next to it) through plotters'
@@ -87,6 +94,9 @@ const CRLB_COLOUR: RGBColor = RGBColor(30, 30, 30);
 const GRID_BOLD: RGBColor = RGBColor(215, 215, 215);
 const GRID_LIGHT: RGBColor = RGBColor(238, 238, 238);
 const LOG_COLOUR_BAND: RGBColor = RGBColor(253, 235, 222);
+const SWITCH_COLOUR: RGBColor = RGBColor(150, 90, 190);
+/// Width of the 3σ_CRLB dashes (px): wider than the filter's line on top.
+const CRLB_WIDTH: u32 = 5;
 
 /// Writes one PNG: a figure titled `title` with one panel per curve
 /// (stacked vertically, shared time axis `t_s` in seconds). Every slice of
@@ -98,12 +108,25 @@ pub fn plot_group(
     t_s: &[f64],
     curves: &[Curve<'_>],
 ) -> Result<(), String> {
+    plot_group_marked(path, title, t_s, curves, &[])
+}
+
+/// [`plot_group`] with the path's segment switches (times in s, e.g. the
+/// `t0_s` of every [`crate::segments::CommandSegment`] but the first) drawn
+/// as vertical lines in every panel; non-finite times are skipped.
+pub fn plot_group_marked(
+    path: &Path,
+    title: &str,
+    t_s: &[f64],
+    curves: &[Curve<'_>],
+    switches: &[f64],
+) -> Result<(), String> {
     validate(t_s, curves)?;
     let t_range = time_range(t_s).ok_or("plots: no finite time value in t_s")?;
     ensure_font()?;
     let (w, h) = figure_size(curves.len());
     let root = BitMapBackend::new(path, (w, h)).into_drawing_area();
-    draw_figure(&root, title, t_s, t_range, curves)
+    draw_figure(&root, title, t_s, t_range, curves, switches)
         .map_err(|e| format!("plots: drawing {}: {e}", path.display()))?;
     root.present()
         .map_err(|e| format!("plots: writing {}: {e}", path.display()))?;
@@ -166,13 +189,14 @@ fn draw_figure<'a>(
     t_s: &[f64],
     t_range: Range<f64>,
     curves: &[Curve<'_>],
+    switches: &[f64],
 ) -> DrawResult<'a> {
     root.fill(&WHITE)?;
     let (header, body) = root.split_vertically(HEADER_HEIGHT);
-    draw_header(&header, title)?;
+    draw_header(&header, title, !switches.is_empty())?;
     let rows = body.split_evenly((curves.len(), 1));
     for (row, c) in rows.iter().zip(curves) {
-        draw_row(row, t_s, t_range.clone(), c)?;
+        draw_row(row, t_s, t_range.clone(), c, switches)?;
     }
     Ok(())
 }
@@ -182,7 +206,7 @@ fn font(size: f64) -> TextStyle<'static> {
 }
 
 /// Title and the legend shared by all panels.
-fn draw_header<'a>(area: &Area<'a>, title: &str) -> DrawResult<'a> {
+fn draw_header<'a>(area: &Area<'a>, title: &str, switches: bool) -> DrawResult<'a> {
     let (w, _) = area.dim_in_pixel();
     let centre = i32::try_from(w / 2).unwrap_or(0);
     let title_style = font(22.0).pos(text_anchor::Pos::new(
@@ -197,17 +221,18 @@ fn draw_header<'a>(area: &Area<'a>, title: &str) -> DrawResult<'a> {
         text_anchor::HPos::Left,
         text_anchor::VPos::Center,
     ));
-    let items: [(&str, u8); 4] = [
+    let items: [(&str, u8); 5] = [
         ("error (left: |error|)", 0),
         ("±3σ filter", 1),
         ("±3σ_CRLB", 2),
-        (
-            "left: log scale, whole run — right: linear zoom on the converged part",
-            3,
-        ),
+        ("segment switch", 4),
+        ("left: log, whole run — right: linear, converged part", 3),
     ];
-    let mut x = 40;
+    let mut x = 24;
     for (text, kind) in items {
+        if kind == 4 && !switches {
+            continue;
+        }
         match kind {
             0 => area.draw(&PathElement::new(
                 vec![(x, y), (x + 30, y)],
@@ -229,9 +254,13 @@ fn draw_header<'a>(area: &Area<'a>, title: &str) -> DrawResult<'a> {
             }
             2 => area.draw(&DashedPathElement::new(
                 vec![(x, y), (x + 30, y)],
-                5,
-                3,
-                CRLB_COLOUR.stroke_width(2),
+                6,
+                4,
+                CRLB_COLOUR.stroke_width(CRLB_WIDTH),
+            ))?,
+            4 => area.draw(&PathElement::new(
+                vec![(x + 15, y - 9), (x + 15, y + 9)],
+                SWITCH_COLOUR.stroke_width(2),
             ))?,
             _ => {
                 x += 20;
@@ -250,7 +279,13 @@ fn draw_header<'a>(area: &Area<'a>, title: &str) -> DrawResult<'a> {
 }
 
 /// One state's row: label strip, then the log panel and the zoom panel.
-fn draw_row<'a>(area: &Area<'a>, t_s: &[f64], t: Range<f64>, c: &Curve<'_>) -> DrawResult<'a> {
+fn draw_row<'a>(
+    area: &Area<'a>,
+    t_s: &[f64],
+    t: Range<f64>,
+    c: &Curve<'_>,
+    switches: &[f64],
+) -> DrawResult<'a> {
     let (strip, panels) = area.split_vertically(24);
     // Separator line and the state's label with its final values.
     let (w, _) = strip.dim_in_pixel();
@@ -272,8 +307,26 @@ fn draw_row<'a>(area: &Area<'a>, t_s: &[f64], t: Range<f64>, c: &Curve<'_>) -> D
         strip.draw(&Text::new(summary, (w - 14, 14), style))?;
     }
     let (left, right) = panels.split_horizontally(WIDTH / 2);
-    draw_log_panel(&left, t_s, t.clone(), c)?;
-    draw_zoom_panel(&right, t_s, t, c)
+    draw_log_panel(&left, t_s, t.clone(), c, switches)?;
+    draw_zoom_panel(&right, t_s, t, c, switches)
+}
+
+/// Vertical lines at the switch times inside `t`, over the y-range `y`.
+fn draw_switches<DB: DrawingBackend, Y: plotters::coord::ranged1d::Ranged<ValueType = f64>>(
+    chart: &mut ChartContext<'_, DB, Cartesian2d<plotters::coord::types::RangedCoordf64, Y>>,
+    switches: &[f64],
+    t: &Range<f64>,
+    y: (f64, f64),
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    for &ts in switches {
+        if ts.is_finite() && ts > t.start && ts < t.end {
+            chart.draw_series(std::iter::once(PathElement::new(
+                vec![(ts, y.0), (ts, y.1)],
+                SWITCH_COLOUR.stroke_width(1),
+            )))?;
+        }
+    }
+    Ok(())
 }
 
 /// "final: error …″, 3σ …″, 3σ_CRLB …″" from the last finite values.
@@ -463,6 +516,7 @@ fn draw_log_panel<'a>(
     t_s: &[f64],
     t: Range<f64>,
     c: &Curve<'_>,
+    switches: &[f64],
 ) -> DrawResult<'a> {
     let abs_err: Vec<f64> = c.error.iter().map(|e| e.abs()).collect();
     let three_sigma: Vec<f64> = c.sigma.iter().map(|s| 3.0 * s.abs()).collect();
@@ -503,17 +557,19 @@ fn draw_log_panel<'a>(
             LOG_COLOUR_BAND.filled(),
         )))?;
     }
-    for seg in clipped(t_s, &three_sigma, lo, hi, true) {
-        chart.draw_series(LineSeries::new(seg, FILTER_COLOUR.stroke_width(2)))?;
-    }
-    // σ_CRLB over σ: visible (dashed) where the filter reaches the bound.
+    draw_switches(&mut chart, switches, &t, (lo, hi))?;
+    // σ_CRLB under σ: wide dashes that stick out on both sides of the
+    // filter's line where the filter reaches the bound.
     for seg in clipped(t_s, &three_crlb, lo, hi, true) {
         chart.draw_series(DashedLineSeries::new(
             seg,
-            5,
-            3,
-            CRLB_COLOUR.stroke_width(2),
+            6,
+            4,
+            CRLB_COLOUR.stroke_width(CRLB_WIDTH),
         ))?;
+    }
+    for seg in clipped(t_s, &three_sigma, lo, hi, true) {
+        chart.draw_series(LineSeries::new(seg, FILTER_COLOUR.stroke_width(2)))?;
     }
     for seg in clipped(t_s, &abs_err, lo, hi, true) {
         chart.draw_series(LineSeries::new(seg, ERROR_COLOUR.stroke_width(1)))?;
@@ -528,9 +584,23 @@ fn draw_zoom_panel<'a>(
     t_s: &[f64],
     t: Range<f64>,
     c: &Curve<'_>,
+    switches: &[f64],
 ) -> DrawResult<'a> {
     let r = zoom_half_range(t_s, t.clone(), c);
     let (lo, hi) = (-r, r);
+    // Only the converged part: from its first sample on.
+    let from = converged_from(t_s, &t, c.sigma);
+    let k0 = t_s
+        .iter()
+        .position(|ti| ti.is_finite() && *ti >= from)
+        .unwrap_or(0);
+    let tail = |v: &'_ [f64]| -> Vec<f64> { v.get(k0..).unwrap_or_default().to_vec() };
+    let t_s = t_s.get(k0..).unwrap_or_default();
+    let t = match time_range(t_s) {
+        Some(r) if r.start >= t.start => r,
+        _ => t,
+    };
+    let (error, sigma, crlb) = (tail(c.error), tail(c.sigma), tail(c.crlb));
     let mut chart = ChartBuilder::on(area)
         .margin_left(8)
         .margin_right(14)
@@ -550,37 +620,41 @@ fn draw_zoom_panel<'a>(
         .y_labels(7)
         .x_label_formatter(&|v| fmt_tick(*v))
         .y_label_formatter(&|v| fmt_linear_tick(*v, step))
-        .x_desc("t [s]")
+        .x_desc(format!(
+            "t [s] (converged part, from {} s)",
+            fmt_tick(t.start)
+        ))
         .y_desc("error [″]")
         .label_style(font(12.0))
         .axis_desc_style(font(13.0))
         .draw()?;
-    // ±3σ band (clamping a dense band's edges to the frame clips it).
-    let plus: Vec<f64> = c.sigma.iter().map(|s| 3.0 * s.abs()).collect();
+    // ±3σ band (inside the frame: the range covers it).
+    let plus: Vec<f64> = sigma.iter().map(|s| 3.0 * s.abs()).collect();
     let minus: Vec<f64> = plus.iter().map(|v| -v).collect();
     for run in finite_runs(t_s, &plus, |_| true) {
         let mut poly: Vec<(f64, f64)> = run.iter().map(|&(x, v)| (x, v.clamp(lo, hi))).collect();
         poly.extend(run.iter().rev().map(|&(x, v)| (x, (-v).clamp(lo, hi))));
         chart.draw_series(std::iter::once(Polygon::new(poly, BAND_COLOUR.filled())))?;
     }
-    for v in [&plus, &minus] {
-        for seg in clipped(t_s, v, lo, hi, false) {
-            chart.draw_series(LineSeries::new(seg, FILTER_COLOUR.stroke_width(1)))?;
-        }
-    }
-    let crlb_plus: Vec<f64> = c.crlb.iter().map(|s| 3.0 * s.abs()).collect();
+    draw_switches(&mut chart, switches, &t, (lo, hi))?;
+    let crlb_plus: Vec<f64> = crlb.iter().map(|s| 3.0 * s.abs()).collect();
     let crlb_minus: Vec<f64> = crlb_plus.iter().map(|v| -v).collect();
     for v in [&crlb_plus, &crlb_minus] {
         for seg in clipped(t_s, v, lo, hi, false) {
             chart.draw_series(DashedLineSeries::new(
                 seg,
-                5,
-                3,
-                CRLB_COLOUR.stroke_width(2),
+                6,
+                4,
+                CRLB_COLOUR.stroke_width(CRLB_WIDTH),
             ))?;
         }
     }
-    for seg in clipped(t_s, c.error, lo, hi, false) {
+    for v in [&plus, &minus] {
+        for seg in clipped(t_s, v, lo, hi, false) {
+            chart.draw_series(LineSeries::new(seg, FILTER_COLOUR.stroke_width(2)))?;
+        }
+    }
+    for seg in clipped(t_s, &error, lo, hi, false) {
         chart.draw_series(LineSeries::new(seg, ERROR_COLOUR.stroke_width(1)))?;
     }
     Ok(())
@@ -798,4 +872,378 @@ fn fmt_linear_tick(v: f64, step: f64) -> String {
     } else {
         s
     }
+}
+
+/// One parameter's σ(t) for [`plot_convergence`], in the display unit
+/// (arcseconds), per point of the shared time axis.
+#[derive(Clone, Copy, Debug)]
+pub struct SigmaSeries<'a> {
+    /// State name: the panel label.
+    pub label: &'a str,
+    /// Filter σ (″).
+    pub sigma: &'a [f64],
+    /// σ_CRLB (″), when known.
+    pub crlb: Option<&'a [f64]>,
+}
+
+/// Columns of [`plot_convergence`].
+const CONVERGENCE_COLUMNS: usize = 3;
+/// Height of one row of [`plot_convergence`] (px).
+const CONVERGENCE_ROW_HEIGHT: u32 = 220;
+
+/// Size (width, height) in pixels of the figure [`plot_convergence`] writes
+/// for `panels` series.
+pub fn convergence_size(panels: usize) -> (u32, u32) {
+    let rows = u32::try_from(panels.div_ceil(CONVERGENCE_COLUMNS)).unwrap_or(u32::MAX);
+    (
+        WIDTH,
+        HEADER_HEIGHT.saturating_add(CONVERGENCE_ROW_HEIGHT.saturating_mul(rows)),
+    )
+}
+
+/// Writes one PNG of the σ(t) convergence of every series (three panels per
+/// row, log-scale y over the whole range, so the transient from the prior is
+/// not clipped): the filter's σ solid over the σ_CRLB dashes (when known),
+/// segment switches as vertical lines.
+pub fn plot_convergence(
+    path: &Path,
+    title: &str,
+    t_s: &[f64],
+    series: &[SigmaSeries<'_>],
+    switches: &[f64],
+) -> Result<(), String> {
+    if t_s.is_empty() {
+        return Err("plots: empty time axis".to_string());
+    }
+    if series.is_empty() {
+        return Err("plots: no curve to draw".to_string());
+    }
+    if series.len() > MAX_PANELS {
+        return Err(format!(
+            "plots: {} curves, at most {MAX_PANELS} per figure",
+            series.len()
+        ));
+    }
+    for s in series {
+        for (what, v) in [("sigma", Some(s.sigma)), ("crlb", s.crlb)] {
+            if let Some(v) = v.filter(|v| v.len() != t_s.len()) {
+                return Err(format!(
+                    "plots: curve {:?}: {what} has {} values, t_s has {}",
+                    s.label,
+                    v.len(),
+                    t_s.len()
+                ));
+            }
+        }
+    }
+    let t = time_range(t_s).ok_or("plots: no finite time value in t_s")?;
+    ensure_font()?;
+    let (w, h) = convergence_size(series.len());
+    let root = BitMapBackend::new(path, (w, h)).into_drawing_area();
+    let draw = || -> DrawResult<'_> {
+        root.fill(&WHITE)?;
+        let (header, body) = root.split_vertically(HEADER_HEIGHT);
+        let centre = i32::try_from(w / 2).unwrap_or(0);
+        header.draw(&Text::new(
+            title.to_string(),
+            (centre, 8),
+            font(20.0).pos(text_anchor::Pos::new(
+                text_anchor::HPos::Center,
+                text_anchor::VPos::Top,
+            )),
+        ))?;
+        let label = font(15.0).pos(text_anchor::Pos::new(
+            text_anchor::HPos::Left,
+            text_anchor::VPos::Center,
+        ));
+        let y = 46;
+        header.draw(&PathElement::new(
+            vec![(40, y), (70, y)],
+            FILTER_COLOUR.stroke_width(2),
+        ))?;
+        header.draw(&Text::new("filter σ [″]", (78, y), label.clone()))?;
+        if series.iter().any(|s| s.crlb.is_some()) {
+            header.draw(&DashedPathElement::new(
+                vec![(260, y), (290, y)],
+                6,
+                4,
+                CRLB_COLOUR.stroke_width(CRLB_WIDTH),
+            ))?;
+            header.draw(&Text::new("σ_CRLB [″]", (298, y), label.clone()))?;
+        }
+        header.draw(&PathElement::new(
+            vec![(475, y - 9), (475, y + 9)],
+            SWITCH_COLOUR.stroke_width(2),
+        ))?;
+        header.draw(&Text::new(
+            "segment switch (log scale, whole run)",
+            (490, y),
+            label,
+        ))?;
+        let rows = series.len().div_ceil(CONVERGENCE_COLUMNS);
+        let panels = body.split_evenly((rows, CONVERGENCE_COLUMNS));
+        for (area, s) in panels.iter().zip(series) {
+            let pos = |v: &[f64]| -> Vec<f64> {
+                v.iter()
+                    .copied()
+                    .filter(|x| x.is_finite() && *x > 0.0)
+                    .collect()
+            };
+            let vals: Vec<f64> = [pos(s.sigma), s.crlb.map(pos).unwrap_or_default()].concat();
+            let (lo, hi) = finite_min_max(vals.into_iter()).unwrap_or((1e-3, 1.0));
+            let (lo, hi) = ((lo / 1.5).min(hi / 10.0), hi * 1.5);
+            let mut chart = ChartBuilder::on(area)
+                .caption(s.label, font(15.0))
+                .margin(6)
+                .x_label_area_size(28)
+                .y_label_area_size(56)
+                .build_cartesian_2d(t.clone(), (lo..hi).log_scale())?;
+            chart
+                .configure_mesh()
+                .bold_line_style(GRID_BOLD)
+                .light_line_style(TRANSPARENT)
+                .x_labels(5)
+                .y_labels(8)
+                .x_label_formatter(&|v| fmt_tick(*v))
+                .y_label_formatter(&|v| fmt_log_tick(*v))
+                .x_desc("t [s]")
+                .label_style(font(11.0))
+                .axis_desc_style(font(12.0))
+                .draw()?;
+            draw_switches(&mut chart, switches, &t, (lo, hi))?;
+            if let Some(c) = s.crlb {
+                for seg in clipped(t_s, c, lo, hi, true) {
+                    chart.draw_series(DashedLineSeries::new(
+                        seg,
+                        6,
+                        4,
+                        CRLB_COLOUR.stroke_width(CRLB_WIDTH),
+                    ))?;
+                }
+            }
+            for seg in clipped(t_s, s.sigma, lo, hi, true) {
+                chart.draw_series(LineSeries::new(seg, FILTER_COLOUR.stroke_width(2)))?;
+            }
+        }
+        Ok(())
+    };
+    draw().map_err(|e| format!("plots: drawing {}: {e}", path.display()))?;
+    root.present()
+        .map_err(|e| format!("plots: writing {}: {e}", path.display()))?;
+    Ok(())
+}
+
+/// The accepted updates for [`plot_innovations`].
+#[derive(Clone, Copy, Debug)]
+pub struct Innovations<'a> {
+    /// Time of every update (s).
+    pub t_s: &'a [f64],
+    /// NIS of every update.
+    pub nis: &'a [f64],
+    /// Whitened innovation of every update (unit variance per component
+    /// when the model holds; may be empty for an update).
+    pub white: &'a [Vec<f64>],
+    /// Degrees of freedom of one update's NIS (the measurement size).
+    pub dof: usize,
+    /// Moving-average window (updates).
+    pub window: usize,
+    /// The two-sided 99 % band of a mean of `window` NIS values.
+    pub band: (f64, f64),
+}
+
+/// Size (width, height) in pixels of the figure of [`plot_innovations`].
+pub const INNOVATIONS_SIZE: (u32, u32) = (WIDTH, HEADER_HEIGHT + 2 * 300);
+
+/// Colours of the whitened innovation components.
+const COMPONENT_COLOURS: [RGBColor; 6] = [
+    RGBColor(0, 90, 181),
+    RGBColor(213, 94, 0),
+    RGBColor(0, 150, 100),
+    RGBColor(200, 50, 140),
+    RGBColor(120, 120, 120),
+    RGBColor(230, 170, 0),
+];
+
+/// The moving average of `v` over the last `window` values (fewer at the
+/// start).
+pub fn moving_average(v: &[f64], window: usize) -> Vec<f64> {
+    let w = window.max(1);
+    let mut out = Vec::with_capacity(v.len());
+    let mut sum = 0.0;
+    for (k, x) in v.iter().enumerate() {
+        sum += x;
+        if k >= w {
+            sum -= v.get(k - w).copied().unwrap_or(0.0);
+        }
+        out.push(sum / (k.min(w - 1) + 1) as f64);
+    }
+    out
+}
+
+/// Writes one PNG of the NIS and the whitened innovations over time: top,
+/// the moving average of the NIS (log scale, whole range) with its 99 % χ²
+/// band shaded and the degrees of freedom dotted; bottom, every whitened
+/// innovation component as a dot with the ±3 lines (linear, the range
+/// covers every value). Segment switches are vertical lines in both.
+pub fn plot_innovations(
+    path: &Path,
+    title: &str,
+    u: &Innovations<'_>,
+    switches: &[f64],
+) -> Result<(), String> {
+    let n = u.t_s.len();
+    if n == 0 {
+        return Err("plots: no update to draw".to_string());
+    }
+    if u.nis.len() != n || u.white.len() != n {
+        return Err(format!(
+            "plots: {n} update times, {} NIS values, {} whitened innovations",
+            u.nis.len(),
+            u.white.len()
+        ));
+    }
+    let t = time_range(u.t_s).ok_or("plots: no finite time value")?;
+    ensure_font()?;
+    let (w, h) = INNOVATIONS_SIZE;
+    let root = BitMapBackend::new(path, (w, h)).into_drawing_area();
+    // The band is that of a full window: the first window-1 means are not drawn.
+    let mut avg = moving_average(u.nis, u.window);
+    for v in avg.iter_mut().take(u.window.saturating_sub(1)) {
+        *v = f64::NAN;
+    }
+    let draw = || -> DrawResult<'_> {
+        root.fill(&WHITE)?;
+        let (header, body) = root.split_vertically(HEADER_HEIGHT);
+        let centre = i32::try_from(w / 2).unwrap_or(0);
+        header.draw(&Text::new(
+            title.to_string(),
+            (centre, 8),
+            font(20.0).pos(text_anchor::Pos::new(
+                text_anchor::HPos::Center,
+                text_anchor::VPos::Top,
+            )),
+        ))?;
+        let label = font(15.0).pos(text_anchor::Pos::new(
+            text_anchor::HPos::Left,
+            text_anchor::VPos::Center,
+        ));
+        let y = 46;
+        header.draw(&PathElement::new(
+            vec![(40, y), (70, y)],
+            ERROR_COLOUR.stroke_width(2),
+        ))?;
+        header.draw(&Text::new(
+            format!("NIS, mean of {} updates", u.window),
+            (78, y),
+            label.clone(),
+        ))?;
+        header.draw(&Rectangle::new(
+            [(330, y - 6), (360, y + 6)],
+            BAND_COLOUR.filled(),
+        ))?;
+        header.draw(&Text::new(
+            format!("99 % χ² band ({} dof per update)", u.dof),
+            (368, y),
+            label.clone(),
+        ))?;
+        header.draw(&PathElement::new(
+            vec![(680, y - 9), (680, y + 9)],
+            SWITCH_COLOUR.stroke_width(2),
+        ))?;
+        header.draw(&Text::new("segment switch", (695, y), label))?;
+        let (top, bottom) = body.split_vertically(300);
+        // Top: NIS moving average.
+        let vals = avg
+            .iter()
+            .copied()
+            .chain([u.band.0, u.band.1, u.dof as f64])
+            .filter(|v| v.is_finite() && *v > 0.0);
+        let (lo, hi) = finite_min_max(vals).unwrap_or((0.1, 10.0));
+        let (lo, hi) = ((lo / 1.5).min(hi / 10.0), hi * 1.5);
+        let mut chart = ChartBuilder::on(&top)
+            .margin(8)
+            .x_label_area_size(34)
+            .y_label_area_size(62)
+            .build_cartesian_2d(t.clone(), (lo..hi).log_scale())?;
+        chart
+            .configure_mesh()
+            .bold_line_style(GRID_BOLD)
+            .light_line_style(TRANSPARENT)
+            .x_labels(7)
+            .y_labels(10)
+            .x_label_formatter(&|v| fmt_tick(*v))
+            .y_label_formatter(&|v| fmt_log_tick(*v))
+            .x_desc("t [s]")
+            .y_desc("NIS (moving mean)")
+            .label_style(font(12.0))
+            .axis_desc_style(font(13.0))
+            .draw()?;
+        if u.band.0.is_finite() && u.band.1.is_finite() && u.band.1 > u.band.0 {
+            let (b0, b1) = (u.band.0.clamp(lo, hi), u.band.1.clamp(lo, hi));
+            chart.draw_series(std::iter::once(Rectangle::new(
+                [(t.start, b0), (t.end, b1)],
+                BAND_COLOUR.filled(),
+            )))?;
+        }
+        chart.draw_series(DashedLineSeries::new(
+            vec![(t.start, u.dof as f64), (t.end, u.dof as f64)],
+            2,
+            3,
+            CRLB_COLOUR.stroke_width(1),
+        ))?;
+        draw_switches(&mut chart, switches, &t, (lo, hi))?;
+        for seg in clipped(u.t_s, &avg, lo, hi, true) {
+            chart.draw_series(LineSeries::new(seg, ERROR_COLOUR.stroke_width(2)))?;
+        }
+        // Bottom: whitened innovations.
+        let m = u
+            .white
+            .iter()
+            .flatten()
+            .filter(|v| v.is_finite())
+            .fold(4.0_f64, |m, v| m.max(v.abs() * 1.05));
+        let mut chart = ChartBuilder::on(&bottom)
+            .margin(8)
+            .x_label_area_size(34)
+            .y_label_area_size(62)
+            .build_cartesian_2d(t.clone(), -m..m)?;
+        chart
+            .configure_mesh()
+            .bold_line_style(GRID_BOLD)
+            .light_line_style(GRID_LIGHT)
+            .max_light_lines(1)
+            .x_labels(7)
+            .y_labels(9)
+            .x_label_formatter(&|v| fmt_tick(*v))
+            .y_label_formatter(&|v| fmt_linear_tick(*v, 2.0 * m / 9.0))
+            .x_desc("t [s]")
+            .y_desc("whitened innovation (unit σ)")
+            .label_style(font(12.0))
+            .axis_desc_style(font(13.0))
+            .draw()?;
+        draw_switches(&mut chart, switches, &t, (-m, m))?;
+        for (k, colour) in COMPONENT_COLOURS.iter().enumerate() {
+            let pts = u
+                .t_s
+                .iter()
+                .zip(u.white)
+                .filter_map(|(ti, wv)| wv.get(k).map(|v| (*ti, *v)))
+                .filter(|(ti, v)| ti.is_finite() && v.is_finite())
+                .map(|p| Circle::new(p, 1, colour.filled()));
+            chart.draw_series(pts)?;
+        }
+        for v in [-3.0, 3.0] {
+            chart.draw_series(DashedLineSeries::new(
+                vec![(t.start, v), (t.end, v)],
+                5,
+                3,
+                CRLB_COLOUR.stroke_width(1),
+            ))?;
+        }
+        Ok(())
+    };
+    draw().map_err(|e| format!("plots: drawing {}: {e}", path.display()))?;
+    root.present()
+        .map_err(|e| format!("plots: writing {}: {e}", path.display()))?;
+    Ok(())
 }

@@ -456,6 +456,33 @@ pub fn bound(
     rollcal::with_config!(id, |M, N, Z| typed::<M, N, Z>(cfg, truth0, sigma0, records))
 }
 
+/// [`bound`] after every record: σ_CRLB (rad) of every state per record
+/// (for the σ(t) figures).
+pub fn bound_history(
+    id: ConfigId,
+    cfg: FilterConfig<f64>,
+    truth0: &[f64],
+    sigma0: f64,
+    records: &[LogRecord<f64>],
+) -> Result<Vec<Vec<f64>>, ekf::Error> {
+    fn typed<M: Model<N, Z>, const N: usize, const Z: usize>(
+        cfg: FilterConfig<f64>,
+        truth0: &[f64],
+        sigma0: f64,
+        records: &[LogRecord<f64>],
+    ) -> Result<Vec<Vec<f64>>, ekf::Error> {
+        let (x, s) = initial::<N>(truth0, sigma0);
+        let mut obs = rollcal::observability::Bound::<f64, M, N, Z>::bound_only(cfg, x, s)?;
+        let mut out = Vec::with_capacity(records.len());
+        for r in records {
+            obs.record(r)?;
+            out.push(obs.crlb_sigma().iter().copied().collect());
+        }
+        Ok(out)
+    }
+    rollcal::with_config!(id, |M, N, Z| typed::<M, N, Z>(cfg, truth0, sigma0, records))
+}
+
 /// Posterior Cramér–Rao bound σ (rad) of every state at the end of `sim`
 /// ([`bound`] over all its periods, from its true initial state, with the
 /// scenario's prior and noise levels).

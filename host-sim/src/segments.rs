@@ -119,6 +119,12 @@ pub fn command_segments(records: impl IntoIterator<Item = (f64, [f64; 3])>) -> V
     out
 }
 
+/// The switch times of `segments` (s): the start of every segment but the
+/// first.
+pub fn switch_times(segments: &[CommandSegment]) -> Vec<f64> {
+    segments.iter().skip(1).map(|s| s.t0_s).collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -143,6 +149,7 @@ mod tests {
         assert_eq!((s[1].first, s[1].end), (10, 15));
         assert!(s[1].is_dwell() && !s[0].is_dwell());
         assert_eq!((s[2].first, s[2].end, s[2].t1_s), (15, 22, 22.0));
+        assert_eq!(switch_times(&s), [10.0, 15.0]);
         assert!((s[2].rate_rad_s[0] - r).abs() < 1e-15);
     }
 

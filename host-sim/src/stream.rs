@@ -96,7 +96,9 @@ pub struct CalibrateArgs {
     /// message and the platform file's `config` (default: theirs).
     #[arg(long, value_parser = parse_config)]
     pub config: Option<ConfigId>,
-    /// Input: a file, `-` for stdin, or a serial device (e.g. /dev/ttyUSB0).
+    /// Input: a file, `-` for stdin, or a serial device (e.g. /dev/ttyUSB0,
+    /// or a pseudo-terminal such as /dev/pts/3; a device is read until it
+    /// has been idle for --idle-timeout).
     #[arg(long, value_name = "FILE|-|SERIAL_DEVICE", default_value = "-")]
     pub input: String,
     /// Input format (default: `csv` for a name ending in `.csv`, else frames).
@@ -134,6 +136,12 @@ pub struct CalibrateArgs {
     /// `--matrices`, `--matrices-txt`: the result as matrices to apply.
     #[command(flatten)]
     pub matrices: crate::compensation::MatricesArgs,
+    /// Write an HTML report to DIR/index.html (created if missing), with its
+    /// PNG figures beside it: parameter table, σ(t), error (with --truth),
+    /// NIS and innovation figures with the segment switches, consistency
+    /// checks. The figures need the final passes (none with --passes 1).
+    #[arg(long, value_name = "DIR")]
+    pub report: Option<PathBuf>,
 }
 
 fn parse_config(s: &str) -> Result<ConfigId, String> {
@@ -647,6 +655,9 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
 /// `host-sim calibrate` with the calibrator's covariance arithmetic in `T`.
 fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<(), String> {
     let t0 = Clock::now();
+    if let Some(dir) = &args.report {
+        crate::html::prepare_dir(dir)?;
+    }
     let format = args
         .format
         .unwrap_or(if args.input.to_ascii_lowercase().ends_with(".csv") {
@@ -984,6 +995,77 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<(), String>
         write_json(path, &json)?;
     }
     args.matrices.write(&r)?;
+    if let Some(dir) = &args.report {
+        // σ_CRLB(t): the bound of the received samples, when computed.
+        let crlb_history = match sidecar.as_ref().and_then(|s| s.truth0.as_ref()) {
+            Some(t0) if received_bound.is_some() => Some(
+                runner::bound_history(
+                    id,
+                    filter_config(&settings),
+                    t0,
+                    sigma0,
+                    &host.log.records_f64(),
+                )
+                .map_err(|e| format!("Cramér–Rao bound of the received samples: {e}"))?,
+            ),
+            _ => None,
+        };
+        let header = vec![
+            ("configuration".into(), id.to_string()),
+            (
+                "input".into(),
+                format!(
+                    "{} ({})",
+                    args.input,
+                    if format == Format::Csv {
+                        "CSV log"
+                    } else {
+                        "frames"
+                    }
+                ),
+            ),
+            (
+                "passes".into(),
+                format!(
+                    "{} (answer: {})",
+                    r.passes,
+                    if final_pass.is_some() {
+                        "final"
+                    } else {
+                        "pass 1"
+                    }
+                ),
+            ),
+            ("precision".into(), args.precision.as_str().into()),
+            (
+                "samples".into(),
+                format!(
+                    "{} accepted, {} bridged, {} rejected, {} gated",
+                    p.accepted,
+                    p.bridged,
+                    p.rejects.total(),
+                    p.gated
+                ),
+            ),
+            (
+                "truth".into(),
+                args.truth.as_ref().map_or_else(
+                    || "none (no truth columns, no error figures)".into(),
+                    |t| t.display().to_string(),
+                ),
+            ),
+        ];
+        let crlb = sidecar.as_ref().map(|_| crlb.as_slice());
+        let page = crate::html::report_of_calibration(
+            dir,
+            &r,
+            crlb,
+            crlb_history.as_deref(),
+            sidecar.is_some(),
+            header,
+        )?;
+        eprintln!("report: {}", page.display());
+    }
     Ok(())
 }
 

@@ -3,7 +3,11 @@
 
 use std::path::PathBuf;
 
-use host_sim::plots::{figure_size, plot_group, Curve, HEADER_HEIGHT, MAX_PANELS, WIDTH};
+use host_sim::plots::{
+    convergence_size, figure_size, moving_average, plot_convergence, plot_group, plot_group_marked,
+    plot_innovations, Curve, Innovations, SigmaSeries, HEADER_HEIGHT, INNOVATIONS_SIZE, MAX_PANELS,
+    WIDTH,
+};
 
 fn temp_dir(test: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("rollcal-plots-{}-{test}", std::process::id()));
@@ -216,6 +220,188 @@ fn bad_input_is_an_error_not_a_panic() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// Pixels of `rgb` (within 40) in the columns `cols` and rows `rows`.
+fn count_in(
+    img: &(u32, u32, usize, Vec<u8>),
+    rows: std::ops::Range<u32>,
+    cols: std::ops::Range<u32>,
+    rgb: [u8; 3],
+) -> usize {
+    let (w, _, bpp, buf) = img;
+    let mut n = 0;
+    for y in rows {
+        for x in cols.clone() {
+            let i = (y as usize * *w as usize + x as usize) * bpp;
+            if buf[i..i + 3]
+                .iter()
+                .zip(rgb)
+                .all(|(&a, b)| (a as i32 - b as i32).abs() <= 40)
+            {
+                n += 1;
+            }
+        }
+    }
+    n
+}
+
+const SWITCH: [u8; 3] = [150, 90, 190];
+const FILTER: [u8; 3] = [213, 94, 0];
+const CRLB: [u8; 3] = [30, 30, 30];
+const ERROR: [u8; 3] = [0, 90, 181];
+
+#[test]
+fn switches_are_marked_and_band_and_bound_both_show_where_they_coincide() {
+    let dir = temp_dir("marked");
+    let (t, mut data) = synthetic(5400);
+    // The filter at the bound: σ_CRLB = σ (the case that hid the band).
+    for d in &mut data {
+        d[2] = d[1].clone();
+    }
+    let c = curves(&["a"], &data[..1]);
+    let (plain, marked) = (dir.join("plain.png"), dir.join("marked.png"));
+    plot_group(&plain, "no switches", &t, &c).unwrap();
+    plot_group_marked(&marked, "switches", &t, &c, &[1800.0, 2700.0, 4500.0]).unwrap();
+    let (p, m) = (decode(&plain), decode(&marked));
+    let body = HEADER_HEIGHT..p.1;
+    assert_eq!(count_in(&p, body.clone(), 0..WIDTH, SWITCH), 0);
+    // Three lines in each of the two panels, ~200 px tall each.
+    assert!(
+        count_in(&m, body.clone(), 0..WIDTH, SWITCH) > 6 * 150,
+        "switch lines not drawn"
+    );
+    // Both the filter's line and the bound's dashes are visible in both panels.
+    for cols in [0..WIDTH / 2, WIDTH / 2..WIDTH] {
+        let f = count_in(&m, body.clone(), cols.clone(), FILTER);
+        let b = count_in(&m, body.clone(), cols.clone(), CRLB);
+        assert!(f > 1000, "filter line hidden ({f} px in {cols:?})");
+        assert!(b > 1000, "bound hidden ({b} px in {cols:?})");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn the_zoom_panel_does_not_clip_the_transient_into_bars() {
+    let dir = temp_dir("bars");
+    // An error of ±1000″ oscillating for the first fifth of the run (the
+    // transient), then ~0.1″: clipped at the zoom's frame it filled the
+    // panel with solid vertical bars.
+    let (t, mut data) = synthetic(5400);
+    for (k, e) in data[0][0].iter_mut().enumerate() {
+        if k < 1000 {
+            *e = if k % 2 == 0 { 1000.0 } else { -1000.0 };
+        }
+    }
+    let c = curves(&["a"], &data[..1]);
+    let path = dir.join("bars.png");
+    plot_group(&path, "transient", &t, &c).unwrap();
+    let img = decode(&path);
+    // No column of the zoom panel is a solid bar of the error colour (the
+    // clipped transient made every column of its first fifth one).
+    let rows = HEADER_HEIGHT + 30..img.1 - 40;
+    let height = (rows.end - rows.start) as usize;
+    let worst = (WIDTH / 2 + 70..WIDTH - 20)
+        .map(|x| count_in(&img, rows.clone(), x..x + 1, ERROR))
+        .max()
+        .unwrap();
+    assert!(
+        worst * 2 < height,
+        "a column of the zoom panel is {worst} of {height} px of error colour"
+    );
+    // (Before the zoom panel started at the converged part, the ±1000″
+    // samples clipped at its ±0.2″ frame made each column of the first
+    // fifth a frame-high bar: worst ≈ height.) The error is drawn there.
+    assert!(count_in(&img, rows, WIDTH / 2 + 70..WIDTH - 20, ERROR) > 1000);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn convergence_and_innovation_figures_have_their_size_and_content() {
+    let dir = temp_dir("report-figs");
+    let (t, data) = synthetic(2000);
+    let series: Vec<SigmaSeries<'_>> = data
+        .iter()
+        .zip(["x", "y", "z"])
+        .map(|(d, label)| SigmaSeries {
+            label,
+            sigma: &d[1],
+            crlb: Some(&d[2]),
+        })
+        .collect();
+    let path = dir.join("sigma.png");
+    plot_convergence(&path, "σ(t)", &t, &series, &[700.0]).unwrap();
+    let img = decode(&path);
+    assert_eq!((img.0, img.1), convergence_size(3));
+    let body = HEADER_HEIGHT..img.1;
+    assert!(count_in(&img, body.clone(), 0..WIDTH, FILTER) > 300);
+    assert!(count_in(&img, body.clone(), 0..WIDTH, CRLB) > 300);
+    assert!(count_in(&img, body, 0..WIDTH, SWITCH) > 3 * 100);
+    // Without σ_CRLB, and errors on bad input.
+    let bare = [SigmaSeries {
+        label: "x",
+        sigma: &data[0][1],
+        crlb: None,
+    }];
+    plot_convergence(&dir.join("bare.png"), "σ", &t, &bare, &[]).unwrap();
+    let short = [SigmaSeries {
+        label: "x",
+        sigma: &data[0][1][..5],
+        crlb: None,
+    }];
+    let e = plot_convergence(&dir.join("bad.png"), "σ", &t, &short, &[]).unwrap_err();
+    assert!(e.contains("sigma has 5"), "{e}");
+    assert!(plot_convergence(&dir.join("bad.png"), "σ", &[], &bare, &[]).is_err());
+
+    // Innovations: unit-variance components, NIS = their square sum.
+    let mut state = 7_u64;
+    let mut gauss = move || {
+        let mut s = 0.0;
+        for _ in 0..12 {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            s += (state >> 11) as f64 / (1u64 << 53) as f64;
+        }
+        s - 6.0
+    };
+    let white: Vec<Vec<f64>> = (0..2000)
+        .map(|_| (0..3).map(|_| gauss()).collect())
+        .collect();
+    let nis: Vec<f64> = white
+        .iter()
+        .map(|w| w.iter().map(|v| v * v).sum())
+        .collect();
+    let path = dir.join("innov.png");
+    let u = Innovations {
+        t_s: &t,
+        nis: &nis,
+        white: &white,
+        dof: 3,
+        window: 100,
+        band: host_sim::html::nis_band(100, 3),
+    };
+    plot_innovations(&path, "innovations", &u, &[500.0, 1500.0]).unwrap();
+    let img = decode(&path);
+    assert_eq!((img.0, img.1), INNOVATIONS_SIZE);
+    assert!(count_in(&img, HEADER_HEIGHT..img.1, 0..WIDTH, ERROR) > 1000);
+    assert!(count_in(&img, HEADER_HEIGHT..img.1, 0..WIDTH, SWITCH) > 4 * 150);
+    let e = plot_innovations(
+        &path,
+        "x",
+        &Innovations {
+            nis: &nis[..10],
+            ..u
+        },
+        &[],
+    )
+    .unwrap_err();
+    assert!(e.contains("10 NIS values"), "{e}");
+    assert_eq!(
+        moving_average(&[1.0, 3.0, 5.0, 7.0], 2),
+        [1.0, 2.0, 4.0, 6.0]
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// Renders the figures of a real paper-scenario run (configuration M2-ps,
 /// seed 1) for looking at: `cargo test --release -p host-sim --test plots
 /// -- --ignored`, into `$ROLLCAL_PLOTS_DIR` (default: a temp directory,
@@ -271,7 +457,14 @@ fn real_run_figures() {
             })
             .collect();
         let path = dir.join(format!("{}-{g}.png", id.as_str()));
-        plot_group(&path, &format!("{}: {g}, seed 1", id.as_str()), &t, &c).unwrap();
+        plot_group_marked(
+            &path,
+            &format!("{}: {g}, seed 1", id.as_str()),
+            &t,
+            &c,
+            &host_sim::segments::switch_times(&run.segments),
+        )
+        .unwrap();
         let img = decode(&path);
         assert_eq!((img.0, img.1), figure_size(c.len()));
         println!("wrote {}", path.display());
