@@ -292,7 +292,10 @@ pub fn judge_updates(
             g.scope.clone(),
             mean,
             band,
-            format!("{} updates, n·NIS̄ ~ χ²({dof:.0}), expected {z}", g.updates.len()),
+            format!(
+                "{} updates, n·NIS̄ ~ χ²({dof:.0}), expected {z}",
+                g.updates.len()
+            ),
         ));
     }
     let overall = &groups[0].updates;
@@ -407,6 +410,284 @@ pub fn print(j: &Judgement) {
         }
     }
     println!("data verdict: {}", j.verdict);
+}
+
+/// The cases of [`rates`]: a clean stream and the two defects of issue 11.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Case {
+    /// Label, e.g. `"accel noise 3×"`.
+    pub label: &'static str,
+    /// The defect applied to the simulated accelerometer means.
+    #[serde(skip)]
+    pub defect: crate::impair::AccelDefects,
+}
+
+/// The three cases: clean, accelerometer noise 3× the platform's, an
+/// unmodelled constant bias of `bias_ug` (µg per axis, instrument frame).
+pub fn cases(bias_ug: [f64; 3]) -> [Case; 3] {
+    use crate::impair::AccelDefects;
+    [
+        Case {
+            label: "clean",
+            defect: AccelDefects::default(),
+        },
+        Case {
+            label: "accel noise 3×",
+            defect: AccelDefects {
+                accel_noise_scale: 3.0,
+                accel_bias_ug: None,
+            },
+        },
+        Case {
+            label: "accel bias",
+            defect: AccelDefects {
+                accel_noise_scale: 1.0,
+                accel_bias_ug: Some(bias_ug),
+            },
+        },
+    ]
+}
+
+/// The outcome of one case over the seeds.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Rate {
+    /// The case.
+    pub case: String,
+    /// Seeds run.
+    pub seeds: usize,
+    /// Seeds whose judgement was a warning.
+    pub flagged: usize,
+    /// Per check name, the seeds in which that check failed.
+    pub by_check: Vec<(&'static str, usize)>,
+    /// Seeds whose estimator failed (counted as not flagged).
+    pub errors: usize,
+    /// The flagged seeds, each with its worst failed check
+    /// (`"<name> <scope>: <statistic> outside [lo, hi]"`).
+    pub flagged_seeds: Vec<(u64, String)>,
+}
+
+/// The judgement of one simulated run of configuration `id` with `defect`
+/// on its accelerometer means, the estimator told the scenario's noise.
+pub fn judge_simulated(
+    id: rollcal::models::ConfigId,
+    scenario: &crate::scenario::Scenario,
+    seed: u64,
+    defect: &crate::impair::AccelDefects,
+) -> Result<Judgement, String> {
+    use crate::truth::{simulate, SimOptions};
+    let earth_rate = scenario.site.earth_rate;
+    let mut sim = simulate(
+        scenario,
+        SimOptions {
+            seed,
+            noise: true,
+            earth_rate,
+        },
+    );
+    let offsets = defect.offsets(sim.samples.len(), scenario.noise.accel_g, seed);
+    for (s, o) in sim.samples.iter_mut().zip(offsets) {
+        for (a, d) in s.accel_mean.iter_mut().zip(o) {
+            *a += d;
+        }
+    }
+    let r = crate::runner::run_filter(
+        id,
+        scenario,
+        &sim,
+        earth_rate,
+        crate::runner::Estimator::default(),
+        None,
+        false,
+    )
+    .map_err(|e| format!("{id} seed {seed}: {e}"))?;
+    Ok(judge(&r))
+}
+
+/// False-alarm and detection rates: every case over seeds `1..=seeds`, in
+/// parallel (rayon), `progress` called after every run.
+pub fn rates(
+    id: rollcal::models::ConfigId,
+    scenario: &crate::scenario::Scenario,
+    seeds: u64,
+    cases: &[Case],
+    progress: &(dyn Fn() + Sync),
+) -> Vec<Rate> {
+    use rayon::prelude::*;
+    let jobs: Vec<(usize, u64)> = (0..cases.len())
+        .flat_map(|c| (1..=seeds).map(move |s| (c, s)))
+        .collect();
+    let out: Vec<(usize, u64, Option<Judgement>)> = jobs
+        .par_iter()
+        .map(|&(c, seed)| {
+            let j = judge_simulated(id, scenario, seed, &cases[c].defect).ok();
+            progress();
+            (c, seed, j)
+        })
+        .collect();
+    cases
+        .iter()
+        .enumerate()
+        .map(|(c, case)| {
+            let mine: Vec<&Option<Judgement>> = out
+                .iter()
+                .filter(|(k, _, _)| *k == c)
+                .map(|(_, _, j)| j)
+                .collect();
+            let flagged_seeds = out
+                .iter()
+                .filter(|(k, _, _)| *k == c)
+                .filter_map(|(_, seed, j)| match j.as_ref().map(|j| &j.verdict) {
+                    Some(DataVerdict::Warning { failed }) => failed.first().map(|f| {
+                        (
+                            *seed,
+                            format!(
+                                "{} {}: {:.4} outside [{:.4}, {:.4}]",
+                                f.name, f.scope, f.statistic, f.band.0, f.band.1
+                            ),
+                        )
+                    }),
+                    _ => None,
+                })
+                .collect();
+            let by_check = ["nis", "whiteness", "bias"]
+                .into_iter()
+                .map(|name| {
+                    let n = mine
+                        .iter()
+                        .filter(|j| {
+                            j.as_ref().is_some_and(|j| {
+                                j.checks.iter().any(|k| k.name == name && !k.passed)
+                            })
+                        })
+                        .count();
+                    (name, n)
+                })
+                .collect();
+            Rate {
+                case: case.label.to_string(),
+                seeds: mine.len(),
+                flagged: mine
+                    .iter()
+                    .filter(|j| j.as_ref().is_some_and(|j| j.verdict.is_warning()))
+                    .count(),
+                by_check,
+                errors: mine.iter().filter(|j| j.is_none()).count(),
+                flagged_seeds,
+            }
+        })
+        .collect()
+}
+
+/// Arguments of `host-sim checks`.
+#[derive(clap::Args, Clone, Debug)]
+pub struct ChecksArgs {
+    /// Configuration: M1-pa, M1-ps, M2-ps, M3-pa, M3-ps, M4-pa, M4-ps.
+    #[arg(long, value_parser = |s: &str| rollcal::models::ConfigId::parse(s).ok_or_else(|| format!("unknown configuration '{s}'")))]
+    pub config: rollcal::models::ConfigId,
+    /// Seeds 1..=N of every case.
+    #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u64).range(1..=100_000))]
+    pub seeds: u64,
+    /// Scenario file (TOML); default: the paper's scenario.
+    #[arg(long, value_name = "FILE")]
+    pub scenario: Option<std::path::PathBuf>,
+    /// The unmodelled bias of the bias case (µg per axis, instrument frame).
+    #[arg(long, value_name = "X,Y,Z", default_value = "10,10,10", value_parser = parse_bias, allow_hyphen_values = true)]
+    pub bias_ug: [f64; 3],
+    /// Also write the rates as JSON to PATH.
+    #[arg(long, value_name = "PATH")]
+    pub json: Option<std::path::PathBuf>,
+}
+
+fn parse_bias(s: &str) -> Result<[f64; 3], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|p| p.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("'{s}' is not X,Y,Z"))?;
+    match v.as_slice() {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok([*x, *y, *z]),
+        _ => Err(format!("'{s}' is not X,Y,Z (three finite numbers)")),
+    }
+}
+
+/// `host-sim checks`: false-alarm and detection rates of [`judge`] over
+/// seeds, in process (simulate, defect, estimate, judge; no files).
+pub fn command(args: &ChecksArgs) -> Result<(), String> {
+    let scenario = match &args.scenario {
+        Some(p) => crate::scenario::Scenario::from_file(p).map_err(|e| e.to_string())?,
+        None => crate::scenario::Scenario::paper(),
+    };
+    let cases = cases(args.bias_ug);
+    let total = args.seeds * cases.len() as u64;
+    eprintln!(
+        "{} runs of {} on '{}' ({} cases × {} seeds) with {} threads…",
+        total,
+        args.config,
+        scenario.name,
+        cases.len(),
+        args.seeds,
+        rayon::current_num_threads()
+    );
+    let progress = crate::progress::Progress::stderr("checks", total, "runs");
+    let done = std::sync::atomic::AtomicU64::new(0);
+    let out = rates(args.config, &scenario, args.seeds, &cases, &|| {
+        let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        progress.update(n, "");
+    });
+    progress.finish(done.load(std::sync::atomic::Ordering::Relaxed), "");
+    let b = args.bias_ug;
+    println!(
+        "{} on '{}', seeds 1..={}; the estimator told the scenario's noise; judgement at a stated false-alarm rate of {FALSE_ALARM}",
+        args.config, scenario.name, args.seeds
+    );
+    println!(
+        "{:<28} {:>8} {:>9}   {:>5} {:>9} {:>5}  errors",
+        "case", "seeds", "flagged", "nis", "whiteness", "bias"
+    );
+    for r in &out {
+        let label = if r.case == "accel bias" {
+            format!("accel bias ({}, {}, {}) µg", b[0], b[1], b[2])
+        } else {
+            r.case.clone()
+        };
+        let by = |n: &str| {
+            r.by_check
+                .iter()
+                .find(|(k, _)| *k == n)
+                .map_or(0, |(_, v)| *v)
+        };
+        println!(
+            "{:<28} {:>8} {:>8.0}%   {:>5} {:>9} {:>5}  {}",
+            label,
+            r.seeds,
+            100.0 * r.flagged as f64 / r.seeds.max(1) as f64,
+            by("nis"),
+            by("whiteness"),
+            by("bias"),
+            r.errors
+        );
+    }
+    println!("(nis, whiteness, bias: in how many seeds that check failed)");
+    if let Some(clean) = out.iter().find(|r| r.case == "clean") {
+        for (seed, what) in &clean.flagged_seeds {
+            println!("clean seed {seed} flagged: {what}");
+        }
+    }
+    if let Some(path) = &args.json {
+        let v = serde_json::json!({
+            "config": args.config.as_str(),
+            "scenario": scenario.name,
+            "seeds": args.seeds,
+            "false_alarm": FALSE_ALARM,
+            "bias_ug": args.bias_ug,
+            "rates": out,
+        });
+        crate::report::write_json(path, &v)?;
+    }
+    if out.iter().any(|r| r.errors > 0) {
+        return Err("some runs failed (see the errors column)".into());
+    }
+    Ok(())
 }
 
 #[cfg(test)]
