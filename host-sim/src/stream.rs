@@ -7,7 +7,9 @@
 //! the firmware would send them. The stream carries no truth; `--truth PATH`
 //! writes it to a JSON sidecar (true final states and Cramér–Rao σ of the
 //! recorded configuration) that `calibrate --truth PATH` reads to fill the
-//! truth and σ_CRLB columns (NaN without it).
+//! truth and σ_CRLB columns. Without it, `calibrate` prints the estimate,
+//! σ and the bound at the estimate with its observability verdict, and
+//! judges the data against the model ([`crate::checks`]).
 //!
 //! `record --format csv` writes the same samples as a CSV log
 //! ([`crate::csvlog`], docs/csv.md), without the `Configure`; `calibrate`
