@@ -592,6 +592,9 @@ pub struct ChecksArgs {
     /// The unmodelled bias of the bias case (µg per axis, instrument frame).
     #[arg(long, value_name = "X,Y,Z", default_value = "10,10,10", value_parser = parse_bias, allow_hyphen_values = true)]
     pub bias_ug: [f64; 3],
+    /// Only these cases (repeatable): clean, noise, bias (default: all three).
+    #[arg(long = "case", value_name = "CASE", value_parser = ["clean", "noise", "bias"])]
+    pub cases: Vec<String>,
     /// Also write the rates as JSON to PATH.
     #[arg(long, value_name = "PATH")]
     pub json: Option<std::path::PathBuf>,
@@ -616,7 +619,13 @@ pub fn command(args: &ChecksArgs) -> Result<(), String> {
         Some(p) => crate::scenario::Scenario::from_file(p).map_err(|e| e.to_string())?,
         None => crate::scenario::Scenario::paper(),
     };
-    let cases = cases(args.bias_ug);
+    let keys = ["clean", "noise", "bias"];
+    let cases: Vec<Case> = cases(args.bias_ug)
+        .into_iter()
+        .zip(keys)
+        .filter(|(_, k)| args.cases.is_empty() || args.cases.iter().any(|c| c == k))
+        .map(|(c, _)| c)
+        .collect();
     let total = args.seeds * cases.len() as u64;
     eprintln!(
         "{} runs of {} on '{}' ({} cases × {} seeds) with {} threads…",

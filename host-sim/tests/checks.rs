@@ -202,3 +202,60 @@ fn m1_pa_in_process_cases() {
     let j = judge_simulated(ConfigId::M1Pa, &sc, 1, &bias.defect).unwrap();
     assert!(j.verdict.is_warning(), "{}", j.verdict);
 }
+
+/// `host-sim checks` in process: the table, the JSON, both defects flagged.
+#[test]
+fn the_rates_command_measures_the_cases() {
+    let d = dir("rates");
+    let json = d.join("rates.json");
+    let out = host_sim()
+        .args(["checks", "--config", "M1-pa", "--seeds", "2", "--json"])
+        .arg(&json)
+        .output()
+        .unwrap();
+    let text = stdout(&out);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        text.contains("accel noise 3×") && text.contains("(10, 10, 10) µg"),
+        "{text}"
+    );
+    let v = json_file(&json);
+    let _ = std::fs::remove_dir_all(&d);
+    let rates = v["rates"].as_array().unwrap();
+    assert_eq!(rates.len(), 3);
+    assert_eq!(rates[0]["case"], "clean");
+    for r in &rates[1..] {
+        assert_eq!(r["flagged"], 2, "{r}");
+    }
+    // Bad defect arguments: clap's exit status 2, one line.
+    let out = host_sim()
+        .args([
+            "record",
+            "--config",
+            "M1-pa",
+            "--accel-bias-ug",
+            "1,2",
+            "--out",
+            "-",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let out = host_sim()
+        .args([
+            "record",
+            "--config",
+            "M1-pa",
+            "--accel-noise-scale",
+            "0.5",
+            "--out",
+            "-",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+}
