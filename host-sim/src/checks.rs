@@ -649,7 +649,7 @@ pub fn command(args: &ChecksArgs) -> Result<(), String> {
         args.config, scenario.name, args.seeds
     );
     println!(
-        "{:<28} {:>8} {:>9}   {:>5} {:>9} {:>5}  errors",
+        "{:<28} {:>8} {:>14}   {:>5} {:>9} {:>5}  errors",
         "case", "seeds", "flagged", "nis", "whiteness", "bias"
     );
     for r in &out {
@@ -665,10 +665,15 @@ pub fn command(args: &ChecksArgs) -> Result<(), String> {
                 .map_or(0, |(_, v)| *v)
         };
         println!(
-            "{:<28} {:>8} {:>8.0}%   {:>5} {:>9} {:>5}  {}",
+            "{:<28} {:>8} {:>14}   {:>5} {:>9} {:>5}  {}",
             label,
             r.seeds,
-            100.0 * r.flagged as f64 / r.seeds.max(1) as f64,
+            format!(
+                "{}/{} {:.1} %",
+                r.flagged,
+                r.seeds,
+                100.0 * r.flagged as f64 / r.seeds.max(1) as f64
+            ),
             by("nis"),
             by("whiteness"),
             by("bias"),
