@@ -665,39 +665,50 @@ pub fn calibrate_judged(args: &CalibrateArgs) -> Result<DataVerdict, String> {
 /// ([`Observability`]) from it; the null space is that of the information
 /// matrix along the same records linearised at zero state (as
 /// `observability`), the verdict [`Verdict::of_bound`].
+/// With `x_end` `None` the bound starts at `x_start` instead.
 fn bound_at_estimate(
     id: ConfigId,
     cfg: FilterConfig<f64>,
-    x_end: &[f64],
+    x_end: Option<&[f64]>,
+    x_start: &[f64],
     sigma0: f64,
     records: &[LogRecord<f64>],
 ) -> Result<(Vec<f64>, Vec<Verdict>), String> {
     fn typed<M: Model<N, Z>, const N: usize, const Z: usize>(
         id: ConfigId,
         cfg: FilterConfig<f64>,
-        x_end: &[f64],
+        x_end: Option<&[f64]>,
+        x_start: &[f64],
         sigma0: f64,
         records: &[LogRecord<f64>],
     ) -> Result<(Vec<f64>, Vec<Verdict>), String> {
         use rollcal::observability::{COEF_THRESHOLD, RANK_TOLERANCE};
-        let x_end = nalgebra::SVector::<f64, N>::from_iterator(
-            x_end.iter().copied().chain(std::iter::repeat(0.0)),
-        );
-        let mut frame = rollcal::command::CommandFrame::aligned(cfg.env.earth_rate_n);
-        for r in records.iter().filter(|r| r.has_valid_period()) {
-            let p = frame.period(&r.dtheta_cmd, r.dt);
-            frame.advance(&p);
-        }
-        let mut storage = records.to_vec();
-        let mut log = rollcal::estimator::SliceLog::from_records(&mut storage);
-        let (x0, _) = rollcal::estimator::back_propagate::<f64, N, _>(
-            id.layout(),
-            &cfg.env,
-            &x_end,
-            &frame,
-            &mut log,
-        )
-        .map_err(|e| format!("the start of the log: {e}"))?;
+        let vector = |v: &[f64]| {
+            nalgebra::SVector::<f64, N>::from_iterator(
+                v.iter().copied().chain(std::iter::repeat(0.0)),
+            )
+        };
+        let x0 = match x_end {
+            None => vector(x_start),
+            Some(x_end) => {
+                let mut frame = rollcal::command::CommandFrame::aligned(cfg.env.earth_rate_n);
+                for r in records.iter().filter(|r| r.has_valid_period()) {
+                    let p = frame.period(&r.dtheta_cmd, r.dt);
+                    frame.advance(&p);
+                }
+                let mut storage = records.to_vec();
+                let mut log = rollcal::estimator::SliceLog::from_records(&mut storage);
+                rollcal::estimator::back_propagate::<f64, N, _>(
+                    id.layout(),
+                    &cfg.env,
+                    &vector(x_end),
+                    &frame,
+                    &mut log,
+                )
+                .map_err(|e| format!("the start of the log: {e}"))?
+                .0
+            }
+        };
         let prior = nalgebra::SVector::<f64, N>::repeat(sigma0);
         let e = |e: ekf::Error| format!("the bound at the estimate: {e}");
         let mut at = Observability::<f64, M, N, Z>::new(cfg, x0, prior).map_err(e)?;
@@ -715,7 +726,7 @@ fn bound_at_estimate(
         Ok((at.crlb_sigma().iter().copied().collect(), verdicts))
     }
     rollcal::with_config!(id, |M, N, Z| typed::<M, N, Z>(
-        id, cfg, x_end, sigma0, records
+        id, cfg, x_end, x_start, sigma0, records
     ))
 }
 
@@ -980,7 +991,18 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<DataVerdict
     // FAILED (README "Judging a calibration without a truth").
     let at_estimate = if sidecar.is_none() {
         let records = host.log.records_f64();
-        let (b, v) = bound_at_estimate(id, filter_config(&settings), state, sigma0, &records)?;
+        // A log that is not the whole run (re-acquired attitude, full log)
+        // has no known start: the bound along the logged records from the
+        // cold start (zero state, as pass 1), said so.
+        let zeros = vec![0.0; id.layout().n()];
+        let end = if p.log_incomplete.is_some() {
+            eprintln!("note: the log is not the whole run: the bound is taken from the cold start along the logged samples");
+            None
+        } else {
+            Some(state.as_slice())
+        };
+        let (b, v) =
+            bound_at_estimate(id, filter_config(&settings), end, &zeros, sigma0, &records)?;
         print_table_no_truth(&r, &b, &v);
         Some((b, v))
     } else {
