@@ -246,7 +246,7 @@ pub fn judge_updates(
         return Judgement {
             checks: Vec::new(),
             verdict: DataVerdict::NotChecked {
-                reason: "no innovations of a final pass (the checks need the final passes: --passes 2 or more)".into(),
+                reason: "no innovations of a final pass: the checks need the final passes (not run with --passes 1, or when the log is not the whole run)".into(),
             },
             alpha_each: f64::NAN,
         };

@@ -996,7 +996,11 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<DataVerdict
         // cold start (zero state, as pass 1), said so.
         let zeros = vec![0.0; id.layout().n()];
         let end = if p.log_incomplete.is_some() {
-            eprintln!("note: the log is not the whole run: the bound is taken from the cold start along the logged samples");
+            eprintln!(
+                "note: the log is not the whole run: the bound is taken from the cold start along the {} logged samples only (of {} accepted)",
+                records.len(),
+                p.accepted
+            );
             None
         } else {
             Some(state.as_slice())
