@@ -21,27 +21,11 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use crate::checks::{Check, Judgement};
 use crate::plots::{self, Curve, Innovations, SigmaSeries};
-use crate::runner::{RunResult, Update};
+use crate::runner::RunResult;
 use crate::scenario::ARCSEC;
 use crate::segments::switch_times;
-
-/// One row of the "Consistency checks" section.
-#[derive(Clone, Debug, PartialEq)]
-pub struct CheckRow {
-    /// What is checked, e.g. "mean NIS".
-    pub check: String,
-    /// Over what, e.g. "all 5400 updates of the last pass".
-    pub scope: String,
-    /// The statistic's value.
-    pub statistic: f64,
-    /// Its acceptance band (lower, upper).
-    pub band: (f64, f64),
-    /// Whether the statistic is inside the band.
-    pub passed: bool,
-    /// A sentence for the reader.
-    pub detail: String,
-}
 
 /// Everything the report shows.
 pub struct Report<'a> {
@@ -61,8 +45,8 @@ pub struct Report<'a> {
     /// it the error figures use the final truth for the constant parameters
     /// and leave out the (time-varying) attitude.
     pub truth_history: Option<&'a [Vec<f64>]>,
-    /// The consistency checks.
-    pub checks: &'a [CheckRow],
+    /// The consistency checks ([`crate::checks`]).
+    pub checks: &'a [Check],
     /// The verdict on the data (`consistent` or `warning: …`).
     pub verdict: &'a str,
     /// Warnings (failed updates, notes of the run).
@@ -95,31 +79,6 @@ pub fn nis_band(n: usize, dof: usize) -> (f64, f64) {
 /// measurement size.
 pub fn update_dof(id: rollcal::models::ConfigId) -> usize {
     id.layout().z()
-}
-
-/// The overall mean NIS of `updates` (of configuration `id`) against its
-/// 99 % χ² band (None without updates).
-pub fn mean_nis_check(id: rollcal::models::ConfigId, updates: &[Update]) -> Option<CheckRow> {
-    let dof = update_dof(id);
-    if updates.is_empty() || dof == 0 {
-        return None;
-    }
-    let n = updates.len();
-    let mean = updates.iter().map(|u| u.nis).sum::<f64>() / n as f64;
-    let band = nis_band(n, dof);
-    let passed = mean >= band.0 && mean <= band.1;
-    Some(CheckRow {
-        check: "mean NIS".into(),
-        scope: format!("all {n} accepted updates of the last pass ({dof} dof each)"),
-        statistic: mean,
-        band,
-        passed,
-        detail: if passed {
-            format!("within the 99 % χ² band of a mean of {n} NIS values (expected {dof})")
-        } else {
-            format!("outside the 99 % χ² band of a mean of {n} NIS values (expected {dof}): the noise levels or the model do not fit the data")
-        },
-    })
 }
 
 fn esc(s: &str) -> String {
@@ -378,7 +337,7 @@ pub fn write_report(dir: &Path, rep: &Report<'_>) -> Result<PathBuf, String> {
     // Warnings: the given ones and every failed check.
     let mut warnings = rep.warnings.clone();
     for c in rep.checks.iter().filter(|c| !c.passed) {
-        warnings.push(format!("{} ({}): {}", c.check, c.scope, c.detail));
+        warnings.push(format!("{} ({}): {}", c.name, c.scope, c.detail));
     }
     if !warnings.is_empty() {
         h.push_str("<h2 id=\"warnings\">Warnings</h2>\n");
@@ -486,13 +445,13 @@ pub fn write_report(dir: &Path, rep: &Report<'_>) -> Result<PathBuf, String> {
             let _ = writeln!(
                 h,
                 "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td><td>[{}, {}]</td><td class=\"l {}\">{}</td><td class=\"l\">{}</td></tr>",
-                esc(&c.check),
+                esc(c.name),
                 esc(&c.scope),
                 num(c.statistic),
                 num(c.band.0),
                 num(c.band.1),
                 if c.passed { "ok" } else { "fail" },
-                if c.passed { "passed" } else { "FAILED" },
+                if c.passed { "inside" } else { "outside" },
                 esc(&c.detail)
             );
         }
@@ -502,21 +461,6 @@ pub fn write_report(dir: &Path, rep: &Report<'_>) -> Result<PathBuf, String> {
     let page = dir.join("index.html");
     std::fs::write(&page, h).map_err(|e| format!("cannot write {}: {e}", page.display()))?;
     Ok(page)
-}
-
-/// The verdict string of `checks`: `consistent`, or `warning: ` and the
-/// failed checks' names.
-pub fn verdict_of(checks: &[CheckRow]) -> String {
-    let failed: Vec<&str> = checks
-        .iter()
-        .filter(|c| !c.passed)
-        .map(|c| c.check.as_str())
-        .collect();
-    if failed.is_empty() {
-        "consistent".into()
-    } else {
-        format!("warning: {}", failed.join(", "))
-    }
 }
 
 /// The report of `host-sim run`: truth and σ_CRLB(t) along the simulated
@@ -541,8 +485,8 @@ pub fn report_of_run(
         .iter()
         .map(|s| crate::truth::truth_state(id, &sim.params, &s.truth))
         .collect();
-    let checks: Vec<CheckRow> = mean_nis_check(r.config, &r.updates).into_iter().collect();
-    let verdict = verdict_of(&checks);
+    let judgement = crate::checks::judge(r);
+    let verdict = judgement.verdict.to_string();
     write_report(
         dir,
         &Report {
@@ -553,7 +497,7 @@ pub fn report_of_run(
             crlb_history: Some(&crlb_history),
             has_truth: true,
             truth_history: Some(&truth_history),
-            checks: &checks,
+            checks: &judgement.checks,
             verdict: &verdict,
             warnings: failure_warnings(r),
         },
@@ -579,10 +523,10 @@ pub fn report_of_calibration(
     crlb: Option<&[f64]>,
     crlb_history: Option<&[Vec<f64>]>,
     has_truth: bool,
+    judgement: &Judgement,
     header: Vec<(String, String)>,
 ) -> Result<PathBuf, String> {
-    let checks: Vec<CheckRow> = mean_nis_check(r.config, &r.updates).into_iter().collect();
-    let verdict = verdict_of(&checks);
+    let verdict = judgement.verdict.to_string();
     write_report(
         dir,
         &Report {
@@ -593,7 +537,7 @@ pub fn report_of_calibration(
             crlb_history,
             has_truth,
             truth_history: None,
-            checks: &checks,
+            checks: &judgement.checks,
             verdict: &verdict,
             warnings: failure_warnings(r),
         },

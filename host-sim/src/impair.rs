@@ -4,6 +4,11 @@
 //!
 //! Applied in this order, each with its own seeded random stream (so one
 //! impairment does not change where another strikes):
+//! 0. accelerometer defects the model does not know of ([`AccelDefects`]):
+//!    more noise than the platform file says (`--accel-noise-scale K`: the
+//!    means get independent extra noise of σ·√(K² − 1), K× in all) and a
+//!    constant bias in the instrument frame (`--accel-bias-ug X,Y,Z`, µg);
+//!    the stream's `Configure` keeps the scenario's noise level;
 //! 1. accelerometer outliers on a fraction of the samples (a spike of `k σ`
 //!    on one random axis, random sign);
 //! 2. clock steps (every timestamp from a sequence number on shifted);
@@ -40,6 +45,83 @@ pub struct Impairments {
     /// Size of an outlier, in accelerometer σ.
     #[arg(long, value_name = "K", default_value_t = 100.0)]
     pub outlier_sigma: f64,
+    /// Unmodelled accelerometer defects (more noise, a constant bias).
+    #[command(flatten)]
+    pub accel: AccelDefects,
+}
+
+/// Accelerometer defects the estimator's model does not know of.
+#[derive(clap::Args, Clone, Copy, Debug, PartialEq)]
+pub struct AccelDefects {
+    /// Accelerometer noise K× the scenario's (K ≥ 1): extra independent
+    /// noise σ·√(K² − 1) on every period mean; the stream's `Configure`
+    /// (and a CSV log's platform file) keep the scenario's σ.
+    #[arg(long, value_name = "K", default_value_t = 1.0, value_parser = parse_scale)]
+    pub accel_noise_scale: f64,
+    /// A constant accelerometer bias X,Y,Z (µg, instrument frame: added to
+    /// the accelerometer means), which no configuration models.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_triple, allow_hyphen_values = true)]
+    pub accel_bias_ug: Option<[f64; 3]>,
+}
+
+impl Default for AccelDefects {
+    fn default() -> Self {
+        Self {
+            accel_noise_scale: 1.0,
+            accel_bias_ug: None,
+        }
+    }
+}
+
+impl AccelDefects {
+    /// Whether any defect is on.
+    pub fn any(&self) -> bool {
+        self.accel_noise_scale != 1.0 || self.accel_bias_ug.is_some_and(|b| b != [0.0; 3])
+    }
+
+    /// The offsets (g) to add to `n` consecutive accelerometer means of
+    /// noise σ `sigma_accel` (g), seeded by `seed`.
+    pub fn offsets(&self, n: usize, sigma_accel: f64, seed: u64) -> Vec<[f64; 3]> {
+        use rand_distr::{Distribution, StandardNormal};
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x6163_6365_6c64_6566);
+        let extra = sigma_accel * (self.accel_noise_scale.powi(2) - 1.0).max(0.0).sqrt();
+        let bias = self.accel_bias_ug.unwrap_or([0.0; 3]).map(|b| b * 1e-6);
+        (0..n)
+            .map(|_| {
+                let mut o = bias;
+                if extra > 0.0 {
+                    for v in &mut o {
+                        let e: f64 = StandardNormal.sample(&mut rng);
+                        *v += extra * e;
+                    }
+                }
+                o
+            })
+            .collect()
+    }
+}
+
+fn parse_scale(s: &str) -> Result<f64, String> {
+    let k: f64 = s.parse().map_err(|_| format!("'{s}' is not a number"))?;
+    if k.is_finite() && (1.0..=1e3).contains(&k) {
+        Ok(k)
+    } else {
+        Err(format!("noise scale {k} is not in [1, 1000]"))
+    }
+}
+
+fn parse_triple(s: &str) -> Result<[f64; 3], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|p| p.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("'{s}' is not X,Y,Z (three numbers)"))?;
+    match v.as_slice() {
+        [x, y, z] if v.iter().all(|c| c.is_finite() && c.abs() <= 1e5) => Ok([*x, *y, *z]),
+        _ => Err(format!(
+            "'{s}' is not X,Y,Z (three finite numbers, at most 1e5 µg each)"
+        )),
+    }
 }
 
 impl Default for Impairments {
@@ -52,6 +134,7 @@ impl Default for Impairments {
             bit_flips: 0.0,
             outliers: 0.0,
             outlier_sigma: 100.0,
+            accel: AccelDefects::default(),
         }
     }
 }
@@ -114,9 +197,10 @@ impl Impairments {
             || !self.clock_steps.is_empty()
             || self.bit_flips > 0.0
             || self.outliers > 0.0
+            || self.accel.any()
     }
 
-    /// Steps 1–3 on the samples of a run (accelerometer noise σ `sigma_accel`
+    /// Steps 0–3 on the samples of a run (accelerometer noise σ `sigma_accel`
     /// g), seeded by `seed`.
     pub fn apply_to_samples(
         &self,
@@ -125,6 +209,14 @@ impl Impairments {
         seed: u64,
         applied: &mut Applied,
     ) {
+        if self.accel.any() {
+            let offsets = self.accel.offsets(samples.len(), sigma_accel, seed);
+            for (s, o) in samples.iter_mut().zip(offsets) {
+                for (a, d) in s.accel_mean.iter_mut().zip(o) {
+                    *a = (f64::from(*a) + d) as f32;
+                }
+            }
+        }
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x6f75_746c_6965_7273);
         if self.outliers > 0.0 {
             for s in samples.iter_mut() {
@@ -242,5 +334,26 @@ mod tests {
         assert!(parse_burst("10:-1").is_err());
         assert!(parse_clock_step("5:inf").is_err());
         assert_eq!(parse_clock_step("1801:2.5"), Ok((1801, 2.5)));
+        assert!(parse_scale("0.5").is_err() && parse_scale("nan").is_err());
+        assert_eq!(parse_triple("10, 0,-3"), Ok([10.0, 0.0, -3.0]));
+        assert!(parse_triple("1,2").is_err() && parse_triple("1,2,inf").is_err());
+    }
+
+    #[test]
+    fn accel_defects_add_the_bias_and_the_extra_noise() {
+        let d = AccelDefects {
+            accel_noise_scale: 3.0,
+            accel_bias_ug: Some([10.0, 0.0, -5.0]),
+        };
+        let o = d.offsets(20_000, 1e-6, 1);
+        for (c, b) in [10e-6, 0.0, -5e-6].iter().enumerate() {
+            let m = o.iter().map(|v| v[c]).sum::<f64>() / o.len() as f64;
+            let var = o.iter().map(|v| (v[c] - m).powi(2)).sum::<f64>() / o.len() as f64;
+            assert!((m - b).abs() < 1e-7, "{c}: mean {m}");
+            // Extra variance 8σ²: 9σ² in all with the simulator's σ².
+            assert!((var / 8e-12 - 1.0).abs() < 0.05, "{c}: var {var}");
+        }
+        assert!(!AccelDefects::default().any());
+        assert!(AccelDefects::default().offsets(3, 1e-6, 1) == vec![[0.0; 3]; 3]);
     }
 }

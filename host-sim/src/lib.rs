@@ -6,6 +6,7 @@
 //! - [`runner`]: runs any configuration's estimator over a simulated run;
 //! - [`segments`]: path segments recovered from the commanded increments;
 //! - [`report`]: tables, JSON and CSV of runs;
+//! - [`checks`]: the data judged against the model without a truth (NIS, whiteness, bias);
 //! - [`compensation`]: the calibrated matrices and the compensation of the
 //!   raw outputs (`--matrices`);
 //! - [`observe`]: the observability analysis of every configuration;
@@ -21,6 +22,7 @@
 //! - [`verdict`]: the verdict words of every table;
 //! - [`progress`]: progress on stderr (a bar on a terminal, lines in a log).
 
+pub mod checks;
 pub mod compensation;
 pub mod csvlog;
 pub mod design;

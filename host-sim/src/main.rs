@@ -55,6 +55,10 @@ enum Command {
     /// Run the calibrator on a frame stream from a file, stdin or a serial
     /// port, or on a CSV log with a platform file (docs/csv.md).
     Calibrate(host_sim::stream::CalibrateArgs),
+    /// False-alarm and detection rates of calibrate's data checks (without a
+    /// truth) over seeds: a clean stream, accelerometer noise 3×, an
+    /// unmodelled accelerometer bias.
+    Checks(host_sim::checks::ChecksArgs),
     /// The whole paper regenerated (the default): observability tables with
     /// the Earth rate on and off, all seven estimator runs, one PNG figure
     /// per configuration and parameter group, summary.md and summary.json.
@@ -262,7 +266,13 @@ fn main() -> ExitCode {
         Some(Command::Paper(args)) => cmd_paper(&args),
         Some(Command::Design(args)) => host_sim::design::command(&args),
         Some(Command::Record(args)) => host_sim::stream::record(&args),
-        Some(Command::Calibrate(args)) => host_sim::stream::calibrate(&args),
+        Some(Command::Calibrate(args)) => match host_sim::stream::calibrate_judged(&args) {
+            // A data-model warning: its own exit status (README "Judging a
+            // calibration without a truth").
+            Ok(v) if v.is_warning() => return ExitCode::from(host_sim::checks::WARNING_EXIT),
+            r => r.map(|_| ()),
+        },
+        Some(Command::Checks(args)) => host_sim::checks::command(&args),
         None => cmd_paper(&PaperArgs {
             scenario: None,
             seed: 1,

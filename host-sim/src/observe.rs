@@ -145,13 +145,7 @@ fn analyse_typed<M: Model<N, Z>, const N: usize, const Z: usize>(
         .enumerate()
         .map(|(i, info)| {
             let structural = part[i] > COEF_THRESHOLD;
-            let verdict = if structural {
-                Verdict::StructurallyUnobservable
-            } else if ratio[i] < PRACTICAL_RATIO {
-                Verdict::Observable
-            } else {
-                Verdict::WeaklyObservable
-            };
+            let verdict = Verdict::of_bound(structural, ratio[i]);
             StateObs {
                 name: info.name,
                 group: info.group,

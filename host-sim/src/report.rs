@@ -69,6 +69,35 @@ pub fn print_table(r: &RunResult, crlb: &[f64]) {
             verdict
         );
     }
+    print_failures_and_nis(r);
+}
+
+/// Prints the final table of a run without a truth: per state the
+/// estimate and σ, the bound σ at the estimate along the received path
+/// (`bound`), σ/bound and the observability verdict of that bound
+/// (`verdicts`: [`crate::verdict::Verdict::of_bound`]); never a truth
+/// column or `FAILED`. Then the failures and the mean NIS as
+/// [`print_table`].
+pub fn print_table_no_truth(r: &RunResult, bound: &[f64], verdicts: &[crate::verdict::Verdict]) {
+    println!(
+        "{:<11} {:>12} {:>10} {:>10} {:>8}  verdict (the bound at the estimate, received path)",
+        "state", "estimate ″", "σ ″", "bound ″", "σ/bound"
+    );
+    for ((s, b), v) in r.states.iter().zip(bound).zip(verdicts) {
+        println!(
+            "{:<11} {:>12.3} {:>10.4} {:>10.4} {:>8.3}  {}",
+            s.name,
+            s.estimate_rad / ARCSEC,
+            s.sigma_rad / ARCSEC,
+            b / ARCSEC,
+            s.sigma_rad / b,
+            v
+        );
+    }
+    print_failures_and_nis(r);
+}
+
+fn print_failures_and_nis(r: &RunResult) {
     if !r.failures.is_empty() {
         println!(
             "{} updates failed; first: period {} ({})",

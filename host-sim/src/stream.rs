@@ -7,7 +7,9 @@
 //! the firmware would send them. The stream carries no truth; `--truth PATH`
 //! writes it to a JSON sidecar (true final states and Cramér–Rao σ of the
 //! recorded configuration) that `calibrate --truth PATH` reads to fill the
-//! truth and σ_CRLB columns (NaN without it).
+//! truth and σ_CRLB columns. Without it, `calibrate` prints the estimate,
+//! σ and the bound at the estimate with its observability verdict, and
+//! judges the data against the model ([`crate::checks`]).
 //!
 //! `record --format csv` writes the same samples as a CSV log
 //! ([`crate::csvlog`], docs/csv.md), without the `Configure`; `calibrate`
@@ -38,12 +40,15 @@ use rollcal::wire::{
     MAX_FRAME_LEN,
 };
 
+use crate::checks::{self, DataVerdict};
 use crate::progress::Progress;
-use crate::report::{print_table, run_json, write_json};
+use crate::report::{print_table, print_table_no_truth, run_json, write_json};
 use crate::runner::{self, Passes, RunResult};
 use crate::scenario::{Platform, Scenario, DEG};
 use crate::segments;
 use crate::truth::{simulate, truth_state, PeriodSample, SimOptions};
+use crate::verdict::Verdict;
+use rollcal::observability::Observability;
 
 /// Arguments of `host-sim record`.
 #[derive(clap::Args, Clone, Debug)]
@@ -646,14 +651,95 @@ fn frames_json(s: &DecoderStats) -> serde_json::Value {
 
 /// `host-sim calibrate`.
 pub fn calibrate(args: &CalibrateArgs) -> Result<(), String> {
+    calibrate_judged(args).map(|_| ())
+}
+
+/// `host-sim calibrate`, returning the verdict of the data checks
+/// ([`crate::checks::judge`]; `main` exits with
+/// [`crate::checks::WARNING_EXIT`] on a warning).
+pub fn calibrate_judged(args: &CalibrateArgs) -> Result<DataVerdict, String> {
     match args.precision {
         runner::Precision::F64 => calibrate_in::<f64>(args),
         runner::Precision::F32 => calibrate_in::<f32>(args),
     }
 }
 
+/// The bound σ (rad) of every state at the estimate along the received
+/// path, and the observability verdict of each, for `calibrate` without a
+/// truth. The initial state is the estimator of record's own start of the
+/// log: the final estimate `x_end` integrated back through every record
+/// ([`rollcal::estimator::back_propagate`], what the next linearised pass
+/// would start from); the bound is [`runner::bound`]'s recursion
+/// ([`Observability`]) from it; the null space is that of the information
+/// matrix along the same records linearised at zero state (as
+/// `observability`), the verdict [`Verdict::of_bound`].
+/// With `x_end` `None` the bound starts at `x_start` instead.
+fn bound_at_estimate(
+    id: ConfigId,
+    cfg: FilterConfig<f64>,
+    x_end: Option<&[f64]>,
+    x_start: &[f64],
+    sigma0: f64,
+    records: &[LogRecord<f64>],
+) -> Result<(Vec<f64>, Vec<Verdict>), String> {
+    fn typed<M: Model<N, Z>, const N: usize, const Z: usize>(
+        id: ConfigId,
+        cfg: FilterConfig<f64>,
+        x_end: Option<&[f64]>,
+        x_start: &[f64],
+        sigma0: f64,
+        records: &[LogRecord<f64>],
+    ) -> Result<(Vec<f64>, Vec<Verdict>), String> {
+        use rollcal::observability::{COEF_THRESHOLD, RANK_TOLERANCE};
+        let vector = |v: &[f64]| {
+            nalgebra::SVector::<f64, N>::from_iterator(
+                v.iter().copied().chain(std::iter::repeat(0.0)),
+            )
+        };
+        let x0 = match x_end {
+            None => vector(x_start),
+            Some(x_end) => {
+                let mut frame = rollcal::command::CommandFrame::aligned(cfg.env.earth_rate_n);
+                for r in records.iter().filter(|r| r.has_valid_period()) {
+                    let p = frame.period(&r.dtheta_cmd, r.dt);
+                    frame.advance(&p);
+                }
+                let mut storage = records.to_vec();
+                let mut log = rollcal::estimator::SliceLog::from_records(&mut storage);
+                rollcal::estimator::back_propagate::<f64, N, _>(
+                    id.layout(),
+                    &cfg.env,
+                    &vector(x_end),
+                    &frame,
+                    &mut log,
+                )
+                .map_err(|e| format!("the start of the log: {e}"))?
+                .0
+            }
+        };
+        let prior = nalgebra::SVector::<f64, N>::repeat(sigma0);
+        let e = |e: ekf::Error| format!("the bound at the estimate: {e}");
+        let mut at = Observability::<f64, M, N, Z>::new(cfg, x0, prior).map_err(e)?;
+        let mut zero = Observability::<f64, M, N, Z>::new(cfg, nalgebra::SVector::zeros(), prior)
+            .map_err(e)?;
+        for r in records {
+            at.record(r).map_err(e)?;
+            zero.record(r).map_err(e)?;
+        }
+        let part = zero.analyse(RANK_TOLERANCE).map_err(e)?.participation();
+        let ratio = at.ratio();
+        let verdicts = (0..N)
+            .map(|i| Verdict::of_bound(part[i] > COEF_THRESHOLD, ratio[i]))
+            .collect();
+        Ok((at.crlb_sigma().iter().copied().collect(), verdicts))
+    }
+    rollcal::with_config!(id, |M, N, Z| typed::<M, N, Z>(
+        id, cfg, x_end, x_start, sigma0, records
+    ))
+}
+
 /// `host-sim calibrate` with the calibrator's covariance arithmetic in `T`.
-fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<(), String> {
+fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<DataVerdict, String> {
     let t0 = Clock::now();
     if let Some(dir) = &args.report {
         crate::html::prepare_dir(dir)?;
@@ -912,7 +998,34 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<(), String>
         truth,
         sigma0,
     );
-    print_table(&r, crlb);
+    // Without a truth: the bound at the estimate and its verdict, never
+    // FAILED (README "Judging a calibration without a truth").
+    let at_estimate = if sidecar.is_none() {
+        let records = host.log.records_f64();
+        // A log that is not the whole run (re-acquired attitude, full log)
+        // has no known start: the bound along the logged records from the
+        // cold start (zero state, as pass 1), said so.
+        let zeros = vec![0.0; id.layout().n()];
+        let end = if p.log_incomplete.is_some() {
+            eprintln!(
+                "note: the log is not the whole run: the bound is taken from the cold start along the {} logged samples only (of {} accepted)",
+                records.len(),
+                p.accepted
+            );
+            None
+        } else {
+            Some(state.as_slice())
+        };
+        let (b, v) =
+            bound_at_estimate(id, filter_config(&settings), end, &zeros, sigma0, &records)?;
+        print_table_no_truth(&r, &b, &v);
+        Some((b, v))
+    } else {
+        print_table(&r, crlb);
+        None
+    };
+    let judgement = checks::judge(&r);
+    checks::print(&judgement);
     let rj = reject_json(&p.rejects);
     let frames = if format == Format::Csv {
         "CSV log".to_string()
@@ -973,6 +1086,14 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<(), String>
             }),
             _ => serde_json::json!({"kind": "single_pass", "reason": "--passes 1"}),
         };
+        if let Some((b, v)) = &at_estimate {
+            json["bound_at_estimate_sigma_rad"] = serde_json::json!(b);
+            json["observability"] = serde_json::json!(v);
+        }
+        let j = judgement.json();
+        json["checks"] = j["checks"].clone();
+        json["data_verdict"] = j["data_verdict"].clone();
+        json["data_false_alarm"] = j["false_alarm"].clone();
         json["pass1"] = serde_json::json!({
             "seq": est.seq,
             "updates": est.updates,
@@ -1062,11 +1183,12 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<(), String>
             crlb,
             crlb_history.as_deref(),
             sidecar.is_some(),
+            &judgement,
             header,
         )?;
         eprintln!("report: {}", page.display());
     }
-    Ok(())
+    Ok(judgement.verdict)
 }
 
 /// The calibrator's final values as a [`runner::DynFilter`], for the report.

@@ -4,6 +4,8 @@
 
 use std::fmt;
 
+pub use rollcal::observability::PRACTICAL_RATIO;
+
 /// What a run or an analysis says of one state.
 ///
 /// The JSON values (`serde`) are an interface and stay as they were:
@@ -59,6 +61,22 @@ impl Verdict {
             Verdict::Converged | Verdict::Failed | Verdict::Observable => "yes",
             Verdict::WeaklyObservable => "weak",
             Verdict::StructurallyUnobservable | Verdict::NotObservable => "no",
+        }
+    }
+
+    /// The verdict of an observability analysis on one state: in the null
+    /// space of the information matrix (`structural`), else observable in
+    /// practice when its bound is below [`PRACTICAL_RATIO`] of the prior
+    /// (`ratio = σ_bound / σ_prior`), else weakly observable. `observability`
+    /// (σ_CRLB along the true path) and `calibrate` without a truth (the
+    /// bound at the estimate along the received path) both use it.
+    pub fn of_bound(structural: bool, ratio: f64) -> Verdict {
+        if structural {
+            Verdict::StructurallyUnobservable
+        } else if ratio < PRACTICAL_RATIO {
+            Verdict::Observable
+        } else {
+            Verdict::WeaklyObservable
         }
     }
 

@@ -89,7 +89,8 @@ fn run_report_has_table_figures_and_checks() {
         "<th>truth ″</th>",
         "<th>σ_CRLB ″</th>",
         "Consistency checks",
-        "mean NIS",
+        "<td class=\"l\">nis</td>",
+        "<td class=\"l\">whiteness</td>",
         "data-report-check=\"pending\"",
         "3 path segment(s)",
     ] {

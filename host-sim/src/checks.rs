@@ -1,0 +1,843 @@
+//! Judging a calibration without a truth: does the data fit the model?
+//!
+//! The estimator's last pass (a filter linearised about the previous pass's
+//! estimate, [`rollcal::estimator`]) produces, for every accepted update, the
+//! normalised innovation squared (NIS) and the whitened innovation `L⁻¹ν`
+//! ([`crate::runner::Update`]). When the model (the platform file's noise
+//! levels, the configuration's instrument model) holds, the whitened
+//! components are independent, zero-mean and of unit variance. [`judge`]
+//! tests that:
+//!
+//! - **`nis`**: the mean NIS over `n` updates of `z` components, `n·NIS̄ ~
+//!   χ²(n·z)`, against its two-sided band, over the whole log and per path
+//!   segment (a wrong noise level);
+//! - **`whiteness`**: the lag-1 autocorrelation `r₁ = Σ wₖwₖ₊₁ / Σ wₖ²` of
+//!   every whitened component over the whole log, `≈ N(0, 1/n)`, against
+//!   `±z/√n` (correlated noise, an unmodelled slow error);
+//! - **`bias`**: the mean of every whitened component per path segment,
+//!   `≈ N(0, 1/n_seg)`, against `±z/√n_seg` (an unmodelled constant error:
+//!   the estimator absorbs what it can of it into the installation angles,
+//!   but not the same way on every segment).
+//!
+//! Every check is two-sided at the same significance `α / m`, `m` the
+//! number of checks made (Bonferroni), so the whole judgement of a clean
+//! log raises a false alarm with probability at most [`FALSE_ALARM`]. The
+//! thresholds are here and nowhere else.
+
+use std::fmt;
+
+use crate::runner::{RunResult, Update};
+
+/// The false-alarm probability of the whole judgement (all checks
+/// together) on data that fit the model.
+pub const FALSE_ALARM: f64 = 0.01;
+
+/// A segment with fewer accepted updates than this is not checked on its
+/// own (its updates still count in the overall checks).
+pub const MIN_SEGMENT_UPDATES: usize = 30;
+
+/// Exit status of `calibrate` when the data do not fit the model (a
+/// [`DataVerdict::Warning`]); 0 is `consistent`, 1 an error, 2 bad
+/// arguments.
+pub const WARNING_EXIT: u8 = 3;
+
+/// One check of the data against the model.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Check {
+    /// `"nis"`, `"whiteness"` or `"bias"`.
+    pub name: &'static str,
+    /// Where: `"overall"` or `"segment 2 (t 1800–2700 s)"`, with the
+    /// component for whiteness and bias, e.g. `"overall, accel y"`.
+    pub scope: String,
+    /// The statistic: mean NIS, lag-1 autocorrelation or mean whitened
+    /// innovation.
+    pub statistic: f64,
+    /// The acceptance band `(lower, upper)` of the statistic.
+    pub band: (f64, f64),
+    /// Whether the statistic is inside the band.
+    pub passed: bool,
+    /// A short explanation (the number of updates, the distribution).
+    pub detail: String,
+}
+
+/// The verdict on the data.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[serde(rename_all = "snake_case", tag = "verdict")]
+pub enum DataVerdict {
+    /// Every check passed.
+    Consistent,
+    /// At least one check failed: the failed checks, worst first (by
+    /// how far outside its band, in band half-widths).
+    Warning {
+        /// The failed checks.
+        failed: Vec<Check>,
+    },
+    /// The checks could not be made (no accepted update of a final pass,
+    /// e.g. `--passes 1`): the reason.
+    NotChecked {
+        /// Why.
+        reason: String,
+    },
+}
+
+impl DataVerdict {
+    /// Whether the verdict is a warning.
+    pub fn is_warning(&self) -> bool {
+        matches!(self, DataVerdict::Warning { .. })
+    }
+    /// The JSON word: `consistent`, `warning` or `not_checked`.
+    pub fn word(&self) -> &'static str {
+        match self {
+            DataVerdict::Consistent => "consistent",
+            DataVerdict::Warning { .. } => "warning",
+            DataVerdict::NotChecked { .. } => "not_checked",
+        }
+    }
+}
+
+impl fmt::Display for DataVerdict {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            DataVerdict::Consistent => f.write_str("consistent"),
+            DataVerdict::NotChecked { reason } => write!(f, "not checked: {reason}"),
+            DataVerdict::Warning { failed } => {
+                f.write_str("warning:")?;
+                for (i, c) in failed.iter().take(3).enumerate() {
+                    let sep = if i == 0 { " " } else { "; " };
+                    write!(
+                        f,
+                        "{sep}{} {} ({:.4} outside [{:.4}, {:.4}])",
+                        c.name, c.scope, c.statistic, c.band.0, c.band.1
+                    )?;
+                }
+                if failed.len() > 3 {
+                    write!(f, "; and {} more", failed.len() - 3)?;
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
+/// All checks and the verdict.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Judgement {
+    /// Every check made, in order: NIS, whiteness, bias.
+    pub checks: Vec<Check>,
+    /// The verdict.
+    pub verdict: DataVerdict,
+    /// The significance of each check (`FALSE_ALARM / checks.len()`).
+    pub alpha_each: f64,
+}
+
+impl Judgement {
+    /// The JSON of the judgement: `{"false_alarm", "alpha_each", "checks",
+    /// "data_verdict": {"verdict", "failed"|"reason"}}`.
+    pub fn json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "false_alarm": FALSE_ALARM,
+            "alpha_each": self.alpha_each,
+            "checks": self.checks,
+            "data_verdict": self.verdict,
+        })
+    }
+}
+
+/// Standard normal quantile `Φ⁻¹(p)`, `0 < p < 1` (Acklam's rational
+/// approximation, relative error below 1.2e-9; NaN outside (0, 1)).
+pub fn normal_quantile(p: f64) -> f64 {
+    if !(p > 0.0 && p < 1.0) {
+        return f64::NAN;
+    }
+    const A: [f64; 6] = [
+        -3.969683028665376e1,
+        2.209460984245205e2,
+        -2.759285104469687e2,
+        1.383_577_518_672_69e2,
+        -3.066479806614716e1,
+        2.506628277459239,
+    ];
+    const B: [f64; 5] = [
+        -5.447609879822406e1,
+        1.615858368580409e2,
+        -1.556989798598866e2,
+        6.680131188771972e1,
+        -1.328068155288572e1,
+    ];
+    const C: [f64; 6] = [
+        -7.784894002430293e-3,
+        -3.223964580411365e-1,
+        -2.400758277161838,
+        -2.549732539343734,
+        4.374664141464968,
+        2.938163982698783,
+    ];
+    const D: [f64; 4] = [
+        7.784695709041462e-3,
+        3.224671290700398e-1,
+        2.445134137142996,
+        3.754408661907416,
+    ];
+    let tail = |q: f64| {
+        (((((C[0] * q + C[1]) * q + C[2]) * q + C[3]) * q + C[4]) * q + C[5])
+            / ((((D[0] * q + D[1]) * q + D[2]) * q + D[3]) * q + 1.0)
+    };
+    if p < 0.02425 {
+        tail((-2.0 * p.ln()).sqrt())
+    } else if p > 1.0 - 0.02425 {
+        -tail((-2.0 * (1.0 - p).ln()).sqrt())
+    } else {
+        let q = p - 0.5;
+        let r = q * q;
+        (((((A[0] * r + A[1]) * r + A[2]) * r + A[3]) * r + A[4]) * r + A[5]) * q
+            / (((((B[0] * r + B[1]) * r + B[2]) * r + B[3]) * r + B[4]) * r + 1.0)
+    }
+}
+
+/// The `p` quantile of χ²(k) by the Wilson–Hilferty approximation
+/// `k (1 − 2/(9k) + z_p √(2/(9k)))³` (relative error below 1 % for k ≥ 10
+/// in the tails used here, far smaller for the thousands of degrees of
+/// freedom of a log).
+pub fn chi2_quantile(p: f64, k: f64) -> f64 {
+    let a = 2.0 / (9.0 * k);
+    let c = 1.0 - a + normal_quantile(p) * a.sqrt();
+    k * c.max(0.0).powi(3)
+}
+
+/// The names of the whitened components of a measurement of `z`
+/// components (M2: gimbal α, β, γ then accelerometer x, y, z).
+pub fn component_names(z: usize) -> Vec<String> {
+    match z {
+        3 => ["accel x", "accel y", "accel z"].map(String::from).to_vec(),
+        6 => [
+            "gimbal alpha",
+            "gimbal beta",
+            "gimbal gamma",
+            "accel x",
+            "accel y",
+            "accel z",
+        ]
+        .map(String::from)
+        .to_vec(),
+        _ => (1..=z).map(|i| format!("component {i}")).collect(),
+    }
+}
+
+/// A group of updates to check: a scope and the updates.
+struct Group<'a> {
+    scope: String,
+    updates: Vec<&'a Update>,
+}
+
+/// The checks of the last pass's updates of `r` and the verdict
+/// (see the [module docs](self)).
+pub fn judge(r: &RunResult) -> Judgement {
+    judge_updates(&r.updates, &r.segments)
+}
+
+/// [`judge`] of updates and segments.
+pub fn judge_updates(
+    updates: &[Update],
+    segments: &[crate::segments::CommandSegment],
+) -> Judgement {
+    let z = updates.iter().map(|u| u.white.len()).max().unwrap_or(0);
+    let ups: Vec<&Update> = updates.iter().filter(|u| u.white.len() == z).collect();
+    if z == 0 || ups.len() < 2 {
+        return Judgement {
+            checks: Vec::new(),
+            verdict: DataVerdict::NotChecked {
+                reason: "no innovations of a final pass: the checks need the final passes (not run with --passes 1, or when the log is not the whole run)".into(),
+            },
+            alpha_each: f64::NAN,
+        };
+    }
+    let names = component_names(z);
+    let mut groups = vec![Group {
+        scope: "overall".into(),
+        updates: ups.clone(),
+    }];
+    if segments.len() > 1 {
+        for (i, s) in segments.iter().enumerate() {
+            let u: Vec<&Update> = ups
+                .iter()
+                .copied()
+                .filter(|u| (s.first..s.end).contains(&u.index))
+                .collect();
+            if u.len() >= MIN_SEGMENT_UPDATES {
+                groups.push(Group {
+                    scope: format!("segment {} (t {:.0}–{:.0} s)", i + 1, s.t0_s, s.t1_s),
+                    updates: u,
+                });
+            }
+        }
+    }
+    // m checks: NIS per group, whiteness per component overall, bias per
+    // component per segment group.
+    let segs = groups.len() - 1;
+    let m = groups.len() + z + z * segs;
+    let alpha = FALSE_ALARM / m as f64;
+    let zq = normal_quantile(1.0 - alpha / 2.0);
+    let mut checks = Vec::with_capacity(m);
+    for g in &groups {
+        let n = g.updates.len() as f64;
+        let dof = n * z as f64;
+        let mean = g.updates.iter().map(|u| u.nis).sum::<f64>() / n;
+        let band = (
+            chi2_quantile(alpha / 2.0, dof) / n,
+            chi2_quantile(1.0 - alpha / 2.0, dof) / n,
+        );
+        checks.push(check(
+            "nis",
+            g.scope.clone(),
+            mean,
+            band,
+            format!(
+                "{} updates, n·NIS̄ ~ χ²({dof:.0}), expected {z}",
+                g.updates.len()
+            ),
+        ));
+    }
+    let overall = &groups[0].updates;
+    for (c, name) in names.iter().enumerate() {
+        let w: Vec<f64> = overall.iter().map(|u| u.white[c]).collect();
+        let num: f64 = w.windows(2).map(|p| p[0] * p[1]).sum();
+        let den: f64 = w.iter().map(|v| v * v).sum();
+        let r1 = if den > 0.0 { num / den } else { f64::NAN };
+        let h = zq / (w.len() as f64).sqrt();
+        checks.push(check(
+            "whiteness",
+            format!("overall, {name}"),
+            r1,
+            (-h, h),
+            format!("lag-1 autocorrelation of {} updates, ≈ N(0, 1/n)", w.len()),
+        ));
+    }
+    for g in groups.iter().skip(1) {
+        let n = g.updates.len() as f64;
+        for (c, name) in names.iter().enumerate() {
+            let mean = g.updates.iter().map(|u| u.white[c]).sum::<f64>() / n;
+            let h = zq / n.sqrt();
+            checks.push(check(
+                "bias",
+                format!("{}, {name}", g.scope),
+                mean,
+                (-h, h),
+                format!(
+                    "mean whitened innovation of {} updates, ≈ N(0, 1/n)",
+                    g.updates.len()
+                ),
+            ));
+        }
+    }
+    let mut failed: Vec<Check> = checks.iter().filter(|c| !c.passed).cloned().collect();
+    failed.sort_by(|a, b| excess(b).total_cmp(&excess(a)));
+    let verdict = if failed.is_empty() {
+        DataVerdict::Consistent
+    } else {
+        DataVerdict::Warning { failed }
+    };
+    Judgement {
+        checks,
+        verdict,
+        alpha_each: alpha,
+    }
+}
+
+/// How far outside its band a check's statistic is, in band half-widths
+/// (NaN: infinitely far).
+fn excess(c: &Check) -> f64 {
+    let half = 0.5 * (c.band.1 - c.band.0);
+    let mid = 0.5 * (c.band.1 + c.band.0);
+    let e = (c.statistic - mid).abs() / half;
+    if e.is_nan() {
+        f64::INFINITY
+    } else {
+        e
+    }
+}
+
+fn check(
+    name: &'static str,
+    scope: String,
+    statistic: f64,
+    band: (f64, f64),
+    detail: String,
+) -> Check {
+    Check {
+        name,
+        scope,
+        statistic,
+        band,
+        passed: statistic >= band.0 && statistic <= band.1,
+        detail,
+    }
+}
+
+/// Prints the checks as a compact table (the failed ones marked) and the
+/// verdict line.
+pub fn print(j: &Judgement) {
+    if !j.checks.is_empty() {
+        println!(
+            "data against the model ({} checks, each at α = {:.1e}: a clean log is flagged with probability ≤ {}):",
+            j.checks.len(),
+            j.alpha_each,
+            FALSE_ALARM
+        );
+        println!(
+            "  {:<10} {:<42} {:>10} {:>22}  result",
+            "check", "scope", "statistic", "band"
+        );
+        // Every NIS and whiteness check, and the failed bias checks; the
+        // passed bias checks as one line.
+        let mut passed_bias = 0;
+        for c in &j.checks {
+            if c.name == "bias" && c.passed {
+                passed_bias += 1;
+                continue;
+            }
+            println!(
+                "  {:<10} {:<42} {:>10.4} {:>22}  {}",
+                c.name,
+                c.scope,
+                c.statistic,
+                format!("[{:.4}, {:.4}]", c.band.0, c.band.1),
+                if c.passed { "pass" } else { "FAIL" }
+            );
+        }
+        if passed_bias > 0 {
+            println!("  bias       {passed_bias} segment × component checks passed");
+        }
+    }
+    println!("data verdict: {}", j.verdict);
+}
+
+/// The cases of [`rates`]: a clean stream and the two defects of issue 11.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Case {
+    /// Label, e.g. `"accel noise 3×"`.
+    pub label: &'static str,
+    /// The defect applied to the simulated accelerometer means.
+    #[serde(skip)]
+    pub defect: crate::impair::AccelDefects,
+}
+
+/// The three cases: clean, accelerometer noise 3× the platform's, an
+/// unmodelled constant bias of `bias_ug` (µg per axis, instrument frame).
+pub fn cases(bias_ug: [f64; 3]) -> [Case; 3] {
+    use crate::impair::AccelDefects;
+    [
+        Case {
+            label: "clean",
+            defect: AccelDefects::default(),
+        },
+        Case {
+            label: "accel noise 3×",
+            defect: AccelDefects {
+                accel_noise_scale: 3.0,
+                accel_bias_ug: None,
+            },
+        },
+        Case {
+            label: "accel bias",
+            defect: AccelDefects {
+                accel_noise_scale: 1.0,
+                accel_bias_ug: Some(bias_ug),
+            },
+        },
+    ]
+}
+
+/// The outcome of one case over the seeds.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Rate {
+    /// The case.
+    pub case: String,
+    /// Seeds run.
+    pub seeds: usize,
+    /// Seeds whose judgement was a warning.
+    pub flagged: usize,
+    /// Per check name, the seeds in which that check failed.
+    pub by_check: Vec<(&'static str, usize)>,
+    /// Seeds whose estimator failed (counted as not flagged).
+    pub errors: usize,
+    /// The flagged seeds, each with its worst failed check
+    /// (`"<name> <scope>: <statistic> outside [lo, hi]"`).
+    pub flagged_seeds: Vec<(u64, String)>,
+}
+
+/// The judgement of one simulated run of configuration `id` with `defect`
+/// on its accelerometer means, the estimator told the scenario's noise.
+pub fn judge_simulated(
+    id: rollcal::models::ConfigId,
+    scenario: &crate::scenario::Scenario,
+    seed: u64,
+    defect: &crate::impair::AccelDefects,
+) -> Result<Judgement, String> {
+    use crate::truth::{simulate, SimOptions};
+    let earth_rate = scenario.site.earth_rate;
+    let mut sim = simulate(
+        scenario,
+        SimOptions {
+            seed,
+            noise: true,
+            earth_rate,
+        },
+    );
+    let offsets = defect.offsets(sim.samples.len(), scenario.noise.accel_g, seed);
+    for (s, o) in sim.samples.iter_mut().zip(offsets) {
+        for (a, d) in s.accel_mean.iter_mut().zip(o) {
+            *a += d;
+        }
+    }
+    let r = crate::runner::run_filter(
+        id,
+        scenario,
+        &sim,
+        earth_rate,
+        crate::runner::Estimator::default(),
+        None,
+        false,
+    )
+    .map_err(|e| format!("{id} seed {seed}: {e}"))?;
+    Ok(judge(&r))
+}
+
+/// False-alarm and detection rates: every case over seeds `1..=seeds`, in
+/// parallel (rayon), `progress` called after every run.
+pub fn rates(
+    id: rollcal::models::ConfigId,
+    scenario: &crate::scenario::Scenario,
+    seeds: u64,
+    cases: &[Case],
+    progress: &(dyn Fn() + Sync),
+) -> Vec<Rate> {
+    use rayon::prelude::*;
+    let jobs: Vec<(usize, u64)> = (0..cases.len())
+        .flat_map(|c| (1..=seeds).map(move |s| (c, s)))
+        .collect();
+    let out: Vec<(usize, u64, Option<Judgement>)> = jobs
+        .par_iter()
+        .map(|&(c, seed)| {
+            let j = judge_simulated(id, scenario, seed, &cases[c].defect).ok();
+            progress();
+            (c, seed, j)
+        })
+        .collect();
+    cases
+        .iter()
+        .enumerate()
+        .map(|(c, case)| {
+            let mine: Vec<&Option<Judgement>> = out
+                .iter()
+                .filter(|(k, _, _)| *k == c)
+                .map(|(_, _, j)| j)
+                .collect();
+            let flagged_seeds = out
+                .iter()
+                .filter(|(k, _, _)| *k == c)
+                .filter_map(|(_, seed, j)| match j.as_ref().map(|j| &j.verdict) {
+                    Some(DataVerdict::Warning { failed }) => failed.first().map(|f| {
+                        (
+                            *seed,
+                            format!(
+                                "{} {}: {:.4} outside [{:.4}, {:.4}]",
+                                f.name, f.scope, f.statistic, f.band.0, f.band.1
+                            ),
+                        )
+                    }),
+                    _ => None,
+                })
+                .collect();
+            let by_check = ["nis", "whiteness", "bias"]
+                .into_iter()
+                .map(|name| {
+                    let n = mine
+                        .iter()
+                        .filter(|j| {
+                            j.as_ref().is_some_and(|j| {
+                                j.checks.iter().any(|k| k.name == name && !k.passed)
+                            })
+                        })
+                        .count();
+                    (name, n)
+                })
+                .collect();
+            Rate {
+                case: case.label.to_string(),
+                seeds: mine.len(),
+                flagged: mine
+                    .iter()
+                    .filter(|j| j.as_ref().is_some_and(|j| j.verdict.is_warning()))
+                    .count(),
+                by_check,
+                errors: mine.iter().filter(|j| j.is_none()).count(),
+                flagged_seeds,
+            }
+        })
+        .collect()
+}
+
+/// Arguments of `host-sim checks`.
+#[derive(clap::Args, Clone, Debug)]
+pub struct ChecksArgs {
+    /// Configuration: M1-pa, M1-ps, M2-ps, M3-pa, M3-ps, M4-pa, M4-ps.
+    #[arg(long, value_parser = |s: &str| rollcal::models::ConfigId::parse(s).ok_or_else(|| format!("unknown configuration '{s}'")))]
+    pub config: rollcal::models::ConfigId,
+    /// Seeds 1..=N of every case.
+    #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u64).range(1..=100_000))]
+    pub seeds: u64,
+    /// Scenario file (TOML); default: the paper's scenario.
+    #[arg(long, value_name = "FILE")]
+    pub scenario: Option<std::path::PathBuf>,
+    /// The unmodelled bias of the bias case (µg per axis, instrument frame).
+    #[arg(long, value_name = "X,Y,Z", default_value = "10,10,10", value_parser = parse_bias, allow_hyphen_values = true)]
+    pub bias_ug: [f64; 3],
+    /// Only these cases (repeatable): clean, noise, bias (default: all three).
+    #[arg(long = "case", value_name = "CASE", value_parser = ["clean", "noise", "bias"])]
+    pub cases: Vec<String>,
+    /// Also write the rates as JSON to PATH.
+    #[arg(long, value_name = "PATH")]
+    pub json: Option<std::path::PathBuf>,
+}
+
+fn parse_bias(s: &str) -> Result<[f64; 3], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|p| p.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("'{s}' is not X,Y,Z"))?;
+    match v.as_slice() {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok([*x, *y, *z]),
+        _ => Err(format!("'{s}' is not X,Y,Z (three finite numbers)")),
+    }
+}
+
+/// `host-sim checks`: false-alarm and detection rates of [`judge`] over
+/// seeds, in process (simulate, defect, estimate, judge; no files).
+pub fn command(args: &ChecksArgs) -> Result<(), String> {
+    let scenario = match &args.scenario {
+        Some(p) => crate::scenario::Scenario::from_file(p).map_err(|e| e.to_string())?,
+        None => crate::scenario::Scenario::paper(),
+    };
+    let keys = ["clean", "noise", "bias"];
+    let cases: Vec<Case> = cases(args.bias_ug)
+        .into_iter()
+        .zip(keys)
+        .filter(|(_, k)| args.cases.is_empty() || args.cases.iter().any(|c| c == k))
+        .map(|(c, _)| c)
+        .collect();
+    let total = args.seeds * cases.len() as u64;
+    eprintln!(
+        "{} runs of {} on '{}' ({} cases × {} seeds) with {} threads…",
+        total,
+        args.config,
+        scenario.name,
+        cases.len(),
+        args.seeds,
+        rayon::current_num_threads()
+    );
+    let progress = crate::progress::Progress::stderr("checks", total, "runs");
+    let done = std::sync::atomic::AtomicU64::new(0);
+    let out = rates(args.config, &scenario, args.seeds, &cases, &|| {
+        let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        progress.update(n, "");
+    });
+    progress.finish(done.load(std::sync::atomic::Ordering::Relaxed), "");
+    let b = args.bias_ug;
+    println!(
+        "{} on '{}', seeds 1..={}; the estimator told the scenario's noise; judgement at a stated false-alarm rate of {FALSE_ALARM}",
+        args.config, scenario.name, args.seeds
+    );
+    println!(
+        "{:<28} {:>8} {:>14}   {:>5} {:>9} {:>5}  errors",
+        "case", "seeds", "flagged", "nis", "whiteness", "bias"
+    );
+    for r in &out {
+        let label = if r.case == "accel bias" {
+            format!("accel bias ({}, {}, {}) µg", b[0], b[1], b[2])
+        } else {
+            r.case.clone()
+        };
+        let by = |n: &str| {
+            r.by_check
+                .iter()
+                .find(|(k, _)| *k == n)
+                .map_or(0, |(_, v)| *v)
+        };
+        println!(
+            "{:<28} {:>8} {:>14}   {:>5} {:>9} {:>5}  {}",
+            label,
+            r.seeds,
+            format!(
+                "{}/{} {:.1} %",
+                r.flagged,
+                r.seeds,
+                100.0 * r.flagged as f64 / r.seeds.max(1) as f64
+            ),
+            by("nis"),
+            by("whiteness"),
+            by("bias"),
+            r.errors
+        );
+    }
+    println!("(nis, whiteness, bias: in how many seeds that check failed)");
+    if let Some(clean) = out.iter().find(|r| r.case == "clean") {
+        for (seed, what) in &clean.flagged_seeds {
+            println!("clean seed {seed} flagged: {what}");
+        }
+    }
+    if let Some(path) = &args.json {
+        let v = serde_json::json!({
+            "config": args.config.as_str(),
+            "scenario": scenario.name,
+            "seeds": args.seeds,
+            "false_alarm": FALSE_ALARM,
+            "bias_ug": args.bias_ug,
+            "rates": out,
+        });
+        crate::report::write_json(path, &v)?;
+    }
+    if out.iter().any(|r| r.errors > 0) {
+        return Err("some runs failed (see the errors column)".into());
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::segments::CommandSegment;
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, StandardNormal};
+
+    #[test]
+    fn quantiles_match_tables() {
+        for (p, q) in [
+            (0.975, 1.959_963_984_540_054),
+            (0.995, 2.575_829_303_548_901),
+            (0.5, 0.0),
+            (1e-4, -3.719_016_485_455_68),
+            (1.0 - 1e-6, 4.753_424_308_822_899),
+        ] {
+            assert!(
+                (normal_quantile(p) - q).abs() < 1e-8 * q.abs().max(1.0),
+                "{p}: {}",
+                normal_quantile(p)
+            );
+        }
+        assert!(normal_quantile(0.0).is_nan() && normal_quantile(1.0).is_nan());
+        // χ² tables: (p, k, quantile).
+        for (p, k, q, tol) in [
+            (0.975, 10.0, 20.483, 0.002),
+            (0.025, 10.0, 3.247, 0.01),
+            (0.95, 100.0, 124.342, 0.001),
+            (0.05, 100.0, 77.929, 0.001),
+            (0.999, 1000.0, 1143.917, 0.001),
+        ] {
+            let got = chi2_quantile(p, k);
+            assert!(((got - q) / q).abs() < tol, "χ²({k}) at {p}: {got} vs {q}");
+        }
+    }
+
+    fn updates(n: usize, z: usize, seed: u64, f: impl Fn(usize, &mut [f64])) -> Vec<Update> {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        (0..n)
+            .map(|k| {
+                let mut w: Vec<f64> = (0..z).map(|_| StandardNormal.sample(&mut rng)).collect();
+                f(k, &mut w);
+                Update {
+                    index: k,
+                    t_s: k as f64 + 1.0,
+                    nis: w.iter().map(|v| v * v).sum(),
+                    white: w,
+                }
+            })
+            .collect()
+    }
+
+    fn segs(n: usize, parts: usize) -> Vec<CommandSegment> {
+        (0..parts)
+            .map(|i| CommandSegment {
+                first: i * n / parts,
+                end: (i + 1) * n / parts,
+                t0_s: (i * n / parts) as f64,
+                t1_s: ((i + 1) * n / parts) as f64,
+                rate_rad_s: [0.0; 3],
+            })
+            .collect()
+    }
+
+    #[test]
+    fn white_noise_is_consistent_at_the_stated_rate() {
+        let s = segs(3000, 6);
+        let flagged = (0..200)
+            .filter(|seed| {
+                judge_updates(&updates(3000, 6, *seed, |_, _| {}), &s)
+                    .verdict
+                    .is_warning()
+            })
+            .count();
+        // ≤ 1 % expected (Bonferroni is conservative); 6 of 200 would be
+        // p ≈ 0.02 at 1 %.
+        assert!(flagged <= 6, "{flagged} of 200 clean logs flagged");
+        let j = judge_updates(&updates(3000, 6, 1, |_, _| {}), &s);
+        assert_eq!(j.checks.len(), 7 + 6 + 36);
+        assert!((j.alpha_each - FALSE_ALARM / 49.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn wrong_noise_correlation_and_bias_are_named() {
+        let s = segs(3000, 6);
+        let j = judge_updates(
+            &updates(3000, 6, 1, |_, w| w[4] *= 1.5), // accel y noise 1.5×
+            &s,
+        );
+        let DataVerdict::Warning { failed } = &j.verdict else {
+            panic!("{:?}", j.verdict)
+        };
+        assert_eq!(failed[0].name, "nis");
+        assert!(j.verdict.to_string().starts_with("warning: nis "));
+        // A bias of 0.3σ on accel z in segment 3 only.
+        let j = judge_updates(
+            &updates(3000, 6, 2, |k, w| {
+                if (1000..1500).contains(&k) {
+                    w[5] += 0.3;
+                }
+            }),
+            &s,
+        );
+        let DataVerdict::Warning { failed } = &j.verdict else {
+            panic!("{:?}", j.verdict)
+        };
+        assert_eq!(failed[0].name, "bias");
+        assert_eq!(failed[0].scope, "segment 3 (t 1000–1500 s), accel z");
+        // AR(1) noise, ρ = 0.3, unit variance, on gimbal alpha.
+        let mut prev = 0.0;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        let ar: Vec<f64> = (0..3000)
+            .map(|_| {
+                let e: f64 = StandardNormal.sample(&mut rng);
+                prev = 0.3 * prev + (1.0f64 - 0.09).sqrt() * e;
+                prev
+            })
+            .collect();
+        let j = judge_updates(&updates(3000, 6, 3, |k, w| w[0] = ar[k]), &s);
+        let DataVerdict::Warning { failed } = &j.verdict else {
+            panic!("{:?}", j.verdict)
+        };
+        assert_eq!(
+            (failed[0].name, failed[0].scope.as_str()),
+            ("whiteness", "overall, gimbal alpha")
+        );
+    }
+
+    #[test]
+    fn no_updates_is_not_checked_and_prints() {
+        let j = judge_updates(&[], &[]);
+        assert!(matches!(j.verdict, DataVerdict::NotChecked { .. }));
+        assert!(j.verdict.to_string().contains("final passes"));
+        assert_eq!(DataVerdict::Consistent.to_string(), "consistent");
+        let v = j.json();
+        assert_eq!(v["data_verdict"]["verdict"], "not_checked");
+    }
+}

@@ -1,0 +1,261 @@
+//! `calibrate` without a truth (issue 11, item 2): the table of estimate,
+//! σ and the bound at the estimate, the data checks and their exit status.
+//! Deterministic: every stream is seeded.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use host_sim::checks::{cases, judge_simulated, DataVerdict, WARNING_EXIT};
+use host_sim::scenario::Scenario;
+use rollcal::models::ConfigId;
+
+fn host_sim() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_host-sim"))
+}
+
+fn dir(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("rollcal-checks-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn json_file(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// Records M2-ps, paper scenario, `seed`, with `extra` record options, and
+/// calibrates it without a truth; returns the output and the JSON.
+fn record_and_calibrate(tag: &str, seed: &str, extra: &[&str]) -> (Output, serde_json::Value) {
+    let d = dir(tag);
+    let (bin, json) = (d.join("run.bin"), d.join("cal.json"));
+    let rec = host_sim()
+        .args(["record", "--config", "M2-ps", "--seed", seed])
+        .args(extra)
+        .arg("--out")
+        .arg(&bin)
+        .output()
+        .unwrap();
+    assert!(
+        rec.status.success(),
+        "{}",
+        String::from_utf8_lossy(&rec.stderr)
+    );
+    let out = host_sim()
+        .args(["calibrate", "--input"])
+        .arg(&bin)
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    let v = json_file(&json);
+    let _ = std::fs::remove_dir_all(&d);
+    (out, v)
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn failed_checks(v: &serde_json::Value) -> Vec<(String, String)> {
+    v["data_verdict"]["failed"]
+        .as_array()
+        .map(|a| {
+            a.iter()
+                .map(|c| {
+                    (
+                        c["name"].as_str().unwrap_or("").to_string(),
+                        c["scope"].as_str().unwrap_or("").to_string(),
+                    )
+                })
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+#[test]
+fn clean_stream_is_consistent_without_failed_or_nan() {
+    let (out, v) = record_and_calibrate("clean", "1", &[]);
+    let text = stdout(&out);
+    assert_eq!(out.status.code(), Some(0), "{text}");
+    assert!(!text.contains("FAILED"), "{text}");
+    assert!(!text.contains("NaN"), "{text}");
+    assert!(text.contains("data verdict: consistent"), "{text}");
+    assert!(text.contains("bound ″") && text.contains("observable in practice"));
+    assert_eq!(v["data_verdict"]["verdict"], "consistent");
+    let checks = v["checks"].as_array().unwrap();
+    // 1 + 4 segments NIS, 6 whiteness, 4 × 6 bias.
+    assert_eq!(checks.len(), 5 + 6 + 24, "{checks:?}");
+    assert!(checks.iter().all(|c| c["passed"] == true));
+    // The bound at the estimate: every parameter, λy the weakest (≈ 27″).
+    let b = v["bound_at_estimate_sigma_rad"].as_array().unwrap();
+    assert_eq!(b.len(), 18);
+    let lam_y = b[16].as_f64().unwrap() / (std::f64::consts::PI / 648_000.0);
+    assert!((20.0..35.0).contains(&lam_y), "{lam_y}");
+    assert!(v["observability"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|w| w == "observable"));
+}
+
+#[test]
+fn accel_noise_three_times_is_flagged_by_nis() {
+    let (out, v) = record_and_calibrate("noise", "1", &["--accel-noise-scale", "3"]);
+    let text = stdout(&out);
+    assert_eq!(out.status.code(), Some(i32::from(WARNING_EXIT)), "{text}");
+    assert!(!text.contains("FAILED") && !text.contains("NaN"), "{text}");
+    assert!(text.contains("data verdict: warning: nis "), "{text}");
+    assert_eq!(v["data_verdict"]["verdict"], "warning");
+    let failed = failed_checks(&v);
+    assert!(
+        failed.contains(&("nis".into(), "overall".into())),
+        "{failed:?}"
+    );
+}
+
+#[test]
+fn unmodelled_accel_bias_is_flagged_by_segment_bias() {
+    let (out, v) = record_and_calibrate("bias", "1", &["--accel-bias-ug", "10,10,10"]);
+    let text = stdout(&out);
+    assert_eq!(out.status.code(), Some(i32::from(WARNING_EXIT)), "{text}");
+    assert!(!text.contains("FAILED") && !text.contains("NaN"), "{text}");
+    let failed = failed_checks(&v);
+    assert!(
+        failed
+            .iter()
+            .any(|(n, s)| n == "bias" && s.starts_with("segment ") && s.contains("accel")),
+        "{failed:?}"
+    );
+}
+
+#[test]
+fn one_pass_is_not_checked_and_exits_0() {
+    let d = dir("one-pass");
+    let bin = d.join("run.bin");
+    let rec = host_sim()
+        .args(["record", "--config", "M1-pa", "--seed", "2", "--out"])
+        .arg(&bin)
+        .output()
+        .unwrap();
+    assert!(rec.status.success());
+    let out = host_sim()
+        .args(["calibrate", "--passes", "1", "--input"])
+        .arg(&bin)
+        .output()
+        .unwrap();
+    let _ = std::fs::remove_dir_all(&d);
+    let text = stdout(&out);
+    assert_eq!(out.status.code(), Some(0), "{text}");
+    assert!(text.contains("data verdict: not checked"), "{text}");
+    assert!(text.contains("final passes"), "{text}");
+    assert!(!text.contains("FAILED") && !text.contains("NaN"), "{text}");
+}
+
+#[test]
+fn with_a_truth_the_table_keeps_the_truth_columns_and_the_checks() {
+    let d = dir("truth");
+    let (bin, truth, json) = (d.join("run.bin"), d.join("truth.json"), d.join("cal.json"));
+    let rec = host_sim()
+        .args(["record", "--config", "M2-ps", "--seed", "3", "--out"])
+        .arg(&bin)
+        .arg("--truth")
+        .arg(&truth)
+        .output()
+        .unwrap();
+    assert!(rec.status.success());
+    let out = host_sim()
+        .args(["calibrate", "--input"])
+        .arg(&bin)
+        .arg("--truth")
+        .arg(&truth)
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    let v = json_file(&json);
+    let _ = std::fs::remove_dir_all(&d);
+    let text = stdout(&out);
+    assert_eq!(out.status.code(), Some(0), "{text}");
+    assert!(
+        text.contains("truth ″") && text.contains("converged"),
+        "{text}"
+    );
+    assert_eq!(v["data_verdict"]["verdict"], "consistent");
+}
+
+/// M1-pa in process (as `host-sim checks`): the clean run is consistent,
+/// both defects are flagged, the noise by the NIS.
+#[test]
+fn m1_pa_in_process_cases() {
+    let sc = Scenario::paper();
+    let [clean, noise, bias] = cases([10.0, 10.0, 10.0]);
+    let j = judge_simulated(ConfigId::M1Pa, &sc, 1, &clean.defect).unwrap();
+    assert_eq!(j.verdict, DataVerdict::Consistent, "{}", j.verdict);
+    let j = judge_simulated(ConfigId::M1Pa, &sc, 1, &noise.defect).unwrap();
+    assert!(
+        j.checks
+            .iter()
+            .any(|c| c.name == "nis" && c.scope == "overall" && !c.passed),
+        "{}",
+        j.verdict
+    );
+    let j = judge_simulated(ConfigId::M1Pa, &sc, 1, &bias.defect).unwrap();
+    assert!(j.verdict.is_warning(), "{}", j.verdict);
+}
+
+/// `host-sim checks` in process: the table, the JSON, both defects flagged.
+#[test]
+fn the_rates_command_measures_the_cases() {
+    let d = dir("rates");
+    let json = d.join("rates.json");
+    let out = host_sim()
+        .args(["checks", "--config", "M1-pa", "--seeds", "2", "--json"])
+        .arg(&json)
+        .output()
+        .unwrap();
+    let text = stdout(&out);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        text.contains("accel noise 3×") && text.contains("(10, 10, 10) µg"),
+        "{text}"
+    );
+    let v = json_file(&json);
+    let _ = std::fs::remove_dir_all(&d);
+    let rates = v["rates"].as_array().unwrap();
+    assert_eq!(rates.len(), 3);
+    assert_eq!(rates[0]["case"], "clean");
+    for r in &rates[1..] {
+        assert_eq!(r["flagged"], 2, "{r}");
+    }
+    // Bad defect arguments: clap's exit status 2, one line.
+    let out = host_sim()
+        .args([
+            "record",
+            "--config",
+            "M1-pa",
+            "--accel-bias-ug",
+            "1,2",
+            "--out",
+            "-",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let out = host_sim()
+        .args([
+            "record",
+            "--config",
+            "M1-pa",
+            "--accel-noise-scale",
+            "0.5",
+            "--out",
+            "-",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+}
