@@ -310,6 +310,7 @@ fn cmd_run(args: &RunArgs) -> Result<(), String> {
             earth_rate,
         },
     );
+    host_sim::truth::check_gimbal_lock(args.config, &sim)?;
     eprintln!("running {} estimator…", args.config);
     let r = run_filter(
         args.config,

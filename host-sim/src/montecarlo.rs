@@ -129,6 +129,7 @@ pub fn monte_carlo(
             earth_rate,
         },
     );
+    crate::truth::check_gimbal_lock(id, &clean)?;
     let obs = observe::analyse(id, scenario, &clean, earth_rate, false)
         .map_err(|e| format!("{id}: observability: {e}"))?;
     let done = std::sync::atomic::AtomicUsize::new(0);

@@ -262,6 +262,7 @@ pub fn record(args: &RecordArgs) -> Result<(), String> {
             earth_rate,
         },
     );
+    crate::truth::check_gimbal_lock(args.config, &sim)?;
     let mut settings = calibrator_config(&sc, args.config, earth_rate);
     settings.estimate_every = args.estimate_every;
     let mut samples: Vec<Sample> = sim.samples.iter().map(to_sample).collect();

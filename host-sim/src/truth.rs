@@ -186,6 +186,41 @@ impl Path {
     }
 }
 
+/// The largest middle gimbal angle |β| (°) a simulated path may reach for a
+/// configuration that measures the gimbal angles (M2). At gimbal lock
+/// (|β| = 90°) the outer and inner angles α, γ are singular: only α ± γ is
+/// defined, and near it their sensitivity to the attitude grows as 1/cos β.
+/// Measured on M2-ps (`host-sim run` on paths that turn about Up to the
+/// given β): up to |β| = 84.7° every update of the last pass is accepted, at
+/// 87.4° 1–2 of 540 are already gated, and a path that reaches 89.5°
+/// (90° about South, then 90° about East) diverges (σ to 1e26″, mean NIS
+/// in the thousands). 85° keeps the sensitivity ≤ 11.5×.
+/// (`host-sim design` keeps to 60° by default, `--max-beta-deg`.)
+pub const MAX_GIMBAL_BETA_DEG: f64 = 85.0;
+
+/// Refuses a simulated path that comes closer to gimbal lock than
+/// [`MAX_GIMBAL_BETA_DEG`] when configuration `id` measures the gimbal
+/// angles; any path for the others (they do not use the gimbal angles).
+pub fn check_gimbal_lock(id: ConfigId, sim: &Simulation) -> Result<(), String> {
+    if id.layout().z() != 6 {
+        return Ok(());
+    }
+    let worst = sim
+        .samples
+        .iter()
+        .map(|s| (s.truth.gimbal.y.abs(), s.truth.t))
+        .fold((0.0, 0.0), |a, b| if b.0 > a.0 { b } else { a });
+    if worst.0 > MAX_GIMBAL_BETA_DEG * DEG {
+        return Err(format!(
+            "the path comes within {:.1}° of gimbal lock (|β| = {:.1}° at t = {:.0} s): {id} measures the gimbal angles, which are singular there; keep |β| ≤ {MAX_GIMBAL_BETA_DEG}° (host-sim design keeps it ≤ 60° by default)",
+            90.0 - worst.0 / DEG,
+            worst.0 / DEG,
+            worst.1
+        ));
+    }
+    Ok(())
+}
+
 /// Runs the truth simulator over a scenario.
 pub fn simulate(s: &Scenario, opts: SimOptions) -> Simulation {
     let params = TruthParams::from_scenario(s);

@@ -316,3 +316,50 @@ fn printed_verdicts_are_the_words_the_readme_defines() {
     assert_eq!(seen, 12 + 15 + 18 + 15 + 18 + 12 + 15, "{text}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A path through gimbal lock (90° about South, then 90° about East, at
+/// 1 °/s: |β| reaches 89.7°) is refused for M2-ps, which measures the gimbal
+/// angles (it diverged there: σ to 1e26″), by `run`, `record` and
+/// `montecarlo`; M1-pa, which does not use them, runs it.
+#[test]
+fn a_path_through_gimbal_lock_is_refused_where_the_gimbal_angles_are_measured() {
+    let dir = scratch("gimbal-lock");
+    let a = PAPER.find("[[path]]").unwrap();
+    let b = PAPER.find("[noise]").unwrap();
+    let path = "[[path]]\naxis = \"south\"\nangle_deg = 90.0\nrate_deg_s = 1.0\n\n\
+                [[path]]\naxis = \"east\"\nangle_deg = 90.0\nrate_deg_s = 1.0\n\n";
+    let text = format!("{}{path}{}", &PAPER[..a], &PAPER[b..])
+        .replace("duration_s = 5400.0", "duration_s = 180.0");
+    let sc = dir.join("lock.toml");
+    std::fs::write(&sc, text).unwrap();
+    let stream = dir.join("lock.bin");
+    for args in [
+        vec!["run", "--config", "M2-ps", "--scenario"],
+        vec![
+            "montecarlo",
+            "--config",
+            "M2-ps",
+            "--runs",
+            "2",
+            "--scenario",
+        ],
+    ] {
+        let out = host_sim().args(&args).arg(&sc).output().unwrap();
+        assert_one_line_error(&out, "of gimbal lock (|β| = 89.");
+    }
+    let out = host_sim()
+        .args(["record", "--config", "M2-ps", "--out"])
+        .arg(&stream)
+        .arg("--scenario")
+        .arg(&sc)
+        .output()
+        .unwrap();
+    assert_one_line_error(&out, "keep |β| ≤ 85°");
+    let out = host_sim()
+        .args(["run", "--config", "M1-pa", "--scenario"])
+        .arg(&sc)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+    std::fs::remove_dir_all(&dir).ok();
+}
