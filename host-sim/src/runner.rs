@@ -500,15 +500,23 @@ pub fn crlb_sigma(
 
 pub use crate::verdict::Verdict;
 
-/// The verdict on state `s` of configuration `id` with prior σ `prior` (rad).
+/// The verdict on state `s` of configuration `id` with prior σ `prior` (rad):
+/// for a state the configuration observes, `FAILED` beyond 4σ of the truth,
+/// `converged` within 4σ once σ is below [`crate::verdict::PRACTICAL_RATIO`]
+/// of the prior, and `not observable` while it is not (a path that does not
+/// excite it: the estimate is still the prior's); for the others,
+/// `observable in practice` or `not observable` by the same ratio.
 pub fn verdict(id: ConfigId, s: &StateResult, group: Group, prior: f64) -> Verdict {
+    let practical = s.sigma_rad < crate::verdict::PRACTICAL_RATIO * prior;
     if expected_observable(id, s.name, group) {
-        if s.ratio() <= 4.0 {
+        if s.ratio() > 4.0 {
+            Verdict::Failed
+        } else if practical {
             Verdict::Converged
         } else {
-            Verdict::Failed
+            Verdict::NotObservable
         }
-    } else if s.sigma_rad < 0.01 * prior {
+    } else if practical {
         Verdict::Observable
     } else {
         Verdict::NotObservable

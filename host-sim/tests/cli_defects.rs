@@ -363,3 +363,37 @@ fn a_path_through_gimbal_lock_is_refused_where_the_gimbal_angles_are_measured() 
     assert!(out.status.success(), "{}", stderr(&out));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A state the configuration observes but the path does not excite keeps
+/// σ near the prior: `run` calls it `not observable` on that path, not
+/// `converged` (M2-ps rolled about North only: λx keeps σ ≈ 0.4°).
+#[test]
+fn an_unexcited_claimed_state_is_not_called_converged() {
+    let dir = scratch("unexcited");
+    let a = PAPER.find("[[path]]").unwrap();
+    let b = PAPER.find("[noise]").unwrap();
+    let path = "[[path]]\naxis = \"north\"\nangle_deg = 180.0\nrate_deg_s = 0.5\n\n";
+    let text = format!("{}{path}{}", &PAPER[..a], &PAPER[b..])
+        .replace("duration_s = 5400.0", "duration_s = 360.0");
+    let sc = dir.join("north.toml");
+    std::fs::write(&sc, text).unwrap();
+    let out = host_sim()
+        .args(["run", "--config", "M2-ps", "--scenario"])
+        .arg(&sc)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+    let table = String::from_utf8_lossy(&out.stdout).into_owned();
+    let row = |name: &str| {
+        table
+            .lines()
+            .find(|l| l.split_whitespace().next() == Some(name))
+            .unwrap_or_else(|| panic!("no {name} row: {table}"))
+            .to_string()
+    };
+    let lam_x = row("lam_x");
+    assert!(lam_x.ends_with("not observable"), "{lam_x}");
+    // θaT is excited by any roll about a horizontal axis.
+    assert!(row("thaT_1").ends_with("converged"), "{table}");
+    std::fs::remove_dir_all(&dir).ok();
+}
