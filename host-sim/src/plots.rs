@@ -205,22 +205,34 @@ fn font(size: f64) -> TextStyle<'static> {
     (FAMILY, size).into_font().color(&BLACK)
 }
 
-/// Title and the legend shared by all panels.
-fn draw_header<'a>(area: &Area<'a>, title: &str, switches: bool) -> DrawResult<'a> {
+/// The figure's title, centred at the top of its header `area`, in `size`
+/// points.
+fn draw_title<'a>(area: &Area<'a>, title: &str, size: f64) -> DrawResult<'a> {
     let (w, _) = area.dim_in_pixel();
     let centre = i32::try_from(w / 2).unwrap_or(0);
-    let title_style = font(22.0).pos(text_anchor::Pos::new(
+    let style = font(size).pos(text_anchor::Pos::new(
         text_anchor::HPos::Center,
         text_anchor::VPos::Top,
     ));
-    area.draw(&Text::new(title.to_string(), (centre, 8), title_style))?;
+    area.draw(&Text::new(title.to_string(), (centre, 8), style))
+}
+
+/// The style of a legend label: left-aligned, vertically centred on its
+/// swatch.
+fn legend_label() -> TextStyle<'static> {
+    font(15.0).pos(text_anchor::Pos::new(
+        text_anchor::HPos::Left,
+        text_anchor::VPos::Center,
+    ))
+}
+
+/// Title and the legend shared by all panels.
+fn draw_header<'a>(area: &Area<'a>, title: &str, switches: bool) -> DrawResult<'a> {
+    draw_title(area, title, 22.0)?;
 
     // Legend: swatches + labels, centred.
     let y = 48;
-    let label = font(15.0).pos(text_anchor::Pos::new(
-        text_anchor::HPos::Left,
-        text_anchor::VPos::Center,
-    ));
+    let label = legend_label();
     let items: [(&str, u8); 5] = [
         ("error (left: |error|)", 0),
         ("±3σ filter", 1),
@@ -397,17 +409,8 @@ pub fn plot_sigma_comparison(
     let draw = || -> DrawResult<'_> {
         root.fill(&WHITE)?;
         let (header, body) = root.split_vertically(HEADER_HEIGHT);
-        let (w, _) = header.dim_in_pixel();
-        let centre = i32::try_from(w / 2).unwrap_or(0);
-        let title_style = font(20.0).pos(text_anchor::Pos::new(
-            text_anchor::HPos::Center,
-            text_anchor::VPos::Top,
-        ));
-        header.draw(&Text::new(title.to_string(), (centre, 8), title_style))?;
-        let label = font(15.0).pos(text_anchor::Pos::new(
-            text_anchor::HPos::Left,
-            text_anchor::VPos::Center,
-        ));
+        draw_title(&header, title, 20.0)?;
+        let label = legend_label();
         let y = 46;
         header.draw(&PathElement::new(
             vec![(40, y), (70, y)],
@@ -943,19 +946,8 @@ pub fn plot_convergence(
     let draw = || -> DrawResult<'_> {
         root.fill(&WHITE)?;
         let (header, body) = root.split_vertically(HEADER_HEIGHT);
-        let centre = i32::try_from(w / 2).unwrap_or(0);
-        header.draw(&Text::new(
-            title.to_string(),
-            (centre, 8),
-            font(20.0).pos(text_anchor::Pos::new(
-                text_anchor::HPos::Center,
-                text_anchor::VPos::Top,
-            )),
-        ))?;
-        let label = font(15.0).pos(text_anchor::Pos::new(
-            text_anchor::HPos::Left,
-            text_anchor::VPos::Center,
-        ));
+        draw_title(&header, title, 20.0)?;
+        let label = legend_label();
         let y = 46;
         header.draw(&PathElement::new(
             vec![(40, y), (70, y)],
@@ -1114,19 +1106,8 @@ pub fn plot_innovations(
     let draw = || -> DrawResult<'_> {
         root.fill(&WHITE)?;
         let (header, body) = root.split_vertically(HEADER_HEIGHT);
-        let centre = i32::try_from(w / 2).unwrap_or(0);
-        header.draw(&Text::new(
-            title.to_string(),
-            (centre, 8),
-            font(20.0).pos(text_anchor::Pos::new(
-                text_anchor::HPos::Center,
-                text_anchor::VPos::Top,
-            )),
-        ))?;
-        let label = font(15.0).pos(text_anchor::Pos::new(
-            text_anchor::HPos::Left,
-            text_anchor::VPos::Center,
-        ));
+        draw_title(&header, title, 20.0)?;
+        let label = legend_label();
         let y = 46;
         header.draw(&PathElement::new(
             vec![(40, y), (70, y)],

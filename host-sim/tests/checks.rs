@@ -2,25 +2,19 @@
 //! σ and the bound at the estimate, the data checks and their exit status.
 //! Deterministic: every stream is seeded.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod support;
+use std::path::PathBuf;
+use std::process::Output;
+use support::{assert_success, host_sim, json_file};
 
 use host_sim::checks::{cases, judge_simulated, DataVerdict, WARNING_EXIT};
 use host_sim::scenario::Scenario;
 use rollcal::models::ConfigId;
 
-fn host_sim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_host-sim"))
-}
-
 fn dir(tag: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("rollcal-checks-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
     d
-}
-
-fn json_file(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
 /// Records M2-ps, paper scenario, `seed`, with `extra` record options, and
@@ -214,11 +208,7 @@ fn the_rates_command_measures_the_cases() {
         .output()
         .unwrap();
     let text = stdout(&out);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     assert!(
         text.contains("accel noise 3×") && text.contains("(10, 10, 10) µg"),
         "{text}"

@@ -1,11 +1,8 @@
 //! The command-line interface: output formats are an interface, and bad
 //! arguments or data give clear errors, never a panic.
 
-use std::process::Command;
-
-fn host_sim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_host-sim"))
-}
+mod support;
+use support::{assert_success, host_sim, json_file};
 
 #[test]
 fn run_writes_the_documented_json_and_csv() {
@@ -19,11 +16,7 @@ fn run_writes_the_documented_json_and_csv() {
         .arg(&csv)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert_eq!(v["config"], "M4-pa");
@@ -112,10 +105,6 @@ fn bad_arguments_and_files_are_reported_not_panicked() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-fn json_file(path: &std::path::Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
-
 /// The same agreement for the accelerometer-only firmware configurations,
 /// through files: `record` then `calibrate` (default passes) against `run`
 /// on seed 1, within 0.05σ per state. (Before the wire
@@ -136,11 +125,7 @@ fn record_then_calibrate_agrees_with_run_for_m1pa_and_m4pa() {
             .arg(&stream)
             .output()
             .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        assert_success(&out);
         let out = host_sim()
             .args(["calibrate", "--config", config, "--input"])
             .arg(&stream)
@@ -148,21 +133,13 @@ fn record_then_calibrate_agrees_with_run_for_m1pa_and_m4pa() {
             .arg(&cal)
             .output()
             .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        assert_success(&out);
         let out = host_sim()
             .args(["run", "--config", config, "--seed", "1", "--json"])
             .arg(&run)
             .output()
             .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        assert_success(&out);
         let (c, r) = (json_file(&cal), json_file(&run));
         assert_eq!(
             c["answer"]["kind"], "final",
@@ -270,11 +247,7 @@ fn record_piped_into_calibrate_agrees_with_run() {
         .arg(&cal1)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let c1 = json_file(&cal1);
     assert_eq!(c1["passes"], 1);
     assert!(c1["seed"].is_null());

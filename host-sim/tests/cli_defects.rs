@@ -3,20 +3,12 @@
 //! the duration would cut, binary on a terminal, empty studies, and the
 //! verdict words of the README.
 
+mod support;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+use support::{host_sim, scratch, stderr};
 
 use host_sim::verdict::Verdict;
-
-fn host_sim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_host-sim"))
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("rollcal-defects-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 const PAPER: &str = include_str!("../../scenarios/paper.toml");
 
@@ -33,10 +25,6 @@ fn short_scenario(dir: &Path, duration_s: &str) -> PathBuf {
     let file = dir.join(format!("short-{duration_s}.toml"));
     std::fs::write(&file, text).unwrap();
     file
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
 /// A one-line error with exit status 1, mentioning `needle`.
@@ -63,7 +51,7 @@ fn progress_lines<'a>(err: &'a str, label: &str) -> Vec<&'a str> {
 
 #[test]
 fn calibrate_progress_in_a_log_is_lines_ending_at_the_final_count() {
-    let dir = scratch("calprogress");
+    let dir = scratch("defects-calprogress");
     let stream = dir.join("m1pa.bin");
     let out = host_sim()
         .args(["record", "--config", "m1-pa", "--out"])
@@ -95,7 +83,7 @@ fn calibrate_progress_in_a_log_is_lines_ending_at_the_final_count() {
 
 #[test]
 fn montecarlo_and_paper_show_progress_in_a_log() {
-    let dir = scratch("progress");
+    let dir = scratch("defects-progress");
     let sc = short_scenario(&dir, "180.0");
     let out = host_sim()
         .args([
@@ -141,7 +129,7 @@ fn montecarlo_and_paper_show_progress_in_a_log() {
 
 #[test]
 fn a_huge_duration_is_refused_before_allocating() {
-    let dir = scratch("huge");
+    let dir = scratch("defects-huge");
     let sc = short_scenario(&dir, "1e10");
     for cmd in ["run", "record"] {
         let mut c = host_sim();
@@ -169,7 +157,7 @@ fn a_huge_duration_is_refused_before_allocating() {
 
 #[test]
 fn a_duration_shorter_than_the_path_is_an_error() {
-    let dir = scratch("cut");
+    let dir = scratch("defects-cut");
     // The path lasts 180 s.
     let sc = short_scenario(&dir, "120.0");
     let out = host_sim()
@@ -258,7 +246,7 @@ fn printed_verdicts_are_the_words_the_readme_defines() {
     enum_words.sort();
     assert_eq!(sorted, enum_words, "README's list and the Verdict enum");
 
-    let dir = scratch("verdicts");
+    let dir = scratch("defects-verdicts");
     let sc = short_scenario(&dir, "180.0");
     // `run`: the last column after name and seven numbers.
     let out = host_sim()
@@ -323,7 +311,7 @@ fn printed_verdicts_are_the_words_the_readme_defines() {
 /// `montecarlo`; M1-pa, which does not use them, runs it.
 #[test]
 fn a_path_through_gimbal_lock_is_refused_where_the_gimbal_angles_are_measured() {
-    let dir = scratch("gimbal-lock");
+    let dir = scratch("defects-gimbal-lock");
     let a = PAPER.find("[[path]]").unwrap();
     let b = PAPER.find("[noise]").unwrap();
     let path = "[[path]]\naxis = \"south\"\nangle_deg = 90.0\nrate_deg_s = 1.0\n\n\
@@ -369,7 +357,7 @@ fn a_path_through_gimbal_lock_is_refused_where_the_gimbal_angles_are_measured() 
 /// `converged` (M2-ps rolled about North only: λx keeps σ ≈ 0.4°).
 #[test]
 fn an_unexcited_claimed_state_is_not_called_converged() {
-    let dir = scratch("unexcited");
+    let dir = scratch("defects-unexcited");
     let a = PAPER.find("[[path]]").unwrap();
     let b = PAPER.find("[noise]").unwrap();
     let path = "[[path]]\naxis = \"north\"\nangle_deg = 180.0\nrate_deg_s = 0.5\n\n";

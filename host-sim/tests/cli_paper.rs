@@ -2,11 +2,8 @@
 //! and `montecarlo` write their documented files, and refuse bad arguments
 //! with a clear error.
 
-use std::process::Command;
-
-fn host_sim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_host-sim"))
-}
+mod support;
+use support::{assert_success, host_sim};
 
 fn temp_dir(tag: &str) -> std::path::PathBuf {
     let dir = std::env::temp_dir().join(format!("rollcal-{tag}-{}", std::process::id()));
@@ -84,11 +81,7 @@ fn observability_json_has_the_documented_schema() {
         .arg(&json)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert_eq!(v["earth_rate"], false);

@@ -4,6 +4,7 @@
 //! installation angles within 4σ of the reported σ of each parameter; with
 //! the true parameters the compensation of the raw outputs is exact.
 
+mod support;
 use host_sim::compensation::{of_run, Compensation};
 use host_sim::runner::{run_filter, Estimator};
 use host_sim::scenario::Scenario;
@@ -11,6 +12,7 @@ use host_sim::truth::{simulate, truth_state, SimOptions, Simulation, TruthParams
 use nalgebra::{Matrix3, Vector3};
 use rollcal::geometry::{dcm, right_jacobian};
 use rollcal::models::{ConfigId, Group, PlatformFrame};
+use support::assert_success;
 
 /// The true G, A (in the configuration's frame) and R(λ), from the truth's
 /// ps matrices: in pa, `G^pa = C^pa_ps G`, `A^pa = A C^ps_pa` with
@@ -186,11 +188,7 @@ fn run_and_calibrate_write_the_matrices() {
         .arg(&run_txt)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         !stdout.contains("Apply:"),
@@ -277,11 +275,7 @@ fn run_and_calibrate_write_the_matrices() {
         .arg(&cal_json)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("Calibration result, M2-ps"), "{stdout}");
     assert!(stdout.contains("C^r_n = R(λ)"), "{stdout}");

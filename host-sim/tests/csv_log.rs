@@ -1,16 +1,14 @@
 //! The CSV log and platform files (docs/csv.md): a real platform's inputs.
 //! Deterministic: every record is seeded.
 
+mod support;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
+use support::{assert_success, host_sim, json_file, stderr};
 
 use host_sim::csvlog;
 use host_sim::scenario::Platform;
 use rollcal::wire::{FrameDecoder, Message, Sample};
-
-fn host_sim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_host-sim"))
-}
 
 fn repo(path: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path)
@@ -23,16 +21,8 @@ fn dir(tag: &str) -> PathBuf {
 }
 
 fn ok(out: Output) -> Output {
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     out
-}
-
-fn json_file(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
 fn record(config: &str, seed: &str, format: &str, out: &Path) {
@@ -184,10 +174,6 @@ fn a_platform_file_needs_no_truth() {
         let e = Platform::from_toml(&bad).unwrap_err().to_string();
         assert!(e.contains(word) && !e.trim().contains('\n'), "{word}: {e}");
     }
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
 /// The error line (the last line of stderr).

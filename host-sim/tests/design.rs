@@ -3,17 +3,14 @@
 //! path past the gimbal limit, and the scenario it writes meets its targets
 //! in `host-sim observability` in less time than the reference path.
 
-use std::process::Command;
+mod support;
+use support::{assert_success, host_sim};
 
 use host_sim::design::{pattern_of, Goal, NamedAxis, Pattern, Problem, Rotation};
 use host_sim::observe::analyse;
 use host_sim::scenario::{Scenario, ARCSEC};
 use host_sim::truth::{simulate, SimOptions};
 use rollcal::models::ConfigId;
-
-fn host_sim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_host-sim"))
-}
 
 fn rotation(axis: &str, angle: f64, rate: f64) -> Rotation {
     Rotation::new(NamedAxis::named(axis).unwrap(), angle, rate)
@@ -192,11 +189,7 @@ fn design_accepts_a_reference_path_with_dwells() {
         .arg(&json)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert_eq!(v["reference_duration_s"], 6000.0);
@@ -305,11 +298,7 @@ fn design_writes_a_shorter_scenario_that_meets_its_targets() {
         .arg(&png)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert_eq!(v["all_targets_met"], true);
@@ -407,11 +396,7 @@ fn the_search_proposes_a_dwell_where_it_helps() {
             .arg(&json)
             .output()
             .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        assert_success(&out);
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap()
     };
     let worst = |v: &serde_json::Value| -> f64 {

@@ -3,16 +3,13 @@
 //! the rotation. A dwell runs through the simulator, `run` and
 //! `observability`; `dwell_s = 0` changes nothing, bit for bit.
 
+mod support;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use support::host_sim;
 
 use host_sim::scenario::{Scenario, PAPER_TOML};
 use host_sim::truth::{simulate, SimOptions};
 use rollcal::command::CommandFrame;
-
-fn host_sim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_host-sim"))
-}
 
 /// The paper's scenario with `extra` lines after its first segment's rate
 /// and the duration set to `duration_s`.

@@ -2,18 +2,10 @@
 //! columns only with a truth, the refusal of a DIR that is a file. The
 //! browser check of the page is `tools/check-report.sh` (CI).
 
+mod support;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-fn host_sim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_host-sim"))
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("rollcal-report-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+use support::{assert_success, host_sim, scratch};
 
 const PAPER: &str = include_str!("../../scenarios/paper.toml");
 
@@ -37,11 +29,7 @@ fn short_scenario(dir: &Path) -> PathBuf {
 
 fn ok(cmd: &mut Command) -> String {
     let out = cmd.output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
@@ -68,7 +56,7 @@ fn is_png(path: &Path) -> bool {
 
 #[test]
 fn run_report_has_table_figures_and_checks() {
-    let dir = scratch("run");
+    let dir = scratch("report-run");
     let sc = short_scenario(&dir);
     let rep = dir.join("rep");
     ok(host_sim()
@@ -104,7 +92,7 @@ fn run_report_has_table_figures_and_checks() {
 
 #[test]
 fn calibrate_report_without_truth_has_no_truth_columns() {
-    let dir = scratch("cal");
+    let dir = scratch("report-cal");
     let sc = short_scenario(&dir);
     let stream = dir.join("s.bin");
     let truth = dir.join("truth.json");
@@ -149,7 +137,7 @@ fn calibrate_report_without_truth_has_no_truth_columns() {
 
 #[test]
 fn a_report_dir_that_is_a_file_is_refused_in_one_line() {
-    let dir = scratch("file");
+    let dir = scratch("report-file");
     let file = dir.join("taken");
     std::fs::write(&file, "x").unwrap();
     for args in [

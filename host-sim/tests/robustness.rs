@@ -3,15 +3,13 @@
 //! with every observable parameter within 4σ of the truth, and count what
 //! it bridged, re-acquired, re-anchored, gated and rejected.
 
+mod support;
 use std::path::PathBuf;
 use std::process::Command;
+use support::host_sim;
 
 use host_sim::runner::expected_observable;
 use rollcal::models::{ConfigId, Group};
-
-fn host_sim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_host-sim"))
-}
 
 fn temp_dir(tag: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("rollcal-robust-{tag}-{}", std::process::id()));

@@ -12,21 +12,14 @@
 
 #![cfg(target_os = "linux")]
 
+mod support;
+use support::{assert_success, host_sim, scratch};
+
 use std::io::Write;
 use std::os::fd::{FromRawFd, OwnedFd};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 use std::time::{Duration, Instant};
-
-fn host_sim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_host-sim"))
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("rollcal-serial-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 const PAPER: &str = include_str!("../../scenarios/paper.toml");
 
@@ -113,7 +106,7 @@ fn json(path: &Path) -> serde_json::Value {
 
 #[test]
 fn calibrate_on_a_pty_at_115200_baud_equals_the_file_run() {
-    let dir = scratch("pty");
+    let dir = scratch("serial-pty");
     let scenario = short_scenario(&dir);
     let stream = dir.join("short.bin");
     let out = host_sim()
@@ -123,11 +116,7 @@ fn calibrate_on_a_pty_at_115200_baud_equals_the_file_run() {
         .arg(&stream)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let bytes = std::fs::read(&stream).unwrap();
     assert!(bytes.len() > 10_000, "{} bytes", bytes.len());
 
@@ -140,11 +129,7 @@ fn calibrate_on_a_pty_at_115200_baud_equals_the_file_run() {
         .arg(&file_json)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
 
     // The pty run: the calibrator reads the slave as a serial device.
     let (mut master, slave, slave_path) = open_pty();
