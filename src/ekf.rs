@@ -46,7 +46,7 @@ use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3};
 use crate::command::{CommandFrame, Period};
 use crate::factor::Ud;
 use crate::geometry::wrap_angle;
-use crate::models::{Environment, Layout, Model, PeriodPropagation, ATT};
+use crate::models::{Environment, InstallationMatrices, Layout, Model, PeriodPropagation, ATT};
 
 /// Errors of the estimator.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -227,11 +227,10 @@ struct Gain<T: RealField + Copy, const N: usize, const Z: usize> {
     k: SMatrix<T, N, Z>,
 }
 
-/// The outcome of one factored update, not yet committed: the factor at
-/// the end of the period, the state correction `x̂_{k+1} − x̂⁻_{k+1}`, and
+/// The outcome of one factored update, not yet committed (the factor at
+/// the end of the period is in [`Factors`]' spare): the state correction `x̂_{k+1} − x̂⁻_{k+1}`, and
 /// the innovation's covariance and NIS.
 struct Factored<T: RealField + Copy, const N: usize, const Z: usize> {
-    ud: Ud<T, N>,
     dx: SVector<f64, N>,
     /// The innovation covariance `S`; only its noise part `R_e` for an
     /// update that does not report it (see [`Filter::factored`]).
@@ -266,8 +265,8 @@ pub struct Filter<T: RealField + Copy, M, const N: usize, const Z: usize> {
     x: SVector<f64, N>,
     /// The covariance of `x` — at the start of the pending period while a
     /// prediction is pending (its time update is applied with the
-    /// measurement, [`Filter::update`]).
-    ud: Ud<T, N>,
+    /// measurement, [`Filter::update`]) — and the spare an update writes.
+    factors: Factors<T, N>,
     command: CommandFrame<f64>,
     config: FilterConfig<T>,
     pending: Option<Pending<T, N>>,
@@ -275,7 +274,111 @@ pub struct Filter<T: RealField + Copy, M, const N: usize, const Z: usize> {
     updates: u32,
     gated_run: u32,
     gate_open: bool,
+    /// The installation matrices of the last linearisation point's
+    /// parameters (constant over a linearised pass and shared by the
+    /// prediction and the update of a period of pass 1).
+    matrices: MatricesCache,
     _model: PhantomData<M>,
+}
+
+/// The U-D factor of the covariance and a spare of the same size: an
+/// update writes the new factor into the spare (a copy of the current one),
+/// which becomes the current one when the update is committed, so the
+/// update neither copies the factor back nor loses it on a rejection. Only
+/// the current factor is part of the filter's value.
+#[derive(Clone, Copy, Debug)]
+struct Factors<T: RealField + Copy, const N: usize> {
+    a: Ud<T, N>,
+    b: Ud<T, N>,
+    /// `b` is the current factor (else `a`).
+    b_current: bool,
+}
+
+impl<T: RealField + Copy, const N: usize> PartialEq for Factors<T, N> {
+    fn eq(&self, other: &Self) -> bool {
+        self.current() == other.current()
+    }
+}
+
+impl<T: RealField + Copy, const N: usize> Factors<T, N> {
+    fn new(ud: Ud<T, N>) -> Self {
+        Self {
+            a: ud,
+            b: ud,
+            b_current: false,
+        }
+    }
+
+    fn current(&self) -> &Ud<T, N> {
+        if self.b_current {
+            &self.b
+        } else {
+            &self.a
+        }
+    }
+
+    fn current_mut(&mut self) -> &mut Ud<T, N> {
+        if self.b_current {
+            &mut self.b
+        } else {
+            &mut self.a
+        }
+    }
+
+    /// The spare, set to a copy of the current factor.
+    fn spare_from_current(&mut self) -> &mut Ud<T, N> {
+        if self.b_current {
+            self.a = self.b;
+            &mut self.a
+        } else {
+            self.b = self.a;
+            &mut self.b
+        }
+    }
+
+    /// Makes the spare the current factor.
+    fn commit_spare(&mut self) {
+        self.b_current = !self.b_current;
+    }
+}
+
+/// A cache of [`InstallationMatrices`], a pure function of the parameters
+/// it holds: not part of the filter's value (every cache equals every
+/// other, so two filters with equal state, factor and history compare
+/// equal whatever they last evaluated).
+#[derive(Clone, Copy, Debug)]
+struct MatricesCache(InstallationMatrices<f64>);
+
+impl PartialEq for MatricesCache {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
+impl MatricesCache {
+    /// The matrices of the parameters of `x`, from the cache when they are
+    /// the cached ones (a reference into the cache or into `fresh`).
+    fn get<'a, const N: usize>(
+        &'a self,
+        layout: &Layout,
+        x: &SVector<f64, N>,
+        fresh: &'a mut Option<InstallationMatrices<f64>>,
+    ) -> &'a InstallationMatrices<f64> {
+        let params = layout.installation(x);
+        if params == self.0.params {
+            &self.0
+        } else {
+            fresh.insert(InstallationMatrices::new(params))
+        }
+    }
+
+    /// Makes the cache hold the matrices of the parameters of `x`.
+    fn refresh<const N: usize>(&mut self, layout: &Layout, x: &SVector<f64, N>) {
+        let params = layout.installation(x);
+        if params != self.0.params {
+            self.0 = InstallationMatrices::new(params);
+        }
+    }
 }
 
 /// M1-pa filter (12 states).
@@ -467,10 +570,10 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         if Self::LAYOUT.gimbal_obs && config.sigma_gimbal <= T::zero() {
             return Err(Error::CovarianceNotPositiveDefinite);
         }
-        let ud = Ud::from_variances(&variance).ok_or(Error::NonFiniteInput)?;
+        let ud = Factors::new(Ud::from_variances(&variance).ok_or(Error::NonFiniteInput)?);
         Ok(Self {
             x: x0,
-            ud,
+            factors: ud,
             command: CommandFrame::aligned(config.env.earth_rate_n),
             config,
             pending: None,
@@ -478,6 +581,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             updates: 0,
             gated_run: 0,
             gate_open: false,
+            matrices: MatricesCache(Self::LAYOUT.matrices(&x0)),
             _model: PhantomData,
         })
     }
@@ -506,7 +610,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         {
             return Err(Error::NonFiniteInput);
         }
-        f.ud = Ud::from_packed(&factor).ok_or(Error::CovarianceNotPositiveDefinite)?;
+        f.factors =
+            Factors::new(Ud::from_packed(&factor).ok_or(Error::CovarianceNotPositiveDefinite)?);
         f.x = x;
         f.command.c_cn = c_cn;
         f.reference = nominal;
@@ -550,7 +655,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         }
         // The pending time update moves only the attitude block, which this
         // replaces: it needs no applying.
-        self.ud.reset_attitude(sigma * sigma);
+        self.factors.current_mut().reset_attitude(sigma * sigma);
         self.command.c_cn = *c_cn;
         if let Some(nominal) = self.reference.as_mut() {
             let att = self.x.fixed_rows::<3>(ATT).clone_owned();
@@ -573,12 +678,19 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
 
     /// The state covariance `P = U D Uᵀ` (rad²) of [`Filter::state`].
     pub fn covariance(&self) -> SMatrix<T, N, N> {
-        self.settled().covariance()
+        match self.pending {
+            Some(_) => self.settled().covariance(),
+            None => self.factors.current().covariance(),
+        }
     }
 
     /// Per-state standard deviations `√P_ii` (rad).
     pub fn sigma(&self) -> SVector<T, N> {
-        self.settled().variances().map(|v| v.max(T::zero()).sqrt())
+        let variances = match self.pending {
+            Some(_) => self.settled().variances(),
+            None => self.factors.current().variances(),
+        };
+        variances.map(|v| v.max(T::zero()).sqrt())
     }
 
     /// The packed U-D factor of the covariance (rad²; `D` on the diagonal,
@@ -586,13 +698,13 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// Between [`Filter::predict`] and [`Filter::update`] it is the factor at
     /// the start of the pending period.
     pub fn factor(&self) -> &SMatrix<T, N, N> {
-        self.ud.packed()
+        self.factors.current().packed()
     }
 
     /// The factor with any pending time update applied (the unpropagated
     /// one in the impossible case that it fails: predict checks it).
     fn settled(&self) -> Ud<T, N> {
-        self.propagated_factor().unwrap_or(self.ud)
+        self.propagated_factor().unwrap_or(*self.factors.current())
     }
 
     /// The process noise of a pending period on the attitude (rad²).
@@ -608,7 +720,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     fn settle(&mut self) -> Result<(), Error> {
         if let Some(pending) = &self.pending {
             let q = self.process_noise(pending);
-            self.ud
+            self.factors
+                .current_mut()
                 .predict_attitude(&to_t(&pending.prop.phi_att), &q)
                 .ok_or(Error::CovarianceNotPositiveDefinite)?;
         }
@@ -618,7 +731,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// The factor at the current time: the pending time update applied
     /// without a measurement.
     fn propagated_factor(&self) -> Result<Ud<T, N>, Error> {
-        let mut ud = self.ud;
+        let mut ud = *self.factors.current();
         if let Some(pending) = &self.pending {
             ud.predict_attitude(&to_t(&pending.prop.phi_att), &self.process_noise(pending))
                 .ok_or(Error::CovarianceNotPositiveDefinite)?;
@@ -671,10 +784,11 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let x_lin = self.reference.unwrap_or(self.x);
         // A period predicted without a measurement: its time update is
         // applied (in place) once nothing else can fail.
+        self.matrices.refresh(&layout, &x_lin);
         let prop: PeriodPropagation<f64, N> = layout
             .propagate(
                 &self.config.env,
-                &layout.matrices(&x_lin),
+                &self.matrices.0,
                 &layout.attitude(&x_lin),
                 &period,
             )
@@ -732,19 +846,19 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// the measurement's share of the period's process noise (see [`Noise`]).
     fn measure(&self, x: &SVector<f64, N>, pending: &Pending<T, N>) -> Measured<f64, N, Z> {
         let layout = Self::LAYOUT;
-        let m = layout.matrices(x);
+        let mut fresh = None;
+        let m = self.matrices.get(&layout, x, &mut fresh);
         let env = &self.config.env;
         let (za, ha, da) = if is_f64::<T>() {
-            layout.mean_accel(env, &m, &pending.prop, &pending.period)
+            layout.mean_accel(env, m, &pending.prop, &pending.period)
         } else {
             // The value in f64 (it must resolve 1e-7 g of 1 g), the
             // Jacobians in T (they need a few digits; f64 is emulated on an
-            // FPU without it).
-            let za = layout.mean_accel_output(env, &m, &pending.prop, &pending.period);
-            let x_t: SVector<T, N> = to_t(x);
+            // FPU without it), on the f64 installation matrices rounded.
+            let za = layout.mean_accel_output(env, m, &pending.prop, &pending.period);
             let (_, ha, da): (_, SMatrix<T, 3, N>, _) = layout.mean_accel(
                 &env_t(env),
-                &layout.matrices(&x_t),
+                &m.to_precision(),
                 &propagation_t(&pending.prop),
                 &period_t(&pending.period),
             );
@@ -820,10 +934,12 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let env: Environment<T> = env_t(&self.config.env);
         let [_, _, c_end] = pending.period.c_cn;
         let c_end: Matrix3<T> = to_t(&c_end);
+        let mut fresh = None;
+        let m = self.matrices.get(&layout, x, &mut fresh).to_precision();
         let x: SVector<T, N> = to_t(x);
         let terms = layout.accel_second_order(
             &env,
-            &layout.matrices(&x),
+            &m,
             &layout.attitude(&x),
             &c_end,
             &self.settled().covariance(),
@@ -985,7 +1101,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// [`Innovation`]; without it the result's `s` is `R_e` only (the
     /// update itself never uses `S`).
     fn factored(
-        &self,
+        &mut self,
         h: &SMatrix<f64, Z, N>,
         nu: &SVector<f64, Z>,
         r_v: &SMatrix<T, Z, Z>,
@@ -1016,13 +1132,15 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             .solve_lower_triangular(&(m_e * g_att.transpose()))
             .ok_or(Error::InnovationNotPositiveDefinite)?
             .transpose();
+        // The spare factor, a copy of the current one, becomes the factor at
+        // the end of the period (current again once committed).
+        let ud = self.factors.spare_from_current();
         // S = H Φ P Φᵀ Hᵀ + R_e, for the innovation report.
         let s = if report {
-            r_e + self.ud.congruence(&hf)
+            r_e + ud.congruence(&hf)
         } else {
             r_e
         };
-        let mut ud = self.ud;
         let mut dx = SVector::<T, N>::zeros();
         let mut nis = T::zero();
         for (row, nu_i) in h_w.row_iter().zip(nu_w.iter()) {
@@ -1044,7 +1162,6 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let d_att = phi_att * dx + j_l * (nu_w - h_w * dx);
         dx.fixed_rows_mut::<3>(ATT).copy_from(&d_att);
         Ok(Factored {
-            ud,
             dx: to_f64(&dx),
             s,
             nis,
@@ -1084,7 +1201,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             }
         }
         self.x = x;
-        self.ud = out.ud;
+        self.factors.commit_spare();
         self.pending = None;
         self.updates = self.updates.saturating_add(1);
         self.gated_run = 0;

@@ -28,7 +28,6 @@ use crate::geometry::{
     d_dcm_times, d_gimbal_dcm_times, d_gimbal_rate_inverse_times, d_lower_times, dcm, gimbal_dcm,
     gimbal_rate_inverse, right_jacobian, right_jacobian_inv, skew, wrap_angles,
 };
-use crate::instruments::{accel_matrix, gyro_matrix};
 
 /// How the attitude block of the state describes the platform attitude.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -625,7 +624,13 @@ fn set_cols<T: RealField + Copy, const R: usize, const N: usize>(
     }
 }
 
-/// The per-period constant matrices of an installation: `G`, `A`, `R(λ)`.
+/// The per-period constant matrices of an installation: `G`, `A`, `R(λ)`,
+/// and the rotations and right Jacobians of the installation angles that
+/// the Jacobians of the model need (so that a period evaluates no
+/// trigonometric function of a constant parameter: `∂(R(θ) v)/∂θ =
+/// [(R(θ) v)×] J_r(θ)`, [`crate::geometry::d_dcm_times`], is
+/// [`InstallationMatrices::d_rotation_times`] on the cached factors, with
+/// the same floating-point operations).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct InstallationMatrices<T: RealField + Copy> {
     /// The unpacked parameters.
@@ -636,6 +641,80 @@ pub struct InstallationMatrices<T: RealField + Copy> {
     pub a: Matrix3<T>,
     /// `C^r_n = R(λ)`.
     pub c_rn: Matrix3<T>,
+    /// `R(θgC)`.
+    pub r_g_c: Matrix3<T>,
+    /// `J_r(θgC)` ([`crate::geometry::right_jacobian`]).
+    pub jr_g_c: Matrix3<T>,
+    /// `I + L(θgT)`.
+    pub unit_g_t: Matrix3<T>,
+    /// `R(−θaC)`.
+    pub r_a_c: Matrix3<T>,
+    /// `J_r(−θaC)`.
+    pub jr_a_c: Matrix3<T>,
+    /// `I + L(θaT)`.
+    pub unit_a_t: Matrix3<T>,
+    /// `J_r(λ)`.
+    pub jr_lambda: Matrix3<T>,
+}
+
+impl<T: RealField + Copy> InstallationMatrices<T> {
+    /// The matrices of the installation parameters `params` (rad).
+    pub fn new(params: Installation<T>) -> Self {
+        let r_g_c = dcm(&params.theta_g_c);
+        let unit_g_t = Matrix3::identity() + crate::geometry::lower(&params.theta_g_t);
+        let minus_a_c = -params.theta_a_c;
+        let r_a_c = dcm(&minus_a_c);
+        let unit_a_t = Matrix3::identity() + crate::geometry::lower(&params.theta_a_t);
+        Self {
+            // The products of gyro_matrix and accel_matrix, on the same factors.
+            g: r_g_c * unit_g_t,
+            a: unit_a_t * r_a_c,
+            c_rn: dcm(&params.lambda),
+            r_g_c,
+            jr_g_c: right_jacobian(&params.theta_g_c),
+            unit_g_t,
+            r_a_c,
+            jr_a_c: right_jacobian(&minus_a_c),
+            unit_a_t,
+            jr_lambda: right_jacobian(&params.lambda),
+            params,
+        }
+    }
+
+    /// `∂(R(θ) v)/∂θ = [(R(θ) v)×] J_r(θ)` from `R(θ)` and `J_r(θ)`
+    /// ([`crate::geometry::d_dcm_times`] without its trigonometry).
+    pub fn d_rotation_times(r: &Matrix3<T>, jr: &Matrix3<T>, v: &Vector3<T>) -> Matrix3<T> {
+        skew(&(r * v)) * jr
+    }
+}
+
+impl InstallationMatrices<f64> {
+    /// The same matrices in precision `U` (each element rounded, no
+    /// trigonometry recomputed in `U`).
+    pub fn to_precision<U: RealField + Copy>(&self) -> InstallationMatrices<U> {
+        let m = |x: &Matrix3<f64>| x.map(nalgebra::convert::<f64, U>);
+        let v = |x: &Vector3<f64>| x.map(nalgebra::convert::<f64, U>);
+        let p = &self.params;
+        InstallationMatrices {
+            params: Installation {
+                theta_g_c: v(&p.theta_g_c),
+                theta_g_t: v(&p.theta_g_t),
+                theta_a_c: v(&p.theta_a_c),
+                theta_a_t: v(&p.theta_a_t),
+                lambda: v(&p.lambda),
+            },
+            g: m(&self.g),
+            a: m(&self.a),
+            c_rn: m(&self.c_rn),
+            r_g_c: m(&self.r_g_c),
+            jr_g_c: m(&self.jr_g_c),
+            unit_g_t: m(&self.unit_g_t),
+            r_a_c: m(&self.r_a_c),
+            jr_a_c: m(&self.jr_a_c),
+            unit_a_t: m(&self.unit_a_t),
+            jr_lambda: m(&self.jr_lambda),
+        }
+    }
 }
 
 impl Layout {
@@ -677,13 +756,7 @@ impl Layout {
         &self,
         x: &SVector<T, N>,
     ) -> InstallationMatrices<T> {
-        let params = self.installation(x);
-        InstallationMatrices {
-            g: gyro_matrix(&params.theta_g_c, &params.theta_g_t),
-            a: accel_matrix(&params.theta_a_c, &params.theta_a_t),
-            c_rn: dcm(&params.lambda),
-            params,
-        }
+        InstallationMatrices::new(self.installation(x))
     }
 
     /// The platform attitude `C^p_n` of attitude states `att` (rad), given
@@ -734,12 +807,11 @@ impl Layout {
         att: &Vector3<T>,
         omega_c: &Vector3<T>,
     ) -> Option<SMatrix<T, 3, N>> {
-        let p = &m.params;
         let mut f = SMatrix::<T, 3, N>::zeros();
-        let unit_t = Matrix3::identity() + crate::geometry::lower(&p.theta_g_t);
         // ∂(G ωc)/∂θgC and ∂(G ωc)/∂θgT.
-        let d_g_c = d_dcm_times(&p.theta_g_c, &(unit_t * omega_c));
-        let d_g_t = dcm(&p.theta_g_c) * d_lower_times(omega_c);
+        let d_g_c =
+            InstallationMatrices::d_rotation_times(&m.r_g_c, &m.jr_g_c, &(m.unit_g_t * omega_c));
+        let d_g_t = m.r_g_c * d_lower_times(omega_c);
         let w_ip = m.g * omega_c;
         match self.attitude {
             AttitudeKind::Misalignment => {
@@ -766,7 +838,13 @@ impl Layout {
                 set_cols(&mut f, GC, &(t * d_g_c));
                 set_cols(&mut f, GT, &(t * d_g_t));
                 if let Some(il) = self.lam() {
-                    let d_lam = -(t * gimbal_dcm(att) * d_dcm_times(&p.lambda, &env.earth_rate_n));
+                    let d_lam = -(t
+                        * gimbal_dcm(att)
+                        * InstallationMatrices::d_rotation_times(
+                            &m.c_rn,
+                            &m.jr_lambda,
+                            &env.earth_rate_n,
+                        ));
                     set_cols(&mut f, il, &d_lam);
                 }
             }
@@ -793,7 +871,6 @@ impl Layout {
         att: &Vector3<T>,
         c_cn: &Matrix3<T>,
     ) -> SMatrix<T, 3, N> {
-        let p = &m.params;
         let mut h = SMatrix::<T, 3, N>::zeros();
         let f_p = self.platform_dcm(att, &m.c_rn, c_cn) * env.gravity_n;
         let d_att = match self.attitude {
@@ -802,20 +879,21 @@ impl Layout {
             AttitudeKind::Attitude => d_gimbal_dcm_times(att, &env.gravity_n),
         };
         set_cols(&mut h, ATT, &(m.a * d_att));
-        let unit_t = Matrix3::identity() + crate::geometry::lower(&p.theta_a_t);
-        let r_ac = dcm(&(-p.theta_a_c));
-        let f_a = r_ac * f_p;
+        let f_a = m.r_a_c * f_p;
         if let Some(ic) = self.ac() {
             // ∂(R(−θ) v)/∂θ = −∂(R(φ) v)/∂φ at φ = −θ.
             set_cols(
                 &mut h,
                 ic,
-                &(-(unit_t * d_dcm_times(&(-p.theta_a_c), &f_p))),
+                &(-(m.unit_a_t
+                    * InstallationMatrices::d_rotation_times(&m.r_a_c, &m.jr_a_c, &f_p))),
             );
         }
         set_cols(&mut h, self.at(), &d_lower_times(&f_a));
         if let (Some(il), AttitudeKind::Gimbal) = (self.lam(), self.attitude) {
-            let d_lam = m.a * gimbal_dcm(att) * d_dcm_times(&p.lambda, &env.gravity_n);
+            let d_lam = m.a
+                * gimbal_dcm(att)
+                * InstallationMatrices::d_rotation_times(&m.c_rn, &m.jr_lambda, &env.gravity_n);
             set_cols(&mut h, il, &d_lam);
         }
         h

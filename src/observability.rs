@@ -389,10 +389,12 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize, const 
         if dt <= 0.0 {
             return Err(Error::InvalidPeriod);
         }
-        let (phi, info) = if FULL {
-            self.accumulated(dtheta_c, dt, measured)?
+        // Φ(k,0) and J only in the full mode (the bound-only mode neither
+        // computes nor copies them).
+        let accumulated = if FULL {
+            Some(self.accumulated(dtheta_c, dt, measured)?)
         } else {
-            (self.phi, self.info)
+            None
         };
         // The bound: the linearised filter fed the noise-free measurement of
         // its nominal, the true trajectory (the filter is left untouched on
@@ -405,8 +407,10 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize, const 
         if let Some(x) = self.crlb.nominal() {
             self.x_true = *x;
         }
-        self.phi = phi;
-        self.info = info;
+        if let Some((phi, info)) = accumulated {
+            self.phi = phi;
+            self.info = info;
+        }
         self.periods = self.periods.saturating_add(1);
         Ok(())
     }

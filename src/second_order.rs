@@ -24,9 +24,7 @@
 
 use nalgebra::{Matrix3, RealField, SMatrix, Vector3};
 
-use crate::geometry::{
-    d2_dcm_times, d_dcm_times, dcm, gimbal_dcm_partials, lower, right_jacobian, skew,
-};
+use crate::geometry::{d2_dcm_times, d_dcm_times, dcm, gimbal_dcm_partials, skew};
 use crate::models::{AttitudeKind, Environment, InstallationMatrices, Layout, ATT};
 
 /// `½ tr(∇²h_a P)` (g) and `½ tr(∇²h_a P ∇²h_b P)` (g²) of the
@@ -123,7 +121,7 @@ impl<T: RealField + Copy> Platform<T> {
                 ];
                 let (d_lam, att_lam, lam_lam) = if base {
                     let lam = &m.params.lambda;
-                    let d1_lam = d_dcm_times(lam, &g);
+                    let d1_lam = InstallationMatrices::d_rotation_times(&m.c_rn, &m.jr_lambda, &g);
                     (
                         e.c * d1_lam,
                         [d0 * d1_lam, d1 * d1_lam, d2 * d1_lam],
@@ -302,9 +300,9 @@ impl Layout {
         let half: T = nalgebra::convert(0.5);
         let c_neg = -m.params.theta_a_c;
         let pieces = Pieces {
-            unit_t: Matrix3::identity() + lower(&m.params.theta_a_t),
-            r_c: dcm(&c_neg),
-            j_c: right_jacobian(&c_neg),
+            unit_t: m.unit_a_t,
+            r_c: m.r_a_c,
+            j_c: m.jr_a_c,
             platform: Platform::new(self, env, m, att, c_cn),
         };
         // The local index of each part's first state, and the state index.
