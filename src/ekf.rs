@@ -920,10 +920,12 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         })
     }
 
-    /// Second-order terms of the accelerometer rows: returns
+    /// Second-order terms of the accelerometer rows (out of line: the N×N
+    /// covariance it reads stays out of the update's frame): returns
     /// (`½ tr(∇²h_a P)`, `½ tr(∇²h_a P ∇²h_b P)`) of the instantaneous
     /// accelerometer output at the end of the period, from its analytic
     /// Hessian ([`crate::second_order`]).
+    #[inline(never)]
     fn second_order(
         &self,
         x: &SVector<f64, N>,
@@ -995,45 +997,71 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         } else {
             0
         };
-        // The iterated filter's intermediate relinearisation points use the
-        // dense gain (double precision); the update itself is always the
-        // factored one.
-        let p_prior = if iterations > 0 {
-            Some(to_f64(&self.settled().covariance()))
+        // The iterated filter's relinearisation point (IEKF), else the
+        // prediction; the update itself is always the factored one.
+        let (x_lin, lin) = if iterations > 0 {
+            self.iterated_point(&z, &pending, &r_v, &mean2, iterations)?
         } else {
-            None
+            (x_prior, pending)
         };
-        let mut x_lin = x_prior;
-        let mut lin = pending;
-        for it in 0..=iterations {
-            if it > 0 {
-                lin = self.retrace(&x_lin, &pending)?;
-            }
-            let Measured { z: zp, h, noise } = self.measure(&x_lin, &lin);
-            let mut nu = z - zp;
-            // IEKF: ν = z − h(x_i) − H (x̂ − x_i).
-            nu -= h * layout.difference(&x_prior, &x_lin);
-            if opts.second_order_mean {
-                let mut acc = nu.fixed_rows_mut::<3>(accel_row);
-                acc -= mean2;
-            }
-            if layout.gimbal_obs {
-                for v in nu.iter_mut().take(3) {
-                    *v = wrap_angle(*v);
-                }
-            }
-            match (&p_prior, it < iterations) {
-                (Some(p), true) => {
-                    let gain = dense_gain(p, &h, &to_f64(&r_v), &noise)?;
-                    x_lin = x_prior + gain.k * nu;
-                }
-                _ => {
-                    let out = self.factored(&h, &nu, &r_v, &noise, &pending.prop.phi_att, true)?;
-                    return self.commit(x_prior + out.dx, out, to_t(&nu));
-                }
+        let (nu, Measured { h, noise, .. }) = self.innovation_at(&z, &x_lin, &lin, &mean2);
+        let out = self.factored(&h, &nu, &r_v, &noise, &pending.prop.phi_att, true)?;
+        self.commit(x_prior + out.dx, out, to_t(&nu))
+    }
+
+    /// The innovation `ν = z − h(x_i) − H (x̂ − x_i)` of the EKF update
+    /// linearised at `x_lin` (trajectory `lin`), less the second-order mean
+    /// `mean2` when enabled, gimbal components wrapped; with the measurement
+    /// model there.
+    fn innovation_at(
+        &self,
+        z: &SVector<f64, Z>,
+        x_lin: &SVector<f64, N>,
+        lin: &Pending<T, N>,
+        mean2: &Vector3<f64>,
+    ) -> (SVector<f64, Z>, Measured<f64, N, Z>) {
+        let layout = Self::LAYOUT;
+        let measured = self.measure(x_lin, lin);
+        let mut nu = z - measured.z;
+        nu -= measured.h * layout.difference(&self.x, x_lin);
+        if self.config.options.second_order_mean {
+            let mut acc = nu.fixed_rows_mut::<3>(Self::ACCEL_ROW);
+            acc -= mean2;
+        }
+        if layout.gimbal_obs {
+            for v in nu.iter_mut().take(3) {
+                *v = wrap_angle(*v);
             }
         }
-        Err(Error::NoPrediction)
+        (nu, measured)
+    }
+
+    /// The iterated EKF's relinearisation point after `iterations` dense
+    /// Gauss–Newton steps from the prediction (double precision, the dense
+    /// gain), and the period's trajectory ending there. Out of line: its
+    /// N×N temporaries stay out of the frame of every other update.
+    #[inline(never)]
+    fn iterated_point(
+        &self,
+        z: &SVector<f64, Z>,
+        pending: &Pending<T, N>,
+        r_v: &SMatrix<T, Z, Z>,
+        mean2: &Vector3<f64>,
+        iterations: u8,
+    ) -> Result<(SVector<f64, N>, Pending<T, N>), Error> {
+        let p_prior = to_f64(&self.settled().covariance());
+        let r_v = to_f64(r_v);
+        let mut x_lin = self.x;
+        let mut lin = *pending;
+        for it in 0..iterations {
+            if it > 0 {
+                lin = self.retrace(&x_lin, pending)?;
+            }
+            let (nu, Measured { h, noise, .. }) = self.innovation_at(z, &x_lin, &lin, mean2);
+            let gain = dense_gain(&p_prior, &h, &r_v, &noise)?;
+            x_lin = self.x + gain.k * nu;
+        }
+        Ok((x_lin, self.retrace(&x_lin, pending)?))
     }
 
     /// The measurement noise covariance `R` (diagonal: gimbal σ² (rad²) in

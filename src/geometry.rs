@@ -301,59 +301,140 @@ pub fn gimbal_dcm_partials<T: RealField + Copy>(
 /// Passive rotation about x by `a` (rad): `[[1,0,0],[0,c,s],[0,−s,c]]`.
 pub fn r1<T: RealField + Copy>(a: T) -> Matrix3<T> {
     let (s, c) = a.sin_cos();
-    let (o, z) = (T::one(), T::zero());
-    Matrix3::new(o, z, z, z, c, s, z, -s, c)
+    r1_sc(s, c)
 }
 
 /// Passive rotation about y by `a` (rad): `[[c,0,−s],[0,1,0],[s,0,c]]`.
 pub fn r2<T: RealField + Copy>(a: T) -> Matrix3<T> {
     let (s, c) = a.sin_cos();
-    let (o, z) = (T::one(), T::zero());
-    Matrix3::new(c, z, -s, z, o, z, s, z, c)
+    r2_sc(s, c)
 }
 
 /// Passive rotation about z by `a` (rad): `[[c,s,0],[−s,c,0],[0,0,1]]`.
 pub fn r3<T: RealField + Copy>(a: T) -> Matrix3<T> {
     let (s, c) = a.sin_cos();
+    r3_sc(s, c)
+}
+
+/// [`r1`] from the sine and cosine of its angle.
+fn r1_sc<T: RealField + Copy>(s: T, c: T) -> Matrix3<T> {
+    let (o, z) = (T::one(), T::zero());
+    Matrix3::new(o, z, z, z, c, s, z, -s, c)
+}
+
+/// [`r2`] from the sine and cosine of its angle.
+fn r2_sc<T: RealField + Copy>(s: T, c: T) -> Matrix3<T> {
+    let (o, z) = (T::one(), T::zero());
+    Matrix3::new(c, z, -s, z, o, z, s, z, c)
+}
+
+/// [`r3`] from the sine and cosine of its angle.
+fn r3_sc<T: RealField + Copy>(s: T, c: T) -> Matrix3<T> {
     let (o, z) = (T::one(), T::zero());
     Matrix3::new(c, s, z, -s, c, z, z, z, o)
+}
+
+/// The sines and cosines of the Euler angles `θA = (α, β, γ)` (rad; the
+/// gimbal angles of M2/M3, the attitude `θp` of M4), from which every
+/// Euler-angle function of one attitude is built: one evaluation of the
+/// trigonometry per attitude, however many of [`gimbal_dcm`],
+/// [`gimbal_rate_matrix`], [`gimbal_rate_inverse`] and their derivatives a
+/// model needs there (each gives the same floating-point result as the
+/// free function).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EulerTrig<T: RealField + Copy> {
+    /// `(sin α, cos α)`.
+    pub alpha: (T, T),
+    /// `(sin β, cos β)`.
+    pub beta: (T, T),
+    /// `(sin γ, cos γ)`.
+    pub gamma: (T, T),
+}
+
+impl<T: RealField + Copy> EulerTrig<T> {
+    /// The trigonometry of the Euler angles `angles = (α, β, γ)` (rad).
+    pub fn new(angles: &Vector3<T>) -> Self {
+        Self {
+            alpha: angles.x.sin_cos(),
+            beta: angles.y.sin_cos(),
+            gamma: angles.z.sin_cos(),
+        }
+    }
+
+    /// `C = R3(γ) R2(β) R1(α)` ([`gimbal_dcm`]).
+    pub fn dcm(&self) -> Matrix3<T> {
+        r3_sc(self.gamma.0, self.gamma.1)
+            * r2_sc(self.beta.0, self.beta.1)
+            * r1_sc(self.alpha.0, self.alpha.1)
+    }
+
+    /// `M(β, γ)` ([`gimbal_rate_matrix`]).
+    pub fn rate_matrix(&self) -> Matrix3<T> {
+        let (sb, cb) = self.beta;
+        let (sg, cg) = self.gamma;
+        let z = T::zero();
+        Matrix3::new(cb * cg, sg, z, -cb * sg, cg, z, sb, z, T::one())
+    }
+
+    /// `T(β, γ) = M⁻¹` ([`gimbal_rate_inverse`]); `None` within `1e-9` of
+    /// the gimbal lock `β = ±90°`.
+    pub fn rate_inverse(&self) -> Option<Matrix3<T>> {
+        let (sb, cb) = self.beta;
+        if cb.abs() < nalgebra::convert(1e-9) {
+            return None;
+        }
+        let (sg, cg) = self.gamma;
+        let z = T::zero();
+        Some(Matrix3::new(
+            cg / cb,
+            -sg / cb,
+            z,
+            sg,
+            cg,
+            z,
+            -sb * cg / cb,
+            sb * sg / cb,
+            T::one(),
+        ))
+    }
+
+    /// `∂(T w)/∂θA` for the rate inverse `t` = [`EulerTrig::rate_inverse`]
+    /// ([`d_gimbal_rate_inverse_times`]).
+    pub fn d_rate_inverse_times(&self, t: &Matrix3<T>, w: &Vector3<T>) -> Matrix3<T> {
+        let (sb, cb) = self.beta;
+        let (sg, cg) = self.gamma;
+        let z = T::zero();
+        let tw = t * w;
+        let dm_dbeta = Matrix3::new(-sb * cg, z, z, sb * sg, z, z, cb, z, z);
+        let dm_dgamma = Matrix3::new(-cb * sg, cg, z, -cb * cg, -sg, z, z, z, z);
+        let col_b = -(t * (dm_dbeta * tw));
+        let col_g = -(t * (dm_dgamma * tw));
+        Matrix3::from_columns(&[Vector3::zeros(), col_b, col_g])
+    }
+
+    /// `∂(C v)/∂θ = [(C v)×] M(β, γ)` for `c` = [`EulerTrig::dcm`]
+    /// ([`d_gimbal_dcm_times`]).
+    pub fn d_dcm_times(&self, c: &Matrix3<T>, v: &Vector3<T>) -> Matrix3<T> {
+        skew(&(c * v)) * self.rate_matrix()
+    }
 }
 
 /// Gimbal DCM `C^p_r = R3(γ) R2(β) R1(α)` of the gimbal angles
 /// `θA = (α, β, γ)` (rad): outer gimbal about base x, middle about y, inner
 /// about z. The same Euler sequence parameterises the attitude `θp` of M4.
 pub fn gimbal_dcm<T: RealField + Copy>(gimbal_angles: &Vector3<T>) -> Matrix3<T> {
-    r3(gimbal_angles.z) * r2(gimbal_angles.y) * r1(gimbal_angles.x)
+    EulerTrig::new(gimbal_angles).dcm()
 }
 
 /// `M(β, γ)`: the gimbal-rate matrix, `ω^p_rp = M θ̇A`.
 pub fn gimbal_rate_matrix<T: RealField + Copy>(beta: T, gamma: T) -> Matrix3<T> {
-    let (sb, cb) = beta.sin_cos();
-    let (sg, cg) = gamma.sin_cos();
-    let z = T::zero();
-    Matrix3::new(cb * cg, sg, z, -cb * sg, cg, z, sb, z, T::one())
+    EulerTrig::new(&Vector3::new(T::zero(), beta, gamma)).rate_matrix()
 }
 
 /// `T(β, γ) = M⁻¹`: the map from the platform rate to the gimbal-angle rates,
 /// `θ̇A = T ω^p_rp`. `None` within `1e-9` of the gimbal lock `β = ±90°`.
 pub fn gimbal_rate_inverse<T: RealField + Copy>(beta: T, gamma: T) -> Option<Matrix3<T>> {
-    let (sb, cb) = beta.sin_cos();
-    if cb.abs() < nalgebra::convert(1e-9) {
-        return None;
-    }
-    let (sg, cg) = gamma.sin_cos();
-    let z = T::zero();
-    Some(Matrix3::new(
-        cg / cb,
-        -sg / cb,
-        z,
-        sg,
-        cg,
-        z,
-        -sb * cg / cb,
-        sb * sg / cb,
-        T::one(),
-    ))
+    EulerTrig::new(&Vector3::new(T::zero(), beta, gamma)).rate_inverse()
 }
 
 /// `∂(T(β, γ) w)/∂θA` for a fixed vector `w` (column α is zero):
@@ -364,15 +445,7 @@ pub fn d_gimbal_rate_inverse_times<T: RealField + Copy>(
     gamma: T,
     w: &Vector3<T>,
 ) -> Matrix3<T> {
-    let (sb, cb) = beta.sin_cos();
-    let (sg, cg) = gamma.sin_cos();
-    let z = T::zero();
-    let tw = t * w;
-    let dm_dbeta = Matrix3::new(-sb * cg, z, z, sb * sg, z, z, cb, z, z);
-    let dm_dgamma = Matrix3::new(-cb * sg, cg, z, -cb * cg, -sg, z, z, z, z);
-    let col_b = -(t * (dm_dbeta * tw));
-    let col_g = -(t * (dm_dgamma * tw));
-    Matrix3::from_columns(&[Vector3::zeros(), col_b, col_g])
+    EulerTrig::new(&Vector3::new(T::zero(), beta, gamma)).d_rate_inverse_times(t, w)
 }
 
 /// `∂(C(θ) v)/∂θ = [(C v)×] M(β, γ)` for the Euler DCM `C = ` [`gimbal_dcm`]`(θ)`.
@@ -380,7 +453,8 @@ pub fn d_gimbal_dcm_times<T: RealField + Copy>(
     gimbal_angles: &Vector3<T>,
     v: &Vector3<T>,
 ) -> Matrix3<T> {
-    skew(&(gimbal_dcm(gimbal_angles) * v)) * gimbal_rate_matrix(gimbal_angles.y, gimbal_angles.z)
+    let trig = EulerTrig::new(gimbal_angles);
+    trig.d_dcm_times(&trig.dcm(), v)
 }
 
 /// Euler angles `(α, β, γ)` (rad) of `C = R3(γ) R2(β) R1(α)`:

@@ -25,8 +25,8 @@ use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3};
 
 use crate::command::Period;
 use crate::geometry::{
-    d_dcm_times, d_gimbal_dcm_times, d_gimbal_rate_inverse_times, d_lower_times, dcm, gimbal_dcm,
-    gimbal_rate_inverse, right_jacobian, right_jacobian_inv, skew, wrap_angles,
+    d_lower_times, dcm, gimbal_dcm, gimbal_rate_inverse, right_jacobian, right_jacobian_inv, skew,
+    wrap_angles, EulerTrig,
 };
 
 /// How the attitude block of the state describes the platform attitude.
@@ -791,8 +791,9 @@ impl Layout {
                 Some(right_jacobian_inv(att) * (w_ip - dcm(att) * omega_c))
             }
             AttitudeKind::Gimbal | AttitudeKind::Attitude => {
-                let t = gimbal_rate_inverse(att.y, att.z)?;
-                let c_pn = gimbal_dcm(att) * m.c_rn;
+                let trig = EulerTrig::new(att);
+                let t = trig.rate_inverse()?;
+                let c_pn = trig.dcm() * m.c_rn;
                 Some(t * (w_ip - c_pn * env.earth_rate_n))
             }
         }
@@ -829,17 +830,18 @@ impl Layout {
                 set_cols(&mut f, GT, &(jinv * d_g_t));
             }
             AttitudeKind::Gimbal | AttitudeKind::Attitude => {
-                let t = gimbal_rate_inverse(att.y, att.z)?;
+                let trig = EulerTrig::new(att);
+                let t = trig.rate_inverse()?;
+                let c = trig.dcm();
                 let rl_w = m.c_rn * env.earth_rate_n;
-                let w = w_ip - gimbal_dcm(att) * rl_w;
-                let d_att = d_gimbal_rate_inverse_times(&t, att.y, att.z, &w)
-                    - t * d_gimbal_dcm_times(att, &rl_w);
+                let w = w_ip - c * rl_w;
+                let d_att = trig.d_rate_inverse_times(&t, &w) - t * trig.d_dcm_times(&c, &rl_w);
                 set_cols(&mut f, ATT, &d_att);
                 set_cols(&mut f, GC, &(t * d_g_c));
                 set_cols(&mut f, GT, &(t * d_g_t));
                 if let Some(il) = self.lam() {
                     let d_lam = -(t
-                        * gimbal_dcm(att)
+                        * c
                         * InstallationMatrices::d_rotation_times(
                             &m.c_rn,
                             &m.jr_lambda,
@@ -871,13 +873,44 @@ impl Layout {
         att: &Vector3<T>,
         c_cn: &Matrix3<T>,
     ) -> SMatrix<T, 3, N> {
+        self.accel_output_and_jacobian(env, m, att, c_cn).1
+    }
+
+    /// [`Layout::accel_output`] and [`Layout::accel_jacobian`] together,
+    /// on one evaluation of the attitude's rotation (the same values as
+    /// the two apart).
+    pub fn accel_output_and_jacobian<T: RealField + Copy, const N: usize>(
+        &self,
+        env: &Environment<T>,
+        m: &InstallationMatrices<T>,
+        att: &Vector3<T>,
+        c_cn: &Matrix3<T>,
+    ) -> (Vector3<T>, SMatrix<T, 3, N>) {
         let mut h = SMatrix::<T, 3, N>::zeros();
-        let f_p = self.platform_dcm(att, &m.c_rn, c_cn) * env.gravity_n;
-        let d_att = match self.attitude {
-            AttitudeKind::Misalignment => d_dcm_times(att, &(c_cn * env.gravity_n)),
-            AttitudeKind::Gimbal => d_gimbal_dcm_times(att, &(m.c_rn * env.gravity_n)),
-            AttitudeKind::Attitude => d_gimbal_dcm_times(att, &env.gravity_n),
+        let g = &env.gravity_n;
+        // The attitude's rotation (R(ψ) or C(θ)) and ∂(C^p_n f^n)/∂att.
+        let (rot, d_att) = match self.attitude {
+            AttitudeKind::Misalignment => {
+                let rot = dcm(att);
+                (rot, skew(&(rot * (c_cn * g))) * right_jacobian(att))
+            }
+            AttitudeKind::Gimbal => {
+                let trig = EulerTrig::new(att);
+                let c = trig.dcm();
+                (c, trig.d_dcm_times(&c, &(m.c_rn * g)))
+            }
+            AttitudeKind::Attitude => {
+                let trig = EulerTrig::new(att);
+                let c = trig.dcm();
+                (c, trig.d_dcm_times(&c, g))
+            }
         };
+        let c_pn = match self.attitude {
+            AttitudeKind::Misalignment => rot * c_cn,
+            AttitudeKind::Gimbal => rot * m.c_rn,
+            AttitudeKind::Attitude => rot,
+        };
+        let f_p = c_pn * g;
         set_cols(&mut h, ATT, &(m.a * d_att));
         let f_a = m.r_a_c * f_p;
         if let Some(ic) = self.ac() {
@@ -892,11 +925,11 @@ impl Layout {
         set_cols(&mut h, self.at(), &d_lower_times(&f_a));
         if let (Some(il), AttitudeKind::Gimbal) = (self.lam(), self.attitude) {
             let d_lam = m.a
-                * gimbal_dcm(att)
+                * rot
                 * InstallationMatrices::d_rotation_times(&m.c_rn, &m.jr_lambda, &env.gravity_n);
             set_cols(&mut h, il, &d_lam);
         }
-        h
+        (m.a * f_p, h)
     }
 }
 
@@ -1000,10 +1033,16 @@ impl Layout {
             .zip(back)
             .zip(f_nodes.iter())
         {
-            z += self.accel_output(env, m, att, c_cn) * w;
-            let hj: SMatrix<T, 3, N> = self.accel_jacobian(env, m, att, c_cn);
-            h += apply_transition(&hj, &transition_rows(f, tau)) * w;
-            d += hj.fixed_columns::<3>(ATT) * prop.noise_map * (w * tau);
+            let (zj, hj): (_, SMatrix<T, 3, N>) = self.accel_output_and_jacobian(env, m, att, c_cn);
+            z += zj * w;
+            if tau == T::zero() {
+                // The end node: Φ(t_{k+1} ← t_{k+1}) = I, and no noise
+                // accumulated after it.
+                h += hj * w;
+            } else {
+                h += apply_transition(&hj, &transition_rows(f, tau)) * w;
+                d += hj.fixed_columns::<3>(ATT) * prop.noise_map * (w * tau);
+            }
         }
         (z, h, d)
     }

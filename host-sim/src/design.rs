@@ -557,6 +557,12 @@ impl Problem {
                 out.gimbal_lock = Some(done);
                 break;
             }
+            // σ after every step only where it is read (a history, or a
+            // reach time); a budget needs it at the end alone.
+            let reach = matches!(goal, Goal::Reach { .. });
+            if !record && !reach {
+                continue;
+            }
             let sigma = obs.crlb_sigma();
             if record {
                 out.history.push((
@@ -567,7 +573,7 @@ impl Problem {
                 ));
             }
             let slack = if k > 1 { self.coarse_slack } else { FINE_SLACK };
-            if matches!(goal, Goal::Reach { .. }) && ratio_of(&sigma) <= 1.0 + slack {
+            if reach && ratio_of(&sigma) <= 1.0 + slack {
                 out.reach = Some(done);
                 break;
             }
