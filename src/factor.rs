@@ -195,6 +195,7 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         // check them first, so the update itself runs in place and cannot
         // fail half-way (no copy of the factor for a rollback).
         let mut alphas = [T::zero(); N];
+        let mut new_d = [T::zero(); N];
         {
             let a = &self.m.data.0;
             let mut alpha = r;
@@ -209,6 +210,7 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
                     return None;
                 }
                 alphas[j] = alpha;
+                new_d[j] = d;
             }
         }
         let a = &mut self.m.data.0;
@@ -217,7 +219,7 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         for j in 0..N {
             let alpha = alphas[j];
             let lambda = -f[j] / beta;
-            a[j][j] *= beta / alpha;
+            a[j][j] = new_d[j];
             for i in 0..j {
                 let u = a[j][i];
                 a[j][i] = u + b[i] * lambda;
