@@ -793,23 +793,11 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 &period,
             )
             .ok_or(Error::GimbalLock)?;
-        let mut q_extra = Matrix3::<T>::zeros();
-        if self.config.options.second_order_dynamics {
-            // Linearisation error of the period map x_{k+1} ≈ x_k + f(x_mid) T.
-            let env = &self.config.env;
-            let [_, wm, _] = period.omega_c;
-            let [_, att_mid, _] = prop.att;
-            let mut x_mid = self.x;
-            x_mid.fixed_rows_mut::<3>(ATT).copy_from(&att_mid);
-            let relevant =
-                |j: usize| j < 9 || layout.lam().is_some_and(|i| (i..i + 3).contains(&j));
-            let p_now = to_f64(&self.propagated_factor()?.covariance());
-            let (_, q2) = hessian_terms(&x_mid, &p_now, relevant, |xp| {
-                layout.attitude_rate_jacobian(env, &layout.matrices(xp), &layout.attitude(xp), &wm)
-            })
-            .ok_or(Error::GimbalLock)?;
-            q_extra = to_t(&(q2 * (dt * dt)));
-        }
+        let q_extra = if self.config.options.second_order_dynamics {
+            self.second_order_dynamics(&period, &prop)?
+        } else {
+            Matrix3::<T>::zeros()
+        };
         if !all_finite(q_extra.iter().copied()) || !all_finite(prop.noise_map.iter().copied()) {
             return Err(Error::NonFiniteState);
         }
@@ -839,6 +827,32 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             q_extra,
         });
         Ok(())
+    }
+
+    /// The second-order process noise of the attitude over `period`
+    /// (rad²; [`Options::second_order_dynamics`]): the linearisation error
+    /// of the period map `x_{k+1} ≈ x_k + f(x_mid) T`, from central
+    /// differences of the attitude-rate Jacobian. Out of line: its N×N
+    /// temporaries stay out of [`Filter::predict`]'s frame.
+    #[inline(never)]
+    fn second_order_dynamics(
+        &self,
+        period: &Period<f64>,
+        prop: &PeriodPropagation<f64, N>,
+    ) -> Result<Matrix3<T>, Error> {
+        let layout = Self::LAYOUT;
+        let env = &self.config.env;
+        let [_, wm, _] = period.omega_c;
+        let [_, att_mid, _] = prop.att;
+        let mut x_mid = self.x;
+        x_mid.fixed_rows_mut::<3>(ATT).copy_from(&att_mid);
+        let relevant = |j: usize| j < 9 || layout.lam().is_some_and(|i| (i..i + 3).contains(&j));
+        let p_now = to_f64(&self.propagated_factor()?.covariance());
+        let (_, q2) = hessian_terms(&x_mid, &p_now, relevant, |xp| {
+            layout.attitude_rate_jacobian(env, &layout.matrices(xp), &layout.attitude(xp), &wm)
+        })
+        .ok_or(Error::GimbalLock)?;
+        Ok(to_t(&(q2 * (period.dt * period.dt))))
     }
 
     /// Predicted measurement, its Jacobian (w.r.t. the state at the end of

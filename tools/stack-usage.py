@@ -1,7 +1,12 @@
 #!/usr/bin/env python3
 """Static stack use of a Thumb-2 ELF along its call graph.
 
-Usage: tools/stack-usage.py ELF REGEX [REGEX...]
+Usage: tools/stack-usage.py [--exclude XREGEX]... ELF REGEX [REGEX...]
+
+`--exclude XREGEX`: calls into functions matching XREGEX are not followed
+(e.g. the out-of-line branches of options that are off by default:
+`Filter::second_order_dynamics`, `Filter::iterated_point`); the figure then
+bounds the runs that never enter them, and says so.
 
 For every function it reads the whole body in `arm-none-eabi-objdump -d`
 and adds up every instruction that moves sp down: `push`, `stmdb sp!`,
@@ -80,7 +85,11 @@ def sp_down(op, args):
 
 
 def main():
-    elf, pats = sys.argv[1], [re.compile(p) for p in sys.argv[2:]]
+    args, excludes = sys.argv[1:], []
+    while len(args) >= 2 and args[0] == "--exclude":
+        excludes.append(re.compile(args[1]))
+        args = args[2:]
+    elf, pats = args[0], [re.compile(p) for p in args[1:]]
     dis = subprocess.run(["arm-none-eabi-objdump", "-d", "--no-show-raw-insn", "-C", elf],
                          capture_output=True, text=True, check=True).stdout
     frames, dynamic, targets, order, start = {}, set(), {}, [], {}
@@ -119,6 +128,8 @@ def main():
         return by_addr[starts[i]] if i >= 0 else None
 
     calls = {f: {owner(a) for a in ts} - {None, f} for f, ts in targets.items()}
+    excluded = {f for f in order if any(x.search(f) for x in excludes)}
+    calls = {f: cs - excluded for f, cs in calls.items()}
     memo = {}
 
     def deepest(f, stack=()):
@@ -144,6 +155,8 @@ def main():
         if any(p.search(f) for p in pats):
             total, path = deepest(f)
             flag = " (? dynamic sp adjustment on the path: not bounded)" if any(g in dynamic for g in path) else ""
+            if excluded:
+                flag += " (calls into " + ", ".join(x.pattern for x in excludes) + " not followed)"
             print(f"{short(f)}: own frame {frames[f]} B, deepest call path {total} B{flag}:")
             for g in path:
                 print(f"    {frames[g]:>7} B{'?' if g in dynamic else ' '} {short(g)[:120]}")
