@@ -953,12 +953,15 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let mut fresh = None;
         let m = self.matrices.get(&layout, x, &mut fresh).to_precision();
         let x: SVector<T, N> = to_t(x);
-        let terms = layout.accel_second_order(
+        // P at the end of the period, element by element from its factor
+        // (only the ≤ 12 states the accelerometers see; no N×N matrix).
+        let ud = self.settled();
+        let terms = layout.accel_second_order_with(
             &env,
             &m,
             &layout.attitude(&x),
             &c_end,
-            &self.settled().covariance(),
+            |i, j| ud.covariance_entry(i, j),
         );
         (to_f64(&terms.mean), to_f64(&terms.cov))
     }

@@ -133,6 +133,23 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         p
     }
 
+    /// One element `P_ij` of the covariance (rad²), as
+    /// [`Ud::covariance`] computes it (the same operations); `None` outside
+    /// `N × N`.
+    pub fn covariance_entry(&self, i: usize, j: usize) -> Option<T> {
+        let (i, j) = if i <= j { (i, j) } else { (j, i) };
+        let a = &self.m.data.0;
+        let col_j = a.get(j)?;
+        let d_j = *col_j.get(j)?;
+        let mut s = if i == j { d_j } else { *col_j.get(i)? * d_j };
+        for (k, col) in a.iter().enumerate().skip(j + 1) {
+            if let (Some(&u_i), Some(&u_j), Some(&d_k)) = (col.get(i), col.get(j), col.get(k)) {
+                s += u_i * u_j * d_k;
+            }
+        }
+        Some(s)
+    }
+
     /// The variances `P_ii` (rad²).
     pub fn variances(&self) -> SVector<T, N> {
         let a = &self.m.data.0;

@@ -278,23 +278,39 @@ impl Layout {
         c_cn: &Matrix3<T>,
         p: &SMatrix<T, N, N>,
     ) -> AccelSecondOrder<T> {
-        let parts = self.accel_parts();
-        match parts.iter().flatten().count() {
-            2 => self.second_order_terms::<T, N, 6>(env, m, att, c_cn, p, &parts),
-            3 => self.second_order_terms::<T, N, 9>(env, m, att, c_cn, p, &parts),
-            _ => self.second_order_terms::<T, N, 12>(env, m, att, c_cn, p, &parts),
-        }
+        self.accel_second_order_with(env, m, att, c_cn, |i, j| p.get((i, j)).copied())
     }
 
-    /// [`Layout::accel_second_order`] with the Hessians on the `R` states of
-    /// `parts`.
-    fn second_order_terms<T: RealField + Copy, const N: usize, const R: usize>(
+    /// [`Layout::accel_second_order`] with the covariance given by its
+    /// elements, `p(i, j) = P_ij` (rad²; `None` outside the state): only
+    /// those of the at most 12 states the accelerometer output depends on
+    /// are read (e.g. from the U-D factor, [`crate::factor::Ud::covariance_entry`],
+    /// without forming `P`).
+    pub fn accel_second_order_with<T: RealField + Copy>(
         &self,
         env: &Environment<T>,
         m: &InstallationMatrices<T>,
         att: &Vector3<T>,
         c_cn: &Matrix3<T>,
-        p: &SMatrix<T, N, N>,
+        p: impl Fn(usize, usize) -> Option<T>,
+    ) -> AccelSecondOrder<T> {
+        let parts = self.accel_parts();
+        match parts.iter().flatten().count() {
+            2 => self.second_order_terms::<T, 6>(env, m, att, c_cn, &p, &parts),
+            3 => self.second_order_terms::<T, 9>(env, m, att, c_cn, &p, &parts),
+            _ => self.second_order_terms::<T, 12>(env, m, att, c_cn, &p, &parts),
+        }
+    }
+
+    /// [`Layout::accel_second_order`] with the Hessians on the `R` states of
+    /// `parts`.
+    fn second_order_terms<T: RealField + Copy, const R: usize>(
+        &self,
+        env: &Environment<T>,
+        m: &InstallationMatrices<T>,
+        att: &Vector3<T>,
+        c_cn: &Matrix3<T>,
+        p: &impl Fn(usize, usize) -> Option<T>,
         parts: &[Option<(Part, usize)>; 4],
     ) -> AccelSecondOrder<T> {
         let half: T = nalgebra::convert(0.5);
@@ -338,9 +354,9 @@ impl Layout {
                 for k in 0..3 {
                     for l in 0..3 {
                         if let (Some(dst), Some(src)) =
-                            (p_r.get_mut((li + k, lj + l)), p.get((si + k, sj + l)))
+                            (p_r.get_mut((li + k, lj + l)), p(si + k, sj + l))
                         {
-                            *dst = *src;
+                            *dst = src;
                         }
                     }
                 }
