@@ -227,10 +227,11 @@ struct Gain<T: RealField + Copy, const N: usize, const Z: usize> {
     k: SMatrix<T, N, Z>,
 }
 
-/// The outcome of one factored update, not yet committed (the factor at
-/// the end of the period is in [`Factors`]' spare): the state correction `x̂_{k+1} − x̂⁻_{k+1}`, and
+/// The outcome of one factored update, not yet committed: the factor at
+/// the end of the period, the state correction `x̂_{k+1} − x̂⁻_{k+1}`, and
 /// the innovation's covariance and NIS.
 struct Factored<T: RealField + Copy, const N: usize, const Z: usize> {
+    ud: Ud<T, N>,
     dx: SVector<f64, N>,
     /// The innovation covariance `S`; only its noise part `R_e` for an
     /// update that does not report it (see [`Filter::factored`]).
@@ -265,8 +266,8 @@ pub struct Filter<T: RealField + Copy, M, const N: usize, const Z: usize> {
     x: SVector<f64, N>,
     /// The covariance of `x` — at the start of the pending period while a
     /// prediction is pending (its time update is applied with the
-    /// measurement, [`Filter::update`]) — and the spare an update writes.
-    factors: Factors<T, N>,
+    /// measurement, [`Filter::update`]).
+    ud: Ud<T, N>,
     command: CommandFrame<f64>,
     config: FilterConfig<T>,
     pending: Option<Pending<T, N>>,
@@ -279,67 +280,6 @@ pub struct Filter<T: RealField + Copy, M, const N: usize, const Z: usize> {
     /// prediction and the update of a period of pass 1).
     matrices: MatricesCache,
     _model: PhantomData<M>,
-}
-
-/// The U-D factor of the covariance and a spare of the same size: an
-/// update writes the new factor into the spare (a copy of the current one),
-/// which becomes the current one when the update is committed, so the
-/// update neither copies the factor back nor loses it on a rejection. Only
-/// the current factor is part of the filter's value.
-#[derive(Clone, Copy, Debug)]
-struct Factors<T: RealField + Copy, const N: usize> {
-    a: Ud<T, N>,
-    b: Ud<T, N>,
-    /// `b` is the current factor (else `a`).
-    b_current: bool,
-}
-
-impl<T: RealField + Copy, const N: usize> PartialEq for Factors<T, N> {
-    fn eq(&self, other: &Self) -> bool {
-        self.current() == other.current()
-    }
-}
-
-impl<T: RealField + Copy, const N: usize> Factors<T, N> {
-    fn new(ud: Ud<T, N>) -> Self {
-        Self {
-            a: ud,
-            b: ud,
-            b_current: false,
-        }
-    }
-
-    fn current(&self) -> &Ud<T, N> {
-        if self.b_current {
-            &self.b
-        } else {
-            &self.a
-        }
-    }
-
-    fn current_mut(&mut self) -> &mut Ud<T, N> {
-        if self.b_current {
-            &mut self.b
-        } else {
-            &mut self.a
-        }
-    }
-
-    /// The spare, set to a copy of the current factor.
-    fn spare_from_current(&mut self) -> &mut Ud<T, N> {
-        if self.b_current {
-            self.a = self.b;
-            &mut self.a
-        } else {
-            self.b = self.a;
-            &mut self.b
-        }
-    }
-
-    /// Makes the spare the current factor.
-    fn commit_spare(&mut self) {
-        self.b_current = !self.b_current;
-    }
 }
 
 /// A cache of [`InstallationMatrices`], a pure function of the parameters
@@ -570,10 +510,10 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         if Self::LAYOUT.gimbal_obs && config.sigma_gimbal <= T::zero() {
             return Err(Error::CovarianceNotPositiveDefinite);
         }
-        let ud = Factors::new(Ud::from_variances(&variance).ok_or(Error::NonFiniteInput)?);
+        let ud = Ud::from_variances(&variance).ok_or(Error::NonFiniteInput)?;
         Ok(Self {
             x: x0,
-            factors: ud,
+            ud,
             command: CommandFrame::aligned(config.env.earth_rate_n),
             config,
             pending: None,
@@ -610,8 +550,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         {
             return Err(Error::NonFiniteInput);
         }
-        f.factors =
-            Factors::new(Ud::from_packed(&factor).ok_or(Error::CovarianceNotPositiveDefinite)?);
+        f.ud = Ud::from_packed(&factor).ok_or(Error::CovarianceNotPositiveDefinite)?;
         f.x = x;
         f.command.c_cn = c_cn;
         f.reference = nominal;
@@ -655,7 +594,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         }
         // The pending time update moves only the attitude block, which this
         // replaces: it needs no applying.
-        self.factors.current_mut().reset_attitude(sigma * sigma);
+        self.ud.reset_attitude(sigma * sigma);
         self.command.c_cn = *c_cn;
         if let Some(nominal) = self.reference.as_mut() {
             let att = self.x.fixed_rows::<3>(ATT).clone_owned();
@@ -680,7 +619,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     pub fn covariance(&self) -> SMatrix<T, N, N> {
         match self.pending {
             Some(_) => self.settled().covariance(),
-            None => self.factors.current().covariance(),
+            None => self.ud.covariance(),
         }
     }
 
@@ -688,7 +627,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     pub fn sigma(&self) -> SVector<T, N> {
         let variances = match self.pending {
             Some(_) => self.settled().variances(),
-            None => self.factors.current().variances(),
+            None => self.ud.variances(),
         };
         variances.map(|v| v.max(T::zero()).sqrt())
     }
@@ -698,13 +637,13 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// Between [`Filter::predict`] and [`Filter::update`] it is the factor at
     /// the start of the pending period.
     pub fn factor(&self) -> &SMatrix<T, N, N> {
-        self.factors.current().packed()
+        self.ud.packed()
     }
 
     /// The factor with any pending time update applied (the unpropagated
     /// one in the impossible case that it fails: predict checks it).
     fn settled(&self) -> Ud<T, N> {
-        self.propagated_factor().unwrap_or(*self.factors.current())
+        self.propagated_factor().unwrap_or(self.ud)
     }
 
     /// The process noise of a pending period on the attitude (rad²).
@@ -720,8 +659,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     fn settle(&mut self) -> Result<(), Error> {
         if let Some(pending) = &self.pending {
             let q = self.process_noise(pending);
-            self.factors
-                .current_mut()
+            self.ud
                 .predict_attitude(&to_t(&pending.prop.phi_att), &q)
                 .ok_or(Error::CovarianceNotPositiveDefinite)?;
         }
@@ -731,7 +669,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// The factor at the current time: the pending time update applied
     /// without a measurement.
     fn propagated_factor(&self) -> Result<Ud<T, N>, Error> {
-        let mut ud = *self.factors.current();
+        let mut ud = self.ud;
         if let Some(pending) = &self.pending {
             ud.predict_attitude(&to_t(&pending.prop.phi_att), &self.process_noise(pending))
                 .ok_or(Error::CovarianceNotPositiveDefinite)?;
@@ -956,13 +894,10 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         // P at the end of the period, element by element from its factor
         // (only the ≤ 12 states the accelerometers see; no N×N matrix).
         let ud = self.settled();
-        let terms = layout.accel_second_order_with(
-            &env,
-            &m,
-            &layout.attitude(&x),
-            &c_end,
-            |i, j| ud.covariance_entry(i, j),
-        );
+        let terms =
+            layout.accel_second_order_with(&env, &m, &layout.attitude(&x), &c_end, |i, j| {
+                ud.covariance_entry(i, j)
+            });
         (to_f64(&terms.mean), to_f64(&terms.cov))
     }
 
@@ -1146,7 +1081,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// [`Innovation`]; without it the result's `s` is `R_e` only (the
     /// update itself never uses `S`).
     fn factored(
-        &mut self,
+        &self,
         h: &SMatrix<f64, Z, N>,
         nu: &SVector<f64, Z>,
         r_v: &SMatrix<T, Z, Z>,
@@ -1179,10 +1114,12 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             .transpose();
         // The spare factor, a copy of the current one, becomes the factor at
         // the end of the period (current again once committed).
-        let ud = self.factors.spare_from_current();
+        // A working copy: the factor is replaced only when the update is
+        // committed (not when the NIS gate refuses it).
+        let mut ud = self.ud;
         // S = H Φ P Φᵀ Hᵀ + R_e, for the innovation report.
         let s = if report {
-            r_e + ud.congruence(&hf)
+            r_e + self.ud.congruence(&hf)
         } else {
             r_e
         };
@@ -1207,6 +1144,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let d_att = phi_att * dx + j_l * (nu_w - h_w * dx);
         dx.fixed_rows_mut::<3>(ATT).copy_from(&d_att);
         Ok(Factored {
+            ud,
             dx: to_f64(&dx),
             s,
             nis,
@@ -1246,7 +1184,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             }
         }
         self.x = x;
-        self.factors.commit_spare();
+        self.ud = out.ud;
         self.pending = None;
         self.updates = self.updates.saturating_add(1);
         self.gated_run = 0;
