@@ -1,0 +1,147 @@
+//! The shared evaluations of the model give exactly (bit for bit) what the
+//! functions they replace give:
+//!
+//! - [`EulerTrig`] (one `sin`/`cos` of the Euler angles per attitude) against
+//!   `gimbal_dcm`, `gimbal_rate_matrix`, `gimbal_rate_inverse`,
+//!   `d_gimbal_rate_inverse_times` and `d_gimbal_dcm_times`;
+//! - [`InstallationMatrices`] (rotations and right Jacobians of the
+//!   installation angles, computed once per parameter value) against
+//!   `gyro_matrix`, `accel_matrix`, `dcm` and `d_dcm_times`;
+//! - `Layout::accel_output_and_jacobian` (one rotation per node) against
+//!   `accel_output` and `accel_jacobian` apart, for every configuration;
+//! - `Ud::covariance_entry` (one element of `P` from the factor) against
+//!   `Ud::covariance`.
+//!
+//! Equality is exact: these replace their originals on the estimator's path,
+//! and `tools/compare-runs.sh` relies on the answers not moving at all.
+
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
+use rollcal::factor::Ud;
+use rollcal::geometry::{
+    d_dcm_times, d_gimbal_dcm_times, d_gimbal_rate_inverse_times, dcm, earth_rate_n, gimbal_dcm,
+    gimbal_rate_inverse, gimbal_rate_matrix, gravity_n, EulerTrig, EARTH_RATE,
+};
+use rollcal::instruments::{accel_matrix, gyro_matrix};
+use rollcal::models::{ConfigId, Environment, InstallationMatrices, Model};
+
+/// A deterministic sequence in (−1, 1).
+fn lcg(state: &mut u64) -> f64 {
+    *state = state
+        .wrapping_mul(6_364_136_223_846_793_005)
+        .wrapping_add(1_442_695_040_888_963_407);
+    ((*state >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+}
+
+fn vec3(s: &mut u64, scale: f64) -> Vector3<f64> {
+    Vector3::new(lcg(s) * scale, lcg(s) * scale, lcg(s) * scale)
+}
+
+#[test]
+fn euler_trig_equals_the_free_functions() {
+    let mut s = 7;
+    for _ in 0..200 {
+        let angles = vec3(&mut s, 3.0);
+        let w = vec3(&mut s, 1e-3);
+        let trig = EulerTrig::new(&angles);
+        let c = trig.dcm();
+        assert_eq!(c, gimbal_dcm(&angles));
+        assert_eq!(trig.rate_matrix(), gimbal_rate_matrix(angles.y, angles.z));
+        let t = trig.rate_inverse();
+        assert_eq!(t, gimbal_rate_inverse(angles.y, angles.z));
+        if let Some(t) = t {
+            assert_eq!(
+                trig.d_rate_inverse_times(&t, &w),
+                d_gimbal_rate_inverse_times(&t, angles.y, angles.z, &w)
+            );
+        }
+        assert_eq!(trig.d_dcm_times(&c, &w), d_gimbal_dcm_times(&angles, &w));
+    }
+    // At gimbal lock both refuse.
+    let lock = EulerTrig::new(&Vector3::new(0.3, core::f64::consts::FRAC_PI_2, 0.1));
+    assert!(lock.rate_inverse().is_none());
+}
+
+#[test]
+fn installation_matrices_equal_their_definitions() {
+    let mut s = 11;
+    for _ in 0..200 {
+        let x = SVector::<f64, 18>::from_fn(|_, _| lcg(&mut s) * 0.05);
+        let layout = ConfigId::M2Ps.layout();
+        let m = layout.matrices(&x);
+        let p = &m.params;
+        assert_eq!(m.g, gyro_matrix(&p.theta_g_c, &p.theta_g_t));
+        assert_eq!(m.a, accel_matrix(&p.theta_a_c, &p.theta_a_t));
+        assert_eq!(m.c_rn, dcm(&p.lambda));
+        let v = vec3(&mut s, 1.0);
+        assert_eq!(
+            InstallationMatrices::d_rotation_times(&m.r_g_c, &m.jr_g_c, &v),
+            d_dcm_times(&p.theta_g_c, &v)
+        );
+        assert_eq!(
+            InstallationMatrices::d_rotation_times(&m.r_a_c, &m.jr_a_c, &v),
+            d_dcm_times(&(-p.theta_a_c), &v)
+        );
+        assert_eq!(
+            InstallationMatrices::d_rotation_times(&m.c_rn, &m.jr_lambda, &v),
+            d_dcm_times(&p.lambda, &v)
+        );
+        // Rounded to f32 element by element.
+        let m32: InstallationMatrices<f32> = m.to_precision();
+        assert_eq!(m32.a, m.a.map(|e| e as f32));
+        assert_eq!(m32.params.lambda, p.lambda.map(|e| e as f32));
+    }
+}
+
+fn accel_pair<M: Model<N, Z>, const N: usize, const Z: usize>(seed: u64) {
+    let mut s = seed;
+    let layout = M::LAYOUT;
+    let env = Environment {
+        earth_rate_n: earth_rate_n(EARTH_RATE, 0.6),
+        gravity_n: gravity_n(),
+    };
+    for _ in 0..50 {
+        let mut x = SVector::<f64, N>::from_fn(|_, _| lcg(&mut s) * 0.01);
+        for v in x.iter_mut().take(3) {
+            *v *= 100.0;
+        }
+        let c_cn = dcm(&vec3(&mut s, 2.0));
+        let m = layout.matrices(&x);
+        let att = layout.attitude(&x);
+        let (z, h): (Vector3<f64>, SMatrix<f64, 3, N>) =
+            layout.accel_output_and_jacobian(&env, &m, &att, &c_cn);
+        assert_eq!(z, layout.accel_output(&env, &m, &att, &c_cn));
+        let h_apart: SMatrix<f64, 3, N> = layout.accel_jacobian(&env, &m, &att, &c_cn);
+        assert_eq!(h, h_apart);
+        // And the value against the definition Z_a = A C^p_n f^n.
+        let c_pn: Matrix3<f64> = layout.platform_dcm(&att, &m.c_rn, &c_cn);
+        assert_eq!(z, m.a * (c_pn * env.gravity_n));
+    }
+}
+
+#[test]
+fn accel_output_and_jacobian_equal_the_two_apart() {
+    use rollcal::models::{M1Pa, M1Ps, M2Ps, M3Pa, M3Ps, M4Pa, M4Ps};
+    accel_pair::<M1Pa, 12, 3>(1);
+    accel_pair::<M1Ps, 15, 3>(2);
+    accel_pair::<M2Ps, 18, 6>(3);
+    accel_pair::<M3Pa, 15, 3>(4);
+    accel_pair::<M3Ps, 18, 3>(5);
+    accel_pair::<M4Pa, 12, 3>(6);
+    accel_pair::<M4Ps, 15, 3>(7);
+}
+
+#[test]
+fn covariance_entry_equals_the_covariance() {
+    let mut s = 13;
+    let a = SMatrix::<f64, 18, 18>::from_fn(|_, _| lcg(&mut s));
+    let p = a * a.transpose() + SMatrix::<f64, 18, 18>::identity();
+    let ud = Ud::from_covariance(&p).expect("positive definite");
+    let full = ud.covariance();
+    for i in 0..18 {
+        for j in 0..18 {
+            assert_eq!(ud.covariance_entry(i, j), Some(full[(i, j)]), "({i}, {j})");
+        }
+    }
+    assert_eq!(ud.covariance_entry(18, 0), None);
+    assert_eq!(ud.covariance_entry(0, 18), None);
+}
