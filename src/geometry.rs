@@ -361,6 +361,16 @@ impl<T: RealField + Copy> EulerTrig<T> {
         }
     }
 
+    /// The trigonometry of `β` and `γ` alone (rad), for the functions that
+    /// do not depend on `α` (`α` is taken as 0, without evaluating it).
+    fn of_beta_gamma(beta: T, gamma: T) -> Self {
+        Self {
+            alpha: (T::zero(), T::one()),
+            beta: beta.sin_cos(),
+            gamma: gamma.sin_cos(),
+        }
+    }
+
     /// `C = R3(γ) R2(β) R1(α)` ([`gimbal_dcm`]).
     pub fn dcm(&self) -> Matrix3<T> {
         r3_sc(self.gamma.0, self.gamma.1)
@@ -428,13 +438,13 @@ pub fn gimbal_dcm<T: RealField + Copy>(gimbal_angles: &Vector3<T>) -> Matrix3<T>
 
 /// `M(β, γ)`: the gimbal-rate matrix, `ω^p_rp = M θ̇A`.
 pub fn gimbal_rate_matrix<T: RealField + Copy>(beta: T, gamma: T) -> Matrix3<T> {
-    EulerTrig::new(&Vector3::new(T::zero(), beta, gamma)).rate_matrix()
+    EulerTrig::of_beta_gamma(beta, gamma).rate_matrix()
 }
 
 /// `T(β, γ) = M⁻¹`: the map from the platform rate to the gimbal-angle rates,
 /// `θ̇A = T ω^p_rp`. `None` within `1e-9` of the gimbal lock `β = ±90°`.
 pub fn gimbal_rate_inverse<T: RealField + Copy>(beta: T, gamma: T) -> Option<Matrix3<T>> {
-    EulerTrig::new(&Vector3::new(T::zero(), beta, gamma)).rate_inverse()
+    EulerTrig::of_beta_gamma(beta, gamma).rate_inverse()
 }
 
 /// `∂(T(β, γ) w)/∂θA` for a fixed vector `w` (column α is zero):
@@ -445,7 +455,7 @@ pub fn d_gimbal_rate_inverse_times<T: RealField + Copy>(
     gamma: T,
     w: &Vector3<T>,
 ) -> Matrix3<T> {
-    EulerTrig::new(&Vector3::new(T::zero(), beta, gamma)).d_rate_inverse_times(t, w)
+    EulerTrig::of_beta_gamma(beta, gamma).d_rate_inverse_times(t, w)
 }
 
 /// `∂(C(θ) v)/∂θ = [(C v)×] M(β, γ)` for the Euler DCM `C = ` [`gimbal_dcm`]`(θ)`.

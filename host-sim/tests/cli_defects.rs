@@ -6,25 +6,15 @@
 mod support;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-use support::{host_sim, scratch, stderr};
+use support::{host_sim, paper_with_path, scratch, stderr};
 
 use host_sim::verdict::Verdict;
-
-const PAPER: &str = include_str!("../../scenarios/paper.toml");
 
 /// The paper's scenario with a short path (45° about South, then 45° about
 /// East, at 0.5 °/s) and `duration_s`.
 fn short_scenario(dir: &Path, duration_s: &str) -> PathBuf {
-    let a = PAPER.find("[[path]]").unwrap();
-    let b = PAPER.find("[noise]").unwrap();
-    let path = "[[path]]\naxis = \"south\"\nangle_deg = 45.0\nrate_deg_s = 0.5\n\n\
-                [[path]]\naxis = \"east\"\nangle_deg = 45.0\nrate_deg_s = 0.5\n\n";
-    let text = format!("{}{path}{}", &PAPER[..a], &PAPER[b..])
-        .replace("duration_s = 5400.0", &format!("duration_s = {duration_s}"))
-        .replace("name = \"paper\"", "name = \"short\"");
-    let file = dir.join(format!("short-{duration_s}.toml"));
-    std::fs::write(&file, text).unwrap();
-    file
+    let segments = [("south", 45.0, 0.5), ("east", 45.0, 0.5)];
+    paper_with_path(dir, &format!("short-{duration_s}"), &segments, duration_s)
 }
 
 /// A one-line error with exit status 1, mentioning `needle`.
@@ -312,14 +302,12 @@ fn printed_verdicts_are_the_words_the_readme_defines() {
 #[test]
 fn a_path_through_gimbal_lock_is_refused_where_the_gimbal_angles_are_measured() {
     let dir = scratch("defects-gimbal-lock");
-    let a = PAPER.find("[[path]]").unwrap();
-    let b = PAPER.find("[noise]").unwrap();
-    let path = "[[path]]\naxis = \"south\"\nangle_deg = 90.0\nrate_deg_s = 1.0\n\n\
-                [[path]]\naxis = \"east\"\nangle_deg = 90.0\nrate_deg_s = 1.0\n\n";
-    let text = format!("{}{path}{}", &PAPER[..a], &PAPER[b..])
-        .replace("duration_s = 5400.0", "duration_s = 180.0");
-    let sc = dir.join("lock.toml");
-    std::fs::write(&sc, text).unwrap();
+    let sc = paper_with_path(
+        &dir,
+        "lock",
+        &[("south", 90.0, 1.0), ("east", 90.0, 1.0)],
+        "180.0",
+    );
     let stream = dir.join("lock.bin");
     for args in [
         vec!["run", "--config", "M2-ps", "--scenario"],
@@ -358,13 +346,7 @@ fn a_path_through_gimbal_lock_is_refused_where_the_gimbal_angles_are_measured() 
 #[test]
 fn an_unexcited_claimed_state_is_not_called_converged() {
     let dir = scratch("defects-unexcited");
-    let a = PAPER.find("[[path]]").unwrap();
-    let b = PAPER.find("[noise]").unwrap();
-    let path = "[[path]]\naxis = \"north\"\nangle_deg = 180.0\nrate_deg_s = 0.5\n\n";
-    let text = format!("{}{path}{}", &PAPER[..a], &PAPER[b..])
-        .replace("duration_s = 5400.0", "duration_s = 360.0");
-    let sc = dir.join("north.toml");
-    std::fs::write(&sc, text).unwrap();
+    let sc = paper_with_path(&dir, "north", &[("north", 180.0, 0.5)], "360.0");
     let out = host_sim()
         .args(["run", "--config", "M2-ps", "--scenario"])
         .arg(&sc)

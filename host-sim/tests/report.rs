@@ -5,26 +5,13 @@
 mod support;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use support::{assert_success, host_sim, scratch};
-
-const PAPER: &str = include_str!("../../scenarios/paper.toml");
+use support::{assert_success, host_sim, paper_with_path, scratch};
 
 /// The paper's scenario with a short path (90° about South, East, Up at
 /// 1 °/s: 270 periods, two switches).
 fn short_scenario(dir: &Path) -> PathBuf {
-    let a = PAPER.find("[[path]]").unwrap();
-    let b = PAPER.find("[noise]").unwrap();
-    let mut path = String::new();
-    for axis in ["south", "east", "up"] {
-        path.push_str(&format!(
-            "[[path]]\naxis = \"{axis}\"\nangle_deg = 90.0\nrate_deg_s = 1.0\n\n"
-        ));
-    }
-    let text = format!("{}{path}{}", &PAPER[..a], &PAPER[b..])
-        .replace("duration_s = 5400.0", "duration_s = 270.0");
-    let p = dir.join("short.toml");
-    std::fs::write(&p, text).unwrap();
-    p
+    let segments = [("south", 90.0, 1.0), ("east", 90.0, 1.0), ("up", 90.0, 1.0)];
+    paper_with_path(dir, "short", &segments, "270.0")
 }
 
 fn ok(cmd: &mut Command) -> String {

@@ -13,7 +13,7 @@
 #![cfg(target_os = "linux")]
 
 mod support;
-use support::{assert_success, host_sim, scratch};
+use support::{assert_success, host_sim, paper_with_path, scratch};
 
 use std::io::Write;
 use std::os::fd::{FromRawFd, OwnedFd};
@@ -21,25 +21,11 @@ use std::path::{Path, PathBuf};
 use std::process::Stdio;
 use std::time::{Duration, Instant};
 
-const PAPER: &str = include_str!("../../scenarios/paper.toml");
-
 /// The paper's scenario with a short path (90° about South, East, Up at
 /// 1 °/s: 270 periods), so the paced stream takes a few seconds.
 fn short_scenario(dir: &Path) -> PathBuf {
-    let a = PAPER.find("[[path]]").unwrap();
-    let b = PAPER.find("[noise]").unwrap();
-    let mut path = String::new();
-    for axis in ["south", "east", "up"] {
-        path.push_str(&format!(
-            "[[path]]\naxis = \"{axis}\"\nangle_deg = 90.0\nrate_deg_s = 1.0\n\n"
-        ));
-    }
-    let text = format!("{}{path}{}", &PAPER[..a], &PAPER[b..])
-        .replace("duration_s = 5400.0", "duration_s = 270.0");
-    assert!(text.contains("duration_s = 270.0"));
-    let p = dir.join("short.toml");
-    std::fs::write(&p, text).unwrap();
-    p
+    let segments = [("south", 90.0, 1.0), ("east", 90.0, 1.0), ("up", 90.0, 1.0)];
+    paper_with_path(dir, "short", &segments, "270.0")
 }
 
 /// A raw pty pair: (master, slave, slave path).

@@ -33,3 +33,32 @@ pub fn stderr(out: &Output) -> String {
 pub fn assert_success(out: &Output) {
     assert!(out.status.success(), "{}", stderr(out));
 }
+
+/// The repository's paper scenario.
+pub const PAPER: &str = include_str!("../../../scenarios/paper.toml");
+
+/// Writes `dir/<name>.toml`: the paper's scenario with its path replaced by
+/// `segments` (axis, angle in degrees, rate in °/s), its `duration_s` by
+/// `duration_s` (written as given, e.g. `"1e10"`) and its name by `name`.
+pub fn paper_with_path(
+    dir: &Path,
+    name: &str,
+    segments: &[(&str, f64, f64)],
+    duration_s: &str,
+) -> PathBuf {
+    let a = PAPER.find("[[path]]").unwrap();
+    let b = PAPER.find("[noise]").unwrap();
+    let path: String = segments
+        .iter()
+        .map(|(axis, angle, rate)| {
+            format!("[[path]]\naxis = \"{axis}\"\nangle_deg = {angle:?}\nrate_deg_s = {rate:?}\n\n")
+        })
+        .collect();
+    let text = format!("{}{path}{}", &PAPER[..a], &PAPER[b..])
+        .replace("duration_s = 5400.0", &format!("duration_s = {duration_s}"))
+        .replace("name = \"paper\"", &format!("name = \"{name}\""));
+    assert!(text.contains(&format!("duration_s = {duration_s}")));
+    let file = dir.join(format!("{name}.toml"));
+    std::fs::write(&file, text).unwrap();
+    file
+}
