@@ -227,18 +227,6 @@ struct Gain<T: RealField + Copy, const N: usize, const Z: usize> {
     k: SMatrix<T, N, Z>,
 }
 
-/// The outcome of one factored update, not yet committed: the factor at
-/// the end of the period, the state correction `x̂_{k+1} − x̂⁻_{k+1}`, and
-/// the innovation's covariance and NIS.
-struct Factored<T: RealField + Copy, const N: usize, const Z: usize> {
-    ud: Ud<T, N>,
-    dx: SVector<f64, N>,
-    /// The innovation covariance `S`; only its noise part `R_e` for an
-    /// update that does not report it (see [`Filter::factored`]).
-    s: SMatrix<T, Z, Z>,
-    nis: T,
-}
-
 /// A period the state has been propagated over whose covariance time
 /// update is still to be applied (with the period's measurement, or alone).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -248,6 +236,57 @@ struct Pending<T: RealField + Copy, const N: usize> {
     /// Second-order process noise of the attitude (rad², zero unless
     /// [`Options::second_order_dynamics`]).
     q_extra: Matrix3<T>,
+}
+
+impl<T: RealField + Copy, const N: usize> Pending<T, N> {
+    /// An all-zero period (the content of an empty slot).
+    fn zeros() -> Self {
+        Self {
+            period: Period {
+                dt: 0.0,
+                omega_c: [Vector3::zeros(); 3],
+                c_cn: [Matrix3::zeros(); 3],
+            },
+            prop: PeriodPropagation::zeros(),
+            q_extra: Matrix3::zeros(),
+        }
+    }
+}
+
+/// The filter's storage of the pending period. It stays in place from
+/// period to period ([`Filter::predict`] propagates straight into it: no
+/// copy of the ≈ 1.8 KB period on the hot path); `valid` says whether it
+/// holds one. Two slots compare equal when neither holds a period or both
+/// hold equal ones.
+#[derive(Clone, Copy, Debug)]
+struct PendingSlot<T: RealField + Copy, const N: usize> {
+    value: Pending<T, N>,
+    valid: bool,
+}
+
+impl<T: RealField + Copy, const N: usize> PartialEq for PendingSlot<T, N> {
+    fn eq(&self, other: &Self) -> bool {
+        self.get() == other.get()
+    }
+}
+
+impl<T: RealField + Copy, const N: usize> PendingSlot<T, N> {
+    fn empty() -> Self {
+        Self {
+            value: Pending::zeros(),
+            valid: false,
+        }
+    }
+
+    /// The pending period, if any.
+    fn get(&self) -> Option<&Pending<T, N>> {
+        self.valid.then_some(&self.value)
+    }
+
+    /// No period pending (the storage is kept).
+    fn clear(&mut self) {
+        self.valid = false;
+    }
 }
 
 /// The estimator of configuration `M` with `N` states and `Z` measurement
@@ -270,7 +309,7 @@ pub struct Filter<T: RealField + Copy, M, const N: usize, const Z: usize> {
     ud: Ud<T, N>,
     command: CommandFrame<f64>,
     config: FilterConfig<T>,
-    pending: Option<Pending<T, N>>,
+    pending: PendingSlot<T, N>,
     reference: Option<SVector<f64, N>>,
     updates: u32,
     gated_run: u32,
@@ -516,7 +555,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             ud,
             command: CommandFrame::aligned(config.env.earth_rate_n),
             config,
-            pending: None,
+            pending: PendingSlot::empty(),
             reference: None,
             updates: 0,
             gated_run: 0,
@@ -600,7 +639,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             let att = self.x.fixed_rows::<3>(ATT).clone_owned();
             nominal.fixed_rows_mut::<3>(ATT).copy_from(&att);
         }
-        self.pending = None;
+        self.pending.clear();
         Ok(())
     }
 
@@ -617,7 +656,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
 
     /// The state covariance `P = U D Uᵀ` (rad²) of [`Filter::state`].
     pub fn covariance(&self) -> SMatrix<T, N, N> {
-        match self.pending {
+        match self.pending.get() {
             Some(_) => self.settled().covariance(),
             None => self.ud.covariance(),
         }
@@ -625,7 +664,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
 
     /// Per-state standard deviations `√P_ii` (rad).
     pub fn sigma(&self) -> SVector<T, N> {
-        let variances = match self.pending {
+        let variances = match self.pending.get() {
             Some(_) => self.settled().variances(),
             None => self.ud.variances(),
         };
@@ -657,7 +696,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// place (the pending period stays recorded; callers clear it). On error
     /// the factor is untouched.
     fn settle(&mut self) -> Result<(), Error> {
-        if let Some(pending) = &self.pending {
+        if let Some(pending) = self.pending.get() {
             let q = self.process_noise(pending);
             self.ud
                 .predict_attitude(&to_t(&pending.prop.phi_att), &q)
@@ -670,7 +709,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// without a measurement.
     fn propagated_factor(&self) -> Result<Ud<T, N>, Error> {
         let mut ud = self.ud;
-        if let Some(pending) = &self.pending {
+        if let Some(pending) = self.pending.get() {
             ud.predict_attitude(&to_t(&pending.prop.phi_att), &self.process_noise(pending))
                 .ok_or(Error::CovarianceNotPositiveDefinite)?;
         }
@@ -708,7 +747,11 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// commanded angle increment `dtheta_c` (rad, c frame). The covariance's
     /// time update is applied by the [`Filter::update`] that follows (with
     /// the measurement, whose noise it shares), or by the next `predict`.
-    /// On error the filter is left untouched.
+    ///
+    /// On error the filter is left as it was, except that a period
+    /// predicted before without its update gets its time update (as the
+    /// next `predict` or `step` would apply it): the period is propagated
+    /// straight into the filter's pending slot, which that period held.
     pub fn predict(&mut self, dtheta_c: &Vector3<f64>, dt: f64) -> Result<(), Error> {
         if !all_finite(dtheta_c.iter().copied().chain([dt])) {
             return Err(Error::NonFiniteInput);
@@ -716,39 +759,43 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         if dt <= 0.0 {
             return Err(Error::InvalidPeriod);
         }
+        // A period predicted without a measurement: its time update (in
+        // place, untouched on error) frees the slot.
+        self.settle()?;
+        self.pending.clear();
         let layout = Self::LAYOUT;
-        let period = self.command.period(dtheta_c, dt);
         // The linearisation point: the estimate (EKF) or the nominal.
         let x_lin = self.reference.unwrap_or(self.x);
-        // A period predicted without a measurement: its time update is
-        // applied (in place) once nothing else can fail.
         self.matrices.refresh(&layout, &x_lin);
-        let prop: PeriodPropagation<f64, N> = layout
-            .propagate(
+        let slot = &mut self.pending.value;
+        slot.period = self.command.period(dtheta_c, dt);
+        layout
+            .propagate_into(
                 &self.config.env,
                 &self.matrices.0,
                 &layout.attitude(&x_lin),
-                &period,
+                &slot.period,
+                &mut slot.prop,
             )
             .ok_or(Error::GimbalLock)?;
+        let new = &self.pending.value;
         let q_extra = if self.config.options.second_order_dynamics {
-            self.second_order_dynamics(&period, &prop)?
+            self.second_order_dynamics(&new.period, &new.prop)?
         } else {
             Matrix3::<T>::zeros()
         };
-        if !all_finite(q_extra.iter().copied()) || !all_finite(prop.noise_map.iter().copied()) {
+        if !all_finite(q_extra.iter().copied()) || !all_finite(new.prop.noise_map.iter().copied()) {
             return Err(Error::NonFiniteState);
         }
-        let [_, _, att1] = prop.att;
+        let [_, _, att1] = new.prop.att;
         let mut x_lin_end = x_lin;
         x_lin_end.fixed_rows_mut::<3>(ATT).copy_from(&att1);
         let x_new = match self.reference {
             // x̂_{k+1} = x_nom,k+1 ⊞ Φ (x̂_k ⊟ x_nom,k).
             Some(_) => {
                 let mut delta = layout.difference(&self.x, &x_lin);
-                let d_att = prop.phi_att * delta;
+                let d_att = new.prop.phi_att * delta;
                 delta.fixed_rows_mut::<3>(ATT).copy_from(&d_att);
-                self.reference = Some(x_lin_end);
                 x_lin_end + delta
             }
             None => x_lin_end,
@@ -756,14 +803,13 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         if !all_finite(x_new.iter().copied()) {
             return Err(Error::NonFiniteState);
         }
-        self.settle()?;
+        if self.reference.is_some() {
+            self.reference = Some(x_lin_end);
+        }
         self.x = x_new;
-        self.command.advance(&period);
-        self.pending = Some(Pending {
-            period,
-            prop,
-            q_extra,
-        });
+        self.command.advance(&self.pending.value.period);
+        self.pending.value.q_extra = q_extra;
+        self.pending.valid = true;
         Ok(())
     }
 
@@ -902,11 +948,21 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     }
 
     /// Processes the measurement of the period that [`Filter::predict`] just
-    /// propagated over. On error (other than a singular covariance after the
-    /// update) the state and covariance are left untouched.
+    /// propagated over.
+    ///
+    /// On error the state is left untouched. So is the covariance, with one
+    /// exception: the factor is updated in place (no copy of it on the hot
+    /// path), so when the factored update itself fails part-way
+    /// ([`Error::CovarianceNotPositiveDefinite`], or
+    /// [`Error::NonFiniteState`] for a non-finite result) the factor keeps
+    /// the part already applied. Every input of the update is checked
+    /// before the factor is touched, so this takes a covariance that has
+    /// already lost its numerical positive definiteness; no test reaches it.
     pub fn update(&mut self, obs: &Observation<T>) -> Result<Innovation<T, Z>, Error> {
         let layout = Self::LAYOUT;
-        let pending = self.pending.ok_or(Error::NoPrediction)?;
+        if self.pending.get().is_none() {
+            return Err(Error::NoPrediction);
+        }
         let gimbal = match (layout.gimbal_obs, obs.gimbal) {
             (true, None) => return Err(Error::MissingGimbal),
             (true, Some(g)) => Some(g),
@@ -924,26 +980,35 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         if let Some(g) = gimbal {
             z.fixed_rows_mut::<3>(0).copy_from(&to_f64(&g));
         }
-        let accel_row = Self::ACCEL_ROW;
-        z.fixed_rows_mut::<3>(accel_row)
+        z.fixed_rows_mut::<3>(Self::ACCEL_ROW)
             .copy_from(&to_f64(&obs.accel_mean));
         let r = self.measurement_noise();
-
-        if let Some(x_nom) = self.reference {
-            return self.update_linearised(&x_nom, &pending, Some(&z), &r, accel_row);
+        if self.reference.is_some() {
+            self.update_linearised(Some(&z), &r)
+        } else {
+            self.update_extended(&z, &r)
         }
+    }
+
+    /// The EKF's update of the pending period (pass 1), with the
+    /// cold-start remedies of [`Options`].
+    fn update_extended(
+        &mut self,
+        z: &SVector<f64, Z>,
+        r: &SMatrix<T, Z, Z>,
+    ) -> Result<Innovation<T, Z>, Error> {
+        let pending = self.pending.get().ok_or(Error::NoPrediction)?;
         let opts = self.config.options;
         let (mean2, cov2) = if opts.second_order_covariance || opts.second_order_mean {
-            self.second_order(&self.x, &pending)
+            self.second_order(&self.x, pending)
         } else {
             (Vector3::zeros(), Matrix3::zeros())
         };
-        let mut r_v = r;
+        let mut r_v = *r;
         if opts.second_order_covariance {
-            let mut blk = r_v.fixed_view_mut::<3, 3>(accel_row, accel_row);
+            let mut blk = r_v.fixed_view_mut::<3, 3>(Self::ACCEL_ROW, Self::ACCEL_ROW);
             blk += to_t::<T, 3, 3>(&cov2);
         }
-        let x_prior = self.x;
         let iterations = if self.updates < opts.iterate_updates {
             opts.iterations
         } else {
@@ -951,14 +1016,17 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         };
         // The iterated filter's relinearisation point (IEKF), else the
         // prediction; the update itself is always the factored one.
+        let retraced;
         let (x_lin, lin) = if iterations > 0 {
-            self.iterated_point(&z, &pending, &r_v, &mean2, iterations)?
+            let (x_lin, lin) = self.iterated_point(z, pending, &r_v, &mean2, iterations)?;
+            retraced = lin;
+            (x_lin, &retraced)
         } else {
-            (x_prior, pending)
+            (self.x, pending)
         };
-        let (nu, Measured { h, noise, .. }) = self.innovation_at(&z, &x_lin, &lin, &mean2);
-        let out = self.factored(&h, &nu, &r_v, &noise, &pending.prop.phi_att, true)?;
-        self.commit(x_prior + out.dx, out, to_t(&nu))
+        let (nu, Measured { h, noise, .. }) = self.innovation_at(z, &x_lin, lin, &mean2);
+        let x_base = self.x;
+        self.factored(&h, &nu, &r_v, &noise, true, &x_base)
     }
 
     /// The innovation `ν = z − h(x_i) − H (x̂ − x_i)` of the EKF update
@@ -1029,19 +1097,19 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         SMatrix::<T, Z, Z>::from_diagonal(&r)
     }
 
-    /// The update of the linearised filter about the nominal `x_nom` with
+    /// The update of the linearised filter about its nominal `x_nom` with
     /// measurement `z`, or with the nominal's own noise-free measurement
     /// `h(x_nom)` for `None` (then `ν = −H (x̂ − x_nom)`; the covariance
-    /// update does not depend on `z`; the returned innovation's `S` is then
-    /// only its noise part, see [`Filter::factored`]).
+    /// update does not depend on `z`; the update is not gated and `S` is
+    /// not computed, see [`Filter::factored`]).
     fn update_linearised(
         &mut self,
-        x_nom: &SVector<f64, N>,
-        pending: &Pending<T, N>,
         z: Option<&SVector<f64, Z>>,
         r: &SMatrix<T, Z, Z>,
-        accel_row: usize,
     ) -> Result<Innovation<T, Z>, Error> {
+        let (Some(pending), Some(x_nom)) = (self.pending.get(), self.reference.as_ref()) else {
+            return Err(Error::NoPrediction);
+        };
         let layout = Self::LAYOUT;
         let Measured { z: z_nom, h, noise } = self.measure(x_nom, pending);
         let delta = layout.difference(&self.x, x_nom);
@@ -1050,14 +1118,12 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             None => -(h * delta),
         };
         if layout.gimbal_obs {
-            for v in nu.iter_mut().take(accel_row) {
+            for v in nu.iter_mut().take(Self::ACCEL_ROW) {
                 *v = wrap_angle(*v);
             }
         }
-        // The noise-free step discards the innovation: no S.
-        let out = self.factored(&h, &nu, r, &noise, &pending.prop.phi_att, z.is_some())?;
-        let x_new = x_nom + delta + out.dx;
-        self.commit(x_new, out, to_t(&nu))
+        let x_base = x_nom + delta;
+        self.factored(&h, &nu, r, &noise, z.is_some(), &x_base)
     }
 
     /// The factored update of one period, measurement and time update
@@ -1077,119 +1143,135 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// brings the factor to `t_{k+1}`. The result equals the dense filter's
     /// `K = (P⁻ Hᵀ + G Dᵀ) S⁻¹` update in exact arithmetic.
     ///
-    /// `report`: compute the innovation covariance `S` for the
-    /// [`Innovation`]; without it the result's `s` is `R_e` only (the
-    /// update itself never uses `S`).
+    /// Everything the update reads (the whitened rows, the decorrelation
+    /// gain, `S`) is computed and checked before the factor is touched; the
+    /// NIS gate is decided from `S` then, so a refused update costs only the
+    /// time update. The factor is then updated in place (no copy of it;
+    /// see [`Filter::update`] for what a failure part-way leaves). The
+    /// reported NIS is that of the scalar updates (equal to `νᵀ S⁻¹ ν` in
+    /// exact arithmetic). On success the state becomes `x_base` plus the
+    /// correction and the pending period is cleared.
+    ///
+    /// `measured`: a real measurement: compute the innovation covariance
+    /// `S` for the [`Innovation`] and apply the NIS gate; without it (the
+    /// noise-free step of the bound) the result's `s` is `R_e` only (the
+    /// update itself never uses `S`) and nothing is gated.
     fn factored(
-        &self,
+        &mut self,
         h: &SMatrix<f64, Z, N>,
-        nu: &SVector<f64, Z>,
+        nu_f64: &SVector<f64, Z>,
         r_v: &SMatrix<T, Z, Z>,
         noise: &Noise<f64, N, Z>,
-        phi_att: &SMatrix<f64, 3, N>,
-        report: bool,
-    ) -> Result<Factored<T, N, Z>, Error> {
+        measured: bool,
+        x_base: &SVector<f64, N>,
+    ) -> Result<Innovation<T, Z>, Error> {
         let half: T = nalgebra::convert(0.5);
-        let hf: SMatrix<T, Z, N> = to_t(&crate::models::apply_transition(h, phi_att));
+        let phi_att: SMatrix<T, 3, N> =
+            to_t(&self.pending.get().ok_or(Error::NoPrediction)?.prop.phi_att);
         let h: SMatrix<T, Z, N> = to_t(h);
-        let nu: SVector<T, Z> = to_t(nu);
-        let nu = &nu;
-        let phi_att: SMatrix<T, 3, N> = to_t(phi_att);
+        // H Φ in T (f64 is emulated on an FPU without it; exact conversions
+        // when T is f64, so the same values there).
+        let hf = crate::models::apply_transition(&h, &phi_att);
+        let nu: SVector<T, Z> = to_t(nu_f64);
         let g_att: Matrix3<T> = to_t(&noise.g.fixed_rows::<3>(ATT).clone_owned());
         let m_e = h.fixed_columns::<3>(ATT) * g_att + to_t::<T, Z, 3>(&noise.d);
         let mut r_e = m_e * m_e.transpose() + r_v;
         r_e = (r_e + r_e.transpose()) * half;
-        let chol = r_e.cholesky().ok_or(Error::InnovationNotPositiveDefinite)?;
+        let Some(chol) = r_e.cholesky() else {
+            return Err(Error::InnovationNotPositiveDefinite);
+        };
         let l = chol.l();
-        let nu_w = l
-            .solve_lower_triangular(nu)
-            .ok_or(Error::InnovationNotPositiveDefinite)?;
-        let h_w = l
-            .solve_lower_triangular(&hf)
-            .ok_or(Error::InnovationNotPositiveDefinite)?;
+        // The triangular solves in place (no Option/Result moves of the
+        // Z×N results).
+        let mut nu_w = nu;
+        let mut h_w = hf;
         // J L = G Mᵀ L⁻ᵀ (attitude rows), so J z = (J L) ν_w.
-        let j_l: SMatrix<T, 3, Z> = l
-            .solve_lower_triangular(&(m_e * g_att.transpose()))
-            .ok_or(Error::InnovationNotPositiveDefinite)?
-            .transpose();
-        // The spare factor, a copy of the current one, becomes the factor at
-        // the end of the period (current again once committed).
-        // A working copy: the factor is replaced only when the update is
-        // committed (not when the NIS gate refuses it).
-        let mut ud = self.ud;
-        // S = H Φ P Φᵀ Hᵀ + R_e, for the innovation report.
-        let s = if report {
+        let mut l_inv_m_g = m_e * g_att.transpose();
+        if !(l.solve_lower_triangular_mut(&mut nu_w)
+            && l.solve_lower_triangular_mut(&mut h_w)
+            && l.solve_lower_triangular_mut(&mut l_inv_m_g))
+        {
+            return Err(Error::InnovationNotPositiveDefinite);
+        }
+        let j_l: SMatrix<T, 3, Z> = l_inv_m_g.transpose();
+        // S = H Φ P Φᵀ Hᵀ + R_e, for the innovation report and the gate.
+        let s = if measured {
             r_e + self.ud.congruence(&hf)
         } else {
             r_e
         };
+        // Time update with Φ' = Φ − J H Φ and Q' = G Gᵀ − J R_e Jᵀ.
+        let phi_dec = phi_att - j_l * h_w;
+        let mut q = g_att * g_att.transpose() - j_l * j_l.transpose();
+        q = (q + q.transpose()) * half;
+        let gate = self.config.options.nis_gate;
+        if measured && gate > 0.0 && !self.gate_open && self.gated_run < MAX_GATED_RUN {
+            let Some(chol_s) = s.cholesky() else {
+                return Err(Error::InnovationNotPositiveDefinite);
+            };
+            let mut y = nu;
+            if !chol_s.l().solve_lower_triangular_mut(&mut y) {
+                return Err(Error::InnovationNotPositiveDefinite);
+            }
+            let nis_prior = y.norm_squared();
+            if !nis_prior.is_finite() {
+                return Err(Error::NonFiniteState);
+            }
+            if nis_prior > nalgebra::convert(gate) {
+                // Predicted only: the time update without the measurement.
+                self.settle()?;
+                self.gated_run += 1;
+                self.pending.clear();
+                return Err(Error::Gated);
+            }
+        }
+        // The factor is updated in place: check everything it reads first.
+        if !all_finite(
+            h_w.iter()
+                .chain(nu_w.iter())
+                .chain(j_l.iter())
+                .chain(phi_att.iter())
+                .chain(phi_dec.iter())
+                .chain(q.iter())
+                .copied(),
+        ) {
+            return Err(Error::NonFiniteState);
+        }
         let mut dx = SVector::<T, N>::zeros();
         let mut nis = T::zero();
         for (row, nu_i) in h_w.row_iter().zip(nu_w.iter()) {
             let row = row.transpose();
             let resid = *nu_i - row.dot(&dx);
-            let up = ud
-                .update(&row, T::one())
-                .ok_or(Error::CovarianceNotPositiveDefinite)?;
+            let Some(up) = self.ud.update(&row, T::one()) else {
+                return Err(Error::CovarianceNotPositiveDefinite);
+            };
             nis += resid * resid / up.alpha;
             dx += up.gain * resid;
         }
-        // Time update with Φ' = Φ − J H Φ and Q' = G Gᵀ − J R_e Jᵀ.
-        let phi_dec = phi_att - j_l * h_w;
-        let mut q = g_att * g_att.transpose() - j_l * j_l.transpose();
-        q = (q + q.transpose()) * half;
-        ud.predict_attitude(&phi_dec, &q)
+        self.ud
+            .predict_attitude(&phi_dec, &q)
             .ok_or(Error::CovarianceNotPositiveDefinite)?;
         // x̂_{k+1} − x̂⁻_{k+1} = Φ δ + J (z − H Φ δ) for the correction δ at t_k.
         let d_att = phi_att * dx + j_l * (nu_w - h_w * dx);
         dx.fixed_rows_mut::<3>(ATT).copy_from(&d_att);
-        Ok(Factored {
-            ud,
-            dx: to_f64(&dx),
-            s,
-            nis,
-        })
-    }
-
-    /// Gate and commit of a factored update.
-    fn commit(
-        &mut self,
-        x_new: SVector<f64, N>,
-        out: Factored<T, N, Z>,
-        nu: SVector<T, Z>,
-    ) -> Result<Innovation<T, Z>, Error> {
-        let innovation = Innovation {
-            nu,
-            s: out.s,
-            nis: out.nis,
-        };
-        let layout = Self::LAYOUT;
-        if !all_finite(x_new.iter().copied()) || !innovation.nis.is_finite() {
+        let x_new = x_base + to_f64(&dx);
+        if !all_finite(x_new.iter().copied()) || !nis.is_finite() {
             return Err(Error::NonFiniteState);
         }
-        let gate = self.config.options.nis_gate;
-        let above = gate > 0.0 && innovation.nis > nalgebra::convert(gate);
-        if above && !self.gate_open && self.gated_run < MAX_GATED_RUN {
-            // Predicted only: the time update without the measurement.
-            self.settle()?;
-            self.gated_run += 1;
-            self.pending = None;
-            return Err(Error::Gated);
-        }
+        let above = measured && gate > 0.0 && nis > nalgebra::convert(gate);
         // Keep the Euler attitude angles in (−π, π]; P is unchanged by 2π shifts.
         let mut x = x_new;
-        if layout.attitude != crate::models::AttitudeKind::Misalignment {
+        if Self::LAYOUT.attitude != crate::models::AttitudeKind::Misalignment {
             for v in x.iter_mut().take(3) {
                 *v = wrap_angle(*v);
             }
         }
         self.x = x;
-        self.ud = out.ud;
-        self.pending = None;
+        self.pending.clear();
         self.updates = self.updates.saturating_add(1);
         self.gated_run = 0;
         self.gate_open = above;
-        Ok(innovation)
+        Ok(Innovation { nu, s, nis })
     }
 
     /// One filter period: [`Filter::predict`] then [`Filter::update`].
@@ -1228,29 +1310,28 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         if obs.is_none() && self.reference.is_none() {
             return Err(Error::NoPrediction);
         }
-        if self.pending.is_some() {
+        if self.pending.get().is_some() {
             self.settle()?;
-            self.pending = None;
+            self.pending.clear();
         }
         // `predict` and `update` leave the factor untouched on error (the
         // time update is applied in place only once nothing else can fail,
         // the measurement update works on a copy), so only the state is saved.
         let saved = (self.x, self.command, self.reference);
         self.predict(dtheta_c, dt)?;
-        let updated = match (obs, self.reference, self.pending) {
-            (Some(obs), _, _) => self.update(obs),
-            (None, Some(x_nom), Some(pending)) => {
+        let updated = match obs {
+            Some(obs) => self.update(obs),
+            None => {
                 let r = self.measurement_noise();
-                self.update_linearised(&x_nom, &pending, None, &r, Self::ACCEL_ROW)
+                self.update_linearised(None, &r)
             }
-            (None, _, _) => Err(Error::NoPrediction),
         };
         match updated {
             Ok(i) => Ok(i),
             Err(Error::Gated) => Err(Error::Gated),
             Err(e) => {
                 (self.x, self.command, self.reference) = saved;
-                self.pending = None;
+                self.pending.clear();
                 Err(e)
             }
         }
@@ -1263,8 +1344,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         &self,
         x: &SVector<f64, N>,
     ) -> Result<(SVector<f64, Z>, SMatrix<f64, Z, N>), Error> {
-        let pending = self.pending.ok_or(Error::NoPrediction)?;
-        let lin = self.retrace(x, &pending)?;
+        let pending = self.pending.get().ok_or(Error::NoPrediction)?;
+        let lin = self.retrace(x, pending)?;
         let m = self.measure(x, &lin);
         Ok((m.z, m.h))
     }

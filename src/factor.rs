@@ -164,11 +164,9 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         v
     }
 
-    /// `Uᵀ h` and `D Uᵀ h` for a row `h`.
-    fn project(&self, h: &SVector<T, N>) -> (SVector<T, N>, SVector<T, N>) {
+    /// `f = Uᵀ h` and `v = D Uᵀ h` for a row `h`, written in place.
+    fn project_into(&self, h: &SVector<T, N>, f: &mut SVector<T, N>, v: &mut SVector<T, N>) {
         let a = &self.m.data.0;
-        let mut f = SVector::<T, N>::zeros();
-        let mut v = SVector::<T, N>::zeros();
         for j in 0..N {
             let mut s = h[j];
             for i in 0..j {
@@ -177,7 +175,6 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
             f[j] = s;
             v[j] = s * a[j][j];
         }
-        (f, v)
     }
 
     /// `H P Hᵀ` for the `R` rows of `h` (one projection `Uᵀ hᵢᵀ` per row,
@@ -186,7 +183,7 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         let mut f = [SVector::<T, N>::zeros(); R];
         let mut v = [SVector::<T, N>::zeros(); R];
         for ((row, fi), vi) in h.row_iter().zip(f.iter_mut()).zip(v.iter_mut()) {
-            (*fi, *vi) = self.project(&row.transpose());
+            self.project_into(&row.transpose(), fi, vi);
         }
         let mut out = SMatrix::<T, R, R>::zeros();
         for a in 0..R {
@@ -207,7 +204,9 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         if !(r > T::zero()) {
             return None;
         }
-        let (f, v) = self.project(h);
+        let mut f = SVector::<T, N>::zeros();
+        let mut v = SVector::<T, N>::zeros();
+        self.project_into(h, &mut f, &mut v);
         // The α sequence and the new D depend only on f, v and the old D:
         // check them first, so the update itself runs in place and cannot
         // fail half-way (no copy of the factor for a rollback).

@@ -950,6 +950,19 @@ pub struct PeriodPropagation<T: RealField + Copy, const N: usize> {
     pub noise_map: Matrix3<T>,
 }
 
+impl<T: RealField + Copy, const N: usize> PeriodPropagation<T, N> {
+    /// All zeros (storage to propagate into, [`Layout::propagate_into`]).
+    pub fn zeros() -> Self {
+        Self {
+            att: [Vector3::zeros(); 3],
+            phi_att: SMatrix::zeros(),
+            f_mid: SMatrix::zeros(),
+            f_end: SMatrix::zeros(),
+            noise_map: Matrix3::zeros(),
+        }
+    }
+}
+
 impl Layout {
     /// Propagates the attitude over one period by one RK4 step driven by the
     /// commanded rate at the period's nodes; the midpoint state comes from the
@@ -963,6 +976,21 @@ impl Layout {
         att0: &Vector3<T>,
         period: &Period<T>,
     ) -> Option<PeriodPropagation<T, N>> {
+        let mut out = PeriodPropagation::zeros();
+        self.propagate_into(env, m, att0, period, &mut out)?;
+        Some(out)
+    }
+
+    /// [`Layout::propagate`] written into `out` (the filter's pending slot:
+    /// no copy of the result). On `None` `out` holds a partial result.
+    pub fn propagate_into<T: RealField + Copy, const N: usize>(
+        &self,
+        env: &Environment<T>,
+        m: &InstallationMatrices<T>,
+        att0: &Vector3<T>,
+        period: &Period<T>,
+        out: &mut PeriodPropagation<T, N>,
+    ) -> Option<()> {
         let dt = period.dt;
         let half: T = nalgebra::convert(0.5);
         let two: T = nalgebra::convert(2.0);
@@ -976,24 +1004,18 @@ impl Layout {
         let att1 = att0 + (k1 + (k2 + k3) * two + k4) * (dt / six);
         let f1 = self.attitude_rate(env, m, &att1, &w1)?;
         let att_mid = (att0 + att1) * half + (k1 - f1) * (dt / eight);
-        let f_mid: SMatrix<T, 3, N> = self.attitude_rate_jacobian(env, m, &att_mid, &wm)?;
-        let f_end: SMatrix<T, 3, N> = self.attitude_rate_jacobian(env, m, &att1, &w1)?;
-        let phi_att = transition_rows(&f_mid, dt);
-        let noise_map = match self.attitude {
+        out.f_mid = self.attitude_rate_jacobian(env, m, &att_mid, &wm)?;
+        out.f_end = self.attitude_rate_jacobian(env, m, &att1, &w1)?;
+        out.phi_att = transition_rows(&out.f_mid, dt);
+        out.noise_map = match self.attitude {
             AttitudeKind::Misalignment => right_jacobian_inv(&att_mid),
             AttitudeKind::Gimbal | AttitudeKind::Attitude => {
                 gimbal_rate_inverse(att_mid.y, att_mid.z)?
             }
         };
-        let out = PeriodPropagation {
-            att: [att0.clone_owned(), att_mid, att1],
-            phi_att,
-            f_mid,
-            f_end,
-            noise_map,
-        };
-        if att1.iter().chain(phi_att.iter()).all(|v| v.is_finite()) {
-            Some(out)
+        out.att = [att0.clone_owned(), att_mid, att1];
+        if att1.iter().chain(out.phi_att.iter()).all(|v| v.is_finite()) {
+            Some(())
         } else {
             None
         }

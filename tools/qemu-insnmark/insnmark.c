@@ -19,7 +19,11 @@
  * and, with syms=N, the N functions (ELF symbols) with the most instructions
  * executed inside regions (per translation block, so a block left early by
  * an exception counts whole; negligible here). out=FILE writes one delta per
- * line. Counts are exact and repeat run to run (no timing model involved).
+ * line. With memcallers=N it also prints the N call sites (the last
+ * block executed outside a mem* function before it, with its symbol) whose
+ * calls into memcpy/memset/memclr/memmove cost the most instructions inside
+ * regions (softfloat=1: calls into the f64 soft-float routines too, the
+ * M4F's emulated double precision). Counts are exact and repeat run to run (no timing model involved).
  */
 #include <inttypes.h>
 #include <stdint.h>
@@ -60,7 +64,14 @@ static char out_path[512];
 struct sym { const char *name; uint64_t insns; };
 static struct sym *syms;
 static size_t n_syms, cap_syms;
-struct tbinfo { size_t sym; uint64_t n; };
+struct tbinfo { size_t sym; uint64_t n; uint64_t va; int mem; };
+/* memcallers=N: instructions spent in mem* functions per calling block. */
+struct site { uint64_t va; size_t sym; uint64_t insns; };
+static struct site *sites;
+static size_t n_sites, cap_sites;
+static unsigned memcallers_n;
+static int softfloat_too; /* softfloat=1: soft-float routines count as mem* */
+static const struct tbinfo *last_caller;
 
 static void outf(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 #include <stdarg.h>
@@ -95,7 +106,43 @@ static void on_mark(unsigned int vcpu, void *ud) {
 static void on_tb(unsigned int vcpu, void *ud) {
     (void)vcpu;
     struct tbinfo *t = ud;
-    if (active) syms[t->sym].insns += t->n;
+    if (!active) return;
+    syms[t->sym].insns += t->n;
+    if (!memcallers_n) return;
+    if (!t->mem) { last_caller = t; return; }
+    if (!last_caller) return;
+    size_t i;
+    for (i = 0; i < n_sites; i++)
+        if (sites[i].va == last_caller->va) break;
+    if (i == n_sites) {
+        if (n_sites == cap_sites) {
+            cap_sites = cap_sites ? 2 * cap_sites : 256;
+            sites = realloc(sites, cap_sites * sizeof *sites);
+            if (!sites) abort();
+        }
+        sites[n_sites].va = last_caller->va;
+        sites[n_sites].sym = last_caller->sym;
+        sites[n_sites].insns = 0;
+        n_sites++;
+    }
+    sites[i].insns += t->n;
+}
+
+/* A memory-copy/fill routine of the runtime (compiler_builtins, __aeabi_*). */
+static int is_mem(const char *name) {
+    if (!name) return 0;
+    if (softfloat_too && (strstr(name, "__aeabi_d") || strstr(name, "__aeabi_f2d") || strstr(name, "::float::") ||
+                          strstr(name, "df3")))
+        return 1;
+    return strstr(name, "__aeabi_mem") || strstr(name, "mem6memcpy") || strstr(name, "mem6memset") ||
+           strstr(name, "mem7memmove") || !strcmp(name, "memcpy") || !strcmp(name, "memset") ||
+           !strcmp(name, "memmove") || strstr(name, "::mem::memcpy") || strstr(name, "::mem::memset") ||
+           strstr(name, "::mem::memmove");
+}
+
+static int by_site(const void *a, const void *b) {
+    const struct site *x = a, *y = b;
+    return x->insns < y->insns ? 1 : x->insns > y->insns ? -1 : 0;
 }
 
 static size_t sym_index(const char *name) {
@@ -115,11 +162,14 @@ static size_t sym_index(const char *name) {
 static void tb_trans(qemu_plugin_id_t id, struct qemu_plugin_tb *tb) {
     (void)id;
     size_t n = qemu_plugin_tb_n_insns(tb);
-    if (syms_n && n) {
+    if ((syms_n || memcallers_n) && n) {
         struct tbinfo *t = malloc(sizeof *t); /* lives as long as the TB may */
         if (!t) abort();
-        t->sym = sym_index(qemu_plugin_insn_symbol(qemu_plugin_tb_get_insn(tb, 0)));
+        const char *name = qemu_plugin_insn_symbol(qemu_plugin_tb_get_insn(tb, 0));
+        t->sym = sym_index(name);
         t->n = n;
+        t->va = qemu_plugin_insn_vaddr(qemu_plugin_tb_get_insn(tb, 0));
+        t->mem = is_mem(name);
         qemu_plugin_register_vcpu_tb_exec_cb(tb, on_tb, QEMU_PLUGIN_CB_NO_REGS, t);
     }
     for (size_t i = 0; i < n; i++) {
@@ -163,6 +213,15 @@ static void at_exit(qemu_plugin_id_t id, void *p) {
         snprintf(what, sizeof what, "after first %u", first_n);
         stats(what, deltas + first_n, n_deltas - first_n);
     }
+    if (memcallers_n && n_sites) {
+        uint64_t in = 0;
+        for (size_t i = 0; i < n_sites; i++) in += sites[i].insns;
+        qsort(sites, n_sites, sizeof *sites, by_site);
+        outf("insnmark: mem* call sites inside regions (%" PRIu64 " insns in mem* in all; block before the call):\n", in);
+        for (size_t i = 0; i < n_sites && i < memcallers_n; i++)
+            outf("insnmark: mem %6.2f%% %12" PRIu64 "  0x%08" PRIx64 " %s\n", 100.0 * sites[i].insns / (in ? in : 1),
+                 sites[i].insns, sites[i].va, syms[sites[i].sym].name);
+    }
     if (syms_n && n_syms) {
         uint64_t in = 0;
         for (size_t i = 0; i < n_syms; i++) in += syms[i].insns;
@@ -189,6 +248,8 @@ int qemu_plugin_install(qemu_plugin_id_t id, const qemu_info_t *info, int argc, 
         else if (!strncmp(argv[i], "end=", 4)) end_addr = strtoull(argv[i] + 4, NULL, 0) & ~1ull;
         else if (!strncmp(argv[i], "first=", 6)) first_n = (unsigned)strtoul(argv[i] + 6, NULL, 0);
         else if (!strncmp(argv[i], "syms=", 5)) syms_n = (unsigned)strtoul(argv[i] + 5, NULL, 0);
+        else if (!strncmp(argv[i], "memcallers=", 11)) memcallers_n = (unsigned)strtoul(argv[i] + 11, NULL, 0);
+        else if (!strncmp(argv[i], "softfloat=", 10)) softfloat_too = atoi(argv[i] + 10);
         else if (!strncmp(argv[i], "out=", 4)) snprintf(out_path, sizeof out_path, "%s", argv[i] + 4);
         else { outf("insnmark: unknown argument %s\n", argv[i]); return -1; }
     }
