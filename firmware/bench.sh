@@ -151,14 +151,19 @@ for v in m4f m7; do
 done
 
 # f32 trigonometry on the M4F: calls into f64 soft-float (__aeabi_d*,
-# __*df3) from libm's sinf/cosf/sincosf bodies in the M4F image.
+# __*df3) from the f32 sine/cosine bodies in the M4F image: rollcal's own
+# (src/trig.rs, f32 only) and libm's sinf/cosf/sincosf, should anything
+# still link them.
 echo
-echo "## f64 emulation inside the M4F's f32 trigonometry (calls to __aeabi_d* / __*df3 from libm's sinf, cosf, sincosf)"
-n=$(arm-none-eabi-objdump -d --no-show-raw-insn "$M4F_ELF" | awk '
-    /^[0-9a-f]+ <.*>:$/ { inside = ($0 ~ /libm[0-9a-zA-Z_]*math[0-9a-zA-Z_]*(sinf|cosf|sincosf|k_sinf|k_cosf|rem_pio2f)/) }
+echo "## f64 emulation inside the M4F's f32 trigonometry (calls to __aeabi_d* / __*df3 from rollcal::trig and libm's sinf, cosf, sincosf)"
+read -r n bodies < <(arm-none-eabi-objdump -d --no-show-raw-insn "$M4F_ELF" | awk '
+    /^[0-9a-f]+ <.*>:$/ {
+        inside = ($0 ~ /libm[0-9a-zA-Z_]*math[0-9a-zA-Z_]*(sinf|cosf|sincosf|k_sinf|k_cosf|rem_pio2f)/ || $0 ~ /rollcal4trig/)
+        if (inside) b++
+    }
     inside && /\tbl\t/ && /(__aeabi_d|df3|__aeabi_f2d|__aeabi_d2f)/ { n++ }
-    END { print n + 0 }')
-echo "m4f: $n calls"
+    END { print n + 0, b + 0 }')
+echo "m4f: $n calls in $bodies f32 sine/cosine bodies"
 goal "f64-calls-in-f32-trig-m4f" "$n" 0
 echo
 echo "## size_of the filters (logged by the firmware)"

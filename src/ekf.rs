@@ -938,11 +938,19 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let m = self.matrices.get(&layout, x, &mut fresh).to_precision();
         let x: SVector<T, N> = to_t(x);
         // P at the end of the period, element by element from its factor
-        // (only the ≤ 12 states the accelerometers see; no N×N matrix).
-        let ud = self.settled();
+        // (only the ≤ 12 states the accelerometers see; no N×N matrix, and
+        // no copy of the factor: the time update changes only its first
+        // three rows).
+        let rows = self
+            .ud
+            .predicted_attitude_rows(&to_t(&pending.prop.phi_att), &self.process_noise(pending));
         let terms =
             layout.accel_second_order_with(&env, &m, &layout.attitude(&x), &c_end, |i, j| {
-                ud.covariance_entry(i, j)
+                match &rows {
+                    Some(rows) => self.ud.covariance_entry_with_rows(rows, i, j),
+                    // As `settled` (the unpropagated factor; predict checks it).
+                    None => self.ud.covariance_entry(i, j),
+                }
             });
         (to_f64(&terms.mean), to_f64(&terms.cov))
     }

@@ -137,13 +137,42 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
     /// [`Ud::covariance`] computes it (the same operations); `None` outside
     /// `N × N`.
     pub fn covariance_entry(&self, i: usize, j: usize) -> Option<T> {
+        self.entry_with(i, j, |r, c| {
+            self.m.data.0.get(c).and_then(|col| col.get(r)).copied()
+        })
+    }
+
+    /// [`Ud::covariance_entry`] of the factor whose first three (attitude)
+    /// rows are `rows` (packed as the factor: `D` on the diagonal, `U` to
+    /// the right; from [`Ud::predicted_attitude_rows`]) and whose other rows
+    /// are this factor's: `P` after the time update, without forming that
+    /// factor.
+    pub fn covariance_entry_with_rows(
+        &self,
+        rows: &SMatrix<T, 3, N>,
+        i: usize,
+        j: usize,
+    ) -> Option<T> {
+        self.entry_with(i, j, |r, c| {
+            if r < 3 {
+                rows.get((r, c)).copied()
+            } else {
+                self.m.data.0.get(c).and_then(|col| col.get(r)).copied()
+            }
+        })
+    }
+
+    /// `P_ij = Σ_{k ≥ j} U_ik D_k U_jk` over the packed factor read
+    /// through `at(row, col)`.
+    fn entry_with(&self, i: usize, j: usize, at: impl Fn(usize, usize) -> Option<T>) -> Option<T> {
         let (i, j) = if i <= j { (i, j) } else { (j, i) };
-        let a = &self.m.data.0;
-        let col_j = a.get(j)?;
-        let d_j = *col_j.get(j)?;
-        let mut s = if i == j { d_j } else { *col_j.get(i)? * d_j };
-        for (k, col) in a.iter().enumerate().skip(j + 1) {
-            if let (Some(&u_i), Some(&u_j), Some(&d_k)) = (col.get(i), col.get(j), col.get(k)) {
+        if j >= N {
+            return None;
+        }
+        let d_j = at(j, j)?;
+        let mut s = if i == j { d_j } else { at(i, j)? * d_j };
+        for k in j + 1..N {
+            if let (Some(u_i), Some(u_j), Some(d_k)) = (at(i, k), at(j, k), at(k, k)) {
                 s += u_i * u_j * d_k;
             }
         }
@@ -255,13 +284,30 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
     /// process noise `q` (3×3, rad²) on the attitude states only. `None`
     /// (factor untouched) if the new attitude block is not positive definite.
     pub fn predict_attitude(&mut self, phi_att: &SMatrix<T, 3, N>, q: &Matrix3<T>) -> Option<()> {
+        let rows = self.predicted_attitude_rows(phi_att, q)?;
+        let a = &mut self.m.data.0;
+        for (c, col) in a.iter_mut().enumerate() {
+            for r in 0..3.min(c + 1) {
+                col[r] = rows[(r, c)];
+            }
+        }
+        Some(())
+    }
+
+    /// The first three rows of the factor after [`Ud::predict_attitude`]
+    /// (packed: `D` on the diagonal, `U` to its right, zeros to its left);
+    /// the other rows do not change. The factor itself is not modified.
+    /// `None` if the new attitude block is not positive definite.
+    pub fn predicted_attitude_rows(
+        &self,
+        phi_att: &SMatrix<T, 3, N>,
+        q: &Matrix3<T>,
+    ) -> Option<SMatrix<T, 3, N>> {
         let phi = &phi_att.data.0; // phi[col][row]
-                                   // The new attitude block first: W = A U₁₁ (U₁₁ unit upper), then
-                                   // M = W D₁ Wᵀ + Q. It reads only the old U₁₁, D₁, so it can be
-                                   // factored (the one step that can fail) before anything is
-                                   // overwritten, and the rest runs in place.
+        let a = &self.m.data.0;
+        // The new attitude block first: W = A U₁₁ (U₁₁ unit upper), then
+        // M = W D₁ Wᵀ + Q (from the old U₁₁, D₁ only).
         let blk = {
-            let a = &self.m.data.0;
             let mut w = Matrix3::<T>::zeros();
             for c in 0..3 {
                 for r in 0..3 {
@@ -277,11 +323,10 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
             mm = (mm + mm.transpose()) * nalgebra::convert::<f64, T>(0.5);
             Ud::<T, 3>::from_covariance(&mm)?
         };
-        let a = &mut self.m.data.0;
+        let mut rows = SMatrix::<T, 3, N>::zeros();
         // U₁₂ ← A U₁₂ + B U₂₂, column by column (U₂₂ unit upper).
         for j in 3..N {
-            let mut col = [T::zero(); 3];
-            for (r, c) in col.iter_mut().enumerate() {
+            for r in 0..3 {
                 let mut s = phi[j][r];
                 for k in 0..3 {
                     s += phi[k][r] * a[j][k];
@@ -289,19 +334,16 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
                 for k in 3..j {
                     s += phi[k][r] * a[j][k];
                 }
-                *c = s;
+                rows[(r, j)] = s;
             }
-            a[j][0] = col[0];
-            a[j][1] = col[1];
-            a[j][2] = col[2];
         }
         let b = &blk.m.data.0;
         for c in 0..3 {
             for r in 0..=c {
-                a[c][r] = b[c][r];
+                rows[(r, c)] = b[c][r];
             }
         }
-        Some(())
+        Some(rows)
     }
 
     /// Re-opens the attitude: its covariance becomes `variance · I` (rad²)

@@ -7,6 +7,8 @@
 
 use nalgebra::{Matrix3, RealField, Vector3};
 
+use crate::trig::{cos, sin, sin_cos};
+
 /// `[v×]`: the skew-symmetric matrix with `[v×] w = v × w`.
 #[inline]
 pub fn skew<T: RealField + Copy>(v: &Vector3<T>) -> Matrix3<T> {
@@ -46,7 +48,7 @@ pub fn dcm<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T> {
         )
     } else {
         let angle = angle2.sqrt();
-        (angle.sin() / angle, (T::one() - angle.cos()) / angle2)
+        (sin(angle) / angle, (T::one() - cos(angle)) / angle2)
     };
     Matrix3::identity() - k * a + k * k * b
 }
@@ -103,9 +105,9 @@ pub fn quaternion_from_dcm<T: RealField + Copy>(c: &Matrix3<T>) -> [T; 4] {
         let forty_eight: T = nalgebra::convert(48.0);
         half - angle * angle / forty_eight
     } else {
-        (angle * half).sin() / angle
+        sin(angle * half) / angle
     };
-    [(angle * half).cos(), theta.x * k, theta.y * k, theta.z * k]
+    [cos(angle * half), theta.x * k, theta.y * k, theta.z * k]
 }
 
 /// The DCM `R(θ)` of the quaternion `q = [w, x, y, z]` (see
@@ -146,8 +148,8 @@ pub fn right_jacobian<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T> {
     } else {
         let angle = angle2.sqrt();
         (
-            (T::one() - angle.cos()) / angle2,
-            (angle - angle.sin()) / (angle2 * angle),
+            (T::one() - cos(angle)) / angle2,
+            (angle - sin(angle)) / (angle2 * angle),
         )
     };
     Matrix3::identity() - k * a + k * k * b
@@ -165,7 +167,7 @@ pub fn right_jacobian_inv<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T>
         T::one() / twelve + angle2 / seven_twenty
     } else {
         let angle = angle2.sqrt();
-        T::one() / angle2 - (T::one() + angle.cos()) / (two * angle * angle.sin())
+        T::one() / angle2 - (T::one() + cos(angle)) / (two * angle * sin(angle))
     };
     Matrix3::identity() + k / two + k * k * c
 }
@@ -199,7 +201,7 @@ pub fn d_right_jacobian<T: RealField + Copy>(theta: &Vector3<T>) -> [Matrix3<T>;
         )
     } else {
         let x = x2.sqrt();
-        let (s, co) = x.sin_cos();
+        let (s, co) = sin_cos(x);
         let x3 = x2 * x;
         let x4 = x2 * x2;
         let one_c = T::one() - co;
@@ -242,7 +244,7 @@ pub fn d2_dcm_times<T: RealField + Copy>(theta: &Vector3<T>, v: &Vector3<T>) -> 
 /// An elementary rotation and its first two derivatives with respect to
 /// its angle: `(R, R′, R″)` with `R = P + cos a · C + sin a · S`.
 fn elementary<T: RealField + Copy>(axis: usize, a: T) -> (Matrix3<T>, Matrix3<T>, Matrix3<T>) {
-    let (s, c) = a.sin_cos();
+    let (s, c) = sin_cos(a);
     let (o, z) = (T::one(), T::zero());
     // (P, C, S) of R1, R2, R3 (see r1, r2, r3).
     let (p, cm, sm) = match axis {
@@ -300,19 +302,19 @@ pub fn gimbal_dcm_partials<T: RealField + Copy>(
 
 /// Passive rotation about x by `a` (rad): `[[1,0,0],[0,c,s],[0,−s,c]]`.
 pub fn r1<T: RealField + Copy>(a: T) -> Matrix3<T> {
-    let (s, c) = a.sin_cos();
+    let (s, c) = sin_cos(a);
     r1_sc(s, c)
 }
 
 /// Passive rotation about y by `a` (rad): `[[c,0,−s],[0,1,0],[s,0,c]]`.
 pub fn r2<T: RealField + Copy>(a: T) -> Matrix3<T> {
-    let (s, c) = a.sin_cos();
+    let (s, c) = sin_cos(a);
     r2_sc(s, c)
 }
 
 /// Passive rotation about z by `a` (rad): `[[c,s,0],[−s,c,0],[0,0,1]]`.
 pub fn r3<T: RealField + Copy>(a: T) -> Matrix3<T> {
-    let (s, c) = a.sin_cos();
+    let (s, c) = sin_cos(a);
     r3_sc(s, c)
 }
 
@@ -355,9 +357,9 @@ impl<T: RealField + Copy> EulerTrig<T> {
     /// The trigonometry of the Euler angles `angles = (α, β, γ)` (rad).
     pub fn new(angles: &Vector3<T>) -> Self {
         Self {
-            alpha: angles.x.sin_cos(),
-            beta: angles.y.sin_cos(),
-            gamma: angles.z.sin_cos(),
+            alpha: sin_cos(angles.x),
+            beta: sin_cos(angles.y),
+            gamma: sin_cos(angles.z),
         }
     }
 
@@ -366,8 +368,8 @@ impl<T: RealField + Copy> EulerTrig<T> {
     fn of_beta_gamma(beta: T, gamma: T) -> Self {
         Self {
             alpha: (T::zero(), T::one()),
-            beta: beta.sin_cos(),
-            gamma: gamma.sin_cos(),
+            beta: sin_cos(beta),
+            gamma: sin_cos(gamma),
         }
     }
 
@@ -501,7 +503,7 @@ pub fn wrap_angles<T: RealField + Copy>(a: &Vector3<T>) -> Vector3<T> {
 /// the North–Up–East frame, for latitude `φ` (rad) and Earth rate `Ω`
 /// (rad/s; 0 to switch it off).
 pub fn earth_rate_n<T: RealField + Copy>(omega: T, latitude: T) -> Vector3<T> {
-    let (s, c) = latitude.sin_cos();
+    let (s, c) = sin_cos(latitude);
     Vector3::new(omega * c, omega * s, T::zero())
 }
 

@@ -60,6 +60,7 @@ pub mod models;
 pub mod observability;
 pub mod second_order;
 pub mod session;
+pub mod trig;
 pub mod wire;
 
 /// The README's Rust examples, compiled and run as doc-tests

@@ -303,7 +303,9 @@ impl Layout {
     }
 
     /// [`Layout::accel_second_order`] with the Hessians on the `R` states of
-    /// `parts`.
+    /// `parts`. Out of line: the three sizes' frames would otherwise add up
+    /// in [`Layout::accel_second_order_with`]'s.
+    #[inline(never)]
     fn second_order_terms<T: RealField + Copy, const R: usize>(
         &self,
         env: &Environment<T>,
@@ -370,23 +372,28 @@ impl Layout {
                 }
             }
         }
+        // ∇²h_a P in place of each Hessian (one R×R temporary, not three:
+        // this frame is on the deepest path of a filter step).
         let mut mean = Vector3::zeros();
-        let mut hp = [SMatrix::<T, R, R>::zeros(); 3];
-        for ((ha, dst), mu) in hess.iter_mut().zip(hp.iter_mut()).zip(mean.iter_mut()) {
+        let mut tmp = SMatrix::<T, R, R>::zeros();
+        for (ha, mu) in hess.iter_mut().zip(mean.iter_mut()) {
             // The diagonal blocks are symmetric only up to rounding.
             *ha = (*ha + ha.transpose()) * half;
-            mul_into(ha, &p_r, dst);
-            *mu = dst.trace() * half;
+            mul_into(ha, &p_r, &mut tmp);
+            *ha = tmp;
+            *mu = ha.trace() * half;
         }
+        let hp = &hess;
         let mut cov = Matrix3::zeros();
         for (a, ha) in hp.iter().enumerate() {
             for (b, hb) in hp.iter().enumerate().skip(a) {
-                // tr(A B) = Σ_ij A_ij B_ji
-                let hbt = hb.transpose();
+                // tr(A B) = Σ_ij A_ij B_ji, column by column of A.
                 let mut t = T::zero();
-                for (ca, cb) in ha.data.0.iter().zip(hbt.data.0.iter()) {
-                    for (x, y) in ca.iter().zip(cb.iter()) {
-                        t += *x * *y;
+                for (c, ca) in ha.data.0.iter().enumerate() {
+                    for (r, x) in ca.iter().enumerate() {
+                        if let Some(y) = hb.data.0.get(r).and_then(|col| col.get(c)) {
+                            t += *x * *y;
+                        }
                     }
                 }
                 t *= half;
