@@ -82,6 +82,41 @@ fn log_storage() -> Option<&'static mut [LogRecord<Real>]> {
     }
 }
 
+/// The stream's large state: the session (its calibrator, ≈ 6 KB), the
+/// frame decoder's buffer and the reply buffer (4 KB each). A static, not
+/// `run`'s locals: `main`'s frame, which every path of the firmware pays,
+/// would otherwise hold them (27 KB of frame on the M7 before). Only
+/// [`state`] touches it.
+struct State {
+    session: Session<Real>,
+    decoder: FrameDecoder,
+    out: [u8; MAX_FRAME_LEN],
+}
+
+static mut STATE: MaybeUninit<State> = MaybeUninit::uninit();
+
+/// Set once [`state`] has handed out [`STATE`].
+static STATE_TAKEN: AtomicBool = AtomicBool::new(false);
+
+/// The stream's state, initialised in place. `None` on a second call.
+/// Out of line: its frame (where the compiler may build the session before
+/// writing it) is gone before the stream runs.
+#[inline(never)]
+fn state() -> Option<&'static mut State> {
+    if STATE_TAKEN.swap(true, Ordering::AcqRel) {
+        return None;
+    }
+    // SAFETY: the flag above makes this the only reference ever made to
+    // STATE; every field is written before the reference is formed.
+    unsafe {
+        let base = addr_of_mut!(STATE).cast::<State>();
+        addr_of_mut!((*base).session).write(Session::new(None, EstimatorOptions::default()));
+        addr_of_mut!((*base).decoder).write(FrameDecoder::new());
+        addr_of_mut!((*base).out).write([0; MAX_FRAME_LEN]);
+        Some(&mut *base)
+    }
+}
+
 /// Totals of a run, for the closing log line (and the exit status).
 #[derive(Default, defmt::Format)]
 pub struct Totals {
@@ -102,12 +137,12 @@ pub struct Totals {
 struct Link {
     uart: Uart,
     tx: Option<Uart>,
-    out: [u8; MAX_FRAME_LEN],
+    out: &'static mut [u8; MAX_FRAME_LEN],
 }
 
 impl Link {
     fn send(&mut self, msg: &Message) {
-        match encode(msg, &mut self.out) {
+        match encode(msg, self.out) {
             Ok(n) => {
                 let bytes = self.out.get(..n).unwrap_or(&[]);
                 match &mut self.tx {
@@ -133,7 +168,7 @@ enum Flow {
 struct Stream<'a> {
     args: &'a Args,
     link: Link,
-    session: Session<Real>,
+    session: &'static mut Session<Real>,
     log: SliceLog<'static, Real>,
     totals: Totals,
     /// The decoder's count of rejected frames, told to every calibrator.
@@ -318,8 +353,10 @@ impl Stream<'_> {
                 return;
             }
         };
-        let mut frame = [0u8; MAX_FRAME_LEN];
-        let n = match encode(&cp, &mut frame) {
+        // Framed into the reply buffer (no second 4 KB buffer on the stack;
+        // nothing is sent until the restore below has decoded it).
+        let frame = &mut *self.link.out;
+        let n = match encode(&cp, frame) {
             Ok(n) => n,
             Err(e) => {
                 defmt::error!("selftest: cannot encode the checkpoint: {}", e);
@@ -365,19 +402,22 @@ pub fn run(args: &Args) -> Totals {
         core::mem::size_of_val(storage),
         storage.as_ptr() as usize
     );
+    let Some(State {
+        session,
+        decoder,
+        out,
+    }) = state()
+    else {
+        defmt::panic!("the stream state is already in use");
+    };
     let mut stream = Stream {
         args,
-        link: Link {
-            uart,
-            tx,
-            out: [0; MAX_FRAME_LEN],
-        },
-        session: Session::new(None, EstimatorOptions::default()),
+        link: Link { uart, tx, out },
+        session,
         log: SliceLog::new(storage),
         totals: Totals::default(),
         frame_errors: 0,
     };
-    let mut decoder = FrameDecoder::new();
     defmt::info!("waiting for frames on UART0");
     loop {
         let byte = loop {

@@ -32,6 +32,9 @@ pub fn filter_config(options: Options, noise_scale: u32) -> FilterConfig<Real> {
     }
 }
 
+// Not inlined: `run` dispatches to one of these per configuration, and
+// their filters must not add up in `main`'s frame (which every run pays).
+#[inline(never)]
 fn run_model<M: Model<N, Z>, const N: usize, const Z: usize>(args: &Args) -> bool {
     let options = match args.mode {
         Mode::Plain => Options::plain(),
