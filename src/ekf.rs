@@ -1022,17 +1022,14 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         } else {
             0
         };
-        // The iterated filter's relinearisation point (IEKF), else the
-        // prediction; the update itself is always the factored one.
-        let retraced;
-        let (x_lin, lin) = if iterations > 0 {
-            let (x_lin, lin) = self.iterated_point(z, pending, &r_v, &mean2, iterations)?;
-            retraced = lin;
-            (x_lin, &retraced)
+        // Linearised at the iterated filter's relinearisation point (IEKF),
+        // else at the prediction; the update itself is always the factored
+        // one.
+        let (nu, Measured { h, noise, .. }) = if iterations > 0 {
+            self.iterated_innovation(z, pending, &r_v, &mean2, iterations)?
         } else {
-            (self.x, pending)
+            self.innovation_at(z, &self.x, pending, &mean2)
         };
-        let (nu, Measured { h, noise, .. }) = self.innovation_at(z, &x_lin, lin, &mean2);
         let x_base = self.x;
         self.factored(&h, &nu, &r_v, &noise, true, &x_base)
     }
@@ -1062,6 +1059,23 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             }
         }
         (nu, measured)
+    }
+
+    /// [`Filter::innovation_at`] the iterated EKF's relinearisation point
+    /// ([`Filter::iterated_point`]). Out of line: the retraced period
+    /// (≈ 1.8 KB) stays out of the frame of every update that does not
+    /// iterate (the default).
+    #[inline(never)]
+    fn iterated_innovation(
+        &self,
+        z: &SVector<f64, Z>,
+        pending: &Pending<T, N>,
+        r_v: &SMatrix<T, Z, Z>,
+        mean2: &Vector3<f64>,
+        iterations: u8,
+    ) -> Result<(SVector<f64, Z>, Measured<f64, N, Z>), Error> {
+        let (x_lin, lin) = self.iterated_point(z, pending, r_v, mean2, iterations)?;
+        Ok(self.innovation_at(z, &x_lin, &lin, mean2))
     }
 
     /// The iterated EKF's relinearisation point after `iterations` dense
@@ -1176,15 +1190,22 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let half: T = nalgebra::convert(0.5);
         let phi_att: SMatrix<T, 3, N> =
             to_t(&self.pending.get().ok_or(Error::NoPrediction)?.prop.phi_att);
-        let h: SMatrix<T, Z, N> = to_t(h);
         // H Φ in T (f64 is emulated on an FPU without it; exact conversions
-        // when T is f64, so the same values there).
-        let hf = crate::models::apply_transition(&h, &phi_att);
+        // when T is f64, so the same values there). It becomes the whitened
+        // rows in place below (one Z×N matrix in this frame, not three).
+        let mut h_w = crate::models::apply_transition(&to_t(h), &phi_att);
         let nu: SVector<T, Z> = to_t(nu_f64);
         let g_att: Matrix3<T> = to_t(&noise.g.fixed_rows::<3>(ATT).clone_owned());
-        let m_e = h.fixed_columns::<3>(ATT) * g_att + to_t::<T, Z, 3>(&noise.d);
+        let h_att: SMatrix<T, Z, 3> = to_t(&h.fixed_columns::<3>(ATT).clone_owned());
+        let m_e = h_att * g_att + to_t::<T, Z, 3>(&noise.d);
         let mut r_e = m_e * m_e.transpose() + r_v;
         r_e = (r_e + r_e.transpose()) * half;
+        // S = H Φ P Φᵀ Hᵀ + R_e, for the innovation report and the gate.
+        let s = if measured {
+            r_e + self.ud.congruence(&h_w)
+        } else {
+            r_e
+        };
         let Some(chol) = r_e.cholesky() else {
             return Err(Error::InnovationNotPositiveDefinite);
         };
@@ -1192,7 +1213,6 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         // The triangular solves in place (no Option/Result moves of the
         // Z×N results).
         let mut nu_w = nu;
-        let mut h_w = hf;
         // J L = G Mᵀ L⁻ᵀ (attitude rows), so J z = (J L) ν_w.
         let mut l_inv_m_g = m_e * g_att.transpose();
         if !(l.solve_lower_triangular_mut(&mut nu_w)
@@ -1202,12 +1222,6 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             return Err(Error::InnovationNotPositiveDefinite);
         }
         let j_l: SMatrix<T, 3, Z> = l_inv_m_g.transpose();
-        // S = H Φ P Φᵀ Hᵀ + R_e, for the innovation report and the gate.
-        let s = if measured {
-            r_e + self.ud.congruence(&hf)
-        } else {
-            r_e
-        };
         // Time update with Φ' = Φ − J H Φ and Q' = G Gᵀ − J R_e Jᵀ.
         let phi_dec = phi_att - j_l * h_w;
         let mut q = g_att * g_att.transpose() - j_l * j_l.transpose();
@@ -1298,7 +1312,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// [`crate::observability::Observability`] (its covariance update is
     /// [`Filter::step`]'s, which does not depend on the measured values).
     /// [`Error::NoPrediction`] outside the linearised mode (no nominal).
-    /// The innovation is not reported (its covariance `S` is not computed).
+    /// The innovation is not reported (its covariance `S` is not computed)
+    /// and the NIS gate does not apply.
     pub(crate) fn step_noise_free(
         &mut self,
         dtheta_c: &Vector3<f64>,
@@ -1322,9 +1337,9 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             self.settle()?;
             self.pending.clear();
         }
-        // `predict` and `update` leave the factor untouched on error (the
-        // time update is applied in place only once nothing else can fail,
-        // the measurement update works on a copy), so only the state is saved.
+        // `predict` and `update` leave the factor untouched on error (every
+        // input of the in-place update is checked before it is touched; see
+        // `update` for the one exception), so only the state is saved.
         let saved = (self.x, self.command, self.reference);
         self.predict(dtheta_c, dt)?;
         let updated = match obs {
