@@ -179,8 +179,8 @@ impl Stream<'_> {
     // Every message goes through `Session::handle`; what the firmware adds
     // is logging, the instruction marks, the counts and the link. The
     // handlers that need large frames (`Finish`, a restore) are their own
-    // functions, not inlined into the sample path (the M7 build's filter
-    // step alone takes ~70 KB of the 128 KB RAM).
+    // functions, not inlined into the sample path: their frames must not
+    // add up with a filter step's (BENCHMARKS.md, "Stack").
     fn handle(&mut self, msg: &Message) -> Flow {
         match msg {
             Message::Configure(c) => self.configure(c),
