@@ -769,15 +769,23 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         self.matrices.refresh(&layout, &x_lin);
         let slot = &mut self.pending.value;
         slot.period = self.command.period(dtheta_c, dt);
-        layout
-            .propagate_into(
-                &self.config.env,
+        let env = &self.config.env;
+        let att0 = layout.attitude(&x_lin);
+        let propagated = if is_f64::<T>() {
+            layout.propagate_into(env, &self.matrices.0, &att0, &slot.period, &mut slot.prop)
+        } else {
+            // The trajectory in f64, its Jacobians in T (see `Filter`).
+            layout.propagate_into_jacobians_in(
+                env,
                 &self.matrices.0,
-                &layout.attitude(&x_lin),
+                &env_t::<T>(env),
+                &self.matrices.0.to_precision(),
+                &att0,
                 &slot.period,
                 &mut slot.prop,
             )
-            .ok_or(Error::GimbalLock)?;
+        };
+        propagated.ok_or(Error::GimbalLock)?;
         let new = &self.pending.value;
         let q_extra = if self.config.options.second_order_dynamics {
             self.second_order_dynamics(&new.period, &new.prop)?

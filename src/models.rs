@@ -992,6 +992,71 @@ impl Layout {
         out: &mut PeriodPropagation<T, N>,
     ) -> Option<()> {
         let dt = period.dt;
+        let [_, wm, w1] = period.omega_c;
+        let [_, att_mid, att1] = self.trajectory(env, m, att0, period)?;
+        out.f_mid = self.attitude_rate_jacobian(env, m, &att_mid, &wm)?;
+        out.f_end = self.attitude_rate_jacobian(env, m, &att1, &w1)?;
+        out.phi_att = transition_rows(&out.f_mid, dt);
+        out.noise_map = self.noise_map(&att_mid)?;
+        out.att = [att0.clone_owned(), att_mid, att1];
+        if att1.iter().chain(out.phi_att.iter()).all(|v| v.is_finite()) {
+            Some(())
+        } else {
+            None
+        }
+    }
+
+    /// [`Layout::propagate_into`] with the trajectory in f64 and the
+    /// Jacobians (`F` at the midpoint and the end, the transition rows, the
+    /// noise map) evaluated in precision `J` on `env_j` and `m_j` (the same
+    /// environment and installation matrices in `J`), then stored in f64.
+    /// A single-precision filter needs its Jacobians to a few digits only;
+    /// on an FPU without double precision they would otherwise be emulated
+    /// f64. For `J = f64` use [`Layout::propagate_into`].
+    #[allow(clippy::too_many_arguments)]
+    pub fn propagate_into_jacobians_in<J: RealField + Copy, const N: usize>(
+        &self,
+        env: &Environment<f64>,
+        m: &InstallationMatrices<f64>,
+        env_j: &Environment<J>,
+        m_j: &InstallationMatrices<J>,
+        att0: &Vector3<f64>,
+        period: &Period<f64>,
+        out: &mut PeriodPropagation<f64, N>,
+    ) -> Option<()> {
+        let [_, wm, w1] = period.omega_c;
+        let [_, att_mid, att1] = self.trajectory(env, m, att0, period)?;
+        let j = |v: &Vector3<f64>| v.map(nalgebra::convert::<f64, J>);
+        let back = |v: J| v.to_subset().unwrap_or(f64::NAN);
+        let att_mid_j = j(&att_mid);
+        let f_mid: SMatrix<J, 3, N> =
+            self.attitude_rate_jacobian(env_j, m_j, &att_mid_j, &j(&wm))?;
+        let f_end: SMatrix<J, 3, N> =
+            self.attitude_rate_jacobian(env_j, m_j, &j(&att1), &j(&w1))?;
+        let phi_att = transition_rows(&f_mid, nalgebra::convert::<f64, J>(period.dt));
+        out.noise_map = self.noise_map(&att_mid_j)?.map(back);
+        out.f_mid = f_mid.map(back);
+        out.f_end = f_end.map(back);
+        out.phi_att = phi_att.map(back);
+        out.att = [*att0, att_mid, att1];
+        if att1.iter().chain(out.phi_att.iter()).all(|v| v.is_finite()) {
+            Some(())
+        } else {
+            None
+        }
+    }
+
+    /// The attitude at the period's three nodes: one RK4 step driven by the
+    /// commanded rate at the nodes, the midpoint from the cubic Hermite
+    /// interpolant (see [`Layout::propagate`]). `None` at gimbal lock.
+    fn trajectory<T: RealField + Copy>(
+        &self,
+        env: &Environment<T>,
+        m: &InstallationMatrices<T>,
+        att0: &Vector3<T>,
+        period: &Period<T>,
+    ) -> Option<[Vector3<T>; 3]> {
+        let dt = period.dt;
         let half: T = nalgebra::convert(0.5);
         let two: T = nalgebra::convert(2.0);
         let six: T = nalgebra::convert(6.0);
@@ -1004,21 +1069,16 @@ impl Layout {
         let att1 = att0 + (k1 + (k2 + k3) * two + k4) * (dt / six);
         let f1 = self.attitude_rate(env, m, &att1, &w1)?;
         let att_mid = (att0 + att1) * half + (k1 - f1) * (dt / eight);
-        out.f_mid = self.attitude_rate_jacobian(env, m, &att_mid, &wm)?;
-        out.f_end = self.attitude_rate_jacobian(env, m, &att1, &w1)?;
-        out.phi_att = transition_rows(&out.f_mid, dt);
-        out.noise_map = match self.attitude {
-            AttitudeKind::Misalignment => right_jacobian_inv(&att_mid),
-            AttitudeKind::Gimbal | AttitudeKind::Attitude => {
-                gimbal_rate_inverse(att_mid.y, att_mid.z)?
-            }
-        };
-        out.att = [att0.clone_owned(), att_mid, att1];
-        if att1.iter().chain(out.phi_att.iter()).all(|v| v.is_finite()) {
-            Some(())
-        } else {
-            None
-        }
+        Some([*att0, att_mid, att1])
+    }
+
+    /// `B = ∂(attitude rate)/∂(platform rate noise)` at attitude `att`
+    /// (3×3); `None` at gimbal lock.
+    fn noise_map<T: RealField + Copy>(&self, att: &Vector3<T>) -> Option<Matrix3<T>> {
+        Some(match self.attitude {
+            AttitudeKind::Misalignment => right_jacobian_inv(att),
+            AttitudeKind::Gimbal | AttitudeKind::Attitude => gimbal_rate_inverse(att.y, att.z)?,
+        })
     }
 
     /// The mean accelerometer output over the period (g) by Simpson's rule
