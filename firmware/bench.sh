@@ -173,12 +173,12 @@ for v in m4f m7; do
 done
 
 echo
-echo "## Where an M2-ps period goes (synthetic, noise ×1000, top functions)"
+echo "## Where an M2-ps period goes (synthetic, noise ×1000, top functions; 'mem' lines: the call sites behind memcpy/memclr)"
 for v in m4f m7; do
-    for m in default plain; do
+    for m in default plain linearised; do
         echo "$v $m:"
         run_qemu "$v" /dev/null "$OUT/bench.reply" "$OUT/bench.defmt" \
-            "source=synthetic config=M2-ps mode=$m periods=50 noise_scale=1000" "first=1,syms=10" \
+            "source=synthetic config=M2-ps mode=$m periods=50 noise_scale=1000" "first=1,syms=10,memcallers=5" \
             2>"$OUT/bench.plugin" || true
         grep '%' "$OUT/bench.plugin" | sed 's/^insnmark: /    /' | demangle
     done
