@@ -45,10 +45,10 @@
 
 use core::marker::PhantomData;
 
-use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3};
+use nalgebra::{Matrix3, RealField, SVector, Vector3};
 
 use crate::command::CommandFrame;
-use crate::ekf::{self, Filter, FilterConfig, Observation};
+use crate::ekf::{self, Filter, FilterConfig, Observation, Parts};
 use crate::estimator::{self, EstimatorOptions, LogError, LogRecord, PassEvent, SampleLog};
 use crate::geometry::{angle_between, dcm_from_quaternion, rotation_vector};
 use crate::models::{ConfigId, Environment, Model};
@@ -662,15 +662,36 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     /// calibrator itself is unchanged: more samples may follow. Also returns
     /// the final filter when the passes ran. `observer` sees every step of
     /// every pass ([`PassEvent`]; `|_| {}` when not needed).
-    // Not inlined: the session dispatches to seven of these, and their
-    // frames must not add up in one caller's frame (firmware stack).
-    #[inline(never)]
     pub fn finish<F: FnMut(&PassEvent<'_, T, M, N, Z>)>(
         &self,
         log: &mut (dyn SampleLog<T> + '_),
         passes: &EstimatorOptions,
         observer: F,
     ) -> (Estimate, Option<Filter<T, M, N, Z>>) {
+        let mut last = None;
+        let estimate = self.finish_with(log, passes, observer, |f| last = Some(f.clone()));
+        (estimate, last)
+    }
+
+    /// [`Calibrator::finish`] without a filter returned by value: `on_final`
+    /// sees the final filter when the passes ran (it is not called for a
+    /// single-pass answer). The passes run in one filter in this function's
+    /// frame ([`estimator::estimate_in`]), which the session's `Finish`
+    /// uses: the firmware's stack holds one filter there, not three.
+    // Not inlined: the session dispatches to seven of these, and their
+    // frames must not add up in one caller's frame (firmware stack).
+    #[inline(never)]
+    pub fn finish_with<F, G>(
+        &self,
+        log: &mut (dyn SampleLog<T> + '_),
+        passes: &EstimatorOptions,
+        observer: F,
+        on_final: G,
+    ) -> Estimate
+    where
+        F: FnMut(&PassEvent<'_, T, M, N, Z>),
+        G: FnOnce(&Filter<T, M, N, Z>),
+    {
         let logged = self.progress.logged;
         if log.len() > logged as usize && self.progress.log_incomplete.is_none() {
             log.truncate(logged as usize);
@@ -684,32 +705,27 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
             None => None,
         };
         if let Some(r) = reason {
-            return (self.estimate_of(&self.filter, single(r)), None);
+            return self.estimate_of(&self.filter, single(r));
         }
         let sigma0 = SVector::repeat(to_t(self.settings.prior_sigma_rad));
         let config = Self::filter_config(&self.settings);
-        match estimator::estimate::<T, M, N, Z, _, _>(
-            &config,
-            &SVector::zeros(),
-            &sigma0,
-            log,
-            passes,
-            observer,
-        ) {
-            Ok(outcome) => {
+        let x0 = SVector::zeros();
+        // Used where it was built (no move of the filter out of the Result).
+        let mut built = Filter::new(config, x0, sigma0);
+        let Ok(filter) = built.as_mut() else {
+            return self.estimate_of(&self.filter, single(SinglePassReason::Estimator));
+        };
+        match estimator::estimate_in(filter, &config, &x0, &sigma0, log, passes, observer) {
+            Ok(report) => {
                 let kind = EstimateKind::Final {
-                    passes: outcome.report.passes,
-                    converged: outcome.report.converged,
+                    passes: report.passes,
+                    converged: report.converged,
                 };
-                (
-                    self.estimate_of(&outcome.filter, kind),
-                    Some(outcome.filter),
-                )
+                let estimate = self.estimate_of(filter, kind);
+                on_final(filter);
+                estimate
             }
-            Err(_) => (
-                self.estimate_of(&self.filter, single(SinglePassReason::Estimator)),
-                None,
-            ),
+            Err(_) => self.estimate_of(&self.filter, single(SinglePassReason::Estimator)),
         }
     }
 
@@ -777,6 +793,19 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     // frames must not add up in one caller's frame (firmware stack).
     #[inline(never)]
     pub fn restore(settings: CalibratorConfig, cp: &Checkpoint) -> Result<Self, Error> {
+        let mut c = Self::new(settings)?;
+        c.restore_in_place(settings, cp)?;
+        Ok(c)
+    }
+
+    /// `*self = Calibrator::restore(settings, cp)?`, in place (the
+    /// checkpoint is read where it is: no calibrator-sized or `N×N`
+    /// temporary on the stack). On error the calibrator is unchanged.
+    pub fn restore_in_place(
+        &mut self,
+        settings: CalibratorConfig,
+        cp: &Checkpoint,
+    ) -> Result<(), Error> {
         Self::check_config(settings.config)?;
         Self::check_config(cp.config)?;
         let vector = |v: &[f64]| {
@@ -788,27 +817,25 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         if cp.factor.len() != N * N {
             return Err(Error::CheckpointDimension);
         }
-        let factor = SMatrix::<T, N, N>::from_row_iterator(cp.factor.iter().map(|v| to_t::<T>(*v)));
         let nominal = match &cp.nominal {
             Some(v) => Some(vector(v)?),
             None => None,
         };
         let c_cn = Matrix3::from_row_iterator(cp.c_cn.iter().copied());
-        let filter = Filter::from_parts(
+        self.filter.set_parts(
             Self::filter_config(&settings),
-            x,
-            factor,
-            c_cn,
-            nominal,
-            cp.updates,
-            (cp.gated_run, cp.gate_open),
+            &Parts {
+                x: &x,
+                factor: &cp.factor,
+                c_cn: &c_cn,
+                nominal: nominal.as_ref(),
+                updates: cp.updates,
+                gate_state: (cp.gated_run, cp.gate_open),
+            },
         )?;
-        Ok(Self {
-            filter,
-            settings,
-            progress: cp.progress,
-            frame_errors: 0,
-            _model: PhantomData,
-        })
+        self.settings = settings;
+        self.progress = cp.progress;
+        self.frame_errors = 0;
+        Ok(())
     }
 }

@@ -321,6 +321,27 @@ pub struct Filter<T: RealField + Copy, M, const N: usize, const Z: usize> {
     _model: PhantomData<M>,
 }
 
+/// The parts of a filter between two periods, as a checkpoint saves them
+/// ([`Filter::set_parts`], [`Filter::from_parts`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Parts<'a, const N: usize> {
+    /// State (rad; the configuration's state order).
+    pub x: &'a SVector<f64, N>,
+    /// The packed U-D factor of the covariance (rad², [`Filter::factor`]),
+    /// its `N·N` entries row by row in f64 (rounded to `T`); the part below
+    /// the diagonal is ignored.
+    pub factor: &'a [f64],
+    /// The computed frame `C^c_n` at the start of the next period.
+    pub c_cn: &'a Matrix3<f64>,
+    /// The nominal of the linearised mode (rad), `None` for the extended
+    /// filter.
+    pub nominal: Option<&'a SVector<f64, N>>,
+    /// Updates applied so far.
+    pub updates: u32,
+    /// The NIS gate's state ([`Filter::gate_state`]).
+    pub gate_state: (u32, bool),
+}
+
 /// A cache of [`InstallationMatrices`], a pure function of the parameters
 /// it holds: not part of the filter's value (every cache equals every
 /// other, so two filters with equal state, factor and history compare
@@ -519,6 +540,56 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         x0: SVector<f64, N>,
         sigma0: SVector<T, N>,
     ) -> Result<Self, Error> {
+        let variance = Self::prior_variance(&config, &x0, &sigma0)?;
+        let ud = Ud::from_variances(&variance).ok_or(Error::NonFiniteInput)?;
+        Ok(Self {
+            x: x0,
+            ud,
+            command: CommandFrame::aligned(config.env.earth_rate_n),
+            config,
+            pending: PendingSlot::empty(),
+            reference: None,
+            updates: 0,
+            gated_run: 0,
+            gate_open: false,
+            matrices: MatricesCache(Self::LAYOUT.matrices(&x0)),
+            _model: PhantomData,
+        })
+    }
+
+    /// Makes this filter equal to `Filter::new(config, x0, sigma0)`, in
+    /// place (no filter-sized temporary: the estimator's passes restart one
+    /// filter, [`crate::estimator::estimate_in`]). On error the filter is
+    /// unchanged.
+    pub fn restart(
+        &mut self,
+        config: FilterConfig<T>,
+        x0: SVector<f64, N>,
+        sigma0: SVector<T, N>,
+    ) -> Result<(), Error> {
+        let variance = Self::prior_variance(&config, &x0, &sigma0)?;
+        if !self.ud.set_diagonal(&variance) {
+            return Err(Error::NonFiniteInput);
+        }
+        self.x = x0;
+        self.command = CommandFrame::aligned(config.env.earth_rate_n);
+        self.config = config;
+        self.pending.clear();
+        self.reference = None;
+        self.updates = 0;
+        self.gated_run = 0;
+        self.gate_open = false;
+        self.matrices = MatricesCache(Self::LAYOUT.matrices(&x0));
+        Ok(())
+    }
+
+    /// The prior variances `σ0²` (rad²) of [`Filter::new`] after its
+    /// checks of the inputs.
+    fn prior_variance(
+        config: &FilterConfig<T>,
+        x0: &SVector<f64, N>,
+        sigma0: &SVector<T, N>,
+    ) -> Result<SVector<T, N>, Error> {
         #[allow(clippy::let_unit_value)]
         let () = Self::SIZES_AGREE;
         let inputs = [config.sigma_accel, config.sigma_gyro, config.sigma_gimbal];
@@ -542,27 +613,14 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         // A finite prior σ whose variance overflows (σ > 1.3e154 in f64,
         // 1.8e19 in f32) would give an infinite covariance, from which no
         // checkpoint of the filter could be restored (`from_parts`).
-        let variance = sigma0.component_mul(&sigma0);
+        let variance = sigma0.component_mul(sigma0);
         if !all_finite(variance.iter().copied()) {
             return Err(Error::NonFiniteInput);
         }
         if Self::LAYOUT.gimbal_obs && config.sigma_gimbal <= T::zero() {
             return Err(Error::CovarianceNotPositiveDefinite);
         }
-        let ud = Ud::from_variances(&variance).ok_or(Error::NonFiniteInput)?;
-        Ok(Self {
-            x: x0,
-            ud,
-            command: CommandFrame::aligned(config.env.earth_rate_n),
-            config,
-            pending: PendingSlot::empty(),
-            reference: None,
-            updates: 0,
-            gated_run: 0,
-            gate_open: false,
-            matrices: MatricesCache(Self::LAYOUT.matrices(&x0)),
-            _model: PhantomData,
-        })
+        Ok(variance)
     }
 
     /// Rebuilds a filter between two periods from its parts, as saved by a
@@ -583,19 +641,65 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         gate_state: (u32, bool),
     ) -> Result<Self, Error> {
         let mut f = Self::new(config, SVector::zeros(), SVector::repeat(T::one()))?;
-        let nominal_values = nominal.iter().flat_map(|v| v.iter().copied());
-        if !all_finite(x.iter().chain(c_cn.iter()).copied().chain(nominal_values))
-            || !all_finite(factor.iter().copied())
+        // Exact: every T of the filter is an f64.
+        let rows: SMatrix<f64, N, N> = to_f64(&factor.transpose());
+        let parts = Parts {
+            x: &x,
+            factor: rows.as_slice(),
+            c_cn: &c_cn,
+            nominal: nominal.as_ref(),
+            updates,
+            gate_state,
+        };
+        f.set_parts(config, &parts)?;
+        Ok(f)
+    }
+
+    /// [`Filter::from_parts`] in place, with the factor as its `N·N`
+    /// entries in row-major order in f64 (a checkpoint's layout, read where
+    /// it is: no `N×N` temporary). Every part is checked before the filter
+    /// is touched: on error it is unchanged ([`Error::NonFiniteInput`] also
+    /// for a factor that has not `N·N` entries).
+    pub fn set_parts(
+        &mut self,
+        config: FilterConfig<T>,
+        parts: &Parts<'_, N>,
+    ) -> Result<(), Error> {
+        Self::prior_variance(&config, &SVector::zeros(), &SVector::repeat(T::one()))?;
+        let nominal_values = parts.nominal.iter().flat_map(|v| v.iter().copied());
+        if !all_finite(
+            parts
+                .x
+                .iter()
+                .chain(parts.c_cn.iter())
+                .copied()
+                .chain(nominal_values),
+        ) || !all_finite(parts.factor.iter().copied())
+            || parts.factor.len() != N * N
         {
             return Err(Error::NonFiniteInput);
         }
-        f.ud = Ud::from_packed(&factor).ok_or(Error::CovarianceNotPositiveDefinite)?;
-        f.x = x;
-        f.command.c_cn = c_cn;
-        f.reference = nominal;
-        f.updates = updates;
-        (f.gated_run, f.gate_open) = gate_state;
-        Ok(f)
+        // Finite in f64 but not in T (f32 overflow): as a non-finite factor.
+        let t_finite = parts
+            .factor
+            .iter()
+            .all(|v| nalgebra::convert::<f64, T>(*v).is_finite());
+        if !t_finite {
+            return Err(Error::NonFiniteInput);
+        }
+        if !self.ud.set_packed_rows(parts.factor) {
+            return Err(Error::CovarianceNotPositiveDefinite);
+        }
+        self.x = *parts.x;
+        self.command = CommandFrame::aligned(config.env.earth_rate_n);
+        self.command.c_cn = *parts.c_cn;
+        self.config = config;
+        self.pending.clear();
+        self.reference = parts.nominal.copied();
+        self.updates = parts.updates;
+        (self.gated_run, self.gate_open) = parts.gate_state;
+        self.matrices = MatricesCache(Self::LAYOUT.matrices(&SVector::<f64, N>::zeros()));
+        Ok(())
     }
 
     /// Switches to a linearised Kalman filter about a nominal trajectory

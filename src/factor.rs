@@ -66,6 +66,43 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         })
     }
 
+    /// Makes this factor [`Ud::from_variances`]'s of `variances`, in
+    /// place; `false` (and the factor unchanged) unless every variance is
+    /// finite and strictly positive.
+    pub fn set_diagonal(&mut self, variances: &SVector<T, N>) -> bool {
+        if variances.iter().any(|v| !v.is_finite() || *v <= T::zero()) {
+            return false;
+        }
+        self.m.fill(T::zero());
+        for (i, v) in variances.iter().enumerate() {
+            if let Some(d) = self.m.get_mut((i, i)) {
+                *d = *v;
+            }
+        }
+        true
+    }
+
+    /// Makes this factor [`Ud::from_packed`]'s of the packed form given by
+    /// its `N·N` entries row by row in f64 (a checkpoint's layout), rounded
+    /// to `T`, in place; `false` (and the factor unchanged) unless there
+    /// are `N·N` entries, all finite in `T`, and `D` is strictly positive.
+    pub fn set_packed_rows(&mut self, rows: &[f64]) -> bool {
+        let t = |v: f64| -> T { nalgebra::convert(v) };
+        let diagonal_positive =
+            (0..N).all(|i| rows.get(i * N + i).is_some_and(|d| t(*d) > T::zero()));
+        if rows.len() != N * N || !diagonal_positive || rows.iter().any(|v| !t(*v).is_finite()) {
+            return false;
+        }
+        for (r, row) in rows.chunks_exact(N).enumerate() {
+            for (c, v) in row.iter().enumerate() {
+                if let Some(e) = self.m.get_mut((r, c)) {
+                    *e = if c >= r { t(*v) } else { T::zero() };
+                }
+            }
+        }
+        true
+    }
+
     /// A factor from its packed form ([`Ud::packed`]); the part below the
     /// diagonal is ignored. `None` unless every entry is finite and `D` is
     /// strictly positive.

@@ -143,20 +143,45 @@ impl<T: RealField + Copy> Platform<T> {
     }
 }
 
-/// `out = a b` for square `R×R` matrices, on the column arrays (nalgebra's
-/// generic product of this size goes through its `gemm` with per-element
-/// dispatch; these zipped loops have no bounds checks and unroll).
-fn mul_into<T: RealField + Copy, const R: usize>(
-    a: &SMatrix<T, R, R>,
+/// `a ← (a + aᵀ) / 2` in place (`half` = ½): the diagonal blocks of a
+/// Hessian are symmetric only up to rounding.
+fn symmetrise<T: RealField + Copy, const R: usize>(a: &mut SMatrix<T, R, R>, half: T) {
+    for c in 0..R {
+        for r in (c + 1)..R {
+            if let (Some(&x), Some(&y)) = (a.get((r, c)), a.get((c, r))) {
+                let v = (x + y) * half;
+                if let Some(e) = a.get_mut((r, c)) {
+                    *e = v;
+                }
+                if let Some(e) = a.get_mut((c, r)) {
+                    *e = v;
+                }
+            }
+        }
+    }
+}
+
+/// `a ← a b` for square `R×R` matrices, in place, one row of `a` at a time
+/// (each row of the product needs only the same row of `a`): one row of
+/// temporaries instead of an `R×R` product. Every element is
+/// `Σ_k a_ik b_kj` summed over ascending `k` from zero, as nalgebra's
+/// product would.
+fn mul_rows_in_place<T: RealField + Copy, const R: usize>(
+    a: &mut SMatrix<T, R, R>,
     b: &SMatrix<T, R, R>,
-    out: &mut SMatrix<T, R, R>,
 ) {
-    let a = &a.data.0; // a[col][row]
-    for (oj, bj) in out.data.0.iter_mut().zip(b.data.0.iter()) {
-        *oj = [T::zero(); R];
-        for (ak, bkj) in a.iter().zip(bj.iter()) {
-            for (o, x) in oj.iter_mut().zip(ak.iter()) {
-                *o += *x * *bkj;
+    for r in 0..R {
+        let mut row = [T::zero(); R];
+        for (o, bj) in row.iter_mut().zip(b.data.0.iter()) {
+            for (k, bkj) in bj.iter().enumerate() {
+                if let Some(x) = a.get((r, k)) {
+                    *o += *x * *bkj;
+                }
+            }
+        }
+        for (c, v) in row.iter().enumerate() {
+            if let Some(e) = a.get_mut((r, c)) {
+                *e = *v;
             }
         }
     }
@@ -372,15 +397,12 @@ impl Layout {
                 }
             }
         }
-        // ∇²h_a P in place of each Hessian (one R×R temporary, not three:
-        // this frame is on the deepest path of a filter step).
+        // ∇²h_a P in place of each Hessian, row by row (one row of R
+        // temporaries: this frame is on the deepest path of a filter step).
         let mut mean = Vector3::zeros();
-        let mut tmp = SMatrix::<T, R, R>::zeros();
         for (ha, mu) in hess.iter_mut().zip(mean.iter_mut()) {
-            // The diagonal blocks are symmetric only up to rounding.
-            *ha = (*ha + ha.transpose()) * half;
-            mul_into(ha, &p_r, &mut tmp);
-            *ha = tmp;
+            symmetrise(ha, half);
+            mul_rows_in_place(ha, &p_r);
             *mu = ha.trace() * half;
         }
         let hp = &hess;

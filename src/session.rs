@@ -155,7 +155,7 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
         each!(self, c => c.estimate())
     }
 
-    /// [`Calibrator::finish`] (the final answer); `on_update(pass, nis)` is
+    /// [`Calibrator::finish_with`] (the final answer); `on_update(pass, nis)` is
     /// called for every update of every pass (`nis` `None` for a period
     /// without measurement, or a refused update).
     pub fn finish(
@@ -164,12 +164,12 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
         passes: &EstimatorOptions,
         on_update: &mut dyn FnMut(u8, Option<T>),
     ) -> Estimate {
-        each!(self, c => c
-            .finish(log, passes, |e| on_update(
-                e.pass,
-                e.result.as_ref().ok().and_then(|r| r.map(|i| i.nis))
-            ))
-            .0)
+        each!(self, c => c.finish_with(
+            log,
+            passes,
+            |e| on_update(e.pass, e.result.as_ref().ok().and_then(|r| r.map(|i| i.nis))),
+            |_| {}
+        ))
     }
 
     /// [`Calibrator::checkpoint`].
@@ -195,8 +195,8 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
     }
 }
 
-/// `*c = Calibrator::restore(settings, cp)`, in a frame of its own (one
-/// configuration's temporary on the stack, not seven).
+/// [`Calibrator::restore_in_place`], in a frame of its own (one
+/// configuration's temporaries on the stack, not seven).
 #[inline(never)]
 fn restore_into<
     T: RealField + Copy,
@@ -208,8 +208,7 @@ fn restore_into<
     settings: CalibratorConfig,
     cp: &Checkpoint,
 ) -> Result<(), calibrator::Error> {
-    *c = Calibrator::restore(settings, cp)?;
-    Ok(())
+    c.restore_in_place(settings, cp)
 }
 
 /// Errors of a message the session could not act on. The session is left as

@@ -821,6 +821,9 @@ impl<const CAP: usize> Decoder<CAP> {
 
     /// Accepts one byte; at a delimiter returns the frame's outcome (already
     /// counted), otherwise `None`. Empty frames give `None`.
+    // Not inlined: the decoder's temporaries stay out of the caller's
+    // frame, which holds the message while it is handled (firmware stack).
+    #[inline(never)]
     pub fn push_byte(&mut self, byte: u8) -> Option<Result<Message, FrameError>> {
         if byte != 0 {
             if self.overflow {

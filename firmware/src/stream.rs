@@ -187,12 +187,18 @@ impl Stream<'_> {
             Message::Sample(s) => self.sample(msg, s.seq),
             Message::Finish => return self.finish(),
             Message::Checkpoint(_) => self.restore(msg),
-            other => {
-                let reply = self.session.handle(other, &mut self.log);
-                self.reply(reply);
-            }
+            other => self.other(other),
         }
         Flow::Continue
+    }
+
+    /// Any other message: what the session answers. Out of line, like the
+    /// handlers above: the reply (a message, up to 3 KB) is not in the
+    /// receive loop's frame.
+    #[inline(never)]
+    fn other(&mut self, msg: &Message) {
+        let reply = self.session.handle(msg, &mut self.log);
+        self.reply(reply);
     }
 
     /// Sends what the session answered, or logs why it could not act.
@@ -255,7 +261,7 @@ impl Stream<'_> {
                     );
                 }
             }
-            Reply::Send(Message::Estimate(est)) => {
+            Reply::Send(ref m @ Message::Estimate(ref est)) => {
                 t.estimates += 1;
                 if est.seq % 600 == 0 || t.estimates == 1 {
                     defmt::info!(
@@ -266,7 +272,8 @@ impl Stream<'_> {
                         est.progress.logged
                     );
                 }
-                self.link.send(&Message::Estimate(est));
+                // The reply itself (no second message on the stack).
+                self.link.send(m);
             }
             Reply::Rejected(reason) => {
                 t.rejected += 1;
@@ -340,28 +347,12 @@ impl Stream<'_> {
 
     /// `selftest=checkpoint-at=N`: `CheckpointRequest` → (wire frame) →
     /// `Reset` → `Checkpoint` from the decoded frame, through the session,
-    /// as if the host had sent them.
+    /// as if the host had sent them. Each step is its own function: the
+    /// messages (up to 3 KB each) are in their frames one at a time.
     #[inline(never)]
     fn selftest_checkpoint(&mut self) {
-        let cp = match self
-            .session
-            .handle(&Message::CheckpointRequest, &mut self.log)
-        {
-            Reply::Send(m @ Message::Checkpoint(_)) => m,
-            _ => {
-                defmt::error!("selftest: no checkpoint");
-                return;
-            }
-        };
-        // Framed into the reply buffer (no second 4 KB buffer on the stack;
-        // nothing is sent until the restore below has decoded it).
-        let frame = &mut *self.link.out;
-        let n = match encode(&cp, frame) {
-            Ok(n) => n,
-            Err(e) => {
-                defmt::error!("selftest: cannot encode the checkpoint: {}", e);
-                return;
-            }
+        let Some(n) = self.selftest_frame_checkpoint() else {
+            return;
         };
         let logged = self.log.len();
         defmt::info!(
@@ -370,13 +361,50 @@ impl Stream<'_> {
             n,
             logged
         );
+        self.selftest_reset();
+        self.selftest_restore(n);
+    }
+
+    /// The session's checkpoint, framed into the reply buffer (no second
+    /// 4 KB buffer on the stack; nothing is sent until the restore has
+    /// decoded it). Returns the frame's length.
+    #[inline(never)]
+    fn selftest_frame_checkpoint(&mut self) -> Option<usize> {
+        let reply = self
+            .session
+            .handle(&Message::CheckpointRequest, &mut self.log);
+        let Reply::Send(ref cp @ Message::Checkpoint(_)) = reply else {
+            defmt::error!("selftest: no checkpoint");
+            return None;
+        };
+        match encode(cp, self.link.out) {
+            Ok(n) => Some(n),
+            Err(e) => {
+                defmt::error!("selftest: cannot encode the checkpoint: {}", e);
+                None
+            }
+        }
+    }
+
+    #[inline(never)]
+    fn selftest_reset(&mut self) {
         if let Reply::Error(e) = self.session.handle(&Message::Reset, &mut self.log) {
             defmt::error!("selftest: reset refused: {}", e);
         }
+    }
+
+    /// Decodes the checkpoint frame of length `n` in the reply buffer and
+    /// restores from it.
+    #[inline(never)]
+    fn selftest_restore(&mut self, n: usize) {
         // The frame without its delimiter.
-        let body = frame.get_mut(..n.saturating_sub(1)).unwrap_or(&mut []);
-        match decode_frame(body) {
-            Ok(m @ Message::Checkpoint(_)) => self.restore(&m),
+        let body = self
+            .link
+            .out
+            .get_mut(..n.saturating_sub(1))
+            .unwrap_or(&mut []);
+        match &decode_frame(body) {
+            Ok(m @ Message::Checkpoint(_)) => self.restore(m),
             Ok(_) => defmt::error!("selftest: the checkpoint frame decoded to another message"),
             Err(e) => defmt::error!("selftest: the checkpoint frame does not decode: {}", e),
         }
@@ -384,7 +412,10 @@ impl Stream<'_> {
 }
 
 /// Runs the calibrator on the UART stream. Returns when a `Finish` arrives
-/// and `args.exit_on_request` is set; otherwise never.
+/// and `args.exit_on_request` is set; otherwise never. Out of line: its
+/// frame (the decoded message) is not `main`'s, which the synthetic run
+/// pays too.
+#[inline(never)]
 pub fn run(args: &Args) -> Totals {
     // SAFETY: UART0 is used by nothing else in this program.
     let uart = unsafe { Uart::new(crate::uart::UART0_BASE) };
@@ -425,12 +456,14 @@ pub fn run(args: &Args) -> Totals {
                 break b;
             }
         };
-        let Some(frame) = decoder.push_byte(byte) else {
+        // By reference: a binding by value would copy the message (3 KB).
+        let received = decoder.push_byte(byte);
+        let Some(frame) = &received else {
             continue;
         };
         match frame {
             Ok(msg) => {
-                if stream.handle(&msg) == Flow::Exit {
+                if stream.handle(msg) == Flow::Exit {
                     defmt::info!("Finish answered; decoder {}", decoder.stats());
                     return stream.totals;
                 }

@@ -41,11 +41,14 @@ fn run_model<M: Model<N, Z>, const N: usize, const Z: usize>(args: &Args) -> boo
         _ => Options::default(),
     };
     let sigma0 = SVector::<Real, N>::repeat((1.0 * DEG) as Real);
-    let Ok(mut f) = Filter::<Real, M, N, Z>::new(
+    // Used where it was built: moving it out of the `Result` would put a
+    // second filter on the stack.
+    let mut built = Filter::<Real, M, N, Z>::new(
         filter_config(options, args.noise_scale),
         SVector::zeros(),
         sigma0,
-    ) else {
+    );
+    let Ok(f) = built.as_mut() else {
         defmt::error!("invalid filter configuration");
         return false;
     };

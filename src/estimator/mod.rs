@@ -247,15 +247,42 @@ impl Tally {
 ///
 /// Errors: [`EstimatorError::EmptyLog`], an invalid tolerance, a prior that
 /// [`Filter::new`] rejects, a record the log cannot return, or a failed
-/// back-propagation. Never panics.
+/// back-propagation. Never panics. [`estimate_in`] is the same without a
+/// filter returned by value (for a small stack).
 pub fn estimate<T, M, const N: usize, const Z: usize, L, F>(
     config: &FilterConfig<T>,
     x0: &SVector<f64, N>,
     sigma0: &SVector<T, N>,
     log: &mut L,
     passes: &EstimatorOptions,
-    mut observer: F,
+    observer: F,
 ) -> Result<Outcome<T, M, N, Z>, EstimatorError>
+where
+    T: RealField + Copy,
+    M: Model<N, Z>,
+    L: SampleLog<T> + ?Sized,
+    F: FnMut(&PassEvent<'_, T, M, N, Z>),
+{
+    let mut filter = Filter::<T, M, N, Z>::new(*config, *x0, *sigma0)?;
+    let report = estimate_in(&mut filter, config, x0, sigma0, log, passes, observer)?;
+    Ok(Outcome { filter, report })
+}
+
+/// [`estimate`] in the caller's `filter`: every pass restarts it in place
+/// ([`Filter::restart`] at `config`, `x0`, `sigma0`; whatever it held
+/// before does not matter), and after `Ok` it is the filter at the end of
+/// the last pass ([`Outcome::filter`]). A firmware's stack then holds one
+/// filter, not the filter, the outcome and a copy of both. On error the
+/// filter is left as the failing pass left it.
+pub fn estimate_in<T, M, const N: usize, const Z: usize, L, F>(
+    filter: &mut Filter<T, M, N, Z>,
+    config: &FilterConfig<T>,
+    x0: &SVector<f64, N>,
+    sigma0: &SVector<T, N>,
+    log: &mut L,
+    passes: &EstimatorOptions,
+    mut observer: F,
+) -> Result<PassReport, EstimatorError>
 where
     T: RealField + Copy,
     M: Model<N, Z>,
@@ -278,7 +305,7 @@ where
     let mut end_frame: Option<CommandFrame<f64>> = None;
     let mut pass: u8 = 1;
     loop {
-        let mut filter = Filter::<T, M, N, Z>::new(*config, *x0, *sigma0)?;
+        filter.restart(*config, *x0, *sigma0)?;
         filter.set_nominal(nominal);
         let mut frame = CommandFrame::aligned(env.earth_rate_n);
         let mut tally = Tally::default();
@@ -300,7 +327,7 @@ where
                 index,
                 record: &record,
                 result,
-                filter: &filter,
+                filter,
             });
         }
         let end = *end_frame.get_or_insert(frame);
@@ -315,16 +342,13 @@ where
                 })
         });
         if converged || pass >= max {
-            return Ok(Outcome {
-                filter,
-                report: PassReport {
-                    passes: pass,
-                    converged,
-                    records,
-                    failures: tally.failures,
-                    gated: tally.gated,
-                    first_failure: tally.first,
-                },
+            return Ok(PassReport {
+                passes: pass,
+                converged,
+                records,
+                failures: tally.failures,
+                gated: tally.gated,
+                first_failure: tally.first,
             });
         }
         let (x_start, _) = back_propagate(M::LAYOUT, &env, &x, &end, log)?;
