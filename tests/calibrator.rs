@@ -536,8 +536,28 @@ fn finish_is_the_estimator_of_record_over_the_log_or_says_why_not() {
         |_| {},
     )
     .unwrap();
-    assert_eq!(filter.unwrap().state(), by_hand.filter.state());
+    let filter = filter.unwrap();
+    assert_eq!(filter, by_hand.filter);
     assert_eq!(fin.state.as_slice(), by_hand.filter.state().as_slice());
+    // In place, in a filter that held another run: the same outcome.
+    let mut reused = cal.filter().clone();
+    let report = rollcal::estimator::estimate_in(
+        &mut reused,
+        &fc,
+        &nalgebra::SVector::zeros(),
+        &s0,
+        &mut log,
+        &opts,
+        |_| {},
+    )
+    .unwrap();
+    assert_eq!(reused, by_hand.filter);
+    assert_eq!(report, by_hand.report);
+    // `finish_with`, the session's: the same estimate, the same final filter.
+    let mut seen = None;
+    let with = cal.finish_with(&mut log, &opts, |_| {}, |f| seen = Some(f.clone()));
+    assert_eq!(with, fin);
+    assert_eq!(seen.as_ref(), Some(&filter));
     // The running estimate is still there, and pass 1 differs from the answer.
     assert_eq!(cal.estimate().kind, EstimateKind::Running);
     // Without a log, a full log, a mismatched log: pass 1, with the reason.
@@ -706,4 +726,67 @@ fn a_prior_whose_variance_overflows_is_refused_and_every_accepted_one_restores()
         ..CalibratorConfig::paper(ConfigId::M4Pa)
     };
     assert!(rollcal::M4PaCalibrator::<f32>::new(cfg).is_err());
+}
+
+#[test]
+fn a_checkpoint_restores_in_place_and_a_refused_one_leaves_the_calibrator_untouched() {
+    let (sc, data) = samples(120);
+    let cfg = settings(&sc, ConfigId::M2Ps, 10);
+    let mut source = M2PsCalibrator::<f64>::new(cfg).unwrap();
+    for s in &data[..50] {
+        source.push(s).unwrap();
+    }
+    let cp = over_the_wire(source.checkpoint());
+    let mut target = M2PsCalibrator::<f64>::new(cfg).unwrap();
+    for s in &data {
+        target.push(s).unwrap();
+    }
+    let before = target.clone();
+    // Refused checkpoints: a D ≤ 0, a non-finite entry, a short factor, a
+    // short state, another configuration.
+    let mut bad_d = cp.clone();
+    bad_d.factor[0] = -1.0;
+    let mut nan = cp.clone();
+    nan.factor[1] = f64::NAN;
+    let mut short = cp.clone();
+    short.factor.pop();
+    let mut short_state = cp.clone();
+    short_state.state.pop();
+    let mut other = cp.clone();
+    other.config = ConfigId::M1Pa;
+    for (bad, what) in [
+        (&bad_d, "D <= 0"),
+        (&nan, "NaN"),
+        (&short, "short factor"),
+        (&short_state, "short state"),
+        (&other, "another configuration"),
+    ] {
+        assert!(target.restore_in_place(cfg, bad).is_err(), "{what}");
+        assert_eq!(
+            target, before,
+            "a refused checkpoint ({what}) changed the calibrator"
+        );
+        assert!(M2PsCalibrator::<f64>::restore(cfg, bad).is_err(), "{what}");
+    }
+    // Accepted: the very calibrator `restore` builds, which continues as
+    // the source does.
+    target.restore_in_place(cfg, &cp).unwrap();
+    assert_eq!(target, M2PsCalibrator::<f64>::restore(cfg, &cp).unwrap());
+    for s in &data[50..] {
+        assert_eq!(target.push(s), source.push(s));
+    }
+    assert_eq!(target.checkpoint(), source.checkpoint());
+    // In f32 the factor is rounded as `restore` rounds it.
+    let mut f32_source = M2PsCalibrator::<f32>::new(cfg).unwrap();
+    for s in &data[..50] {
+        let _ = f32_source.push(s);
+    }
+    let cp32 = f32_source.checkpoint();
+    let mut f32_target = M2PsCalibrator::<f32>::new(cfg).unwrap();
+    f32_target.restore_in_place(cfg, &cp32).unwrap();
+    assert_eq!(
+        f32_target,
+        M2PsCalibrator::<f32>::restore(cfg, &cp32).unwrap()
+    );
+    assert_eq!(f32_target.checkpoint(), cp32);
 }

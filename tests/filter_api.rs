@@ -131,3 +131,62 @@ fn nis_gate_rejects_an_outlier() {
     // The prediction stands (time moved on); the measurement did not enter.
     assert!(f.covariance()[(0, 0)] >= p_before[(0, 0)]);
 }
+
+#[test]
+fn restart_is_new_in_place_and_a_refused_restart_leaves_the_filter_untouched() {
+    let settings = support::paper_stream().0;
+    let cfg = support::filter_config(&settings, Options::default());
+    let samples = samples();
+    let mut f = filter(Options::default());
+    for s in samples.iter().take(30) {
+        let obs = Observation {
+            accel_mean: s.accel_mean,
+            gimbal: Some(s.gimbal),
+        };
+        f.step(&s.dtheta_cmd, s.dt, &obs).unwrap();
+    }
+    // A prediction pending, a nominal set: restart forgets both.
+    let s = &samples[30];
+    f.predict(&s.dtheta_cmd, s.dt).unwrap();
+    f.set_nominal(Some(SVector::repeat(1e-4)));
+    let before = f.clone();
+    let x0 = SVector::repeat(2e-4);
+    let sigma0 = SVector::repeat(settings.prior_sigma_rad);
+    // Refused: a non-positive σ, a non-finite x0, an overflowing variance.
+    let mut bad_sigma = sigma0;
+    bad_sigma[7] = 0.0;
+    let mut bad_x = x0;
+    bad_x[2] = f64::NAN;
+    assert_eq!(
+        f.restart(cfg, x0, bad_sigma),
+        Err(Error::CovarianceNotPositiveDefinite)
+    );
+    assert_eq!(f.restart(cfg, bad_x, sigma0), Err(Error::NonFiniteInput));
+    assert_eq!(
+        f.restart(cfg, x0, SVector::repeat(1e200)),
+        Err(Error::NonFiniteInput)
+    );
+    assert_eq!(f, before);
+    f.restart(cfg, x0, sigma0).unwrap();
+    let fresh = M2PsFilter::<f64>::new(cfg, x0, sigma0).unwrap();
+    assert_eq!(f, fresh);
+    assert!(f
+        .update(&Observation {
+            accel_mean: s.accel_mean,
+            gimbal: Some(s.gimbal),
+        })
+        .is_err_and(|e| e == Error::NoPrediction));
+    // And it runs as the fresh one does, bit for bit.
+    let mut g = fresh;
+    for s in samples.iter().take(10) {
+        let obs = Observation {
+            accel_mean: s.accel_mean,
+            gimbal: Some(s.gimbal),
+        };
+        assert_eq!(
+            f.step(&s.dtheta_cmd, s.dt, &obs),
+            g.step(&s.dtheta_cmd, s.dt, &obs)
+        );
+    }
+    assert_eq!(f, g);
+}
