@@ -564,6 +564,56 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         }
     }
 
+    /// Bridges the `gap` periods lost before sample `s` (along the
+    /// commanded motion, or re-acquiring the attitude), rolling the filter
+    /// back if that fails. Out of line: the filter's copy kept for the
+    /// rollback is on the stack only while a gap is bridged, not under
+    /// every sample's filter step.
+    #[inline(never)]
+    fn bridge_gap(
+        &mut self,
+        s: &Sample,
+        gap: u32,
+        reanchored: bool,
+        log: Option<&mut (dyn SampleLog<T> + '_)>,
+    ) -> Result<(), RejectReason> {
+        let dt = f64::from(s.dt);
+        let motion = self.motion_across(s, gap);
+        let saved = self.filter.clone();
+        let logged_before = self.progress.logged;
+        match self.bridge(gap, dt, &motion, log) {
+            Ok(last) => {
+                // The bridged periods are consumed whatever the sample's
+                // own period does: a refused sample leaves a gap of one
+                // period, not one that grows with every refusal.
+                let p = &mut self.progress;
+                match motion {
+                    Motion::Found { .. } => p.bridged = p.bridged.saturating_add(gap),
+                    Motion::Unknown { .. } => {
+                        p.reacquired = p.reacquired.saturating_add(1);
+                        p.reacquired_periods = p.reacquired_periods.saturating_add(gap);
+                    }
+                }
+                if reanchored {
+                    p.clock_steps = p.clock_steps.saturating_add(1);
+                }
+                p.clock_candidate = None;
+                let dt_us = libm::round(f64::from(s.dt) * 1e6) as u64;
+                p.last_seq = Some(s.seq - 1);
+                p.last_t_us = Some(s.t_us.saturating_sub(dt_us));
+                p.last_increment = [last.x, last.y, last.z];
+            }
+            Err(e) => {
+                self.filter = saved;
+                if self.progress.logged != logged_before {
+                    self.log_broken(SinglePassReason::FilterFailed);
+                }
+                return Err(self.reject(RejectReason::Filter(e)));
+            }
+        }
+        Ok(())
+    }
+
     fn push_inner(
         &mut self,
         s: &Sample,
@@ -586,39 +636,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
             gimbal: s.gimbal.as_ref().map(vec3_f32),
         };
         if gap > 0 {
-            let motion = self.motion_across(s, gap);
-            let saved = self.filter.clone();
-            let logged_before = self.progress.logged;
-            match self.bridge(gap, dt, &motion, log.as_deref_mut()) {
-                Ok(last) => {
-                    // The bridged periods are consumed whatever the sample's
-                    // own period does: a refused sample leaves a gap of one
-                    // period, not one that grows with every refusal.
-                    let p = &mut self.progress;
-                    match motion {
-                        Motion::Found { .. } => p.bridged = p.bridged.saturating_add(gap),
-                        Motion::Unknown { .. } => {
-                            p.reacquired = p.reacquired.saturating_add(1);
-                            p.reacquired_periods = p.reacquired_periods.saturating_add(gap);
-                        }
-                    }
-                    if checked.reanchored {
-                        p.clock_steps = p.clock_steps.saturating_add(1);
-                    }
-                    p.clock_candidate = None;
-                    let dt_us = libm::round(f64::from(s.dt) * 1e6) as u64;
-                    p.last_seq = Some(s.seq - 1);
-                    p.last_t_us = Some(s.t_us.saturating_sub(dt_us));
-                    p.last_increment = [last.x, last.y, last.z];
-                }
-                Err(e) => {
-                    self.filter = saved;
-                    if self.progress.logged != logged_before {
-                        self.log_broken(SinglePassReason::FilterFailed);
-                    }
-                    return Err(self.reject(RejectReason::Filter(e)));
-                }
-            }
+            self.bridge_gap(s, gap, checked.reanchored, log.as_deref_mut())?;
         } else if checked.reanchored {
             self.progress.clock_steps = self.progress.clock_steps.saturating_add(1);
         }
