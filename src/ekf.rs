@@ -561,6 +561,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// place (no filter-sized temporary: the estimator's passes restart one
     /// filter, [`crate::estimator::estimate_in`]). On error the filter is
     /// unchanged.
+    // Not inlined: once per pass, and its code once per configuration.
+    #[inline(never)]
     pub fn restart(
         &mut self,
         config: FilterConfig<T>,
