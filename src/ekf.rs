@@ -71,6 +71,10 @@ pub enum Error {
     Gated,
     /// `update` was called without a preceding `predict`.
     NoPrediction,
+    /// The options ask for a branch this build leaves out: the second-order
+    /// dynamics or the iterated update without the cargo feature
+    /// `research-options` (a lean firmware image; [`Options::is_built`]).
+    UnsupportedOption,
 }
 
 impl core::fmt::Display for Error {
@@ -87,6 +91,9 @@ impl core::fmt::Display for Error {
             Error::NonFiniteState => "state is not finite",
             Error::Gated => "innovation rejected by the NIS gate",
             Error::NoPrediction => "update without a preceding predict",
+            Error::UnsupportedOption => {
+                "option not in this build (second-order dynamics or iterated update: cargo feature research-options)"
+            }
         })
     }
 }
@@ -141,7 +148,22 @@ impl Default for Options {
     }
 }
 
+/// Whether this build holds the research options (the cargo feature
+/// `research-options`, on by default): the second-order dynamics and the
+/// iterated update. Without it their code is left out of the image and a
+/// filter that asks for them is refused ([`Error::UnsupportedOption`]).
+pub const RESEARCH_OPTIONS: bool = cfg!(feature = "research-options");
+
 impl Options {
+    /// Whether this build can run these options ([`RESEARCH_OPTIONS`]):
+    /// the defaults, the plain EKF and the second-order mean always; the
+    /// second-order dynamics and the iterated update only with the cargo
+    /// feature `research-options`.
+    pub const fn is_built(&self) -> bool {
+        RESEARCH_OPTIONS
+            || !(self.second_order_dynamics || (self.iterations > 0 && self.iterate_updates > 0))
+    }
+
     /// A plain EKF (no cold-start remedy), for comparison.
     pub const fn plain() -> Self {
         Self {
@@ -609,6 +631,9 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         {
             return Err(Error::NonFiniteInput);
         }
+        if !config.options.is_built() {
+            return Err(Error::UnsupportedOption);
+        }
         if sigma0.iter().any(|s| *s <= T::zero()) || config.sigma_accel <= T::zero() {
             return Err(Error::CovarianceNotPositiveDefinite);
         }
@@ -893,7 +918,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         };
         propagated.ok_or(Error::GimbalLock)?;
         let new = &self.pending.value;
-        let q_extra = if self.config.options.second_order_dynamics {
+        let q_extra = if RESEARCH_OPTIONS && self.config.options.second_order_dynamics {
             self.second_order_dynamics(&new.period, &new.prop)?
         } else {
             Matrix3::<T>::zeros()
@@ -1131,7 +1156,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             let mut blk = r_v.fixed_view_mut::<3, 3>(Self::ACCEL_ROW, Self::ACCEL_ROW);
             blk += to_t::<T, 3, 3>(&cov2);
         }
-        let iterations = if self.updates < opts.iterate_updates {
+        let iterations = if RESEARCH_OPTIONS && self.updates < opts.iterate_updates {
             opts.iterations
         } else {
             0

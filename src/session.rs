@@ -7,7 +7,7 @@
 //! | `Configure` | a new calibrator of the named configuration, from the prior (its first sample empties the log) | — |
 //! | `Sample` | one period ([`Calibrator::push_logged`]) | an `Estimate` at the configured cadence |
 //! | `EstimateRequest` | — | the running `Estimate` |
-//! | `Finish` | the final passes over the log ([`Calibrator::finish`]) | the final `Estimate` |
+//! | `Finish` | the final passes over the log ([`Calibrator::finish_with`]) | the final `Estimate` |
 //! | `CheckpointRequest` | — | a `Checkpoint` |
 //! | `Checkpoint` | restore from it; the log is taken back to the records it counted (a log that survived a device reset continues) | — |
 //! | `Reset` | restart from the prior (its first sample empties the log) | — |
@@ -15,7 +15,10 @@
 //!
 //! A `Sample` before any `Configure` cannot be processed: it is counted in
 //! [`SessionStats::unconfigured`] (the host may [`Session::configure`] with
-//! settings of its own first).
+//! settings of its own first). A device that asks itself for one of the
+//! four messages without payload (`Finish`, `Reset`, …) passes a
+//! [`Request`] to [`Session::request`]: the same answer, without a
+//! message-sized constant in its image.
 
 use nalgebra::RealField;
 
@@ -211,6 +214,41 @@ fn restore_into<
     c.restore_in_place(settings, cp)
 }
 
+/// A message without payload ([`Session::request`]): the same answer as
+/// [`Session::handle`] of the message it names ([`Request::message`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Request {
+    /// [`Message::EstimateRequest`]: the running estimate.
+    Estimate,
+    /// [`Message::Finish`]: the estimator of record over the log.
+    Finish,
+    /// [`Message::CheckpointRequest`]: a checkpoint of the calibrator.
+    Checkpoint,
+    /// [`Message::Reset`]: the calibrator back to its prior.
+    Reset,
+}
+
+impl Request {
+    /// All four.
+    pub const ALL: [Request; 4] = [
+        Request::Estimate,
+        Request::Finish,
+        Request::Checkpoint,
+        Request::Reset,
+    ];
+
+    /// The message this request stands for.
+    pub fn message(self) -> Message {
+        match self {
+            Request::Estimate => Message::EstimateRequest,
+            Request::Finish => Message::Finish,
+            Request::Checkpoint => Message::CheckpointRequest,
+            Request::Reset => Message::Reset,
+        }
+    }
+}
+
 /// Errors of a message the session could not act on. The session is left as
 /// it was.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -342,6 +380,19 @@ impl<T: RealField + Copy> Session<T> {
     /// Acts on one message; `log` is the sample log of the run.
     pub fn handle(&mut self, msg: &Message, log: &mut (dyn SampleLog<T> + '_)) -> Reply {
         let reply = self.act(msg, log);
+        self.counted(reply)
+    }
+
+    /// [`Session::handle`] of a message without payload, given as a
+    /// [`Request`]: a firmware that sends itself `&Message::Finish` holds a
+    /// message-sized constant (3 KB of flash each, the size of the largest
+    /// message) for a one-byte request.
+    pub fn request(&mut self, request: Request, log: &mut (dyn SampleLog<T> + '_)) -> Reply {
+        let reply = self.act_request(request, log);
+        self.counted(reply)
+    }
+
+    fn counted(&mut self, reply: Reply) -> Reply {
         if matches!(reply, Reply::Error(_)) {
             self.stats.errors = self.stats.errors.saturating_add(1);
         }
@@ -368,18 +419,10 @@ impl<T: RealField + Copy> Session<T> {
                     Reply::Error(SessionError::NotConfigured)
                 }
             },
-            Message::EstimateRequest => match self.cal.as_ref() {
-                Some(cal) => Reply::Send(Message::Estimate(cal.estimate())),
-                None => Reply::Error(SessionError::NotConfigured),
-            },
-            Message::Finish => match self.cal.as_ref() {
-                Some(cal) => Self::finish(cal, log, &self.passes),
-                None => Reply::Error(SessionError::NotConfigured),
-            },
-            Message::CheckpointRequest => match self.cal.as_ref() {
-                Some(cal) => Self::checkpoint(cal),
-                None => Reply::Error(SessionError::NotConfigured),
-            },
+            Message::EstimateRequest => self.act_request(Request::Estimate, log),
+            Message::Finish => self.act_request(Request::Finish, log),
+            Message::CheckpointRequest => self.act_request(Request::Checkpoint, log),
+            Message::Reset => self.act_request(Request::Reset, log),
             // The log follows the calibrator's count of what it logged
             // (Calibrator::push_logged): kept across a restore when it
             // still holds those records, emptied after a reset.
@@ -390,7 +433,24 @@ impl<T: RealField + Copy> Session<T> {
                 },
                 None => Reply::Error(SessionError::NotConfigured),
             },
-            Message::Reset => match self.cal.as_mut().map(AnyCalibrator::reset) {
+        }
+    }
+
+    fn act_request(&mut self, request: Request, log: &mut (dyn SampleLog<T> + '_)) -> Reply {
+        match request {
+            Request::Estimate => match self.cal.as_ref() {
+                Some(cal) => Reply::Send(Message::Estimate(cal.estimate())),
+                None => Reply::Error(SessionError::NotConfigured),
+            },
+            Request::Finish => match self.cal.as_ref() {
+                Some(cal) => Self::finish(cal, log, &self.passes),
+                None => Reply::Error(SessionError::NotConfigured),
+            },
+            Request::Checkpoint => match self.cal.as_ref() {
+                Some(cal) => Self::checkpoint(cal),
+                None => Reply::Error(SessionError::NotConfigured),
+            },
+            Request::Reset => match self.cal.as_mut().map(AnyCalibrator::reset) {
                 Some(Ok(())) => {
                     self.stats.restarts = self.stats.restarts.saturating_add(1);
                     Reply::Nothing

@@ -790,3 +790,38 @@ fn a_checkpoint_restores_in_place_and_a_refused_one_leaves_the_calibrator_untouc
     );
     assert_eq!(f32_target.checkpoint(), cp32);
 }
+
+/// `Session::request(r)` is `Session::handle(&r.message())`: the same reply
+/// and the same session after it, configured or not, on every request.
+#[test]
+fn a_request_is_the_message_it_names() {
+    use rollcal::estimator::{EstimatorOptions, LogRecord, SampleLog, SliceLog};
+    use rollcal::session::{Request, Session};
+    let (sc, data) = samples(60);
+    let cfg = settings(&sc, ConfigId::M1Pa, 0);
+    let blank = LogRecord::predicted(1.0, nalgebra::Vector3::zeros());
+    for configured in [false, true] {
+        for r in Request::ALL {
+            let mut storage = [vec![blank; 60], vec![blank; 60]];
+            let [a_storage, b_storage] = &mut storage;
+            let mut logs = [SliceLog::new(a_storage), SliceLog::new(b_storage)];
+            let mut sessions =
+                [(); 2].map(|()| Session::<f64>::new(None, EstimatorOptions::default()));
+            if configured {
+                for (session, log) in sessions.iter_mut().zip(logs.iter_mut()) {
+                    session.handle(&Message::Configure(cfg), log);
+                    for s in &data {
+                        session.handle(&Message::Sample(*s), log);
+                    }
+                }
+            }
+            let [a, b] = &mut sessions;
+            let [a_log, b_log] = &mut logs;
+            assert_eq!(a.handle(&r.message(), a_log), b.request(r, b_log), "{r:?}");
+            // (Debug: a reset's `last_nis` is NaN, which `==` never equals.)
+            assert_eq!(format!("{a:?}"), format!("{b:?}"), "{r:?}");
+            assert_eq!(a.stats(), b.stats(), "{r:?}");
+            assert_eq!(SampleLog::len(&*a_log), SampleLog::len(&*b_log), "{r:?}");
+        }
+    }
+}

@@ -190,3 +190,62 @@ fn restart_is_new_in_place_and_a_refused_restart_leaves_the_filter_untouched() {
     }
     assert_eq!(f, g);
 }
+
+/// The research options (second-order dynamics, the iterated update) run
+/// with the cargo feature `research-options` (default) and are refused
+/// without it; the estimator of record's options run in every build.
+/// `.ci/run` runs this test in both builds.
+#[test]
+fn research_options_run_only_in_a_build_that_holds_them() {
+    use rollcal::ekf::RESEARCH_OPTIONS;
+    let settings = support::paper_stream().0;
+    let new = |options: Options| {
+        M2PsFilter::<f64>::new(
+            support::filter_config(&settings, options),
+            SVector::zeros(),
+            SVector::repeat(settings.prior_sigma_rad),
+        )
+    };
+    for always in [
+        Options::default(),
+        Options::plain(),
+        Options {
+            second_order_mean: true,
+            // Iterations that never apply (no update is iterated).
+            iterations: 3,
+            iterate_updates: 0,
+            ..Options::default()
+        },
+    ] {
+        assert!(always.is_built());
+        assert!(new(always).is_ok());
+    }
+    let dynamics = Options {
+        second_order_dynamics: true,
+        ..Options::default()
+    };
+    let iterated = Options {
+        iterations: 2,
+        iterate_updates: 10,
+        ..Options::default()
+    };
+    for research in [dynamics, iterated] {
+        assert_eq!(research.is_built(), RESEARCH_OPTIONS);
+        match (new(research), RESEARCH_OPTIONS) {
+            (Ok(mut f), true) => {
+                // And they run: one step of the recorded stream.
+                let s = &samples()[0];
+                let obs = Observation {
+                    accel_mean: s.accel_mean,
+                    gimbal: Some(s.gimbal),
+                };
+                f.step(&s.dtheta_cmd, s.dt, &obs).unwrap();
+            }
+            (Err(e), false) => assert_eq!(e, Error::UnsupportedOption),
+            (result, built) => panic!(
+                "research options built: {built}, filter: {:?}",
+                result.err()
+            ),
+        }
+    }
+}

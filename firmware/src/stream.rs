@@ -39,7 +39,7 @@ use core::sync::atomic::{AtomicBool, Ordering};
 use nalgebra::Vector3;
 use rollcal::calibrator::RejectReason;
 use rollcal::estimator::{EstimatorOptions, LogRecord, SampleLog, SliceLog};
-use rollcal::session::{Reply, Session, SessionError};
+use rollcal::session::{Reply, Request, Session, SessionError};
 use rollcal::wire::{
     decode_frame, encode, CalibratorConfig, EstimateKind, FrameDecoder, Message, MAX_FRAME_LEN,
 };
@@ -292,7 +292,9 @@ impl Stream<'_> {
     #[inline(never)]
     fn finish(&mut self) -> Flow {
         rollcal_mark_finish_start();
-        let reply = self.session.handle(&Message::Finish, &mut self.log);
+        // A request, not `&Message::Finish`: that constant would be
+        // message-sized (3 KB of flash).
+        let reply = self.session.request(Request::Finish, &mut self.log);
         rollcal_mark_finish_end();
         match &reply {
             Reply::Send(Message::Estimate(est)) => match est.kind {
@@ -370,9 +372,7 @@ impl Stream<'_> {
     /// decoded it). Returns the frame's length.
     #[inline(never)]
     fn selftest_frame_checkpoint(&mut self) -> Option<usize> {
-        let reply = self
-            .session
-            .handle(&Message::CheckpointRequest, &mut self.log);
+        let reply = self.session.request(Request::Checkpoint, &mut self.log);
         let Reply::Send(ref cp @ Message::Checkpoint(_)) = reply else {
             defmt::error!("selftest: no checkpoint");
             return None;
@@ -388,7 +388,7 @@ impl Stream<'_> {
 
     #[inline(never)]
     fn selftest_reset(&mut self) {
-        if let Reply::Error(e) = self.session.handle(&Message::Reset, &mut self.log) {
+        if let Reply::Error(e) = self.session.request(Request::Reset, &mut self.log) {
             defmt::error!("selftest: reset refused: {}", e);
         }
     }
