@@ -767,7 +767,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         self.ud.reset_attitude(sigma * sigma);
         self.command.c_cn = *c_cn;
         if let Some(nominal) = self.reference.as_mut() {
-            let att = self.x.fixed_rows::<3>(ATT).clone_owned();
+            let att = Self::LAYOUT.attitude(&self.x);
             nominal.fixed_rows_mut::<3>(ATT).copy_from(&att);
         }
         self.pending.clear();
@@ -1334,8 +1334,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         // rows in place below (one Z×N matrix in this frame, not three).
         let mut h_w = crate::models::apply_transition(&to_t(h), &phi_att);
         let nu: SVector<T, Z> = to_t(nu_f64);
-        let g_att: Matrix3<T> = to_t(&noise.g.fixed_rows::<3>(ATT).clone_owned());
-        let h_att: SMatrix<T, Z, 3> = to_t(&h.fixed_columns::<3>(ATT).clone_owned());
+        let g_att: Matrix3<T> = to_t(&crate::models::attitude_rows(&noise.g));
+        let h_att: SMatrix<T, Z, 3> = to_t(&crate::models::attitude_columns(h));
         let m_e = h_att * g_att + to_t::<T, Z, 3>(&noise.d);
         let mut r_e = m_e * m_e.transpose() + r_v;
         r_e = (r_e + r_e.transpose()) * half;

@@ -600,6 +600,35 @@ fn block3<T: RealField + Copy, const N: usize>(x: &SVector<T, N>, i: usize) -> V
     )
 }
 
+/// The attitude columns of `m` (its first three, [`ATT`]), copied, on the
+/// column arrays. Not `fixed_columns(..).clone_owned()` nor column
+/// iterators: those go through nalgebra's allocation from an iterator or
+/// its view constructors, whose checks are panic paths when the compiler
+/// does not inline them (`tools/panic-check.py` found them).
+pub(crate) fn attitude_columns<T: RealField + Copy, const R: usize, const N: usize>(
+    m: &SMatrix<T, R, N>,
+) -> SMatrix<T, R, 3> {
+    let mut out = SMatrix::<T, R, 3>::zeros();
+    for (dst, src) in out.data.0.iter_mut().zip(m.data.0.iter().skip(ATT)) {
+        *dst = *src;
+    }
+    out
+}
+
+/// The attitude rows of `m` (its first three, [`ATT`]), copied (see
+/// [`attitude_columns`]).
+pub(crate) fn attitude_rows<T: RealField + Copy, const R: usize, const C: usize>(
+    m: &SMatrix<T, R, C>,
+) -> SMatrix<T, 3, C> {
+    let mut out = SMatrix::<T, 3, C>::zeros();
+    for (dst, src) in out.data.0.iter_mut().zip(m.data.0.iter()) {
+        for (d, s) in dst.iter_mut().zip(src.iter().skip(ATT)) {
+            *d = *s;
+        }
+    }
+    out
+}
+
 fn put3<T: RealField + Copy, const N: usize>(x: &mut SVector<T, N>, i: usize, v: &Vector3<T>) {
     for (k, val) in v.iter().enumerate() {
         if let Some(dst) = x.get_mut(i + k) {
@@ -1179,7 +1208,7 @@ pub fn transition_rows<T: RealField + Copy, const N: usize>(
 ) -> SMatrix<T, 3, N> {
     let half: T = nalgebra::convert(0.5);
     let sixth: T = nalgebra::convert(1.0 / 6.0);
-    let fa = f.fixed_columns::<3>(ATT).clone_owned() * tau;
+    let fa = attitude_columns(f) * tau;
     let fa2 = fa * fa;
     let ft = f * tau;
     // (I + F_a τ/2 + (F_a τ)²/6) F τ, then the attitude block
@@ -1196,7 +1225,7 @@ pub fn apply_transition<T: RealField + Copy, const R: usize, const N: usize>(
     h: &SMatrix<T, R, N>,
     phi_att: &SMatrix<T, 3, N>,
 ) -> SMatrix<T, R, N> {
-    let h_att = h.fixed_columns::<3>(ATT).clone_owned();
+    let h_att = attitude_columns(h);
     let mut out = h_att * phi_att;
     // Parameter columns: H_p + H_a Φ_ap; attitude columns: H_a Φ_aa.
     for j in 3..N {
