@@ -198,17 +198,19 @@ impl Stream<'_> {
     #[inline(never)]
     fn other(&mut self, msg: &Message) {
         let reply = self.session.handle(msg, &mut self.log);
-        self.reply(reply);
+        self.reply(&reply);
     }
 
     /// Sends what the session answered, or logs why it could not act.
-    fn reply(&mut self, reply: Reply) {
+    // By reference, as every message here: a reply moved in by value is
+    // a second copy (3 KB) in the caller's frame.
+    fn reply(&mut self, reply: &Reply) {
         match reply {
             Reply::Send(m) => {
                 if let Message::Estimate(_) = m {
                     self.totals.estimates += 1;
                 }
-                self.link.send(&m);
+                self.link.send(m);
             }
             Reply::Error(e) => defmt::warn!("message refused: {}", e),
             Reply::Nothing | Reply::Rejected(_) => {}
@@ -232,9 +234,11 @@ impl Stream<'_> {
         if self.args.mode == Mode::Plain {
             c.options = Options::plain();
         }
-        match self.session.handle(&Message::Configure(c), &mut self.log) {
-            Reply::Error(e) => defmt::error!("Configure refused: {}", e),
-            _ => defmt::info!(
+        // `Session::configure`, what `handle` does with a `Configure`
+        // (without a message-sized `Message::Configure` and reply here).
+        match self.session.configure(c) {
+            Err(e) => defmt::error!("Configure refused: {}", e),
+            Ok(()) => defmt::info!(
                 "configured {}, estimate every {} samples, second-order S {}",
                 c.config,
                 c.estimate_every,
@@ -251,7 +255,7 @@ impl Stream<'_> {
         let reply = self.session.handle(msg, &mut self.log);
         rollcal_mark_period_end();
         let t = &mut self.totals;
-        match reply {
+        match &reply {
             Reply::Error(SessionError::NotConfigured) => {
                 t.dropped += 1;
                 if t.dropped == 1 {
@@ -261,7 +265,7 @@ impl Stream<'_> {
                     );
                 }
             }
-            Reply::Send(ref m @ Message::Estimate(ref est)) => {
+            Reply::Send(m @ Message::Estimate(est)) => {
                 t.estimates += 1;
                 if est.seq % 600 == 0 || t.estimates == 1 {
                     defmt::info!(
@@ -281,7 +285,7 @@ impl Stream<'_> {
                     defmt::warn!("sample {} rejected: {}", seq, reason);
                 }
             }
-            other => self.reply(other),
+            _ => self.reply(&reply),
         }
         if self.args.checkpoint_at != 0 && self.totals.samples == self.args.checkpoint_at {
             self.selftest_checkpoint();
@@ -318,7 +322,7 @@ impl Stream<'_> {
             Reply::Error(e) => defmt::error!("Finish: no estimate ({})", e),
             _ => {}
         }
-        self.reply(reply);
+        self.reply(&reply);
         if self.args.exit_on_request {
             self.totals.logged = u32::try_from(self.log.len()).unwrap_or(u32::MAX);
             return Flow::Exit;
