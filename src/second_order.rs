@@ -161,22 +161,26 @@ fn symmetrise<T: RealField + Copy, const R: usize>(a: &mut SMatrix<T, R, R>, hal
     }
 }
 
-/// `a ← a b` for square `R×R` matrices, in place, one row of `a` at a time
-/// (each row of the product needs only the same row of `a`): one row of
-/// temporaries instead of an `R×R` product. Every element is
+/// `a ← a b` for square `R×R` matrices with `b` symmetric, in place, one
+/// row of `a` at a time (each row of the product needs only the same row of
+/// `a`): one row of temporaries instead of an `R×R` product. The row is
+/// accumulated from the columns of `b`, which equal its rows (contiguous
+/// and vectorisable, where `b`'s rows are strided); every element is still
 /// `Σ_k a_ik b_kj` summed over ascending `k` from zero, as nalgebra's
 /// product would.
-fn mul_rows_in_place<T: RealField + Copy, const R: usize>(
+fn mul_rows_by_symmetric_in_place<T: RealField + Copy, const R: usize>(
     a: &mut SMatrix<T, R, R>,
     b: &SMatrix<T, R, R>,
 ) {
     for r in 0..R {
         let mut row = [T::zero(); R];
-        for (o, bj) in row.iter_mut().zip(b.data.0.iter()) {
-            for (k, bkj) in bj.iter().enumerate() {
-                if let Some(x) = a.get((r, k)) {
-                    *o += *x * *bkj;
-                }
+        for (k, b_k) in b.data.0.iter().enumerate() {
+            let Some(&a_rk) = a.get((r, k)) else {
+                continue;
+            };
+            // b_k is column k of b, equal to its row k: b_kj for every j.
+            for (o, b_kj) in row.iter_mut().zip(b_k.iter()) {
+                *o += a_rk * *b_kj;
             }
         }
         for (c, v) in row.iter().enumerate() {
@@ -402,7 +406,7 @@ impl Layout {
         let mut mean = Vector3::zeros();
         for (ha, mu) in hess.iter_mut().zip(mean.iter_mut()) {
             symmetrise(ha, half);
-            mul_rows_in_place(ha, &p_r);
+            mul_rows_by_symmetric_in_place(ha, &p_r);
             *mu = ha.trace() * half;
         }
         let hp = &hess;
