@@ -105,7 +105,7 @@ echo "## Static stack use (tools/stack-usage.py: every sp decrement of a functio
 # second figure leaves out the out-of-line branches of the options that are
 # off by default (second-order dynamics, the iterated update), which the
 # painted runs never enter.
-OFF_BY_DEFAULT='second_order_dynamics|iterated_point|iterated_innovation'
+OFF_BY_DEFAULT='second_order_dynamics|iterated_innovation'
 for v in m4f m7; do
     echo "$v:"
     su=$(python3 "$ROOT/tools/stack-usage.py" "$(elf_of $v)" '^main @|Filter<.*>::step_with @' | grep -E 'deepest' || true)

@@ -701,17 +701,13 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 .chain(parts.c_cn.iter())
                 .copied()
                 .chain(nominal_values),
-        ) || !all_finite(parts.factor.iter().copied())
-            || parts.factor.len() != N * N
+        ) || parts.factor.len() != N * N
+            // Finite in T, not only in f64 (an f32 overflow is non-finite).
+            || !parts
+                .factor
+                .iter()
+                .all(|v| nalgebra::convert::<f64, T>(*v).is_finite())
         {
-            return Err(Error::NonFiniteInput);
-        }
-        // Finite in f64 but not in T (f32 overflow): as a non-finite factor.
-        let t_finite = parts
-            .factor
-            .iter()
-            .all(|v| nalgebra::convert::<f64, T>(*v).is_finite());
-        if !t_finite {
             return Err(Error::NonFiniteInput);
         }
         if !self.ud.set_packed_rows(parts.factor) {
@@ -1200,10 +1196,12 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         (nu, measured)
     }
 
-    /// [`Filter::innovation_at`] the iterated EKF's relinearisation point
-    /// ([`Filter::iterated_point`]). Out of line: the retraced period
-    /// (≈ 1.8 KB) stays out of the frame of every update that does not
-    /// iterate (the default).
+    /// [`Filter::innovation_at`] the iterated EKF's relinearisation point:
+    /// `iterations` dense Gauss–Newton steps from the prediction (double
+    /// precision, the dense gain), then the period's trajectory retraced
+    /// to end there. Out of line: its N×N temporaries and the retraced
+    /// period (≈ 1.8 KB) stay out of the frame of every update that does
+    /// not iterate (the default).
     #[inline(never)]
     fn iterated_innovation(
         &self,
@@ -1213,23 +1211,6 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         mean2: &Vector3<f64>,
         iterations: u8,
     ) -> Result<(SVector<f64, Z>, Measured<f64, N, Z>), Error> {
-        let (x_lin, lin) = self.iterated_point(z, pending, r_v, mean2, iterations)?;
-        Ok(self.innovation_at(z, &x_lin, &lin, mean2))
-    }
-
-    /// The iterated EKF's relinearisation point after `iterations` dense
-    /// Gauss–Newton steps from the prediction (double precision, the dense
-    /// gain), and the period's trajectory ending there. Out of line: its
-    /// N×N temporaries stay out of the frame of every other update.
-    #[inline(never)]
-    fn iterated_point(
-        &self,
-        z: &SVector<f64, Z>,
-        pending: &Pending<T, N>,
-        r_v: &SMatrix<T, Z, Z>,
-        mean2: &Vector3<f64>,
-        iterations: u8,
-    ) -> Result<(SVector<f64, N>, Pending<T, N>), Error> {
         let p_prior = to_f64(&self.settled().covariance());
         let r_v = to_f64(r_v);
         let mut x_lin = self.x;
@@ -1242,7 +1223,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             let gain = dense_gain(&p_prior, &h, &r_v, &noise)?;
             x_lin = self.x + gain.k * nu;
         }
-        Ok((x_lin, self.retrace(&x_lin, pending)?))
+        let lin = self.retrace(&x_lin, pending)?;
+        Ok(self.innovation_at(z, &x_lin, &lin, mean2))
     }
 
     /// The measurement noise covariance `R` (diagonal: gimbal σ² (rad²) in
