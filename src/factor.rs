@@ -58,12 +58,10 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
     /// The factor of a diagonal covariance with these variances (rad²).
     /// `None` unless every variance is finite and strictly positive.
     pub fn from_variances(variances: &SVector<T, N>) -> Option<Self> {
-        if variances.iter().any(|v| !v.is_finite() || *v <= T::zero()) {
-            return None;
-        }
-        Some(Self {
-            m: SMatrix::from_diagonal(variances),
-        })
+        let mut ud = Self {
+            m: SMatrix::zeros(),
+        };
+        ud.set_diagonal(variances).then_some(ud)
     }
 
     /// Makes this factor [`Ud::from_variances`]'s of `variances`, in
