@@ -58,10 +58,12 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
     /// The factor of a diagonal covariance with these variances (rad²).
     /// `None` unless every variance is finite and strictly positive.
     pub fn from_variances(variances: &SVector<T, N>) -> Option<Self> {
-        let mut ud = Self {
-            m: SMatrix::zeros(),
-        };
-        ud.set_diagonal(variances).then_some(ud)
+        if variances.iter().any(|v| !v.is_finite() || *v <= T::zero()) {
+            return None;
+        }
+        Some(Self {
+            m: SMatrix::from_diagonal(variances),
+        })
     }
 
     /// Makes this factor [`Ud::from_variances`]'s of `variances`, in
