@@ -16,6 +16,26 @@ pub fn skew<T: RealField + Copy>(v: &Vector3<T>) -> Matrix3<T> {
     Matrix3::new(z, -v.z, v.y, v.z, z, -v.x, -v.y, v.x, z)
 }
 
+/// `[v×]²` (= `v vᵀ − |v|² I`), written out: the same floating-point values
+/// as `skew(v) * skew(v)` (the product's zero terms left out, its sums in
+/// the product's order) without a 3×3 product.
+#[inline]
+pub fn skew_squared<T: RealField + Copy>(v: &Vector3<T>) -> Matrix3<T> {
+    let (x, y, z) = (v.x, v.y, v.z);
+    let (xx, yy, zz) = (x * x, y * y, z * z);
+    Matrix3::new(
+        -zz - yy,
+        y * x,
+        z * x,
+        x * y,
+        -zz - xx,
+        z * y,
+        x * z,
+        y * z,
+        -yy - xx,
+    )
+}
+
 /// `L(t)`: the strictly lower-triangular matrix `[[0,0,0],[t1,0,0],[t2,t3,0]]`
 /// (the paper's `[θ]` of the non-orthogonality angles `θT`, eq. 6).
 #[inline]
@@ -50,7 +70,7 @@ pub fn dcm<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T> {
         let angle = angle2.sqrt();
         (sin(angle) / angle, (T::one() - cos(angle)) / angle2)
     };
-    Matrix3::identity() - k * a + k * k * b
+    Matrix3::identity() - k * a + skew_squared(theta) * b
 }
 
 /// The inverse of [`dcm`]: the rotation vector `θ` (rad) with `R(θ) = c`,
@@ -122,7 +142,7 @@ pub fn dcm_from_quaternion<T: RealField + Copy>(q: &[T; 4], tolerance: T) -> Opt
     let (w, v) = (w / norm, Vector3::new(x, y, z) / norm);
     let k = skew(&v);
     let two: T = nalgebra::convert(2.0);
-    Some(Matrix3::identity() - k * (two * w) + k * k * two)
+    Some(Matrix3::identity() - k * (two * w) + skew_squared(&v) * two)
 }
 
 /// The angle (rad, in `[0, π]`) of the rotation from the DCM `b` to the DCM
@@ -152,7 +172,7 @@ pub fn right_jacobian<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T> {
             (angle - sin(angle)) / (angle2 * angle),
         )
     };
-    Matrix3::identity() - k * a + k * k * b
+    Matrix3::identity() - k * a + skew_squared(theta) * b
 }
 
 /// Inverse of [`right_jacobian`]: `J_r⁻¹(θ)`, the map from the angular rate
@@ -169,7 +189,7 @@ pub fn right_jacobian_inv<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T>
         let angle = angle2.sqrt();
         T::one() / angle2 - (T::one() + cos(angle)) / (two * angle * sin(angle))
     };
-    Matrix3::identity() + k / two + k * k * c
+    Matrix3::identity() + k / two + skew_squared(theta) * c
 }
 
 /// `∂(R(θ) v)/∂θ = [(R(θ) v)×] J_r(θ)`: Jacobian of a vector rotated by
@@ -188,7 +208,7 @@ pub fn d_dcm_times<T: RealField + Copy>(theta: &Vector3<T>, v: &Vector3<T>) -> M
 pub fn d_right_jacobian<T: RealField + Copy>(theta: &Vector3<T>) -> [Matrix3<T>; 3] {
     let x2 = theta.norm_squared();
     let k = skew(theta);
-    let k2 = k * k;
+    let k2 = skew_squared(theta);
     let c = |v: f64| -> T { nalgebra::convert(v) };
     let (a, b, da, db) = if x2 < c(1e-2) {
         let x4 = x2 * x2;
@@ -374,10 +394,27 @@ impl<T: RealField + Copy> EulerTrig<T> {
     }
 
     /// `C = R3(γ) R2(β) R1(α)` ([`gimbal_dcm`]).
+    ///
+    /// Written out: the same floating-point values as the product
+    /// `r3 · r2 · r1` of the three elementary rotations (its zero terms left
+    /// out, its sums in the product's order), without two 3×3 products.
     pub fn dcm(&self) -> Matrix3<T> {
-        r3_sc(self.gamma.0, self.gamma.1)
-            * r2_sc(self.beta.0, self.beta.1)
-            * r1_sc(self.alpha.0, self.alpha.1)
+        let (sa, ca) = self.alpha;
+        let (sb, cb) = self.beta;
+        let (sg, cg) = self.gamma;
+        // R3(γ) R2(β): [[cγ cβ, sγ, −cγ sβ], [−sγ cβ, cγ, sγ sβ], [sβ, 0, cβ]].
+        let (cg_sb, sg_sb) = (cg * sb, sg * sb);
+        Matrix3::new(
+            cg * cb,
+            sg * ca + cg_sb * sa,
+            sg * sa - cg_sb * ca,
+            -(sg * cb),
+            cg * ca - sg_sb * sa,
+            cg * sa + sg_sb * ca,
+            sb,
+            -(cb * sa),
+            cb * ca,
+        )
     }
 
     /// `M(β, γ)` ([`gimbal_rate_matrix`]).
@@ -518,6 +555,50 @@ pub fn gravity_n<T: RealField + Copy>() -> Vector3<T> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Angles (rad) over several turns, both signs, and the exact values
+    /// where a sine or cosine term vanishes or a product is exact.
+    fn angles() -> impl Iterator<Item = f64> {
+        let specials = [
+            0.0,
+            -0.0,
+            1e-9,
+            -3e-5,
+            0.5,
+            -1.0,
+            core::f64::consts::FRAC_PI_2,
+            3.0,
+        ];
+        (0..97)
+            .map(|i| -7.3 + 0.1517 * f64::from(i) + 1e-3 * f64::from(i % 7))
+            .chain(specials)
+    }
+
+    /// Equal as numbers, and bit for bit unless both are zeros (the written
+    /// out forms leave out the product's `±0` terms, which can flip the
+    /// sign of an exact zero and nothing else).
+    fn same(a: &Matrix3<f64>, b: &Matrix3<f64>) -> bool {
+        a.iter()
+            .zip(b.iter())
+            .all(|(x, y)| x.to_bits() == y.to_bits() || (*x == 0.0 && *y == 0.0))
+    }
+
+    #[test]
+    fn written_out_products_equal_the_products_bit_for_bit() {
+        let all: [f64; 105] = core::array::from_fn(|i| angles().nth(i).unwrap_or(0.0));
+        for (i, &a) in all.iter().enumerate() {
+            let b = all[(i * 31 + 7) % all.len()];
+            let g = all[(i * 17 + 3) % all.len()];
+            let trig = EulerTrig::new(&Vector3::new(a, b, g));
+            let product = r3(g) * r2(b) * r1(a);
+            assert!(same(&trig.dcm(), &product), "dcm at {a} {b} {g}");
+            let v = Vector3::new(a, b, g) * 0.37;
+            assert!(
+                same(&skew_squared(&v), &(skew(&v) * skew(&v))),
+                "skew² at {v:?}"
+            );
+        }
+    }
 
     #[test]
     fn wrap_edges() {
