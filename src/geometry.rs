@@ -55,22 +55,72 @@ pub fn d_lower_times<T: RealField + Copy>(v: &Vector3<T>) -> Matrix3<T> {
 /// `R(θ) = exp(−[θ×])` (Rodrigues): the DCM of a frame rotated by the
 /// rotation vector `θ` (rad) with respect to the reference frame.
 pub fn dcm<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T> {
-    let angle2 = theta.norm_squared();
-    let k = skew(theta);
-    let (a, b) = if angle2 < nalgebra::convert(1e-8) {
-        // Taylor series of sin(x)/x and (1-cos x)/x², accurate to < 1e-24.
-        let six: T = nalgebra::convert(6.0);
-        let two: T = nalgebra::convert(2.0);
-        let twenty_four: T = nalgebra::convert(24.0);
-        (
-            T::one() - angle2 / six,
-            T::one() / two - angle2 / twenty_four,
-        )
-    } else {
-        let angle = angle2.sqrt();
-        (sin(angle) / angle, (T::one() - cos(angle)) / angle2)
-    };
-    Matrix3::identity() - k * a + skew_squared(theta) * b
+    RotationTrig::new(theta).dcm(theta)
+}
+
+/// [`dcm`] and [`right_jacobian`] of one rotation vector `θ` (rad) on one
+/// evaluation of `sin |θ|` and `cos |θ|` (the same values as the two
+/// functions apart).
+pub fn dcm_and_right_jacobian<T: RealField + Copy>(theta: &Vector3<T>) -> (Matrix3<T>, Matrix3<T>) {
+    let trig = RotationTrig::new(theta);
+    (trig.dcm(theta), trig.right_jacobian(theta))
+}
+
+/// The trigonometry of a rotation vector's angle that [`dcm`] and
+/// [`right_jacobian`] share: `|θ|²`, and `(|θ|, sin |θ|, cos |θ|)` unless
+/// `|θ|² < 1e-8`, where both use their Taylor series instead.
+struct RotationTrig<T> {
+    angle2: T,
+    trig: Option<(T, T, T)>,
+}
+
+impl<T: RealField + Copy> RotationTrig<T> {
+    fn new(theta: &Vector3<T>) -> Self {
+        let angle2 = theta.norm_squared();
+        let trig = (angle2 >= nalgebra::convert(1e-8)).then(|| {
+            let angle = angle2.sqrt();
+            (angle, sin(angle), cos(angle))
+        });
+        Self { angle2, trig }
+    }
+
+    /// [`dcm`] of `theta` (whose trigonometry this is).
+    fn dcm(&self, theta: &Vector3<T>) -> Matrix3<T> {
+        let angle2 = self.angle2;
+        let (a, b) = match self.trig {
+            None => {
+                // Taylor series of sin(x)/x and (1-cos x)/x², accurate to < 1e-24.
+                let six: T = nalgebra::convert(6.0);
+                let two: T = nalgebra::convert(2.0);
+                let twenty_four: T = nalgebra::convert(24.0);
+                (
+                    T::one() - angle2 / six,
+                    T::one() / two - angle2 / twenty_four,
+                )
+            }
+            Some((angle, s, c)) => (s / angle, (T::one() - c) / angle2),
+        };
+        Matrix3::identity() - skew(theta) * a + skew_squared(theta) * b
+    }
+
+    /// [`right_jacobian`] of `theta` (whose trigonometry this is).
+    fn right_jacobian(&self, theta: &Vector3<T>) -> Matrix3<T> {
+        let angle2 = self.angle2;
+        let (a, b) = match self.trig {
+            None => {
+                let two: T = nalgebra::convert(2.0);
+                let six: T = nalgebra::convert(6.0);
+                let twenty_four: T = nalgebra::convert(24.0);
+                let hundred_twenty: T = nalgebra::convert(120.0);
+                (
+                    T::one() / two - angle2 / twenty_four,
+                    T::one() / six - angle2 / hundred_twenty,
+                )
+            }
+            Some((angle, s, c)) => ((T::one() - c) / angle2, (angle - s) / (angle2 * angle)),
+        };
+        Matrix3::identity() - skew(theta) * a + skew_squared(theta) * b
+    }
 }
 
 /// The inverse of [`dcm`]: the rotation vector `θ` (rad) with `R(θ) = c`,
@@ -154,25 +204,7 @@ pub fn angle_between<T: RealField + Copy>(a: &Matrix3<T>, b: &Matrix3<T>) -> T {
 /// Right Jacobian of the rotation vector, `J_r(θ)`, for the convention
 /// `R(θ) = exp(−[θ×])`: `R(θ + δ) ≈ (I − [(J_r(θ) δ)×]) R(θ)`.
 pub fn right_jacobian<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T> {
-    let angle2 = theta.norm_squared();
-    let k = skew(theta);
-    let (a, b) = if angle2 < nalgebra::convert(1e-8) {
-        let two: T = nalgebra::convert(2.0);
-        let six: T = nalgebra::convert(6.0);
-        let twenty_four: T = nalgebra::convert(24.0);
-        let hundred_twenty: T = nalgebra::convert(120.0);
-        (
-            T::one() / two - angle2 / twenty_four,
-            T::one() / six - angle2 / hundred_twenty,
-        )
-    } else {
-        let angle = angle2.sqrt();
-        (
-            (T::one() - cos(angle)) / angle2,
-            (angle - sin(angle)) / (angle2 * angle),
-        )
-    };
-    Matrix3::identity() - k * a + skew_squared(theta) * b
+    RotationTrig::new(theta).right_jacobian(theta)
 }
 
 /// Inverse of [`right_jacobian`]: `J_r⁻¹(θ)`, the map from the angular rate
