@@ -415,6 +415,35 @@ impl<T: RealField + Copy> EulerTrig<T> {
         }
     }
 
+    /// The trigonometry of `angles + delta` (rad) from this one, the
+    /// trigonometry of `angles`: by the angle-sum formulas with `sin δ`,
+    /// `cos δ` from their Taylor series where `|δ| ≤ 0.05` rad (truncation
+    /// < 1e-17; the result is within a few ulp of [`EulerTrig::new`]), and
+    /// by [`EulerTrig::new`]'s sine and cosine elsewhere. A period's nodes
+    /// are a few mrad apart, and on an FPU without double precision a
+    /// sine-cosine pair in f64 costs ≈ 4 000 instructions, the series ≈ 15
+    /// operations.
+    pub fn advanced_by(&self, angles: &Vector3<T>, delta: &Vector3<T>) -> Self {
+        let step = |(s, c): (T, T), a: T, d: T| -> (T, T) {
+            if d.abs() > nalgebra::convert(0.05) {
+                return sin_cos(a + d);
+            }
+            let d2 = d * d;
+            let k = |v: f64| -> T { nalgebra::convert(v) };
+            // sin δ = δ(1 − δ²/6 + δ⁴/120 − δ⁶/5040), cos δ − 1 = −δ²/2 + δ⁴/24 − δ⁶/720 + δ⁸/40320.
+            let sd =
+                d * (T::one() - d2 * (k(1.0 / 6.0) - d2 * (k(1.0 / 120.0) - d2 * k(1.0 / 5040.0))));
+            let cd_1 = -d2
+                * (k(0.5) - d2 * (k(1.0 / 24.0) - d2 * (k(1.0 / 720.0) - d2 * k(1.0 / 40_320.0))));
+            (s + (s * cd_1 + c * sd), c + (c * cd_1 - s * sd))
+        };
+        Self {
+            alpha: step(self.alpha, angles.x, delta.x),
+            beta: step(self.beta, angles.y, delta.y),
+            gamma: step(self.gamma, angles.z, delta.z),
+        }
+    }
+
     /// The trigonometry of `β` and `γ` alone (rad), for the functions that
     /// do not depend on `α` (`α` is taken as 0, without evaluating it).
     fn of_beta_gamma(beta: T, gamma: T) -> Self {
@@ -613,6 +642,30 @@ mod tests {
         a.iter()
             .zip(b.iter())
             .all(|(x, y)| x.to_bits() == y.to_bits() || (*x == 0.0 && *y == 0.0))
+    }
+
+    #[test]
+    fn advanced_trigonometry_is_within_a_few_ulp_of_the_direct_one() {
+        let deltas = [
+            0.0, 1e-9, -3.3e-4, 1.7e-3, -8.7e-3, 0.049, -0.05, 0.051, -0.4,
+        ];
+        for (i, a) in angles().enumerate() {
+            let angles = Vector3::new(a, -0.5 * a, 0.3 + a);
+            let trig = EulerTrig::new(&angles);
+            for (j, &d) in deltas.iter().enumerate() {
+                let delta = Vector3::new(d, -d, deltas[(i + j) % deltas.len()]);
+                let advanced = trig.advanced_by(&angles, &delta);
+                let direct = EulerTrig::new(&(angles + delta));
+                for (x, y) in [
+                    (advanced.alpha, direct.alpha),
+                    (advanced.beta, direct.beta),
+                    (advanced.gamma, direct.gamma),
+                ] {
+                    assert!((x.0 - y.0).abs() <= 4.0 * f64::EPSILON, "sin at {a} + {d}");
+                    assert!((x.1 - y.1).abs() <= 4.0 * f64::EPSILON, "cos at {a} + {d}");
+                }
+            }
+        }
     }
 
     #[test]

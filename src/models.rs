@@ -796,10 +796,26 @@ impl Layout {
         c_rn: &Matrix3<T>,
         c_cn: &Matrix3<T>,
     ) -> Matrix3<T> {
+        let rot = match self.attitude {
+            AttitudeKind::Misalignment => dcm(att),
+            AttitudeKind::Gimbal | AttitudeKind::Attitude => gimbal_dcm(att),
+        };
+        self.platform_dcm_of(&rot, c_rn, c_cn)
+    }
+
+    /// [`Layout::platform_dcm`] from the attitude's rotation `rot` (`R(ψ)`
+    /// of M1's misalignment, the Euler DCM of M2/M3's gimbal angles and
+    /// M4's attitude).
+    fn platform_dcm_of<T: RealField + Copy>(
+        &self,
+        rot: &Matrix3<T>,
+        c_rn: &Matrix3<T>,
+        c_cn: &Matrix3<T>,
+    ) -> Matrix3<T> {
         match self.attitude {
-            AttitudeKind::Misalignment => dcm(att) * c_cn,
-            AttitudeKind::Gimbal => gimbal_dcm(att) * c_rn,
-            AttitudeKind::Attitude => gimbal_dcm(att),
+            AttitudeKind::Misalignment => rot * c_cn,
+            AttitudeKind::Gimbal => rot * c_rn,
+            AttitudeKind::Attitude => *rot,
         }
     }
 
@@ -1206,9 +1222,23 @@ impl Layout {
         let six: T = nalgebra::convert(6.0);
         let four: T = nalgebra::convert(4.0);
         let weights = [T::one() / six, four / six, T::one() / six];
+        let [att0, att_mid, att1] = &prop.att;
+        // The attitude's rotation at the nodes; Euler angles' trigonometry
+        // from the first node's (EulerTrig::advanced_by).
+        let rotations = match self.attitude {
+            AttitudeKind::Misalignment => [dcm(att0), dcm(att_mid), dcm(att1)],
+            AttitudeKind::Gimbal | AttitudeKind::Attitude => {
+                let trig0 = EulerTrig::new(att0);
+                [
+                    trig0.dcm(),
+                    trig0.advanced_by(att0, &(att_mid - att0)).dcm(),
+                    trig0.advanced_by(att0, &(att1 - att0)).dcm(),
+                ]
+            }
+        };
         let mut z = Vector3::zeros();
-        for ((att, c_cn), w) in prop.att.iter().zip(period.c_cn.iter()).zip(weights) {
-            z += self.accel_output(env, m, att, c_cn) * w;
+        for ((rot, c_cn), w) in rotations.iter().zip(period.c_cn.iter()).zip(weights) {
+            z += m.a * (self.platform_dcm_of(rot, &m.c_rn, c_cn) * env.gravity_n) * w;
         }
         z
     }
