@@ -1210,8 +1210,13 @@ impl Layout {
 
 impl Layout {
     /// The mean accelerometer output over the period (g) alone: the value
-    /// of [`Layout::mean_accel`] without its Jacobians (the filter evaluates
-    /// the value in f64 and the Jacobians in its own precision).
+    /// of [`Layout::mean_accel`] without its Jacobians, equal to it to
+    /// rounding (a few ulp: the Euler angles' sines and cosines at the
+    /// midpoint and end come from the first node's,
+    /// [`EulerTrig::advanced_by`], and `f^n` is rotated one frame at a time).
+    /// The single-precision filter evaluates the value with it in f64 and
+    /// the Jacobians in its own precision; it is cheaper on an FPU without
+    /// double precision.
     pub fn mean_accel_output<T: RealField + Copy, const N: usize>(
         &self,
         env: &Environment<T>,
@@ -1236,9 +1241,18 @@ impl Layout {
                 ]
             }
         };
+        // f^n in the frame the attitude rotation acts on (C^c_n f^n, C^r_n f^n
+        // or f^n): rotated as R (C f^n), one matrix-vector product per node
+        // instead of accel_output's (R C) f^n (equal to rounding).
+        let c_rn_g = m.c_rn * env.gravity_n;
         let mut z = Vector3::zeros();
         for ((rot, c_cn), w) in rotations.iter().zip(period.c_cn.iter()).zip(weights) {
-            z += m.a * (self.platform_dcm_of(rot, &m.c_rn, c_cn) * env.gravity_n) * w;
+            let f_ref = match self.attitude {
+                AttitudeKind::Misalignment => c_cn * env.gravity_n,
+                AttitudeKind::Gimbal => c_rn_g,
+                AttitudeKind::Attitude => env.gravity_n,
+            };
+            z += m.a * (rot * f_ref) * w;
         }
         z
     }
