@@ -238,7 +238,9 @@ struct Noise<T: RealField + Copy, const N: usize, const Z: usize> {
 }
 
 struct Measured<T: RealField + Copy, const N: usize, const Z: usize> {
-    z: SVector<T, Z>,
+    /// The predicted measurement (f64: it must resolve 1e-7 g of 1 g).
+    z: SVector<f64, Z>,
+    /// Its Jacobian, in the filter's precision (where it was computed).
     h: SMatrix<T, Z, N>,
     noise: Noise<T, N, Z>,
 }
@@ -526,18 +528,17 @@ fn to_t<T: RealField + Copy, const R: usize, const C: usize>(
 
 /// `H δ` (g, rad; Z components) in precision `T`, returned in f64: the
 /// linear term of the innovation, `δ` the (small) offset of the estimate
-/// from the linearisation point. `h` holds the model's Jacobian, computed
-/// in `T` (for f32 it was widened exactly), so the product needs `T`'s
-/// digits only: on the paper's path `|H δ|` stays below ≈ 1e-5 g once the
+/// from the linearisation point. `h` is the model's Jacobian, computed in
+/// `T`, so the product needs `T`'s digits only: on the paper's path `|H δ|` stays below ≈ 1e-5 g once the
 /// estimate is within a few σ of its linearisation point, whose f32
 /// rounding is ≈ 1e-12 g. On an FPU without double precision the f64
 /// product (6×18) costs ≈ 14 000 instructions. The same values as
 /// `h * delta` for `T = f64`.
 fn linear_term<T: RealField + Copy, const N: usize, const Z: usize>(
-    h: &SMatrix<f64, Z, N>,
+    h: &SMatrix<T, Z, N>,
     delta: &SVector<f64, N>,
 ) -> SVector<f64, Z> {
-    to_f64(&(to_t::<T, Z, N>(h) * to_t::<T, N, 1>(delta)))
+    to_f64(&(h * to_t::<T, N, 1>(delta)))
 }
 
 /// A matrix of precision `T` in double precision (exact for f32).
@@ -995,13 +996,14 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// Predicted measurement, its Jacobian (w.r.t. the state at the end of
     /// the period) for the state `x` whose period trajectory is `prop`, and
     /// the measurement's share of the period's process noise (see [`Noise`]).
-    fn measure(&self, x: &SVector<f64, N>, pending: &Pending<T, N>) -> Measured<f64, N, Z> {
+    fn measure(&self, x: &SVector<f64, N>, pending: &Pending<T, N>) -> Measured<T, N, Z> {
         let layout = Self::LAYOUT;
         let mut fresh = None;
         let m = self.matrices.get(&layout, x, &mut fresh);
         let env = &self.config.env;
-        let (za, ha, da) = if is_f64::<T>() {
-            layout.mean_accel(env, m, &pending.prop, &pending.period)
+        let (za, ha, da): (_, SMatrix<T, 3, N>, _) = if is_f64::<T>() {
+            let (za, ha, da) = layout.mean_accel(env, m, &pending.prop, &pending.period);
+            (za, to_t(&ha), da)
         } else {
             // The value in f64 (it must resolve 1e-7 g of 1 g), the
             // Jacobians in T (they need a few digits; f64 is emulated on an
@@ -1013,10 +1015,10 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 &propagation_t(&pending.prop),
                 &period_t(&pending.period),
             );
-            (za, to_f64(&ha), to_f64(&da))
+            (za, ha, to_f64(&da))
         };
         let mut z = SVector::<f64, Z>::zeros();
-        let mut h = SMatrix::<f64, Z, N>::zeros();
+        let mut h = SMatrix::<T, Z, N>::zeros();
         if layout.gimbal_obs {
             let att = layout.attitude(x);
             z.fixed_rows_mut::<3>(0).copy_from(&att);
@@ -1027,12 +1029,15 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         z.fixed_rows_mut::<3>(accel_row).copy_from(&za);
         h.fixed_rows_mut::<3>(accel_row).copy_from(&ha);
         // Unit-variance noise w = σ_g u: x_{k+1} gets G u, z gets D u.
+        // (Products in f64, rounded to T once.)
         let sigma_g: f64 = self.config.sigma_gyro.to_subset().unwrap_or(f64::NAN);
-        let mut g = SMatrix::<f64, N, 3>::zeros();
-        g.fixed_rows_mut::<3>(ATT)
-            .copy_from(&(pending.prop.noise_map * (sigma_g * pending.period.dt)));
-        let mut d = SMatrix::<f64, Z, 3>::zeros();
-        d.fixed_rows_mut::<3>(accel_row).copy_from(&(da * sigma_g));
+        let mut g = SMatrix::<T, N, 3>::zeros();
+        g.fixed_rows_mut::<3>(ATT).copy_from(&to_t(
+            &(pending.prop.noise_map * (sigma_g * pending.period.dt)),
+        ));
+        let mut d = SMatrix::<T, Z, 3>::zeros();
+        d.fixed_rows_mut::<3>(accel_row)
+            .copy_from(&to_t(&(da * sigma_g)));
         Measured {
             z,
             h,
@@ -1197,7 +1202,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         x_lin: &SVector<f64, N>,
         lin: &Pending<T, N>,
         mean2: &Vector3<f64>,
-    ) -> (SVector<f64, Z>, Measured<f64, N, Z>) {
+    ) -> (SVector<f64, Z>, Measured<T, N, Z>) {
         let layout = Self::LAYOUT;
         let measured = self.measure(x_lin, lin);
         let mut nu = z - measured.z;
@@ -1228,7 +1233,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         r_v: &SMatrix<T, Z, Z>,
         mean2: &Vector3<f64>,
         iterations: u8,
-    ) -> Result<(SVector<f64, Z>, Measured<f64, N, Z>), Error> {
+    ) -> Result<(SVector<f64, Z>, Measured<T, N, Z>), Error> {
         let p_prior = to_f64(&self.settled().covariance());
         let r_v = to_f64(r_v);
         let mut x_lin = self.x;
@@ -1238,7 +1243,11 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 lin = self.retrace(&x_lin, pending)?;
             }
             let (nu, Measured { h, noise, .. }) = self.innovation_at(z, &x_lin, &lin, mean2);
-            let gain = dense_gain(&p_prior, &h, &r_v, &noise)?;
+            let noise = Noise {
+                g: to_f64(&noise.g),
+                d: to_f64(&noise.d),
+            };
+            let gain = dense_gain(&p_prior, &to_f64(&h), &r_v, &noise)?;
             x_lin = self.x + gain.k * nu;
         }
         let lin = self.retrace(&x_lin, pending)?;
@@ -1320,24 +1329,24 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// update itself never uses `S`) and nothing is gated.
     fn factored(
         &mut self,
-        h: &SMatrix<f64, Z, N>,
+        h: &SMatrix<T, Z, N>,
         nu_f64: &SVector<f64, Z>,
         r_v: &SMatrix<T, Z, Z>,
-        noise: &Noise<f64, N, Z>,
+        noise: &Noise<T, N, Z>,
         measured: bool,
         x_base: &SVector<f64, N>,
     ) -> Result<Innovation<T, Z>, Error> {
         let half: T = nalgebra::convert(0.5);
         let phi_att: SMatrix<T, 3, N> =
             to_t(&self.pending.get().ok_or(Error::NoPrediction)?.prop.phi_att);
-        // H Φ in T (f64 is emulated on an FPU without it; exact conversions
-        // when T is f64, so the same values there). It becomes the whitened
-        // rows in place below (one Z×N matrix in this frame, not three).
-        let mut h_w = crate::models::apply_transition(&to_t(h), &phi_att);
+        // H Φ in T (f64 is emulated on an FPU without it). It becomes the
+        // whitened rows in place below (one Z×N matrix in this frame, not
+        // three).
+        let mut h_w = crate::models::apply_transition(h, &phi_att);
         let nu: SVector<T, Z> = to_t(nu_f64);
-        let g_att: Matrix3<T> = to_t(&crate::models::attitude_rows(&noise.g));
-        let h_att: SMatrix<T, Z, 3> = to_t(&crate::models::attitude_columns(h));
-        let m_e = h_att * g_att + to_t::<T, Z, 3>(&noise.d);
+        let g_att: Matrix3<T> = crate::models::attitude_rows(&noise.g);
+        let h_att: SMatrix<T, Z, 3> = crate::models::attitude_columns(h);
+        let m_e = h_att * g_att + noise.d;
         let mut r_e = m_e * m_e.transpose() + r_v;
         r_e = (r_e + r_e.transpose()) * half;
         // S = H Φ P Φᵀ Hᵀ + R_e, for the innovation report and the gate.
@@ -1510,6 +1519,6 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let pending = self.pending.get().ok_or(Error::NoPrediction)?;
         let lin = self.retrace(x, pending)?;
         let m = self.measure(x, &lin);
-        Ok((m.z, m.h))
+        Ok((m.z, to_f64(&m.h)))
     }
 }
