@@ -39,6 +39,7 @@
 //! both process and measurement noise; the factored update decorrelates
 //! the two ([`Filter::update`]).
 
+use core::any::Any;
 use core::marker::PhantomData;
 
 use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3};
@@ -256,7 +257,11 @@ struct Gain<T: RealField + Copy, const N: usize, const Z: usize> {
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Pending<T: RealField + Copy, const N: usize> {
     period: Period<f64>,
-    prop: PeriodPropagation<f64, N>,
+    /// The attitude at the period's three nodes (rad).
+    att: [Vector3<f64>; 3],
+    /// The same nodes rounded to `T`, with the period's transition rows,
+    /// `F` and noise map, computed in `T`.
+    prop: PeriodPropagation<T, N>,
     /// Second-order process noise of the attitude (rad², zero unless
     /// [`Options::second_order_dynamics`]).
     q_extra: Matrix3<T>,
@@ -271,6 +276,7 @@ impl<T: RealField + Copy, const N: usize> Pending<T, N> {
                 omega_c: [Vector3::zeros(); 3],
                 c_cn: [Matrix3::zeros(); 3],
             },
+            att: [Vector3::zeros(); 3],
             prop: PeriodPropagation::zeros(),
             q_extra: Matrix3::zeros(),
         }
@@ -323,10 +329,12 @@ impl<T: RealField + Copy, const N: usize> PendingSlot<T, N> {
 /// where f32's rounding (6e-8 per operation) would be a third of the noise
 /// and a drift of the computed frame. The covariance factor, the Jacobians
 /// and the gains — the `O(N²)` bulk of a period, whose values need only a
-/// few digits — are in `T`, and so are the attitude's increments over a
-/// period, added to the f64 attitude (≈ 1.7e-3 rad on the paper's path,
-/// exact to ≈ 5e-10 rad in f32, three orders under the gyro noise of a
-/// period; [`Layout::propagate_into_jacobians_in`](crate::models::Layout::propagate_into_jacobians_in)).
+/// few digits — are in `T`. So are the linear terms of the small
+/// deviations from the linearisation point (`H δ`, `Φ δ`) and the
+/// attitude's increments over a period, added to the f64 attitude
+/// (≈ 1.7e-3 rad on the paper's path, exact to ≈ 5e-10 rad in f32, three
+/// orders under the gyro noise of a period;
+/// [`Layout::propagate_into_jacobians_in`](crate::models::Layout::propagate_into_jacobians_in)).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Filter<T: RealField + Copy, M, const N: usize, const Z: usize> {
     x: SVector<f64, N>,
@@ -481,11 +489,6 @@ fn all_finite<T: RealField + Copy>(it: impl IntoIterator<Item = T>) -> bool {
     it.into_iter().all(|v| v.is_finite())
 }
 
-/// Whether `T` is `f64` (then the model is evaluated once, in f64).
-fn is_f64<T: 'static>() -> bool {
-    core::any::TypeId::of::<T>() == core::any::TypeId::of::<f64>()
-}
-
 /// A period in precision `T`.
 fn period_t<T: RealField + Copy>(p: &Period<f64>) -> Period<T> {
     let [w0, wm, w1] = p.omega_c;
@@ -516,6 +519,19 @@ fn env_t<T: RealField + Copy>(e: &Environment<f64>) -> Environment<T> {
     Environment {
         earth_rate_n: to_t(&e.earth_rate_n),
         gravity_n: to_t(&e.gravity_n),
+    }
+}
+
+/// The installation matrices `m` in precision `T`: `m` itself when `T` is
+/// f64, else rounded into `rounded` (no copy, and no storage in the frame,
+/// in the f64 filter).
+fn matrices_in<'a, T: RealField + Copy>(
+    m: &'a InstallationMatrices<f64>,
+    rounded: &'a mut Option<InstallationMatrices<T>>,
+) -> &'a InstallationMatrices<T> {
+    match (m as &dyn Any).downcast_ref::<InstallationMatrices<T>>() {
+        Some(same) => same,
+        None => rounded.insert(m.to_precision()),
     }
 }
 
@@ -834,7 +850,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
 
     /// The process noise of a pending period on the attitude (rad²).
     fn process_noise(&self, pending: &Pending<T, N>) -> Matrix3<T> {
-        let b = to_t::<T, 3, 3>(&pending.prop.noise_map)
+        let b = pending.prop.noise_map
             * (self.config.sigma_gyro * nalgebra::convert::<f64, T>(pending.period.dt));
         b * b.transpose() + pending.q_extra
     }
@@ -846,7 +862,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         if let Some(pending) = self.pending.get() {
             let q = self.process_noise(pending);
             self.ud
-                .predict_attitude(&to_t(&pending.prop.phi_att), &q)
+                .predict_attitude(&pending.prop.phi_att, &q)
                 .ok_or(Error::CovarianceNotPositiveDefinite)?;
         }
         Ok(())
@@ -857,7 +873,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     fn propagated_factor(&self) -> Result<Ud<T, N>, Error> {
         let mut ud = self.ud;
         if let Some(pending) = self.pending.get() {
-            ud.predict_attitude(&to_t(&pending.prop.phi_att), &self.process_noise(pending))
+            ud.predict_attitude(&pending.prop.phi_att, &self.process_noise(pending))
                 .ok_or(Error::CovarianceNotPositiveDefinite)?;
         }
         Ok(ud)
@@ -918,37 +934,36 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         slot.period = self.command.period(dtheta_c, dt);
         let env = &self.config.env;
         let att0 = layout.attitude(&x_lin);
-        let propagated = if is_f64::<T>() {
-            layout.propagate_into(env, &self.matrices.0, &att0, &slot.period, &mut slot.prop)
-        } else {
-            // The attitude in f64, its increments over the period and the
-            // Jacobians in T (see `Filter`).
-            layout.propagate_into_jacobians_in(
+        // The attitude in f64, its increments over the period and the
+        // Jacobians in T (see `Filter`).
+        let mut rounded = None;
+        layout
+            .propagate_into_jacobians_in(
                 &env_t::<T>(env),
-                &self.matrices.0.to_precision(),
+                matrices_in(&self.matrices.0, &mut rounded),
                 &att0,
                 &slot.period,
+                &mut slot.att,
                 &mut slot.prop,
             )
-        };
-        propagated.ok_or(Error::GimbalLock)?;
+            .ok_or(Error::GimbalLock)?;
         let new = &self.pending.value;
         let q_extra = if RESEARCH_OPTIONS && self.config.options.second_order_dynamics {
-            self.second_order_dynamics(&new.period, &new.prop)?
+            self.second_order_dynamics(&new.period, &new.att)?
         } else {
             Matrix3::<T>::zeros()
         };
         if !all_finite(q_extra.iter().copied()) || !all_finite(new.prop.noise_map.iter().copied()) {
             return Err(Error::NonFiniteState);
         }
-        let [_, _, att1] = new.prop.att;
+        let [_, _, att1] = new.att;
         let mut x_lin_end = x_lin;
         x_lin_end.fixed_rows_mut::<3>(ATT).copy_from(&att1);
         let x_new = match self.reference {
             // x̂_{k+1} = x_nom,k+1 ⊞ Φ (x̂_k ⊟ x_nom,k).
             Some(_) => {
                 let mut delta = layout.difference(&self.x, &x_lin);
-                let d_att = new.prop.phi_att * delta;
+                let d_att = linear_term::<T, N, 3>(&new.prop.phi_att, &delta);
                 delta.fixed_rows_mut::<3>(ATT).copy_from(&d_att);
                 x_lin_end + delta
             }
@@ -976,12 +991,12 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     fn second_order_dynamics(
         &self,
         period: &Period<f64>,
-        prop: &PeriodPropagation<f64, N>,
+        att: &[Vector3<f64>; 3],
     ) -> Result<Matrix3<T>, Error> {
         let layout = Self::LAYOUT;
         let env = &self.config.env;
         let [_, wm, _] = period.omega_c;
-        let [_, att_mid, _] = prop.att;
+        let [_, att_mid, _] = *att;
         let mut x_mid = self.x;
         x_mid.fixed_rows_mut::<3>(ATT).copy_from(&att_mid);
         let relevant = |j: usize| j < 9 || layout.lam().is_some_and(|i| (i..i + 3).contains(&j));
@@ -1001,18 +1016,20 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let mut fresh = None;
         let m = self.matrices.get(&layout, x, &mut fresh);
         let env = &self.config.env;
-        let (za, ha, da): (_, SMatrix<T, 3, N>, _) = if is_f64::<T>() {
-            let (za, ha, da) = layout.mean_accel(env, m, &pending.prop, &pending.period);
+        let as_f64 = (&pending.prop as &dyn Any).downcast_ref::<PeriodPropagation<f64, N>>();
+        let (za, ha, da): (_, SMatrix<T, 3, N>, _) = if let Some(prop) = as_f64 {
+            // T = f64: the nodes in `prop` are the f64 ones.
+            let (za, ha, da) = layout.mean_accel(env, m, prop, &pending.period);
             (za, to_t(&ha), da)
         } else {
             // The value in f64 (it must resolve 1e-7 g of 1 g), the
             // Jacobians in T (they need a few digits; f64 is emulated on an
             // FPU without it), on the f64 installation matrices rounded.
-            let za = layout.mean_accel_output(env, m, &pending.prop, &pending.period);
+            let za = layout.mean_accel_output(env, m, &pending.att, &pending.period);
             let (_, ha, da): (_, SMatrix<T, 3, N>, _) = layout.mean_accel(
                 &env_t(env),
                 &m.to_precision(),
-                &propagation_t(&pending.prop),
+                &pending.prop,
                 &period_t(&pending.period),
             );
             (za, ha, to_f64(&da))
@@ -1029,12 +1046,12 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         z.fixed_rows_mut::<3>(accel_row).copy_from(&za);
         h.fixed_rows_mut::<3>(accel_row).copy_from(&ha);
         // Unit-variance noise w = σ_g u: x_{k+1} gets G u, z gets D u.
-        // (Products in f64, rounded to T once.)
         let sigma_g: f64 = self.config.sigma_gyro.to_subset().unwrap_or(f64::NAN);
         let mut g = SMatrix::<T, N, 3>::zeros();
-        g.fixed_rows_mut::<3>(ATT).copy_from(&to_t(
-            &(pending.prop.noise_map * (sigma_g * pending.period.dt)),
-        ));
+        g.fixed_rows_mut::<3>(ATT).copy_from(
+            &(pending.prop.noise_map
+                * (self.config.sigma_gyro * nalgebra::convert::<f64, T>(pending.period.dt))),
+        );
         let mut d = SMatrix::<T, Z, 3>::zeros();
         d.fixed_rows_mut::<3>(accel_row)
             .copy_from(&to_t(&(da * sigma_g)));
@@ -1071,7 +1088,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         };
         Ok(Pending {
             period: *pr,
-            prop,
+            att: prop.att,
+            prop: propagation_t(&prop),
             q_extra: pending.q_extra,
         })
     }
@@ -1101,7 +1119,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         // three rows).
         let rows = self
             .ud
-            .predicted_attitude_rows(&to_t(&pending.prop.phi_att), &self.process_noise(pending));
+            .predicted_attitude_rows(&pending.prop.phi_att, &self.process_noise(pending));
         let terms =
             layout.accel_second_order_with(&env, &m, &layout.attitude(&x), &c_end, |i, j| {
                 match &rows {
@@ -1337,8 +1355,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         x_base: &SVector<f64, N>,
     ) -> Result<Innovation<T, Z>, Error> {
         let half: T = nalgebra::convert(0.5);
-        let phi_att: SMatrix<T, 3, N> =
-            to_t(&self.pending.get().ok_or(Error::NoPrediction)?.prop.phi_att);
+        let phi_att: SMatrix<T, 3, N> = self.pending.get().ok_or(Error::NoPrediction)?.prop.phi_att;
         // H Φ in T (f64 is emulated on an FPU without it). It becomes the
         // whitened rows in place below (one Z×N matrix in this frame, not
         // three).

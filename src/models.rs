@@ -1053,7 +1053,10 @@ impl Layout {
 
     /// [`Layout::propagate_into`] with the attitude in f64 and everything
     /// else evaluated in precision `J` on `env_j` and `m_j` (the environment
-    /// and installation matrices in `J`), then stored in f64: the
+    /// and installation matrices in `J`): the attitude at the three nodes
+    /// into `att` (f64), the same rounded to `J` and the Jacobians into
+    /// `out` (for `J = f64`, the values of [`Layout::propagate_into`]). In `J`:
+    /// the
     /// attitude's increments over the period (the RK4 stages) and the
     /// Jacobians (`F` at the midpoint and the end, the transition rows, the
     /// noise map). A single-precision filter needs its Jacobians to a few
@@ -1061,32 +1064,27 @@ impl Layout {
     /// the paper's path (0.1 °/s, 1 s), exact in f32 to ≈ 3e-7 of
     /// themselves, ≈ 5e-10 rad, three orders of magnitude under the paper's
     /// gyro noise over a period (0.1 °/h · 1 s ≈ 4.8e-7 rad). On an FPU
-    /// without double precision they would otherwise be emulated f64. For `J = f64` use
-    /// [`Layout::propagate_into`].
+    /// without double precision they would otherwise be emulated f64.
     pub fn propagate_into_jacobians_in<J: RealField + Copy, const N: usize>(
         &self,
         env_j: &Environment<J>,
         m_j: &InstallationMatrices<J>,
         att0: &Vector3<f64>,
         period: &Period<f64>,
-        out: &mut PeriodPropagation<f64, N>,
+        att: &mut [Vector3<f64>; 3],
+        out: &mut PeriodPropagation<J, N>,
     ) -> Option<()> {
         let [_, wm, w1] = period.omega_c;
         let [_, att_mid, att1] = self.trajectory_in(env_j, m_j, att0, period)?;
         let j = |v: &Vector3<f64>| v.map(nalgebra::convert::<f64, J>);
-        let back = |v: J| v.to_subset().unwrap_or(f64::NAN);
-        let att_mid_j = j(&att_mid);
-        let f_mid: SMatrix<J, 3, N> =
-            self.attitude_rate_jacobian(env_j, m_j, &att_mid_j, &j(&wm))?;
-        let f_end: SMatrix<J, 3, N> =
-            self.attitude_rate_jacobian(env_j, m_j, &j(&att1), &j(&w1))?;
-        let phi_att = transition_rows(&f_mid, nalgebra::convert::<f64, J>(period.dt));
-        out.noise_map = self.noise_map(&att_mid_j)?.map(back);
-        out.f_mid = f_mid.map(back);
-        out.f_end = f_end.map(back);
-        out.phi_att = phi_att.map(back);
-        out.att = [*att0, att_mid, att1];
-        if att1.iter().chain(out.phi_att.iter()).all(|v| v.is_finite()) {
+        let (att_mid_j, att1_j) = (j(&att_mid), j(&att1));
+        out.f_mid = self.attitude_rate_jacobian(env_j, m_j, &att_mid_j, &j(&wm))?;
+        out.f_end = self.attitude_rate_jacobian(env_j, m_j, &att1_j, &j(&w1))?;
+        out.phi_att = transition_rows(&out.f_mid, nalgebra::convert::<f64, J>(period.dt));
+        out.noise_map = self.noise_map(&att_mid_j)?;
+        out.att = [j(att0), att_mid_j, att1_j];
+        *att = [*att0, att_mid, att1];
+        if att1.iter().all(|v| v.is_finite()) && out.phi_att.iter().all(|v| v.is_finite()) {
             Some(())
         } else {
             None
@@ -1209,25 +1207,26 @@ impl Layout {
 }
 
 impl Layout {
-    /// The mean accelerometer output over the period (g) alone: the value
-    /// of [`Layout::mean_accel`] without its Jacobians, equal to it to
+    /// The mean accelerometer output over the period (g) alone, from the
+    /// attitude `att` at the period's three nodes (rad, `PeriodPropagation::att`):
+    /// the value of [`Layout::mean_accel`] without its Jacobians, equal to it to
     /// rounding (a few ulp: the Euler angles' sines and cosines at the
     /// midpoint and end come from the first node's,
     /// [`EulerTrig::advanced_by`], and `f^n` is rotated one frame at a time).
     /// The single-precision filter evaluates the value with it in f64 and
     /// the Jacobians in its own precision; it is cheaper on an FPU without
     /// double precision.
-    pub fn mean_accel_output<T: RealField + Copy, const N: usize>(
+    pub fn mean_accel_output<T: RealField + Copy>(
         &self,
         env: &Environment<T>,
         m: &InstallationMatrices<T>,
-        prop: &PeriodPropagation<T, N>,
+        att: &[Vector3<T>; 3],
         period: &Period<T>,
     ) -> Vector3<T> {
         let six: T = nalgebra::convert(6.0);
         let four: T = nalgebra::convert(4.0);
         let weights = [T::one() / six, four / six, T::one() / six];
-        let [att0, att_mid, att1] = &prop.att;
+        let [att0, att_mid, att1] = att;
         // The attitude's rotation at the nodes; Euler angles' trigonometry
         // from the first node's (EulerTrig::advanced_by).
         let rotations = match self.attitude {
