@@ -16,7 +16,7 @@
 
 use nalgebra::{Matrix3, RealField, Vector3};
 
-use crate::geometry::{dcm, right_jacobian};
+use crate::geometry::{dcm, right_jacobian_times};
 
 /// The commanded motion over one period, at the three nodes `t_k`,
 /// `t_k + T/2`, `t_k + T` used by the RK4 step and by Simpson's rule.
@@ -72,7 +72,7 @@ impl<T: RealField + Copy> CommandFrame<T> {
         // Fixed point u = Δθ/T − J_r(uT) e; contraction factor ≈ |e| T / 2 < 1e-4.
         let mut u = rate - e;
         for _ in 0..3 {
-            u = rate - right_jacobian(&(u * dt)) * e;
+            u = rate - right_jacobian_times(&(u * dt), &e);
         }
         u
     }
@@ -83,7 +83,7 @@ impl<T: RealField + Copy> CommandFrame<T> {
     /// of [`CommandFrame::path_rate`].
     pub fn increment(&self, path_rate: &Vector3<T>, dt: T) -> Vector3<T> {
         let e = self.c_cn * self.earth_rate_n;
-        (path_rate + right_jacobian(&(path_rate * dt)) * e) * dt
+        (path_rate + right_jacobian_times(&(path_rate * dt), &e)) * dt
     }
 
     /// `C^c_n` after `periods` periods of length `dt` (s) at the constant
@@ -143,7 +143,7 @@ impl<T: RealField + Copy> CommandFrame<T> {
         let tiny: T = T::default_epsilon();
         for _ in 0..8 {
             let r_t = dcm(&(u * dt)).transpose();
-            let next = rate - right_jacobian(&(u * dt)) * (r_t * e_end);
+            let next = rate - right_jacobian_times(&(u * dt), &(r_t * e_end));
             let moved = (next - u).amax() * dt.abs();
             u = next;
             // Stop at rounding (and on NaN, which never compares smaller).

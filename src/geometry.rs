@@ -55,71 +55,90 @@ pub fn d_lower_times<T: RealField + Copy>(v: &Vector3<T>) -> Matrix3<T> {
 /// `R(θ) = exp(−[θ×])` (Rodrigues): the DCM of a frame rotated by the
 /// rotation vector `θ` (rad) with respect to the reference frame.
 pub fn dcm<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T> {
-    RotationTrig::new(theta).dcm(theta)
+    RotationCoefficients::new(theta.norm_squared()).dcm(theta)
 }
 
 /// [`dcm`] and [`right_jacobian`] of one rotation vector `θ` (rad) on one
-/// evaluation of `sin |θ|` and `cos |θ|` (the same values as the two
-/// functions apart).
+/// evaluation of their coefficients ([`RotationCoefficients`]; the same
+/// values as the two functions apart).
 pub fn dcm_and_right_jacobian<T: RealField + Copy>(theta: &Vector3<T>) -> (Matrix3<T>, Matrix3<T>) {
-    let trig = RotationTrig::new(theta);
-    (trig.dcm(theta), trig.right_jacobian(theta))
+    let k = RotationCoefficients::new(theta.norm_squared());
+    (k.dcm(theta), k.right_jacobian(theta))
 }
 
-/// The trigonometry of a rotation vector's angle that [`dcm`] and
-/// [`right_jacobian`] share: `|θ|²`, and `(|θ|, sin |θ|, cos |θ|)` unless
-/// `|θ|² < 1e-8`, where both use their Taylor series instead.
-struct RotationTrig<T> {
-    angle2: T,
-    trig: Option<(T, T, T)>,
+/// The coefficients of the rotation functions of a rotation vector of
+/// angle `x = |θ|` (rad): `sin x / x`, `(1 − cos x)/x²` and
+/// `(x − sin x)/x³`, which [`dcm`] (`I − a[θ×] + b[θ×]²` with the first two)
+/// and [`right_jacobian`] (with the last two) share.
+///
+/// Below `x² = 1e-8` from two terms of their Taylor series (truncation
+/// < 1e-18); below `x² = 1e-2` (0.1 rad: the installation angles, a
+/// period's commanded increment, M1's misalignment) from five, by Horner
+/// (truncation < 3e-18, and no cancellation: `1 − cos x` and `x − sin x`
+/// of x = 1.7e-3 rad lose 1e-10 of their value to it, and `sin`/`cos` cost
+/// ≈ 2 000 instructions each where f64 is emulated); above, from `sin x`
+/// and `cos x`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct RotationCoefficients<T> {
+    /// `sin x / x`.
+    sinc: T,
+    /// `(1 − cos x)/x²`.
+    cosc: T,
+    /// `(x − sin x)/x³`.
+    sinc3: T,
 }
 
-impl<T: RealField + Copy> RotationTrig<T> {
-    fn new(theta: &Vector3<T>) -> Self {
-        let angle2 = theta.norm_squared();
-        let trig = (angle2 >= nalgebra::convert(1e-8)).then(|| {
-            let angle = angle2.sqrt();
-            (angle, sin(angle), cos(angle))
-        });
-        Self { angle2, trig }
+impl<T: RealField + Copy> RotationCoefficients<T> {
+    /// The coefficients of the angle whose square is `angle2` (rad²).
+    fn new(angle2: T) -> Self {
+        let c = |v: f64| -> T { nalgebra::convert(v) };
+        let y = angle2;
+        if y < c(1e-8) {
+            Self {
+                sinc: T::one() - y / c(6.0),
+                cosc: T::one() / c(2.0) - y / c(24.0),
+                sinc3: T::one() / c(6.0) - y / c(120.0),
+            }
+        } else if y < c(1e-2) {
+            // Σ (−y)ⁿ / (2n+1)!, Σ (−y)ⁿ / (2n+2)!, Σ (−y)ⁿ / (2n+3)!, n = 0..4.
+            let horner =
+                |k: [f64; 5]| c(k[0]) - y * (c(k[1]) - y * (c(k[2]) - y * (c(k[3]) - y * c(k[4]))));
+            Self {
+                sinc: horner([1.0, 1.0 / 6.0, 1.0 / 120.0, 1.0 / 5040.0, 1.0 / 362_880.0]),
+                cosc: horner([
+                    0.5,
+                    1.0 / 24.0,
+                    1.0 / 720.0,
+                    1.0 / 40_320.0,
+                    1.0 / 3_628_800.0,
+                ]),
+                sinc3: horner([
+                    1.0 / 6.0,
+                    1.0 / 120.0,
+                    1.0 / 5040.0,
+                    1.0 / 362_880.0,
+                    1.0 / 39_916_800.0,
+                ]),
+            }
+        } else {
+            let x = y.sqrt();
+            let (s, co) = (sin(x), cos(x));
+            Self {
+                sinc: s / x,
+                cosc: (T::one() - co) / y,
+                sinc3: (x - s) / (y * x),
+            }
+        }
     }
 
-    /// [`dcm`] of `theta` (whose trigonometry this is).
+    /// [`dcm`] of `theta` (whose coefficients these are).
     fn dcm(&self, theta: &Vector3<T>) -> Matrix3<T> {
-        let angle2 = self.angle2;
-        let (a, b) = match self.trig {
-            None => {
-                // Taylor series of sin(x)/x and (1-cos x)/x², accurate to < 1e-24.
-                let six: T = nalgebra::convert(6.0);
-                let two: T = nalgebra::convert(2.0);
-                let twenty_four: T = nalgebra::convert(24.0);
-                (
-                    T::one() - angle2 / six,
-                    T::one() / two - angle2 / twenty_four,
-                )
-            }
-            Some((angle, s, c)) => (s / angle, (T::one() - c) / angle2),
-        };
-        Matrix3::identity() - skew(theta) * a + skew_squared(theta) * b
+        Matrix3::identity() - skew(theta) * self.sinc + skew_squared(theta) * self.cosc
     }
 
-    /// [`right_jacobian`] of `theta` (whose trigonometry this is).
+    /// [`right_jacobian`] of `theta` (whose coefficients these are).
     fn right_jacobian(&self, theta: &Vector3<T>) -> Matrix3<T> {
-        let angle2 = self.angle2;
-        let (a, b) = match self.trig {
-            None => {
-                let two: T = nalgebra::convert(2.0);
-                let six: T = nalgebra::convert(6.0);
-                let twenty_four: T = nalgebra::convert(24.0);
-                let hundred_twenty: T = nalgebra::convert(120.0);
-                (
-                    T::one() / two - angle2 / twenty_four,
-                    T::one() / six - angle2 / hundred_twenty,
-                )
-            }
-            Some((angle, s, c)) => ((T::one() - c) / angle2, (angle - s) / (angle2 * angle)),
-        };
-        Matrix3::identity() - skew(theta) * a + skew_squared(theta) * b
+        Matrix3::identity() - skew(theta) * self.cosc + skew_squared(theta) * self.sinc3
     }
 }
 
@@ -204,7 +223,17 @@ pub fn angle_between<T: RealField + Copy>(a: &Matrix3<T>, b: &Matrix3<T>) -> T {
 /// Right Jacobian of the rotation vector, `J_r(θ)`, for the convention
 /// `R(θ) = exp(−[θ×])`: `R(θ + δ) ≈ (I − [(J_r(θ) δ)×]) R(θ)`.
 pub fn right_jacobian<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T> {
-    RotationTrig::new(theta).right_jacobian(theta)
+    RotationCoefficients::new(theta.norm_squared()).right_jacobian(theta)
+}
+
+/// `J_r(θ) v` ([`right_jacobian`] times a vector `v`) without forming the
+/// matrix: `v − a (θ × v) + b (θ × (θ × v))` with `a = (1 − cos x)/x²`,
+/// `b = (x − sin x)/x³`, `x = |θ|` (equal to `right_jacobian(θ) * v` to
+/// rounding).
+pub fn right_jacobian_times<T: RealField + Copy>(theta: &Vector3<T>, v: &Vector3<T>) -> Vector3<T> {
+    let k = RotationCoefficients::new(theta.norm_squared());
+    let tv = theta.cross(v);
+    v - tv * k.cosc + theta.cross(&tv) * k.sinc3
 }
 
 /// Inverse of [`right_jacobian`]: `J_r⁻¹(θ)`, the map from the angular rate
@@ -217,6 +246,15 @@ pub fn right_jacobian_inv<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T>
         let twelve: T = nalgebra::convert(12.0);
         let seven_twenty: T = nalgebra::convert(720.0);
         T::one() / twelve + angle2 / seven_twenty
+    } else if angle2 < nalgebra::convert(1e-2) {
+        // (1 − (x/2) cot(x/2))/x² = 1/12 + y/720 + y²/30240 + y³/1209600
+        // + y⁴/47900160 + …, y = x² (truncation < 1e-19 below 0.1 rad; see
+        // RotationCoefficients for why not sin and cos).
+        let k = |v: f64| -> T { nalgebra::convert(v) };
+        let y = angle2;
+        k(1.0 / 12.0)
+            + y * (k(1.0 / 720.0)
+                + y * (k(1.0 / 30_240.0) + y * (k(1.0 / 1_209_600.0) + y * k(1.0 / 47_900_160.0))))
     } else {
         let angle = angle2.sqrt();
         T::one() / angle2 - (T::one() + cos(angle)) / (two * angle * sin(angle))
@@ -430,11 +468,22 @@ impl<T: RealField + Copy> EulerTrig<T> {
             }
             let d2 = d * d;
             let k = |v: f64| -> T { nalgebra::convert(v) };
-            // sin δ = δ(1 − δ²/6 + δ⁴/120 − δ⁶/5040), cos δ − 1 = −δ²/2 + δ⁴/24 − δ⁶/720 + δ⁸/40320.
-            let sd =
-                d * (T::one() - d2 * (k(1.0 / 6.0) - d2 * (k(1.0 / 120.0) - d2 * k(1.0 / 5040.0))));
-            let cd_1 = -d2
-                * (k(0.5) - d2 * (k(1.0 / 24.0) - d2 * (k(1.0 / 720.0) - d2 * k(1.0 / 40_320.0))));
+            // sin δ = δ(1 − δ²/6 + δ⁴/120 − δ⁶/5040), cos δ − 1 = −δ²/2 + δ⁴/24 − δ⁶/720 + δ⁸/40320;
+            // up to |δ| = 4e-3 rad (a period's step on the paper's path) the
+            // last terms are below 1e-20 and left out.
+            let (sd, cd_1) = if d.abs() <= k(4e-3) {
+                (
+                    d * (T::one() - d2 * (k(1.0 / 6.0) - d2 * k(1.0 / 120.0))),
+                    -d2 * (k(0.5) - d2 * (k(1.0 / 24.0) - d2 * k(1.0 / 720.0))),
+                )
+            } else {
+                (
+                    d * (T::one()
+                        - d2 * (k(1.0 / 6.0) - d2 * (k(1.0 / 120.0) - d2 * k(1.0 / 5040.0)))),
+                    -d2 * (k(0.5)
+                        - d2 * (k(1.0 / 24.0) - d2 * (k(1.0 / 720.0) - d2 * k(1.0 / 40_320.0)))),
+                )
+            };
             (s + (s * cd_1 + c * sd), c + (c * cd_1 - s * sd))
         };
         Self {
@@ -642,6 +691,65 @@ mod tests {
         a.iter()
             .zip(b.iter())
             .all(|(x, y)| x.to_bits() == y.to_bits() || (*x == 0.0 && *y == 0.0))
+    }
+
+    /// The series of the rotation coefficients against their closed forms,
+    /// which lose `ε/x²` to cancellation (`1 − cos x`, `x − sin x`, the
+    /// inverse Jacobian's `1/x² − …`), from 1e-4 rad to the 0.1 rad
+    /// threshold, and continuity there.
+    #[test]
+    fn rotation_series_agree_with_the_closed_forms() {
+        let eps = f64::EPSILON;
+        for i in 0..=400 {
+            let x = 1e-4 * 10f64.powf(3.0 * f64::from(i) / 400.0) * 0.9999;
+            let y = x * x;
+            let k = RotationCoefficients::new(y);
+            let (s, c) = (x.sin(), x.cos());
+            let cancel = 4.0 * eps / y;
+            assert!((k.sinc - s / x).abs() <= 4.0 * eps, "sinc at {x}");
+            assert!(
+                (k.cosc - (1.0 - c) / y).abs() <= 4.0 * eps + cancel,
+                "cosc at {x}"
+            );
+            assert!(
+                (k.sinc3 - (x - s) / (y * x)).abs() <= 4.0 * eps + cancel,
+                "sinc3 at {x}"
+            );
+            let theta = Vector3::new(0.6 * x, -0.8 * x, 0.0);
+            let jinv = right_jacobian_inv(&theta);
+            let closed = 1.0 / y - (1.0 + c) / (2.0 * x * s);
+            let from_series = (jinv - Matrix3::identity() - skew(&theta) / 2.0).m11 / (-y * 0.64);
+            // m11 of [θ×]² is −(θy² + θz²) = −0.64 y.
+            assert!(
+                (from_series - closed).abs() <= 8.0 * eps + cancel,
+                "J_r⁻¹ at {x}"
+            );
+        }
+        // Either side of the thresholds (1e-8 and 1e-2 rad²).
+        for y in [1e-8f64, 1e-2] {
+            let (below, above) = (
+                RotationCoefficients::new(y * (1.0 - 1e-12)),
+                RotationCoefficients::new(y),
+            );
+            // Rounding, plus the functions' own change over 1e-12 of y.
+            let tol = 4.0 * eps + 1e-12 * y;
+            assert!((below.sinc - above.sinc).abs() < tol, "sinc at {y}");
+            assert!((below.cosc - above.cosc).abs() < tol, "cosc at {y}");
+            assert!((below.sinc3 - above.sinc3).abs() < tol, "sinc3 at {y}");
+        }
+    }
+
+    #[test]
+    fn right_jacobian_times_a_vector_is_the_product() {
+        for (i, a) in angles().enumerate() {
+            let theta = Vector3::new(a, 0.3 - 0.2 * a, 1e-3 * f64::from(i as u8)) * 0.05;
+            let v = Vector3::new(7.3e-5, -2.1e-5, 4.4e-5 + 1e-6 * a);
+            let d = right_jacobian_times(&theta, &v) - right_jacobian(&theta) * v;
+            assert!(
+                d.amax() <= 4.0 * f64::EPSILON * v.amax(),
+                "at {theta:?}: {d:?}"
+            );
+        }
     }
 
     #[test]
