@@ -59,8 +59,9 @@ pub fn dcm<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T> {
 }
 
 /// [`dcm`] and [`right_jacobian`] of one rotation vector `θ` (rad) on one
-/// evaluation of their coefficients ([`RotationCoefficients`]; the same
-/// values as the two functions apart).
+/// evaluation of their coefficients (`sin x / x`, `(1 − cos x)/x²`,
+/// `(x − sin x)/x³` of `x = |θ|`; the same values as the two functions
+/// apart).
 pub fn dcm_and_right_jacobian<T: RealField + Copy>(theta: &Vector3<T>) -> (Matrix3<T>, Matrix3<T>) {
     let k = RotationCoefficients::new(theta.norm_squared());
     (k.dcm(theta), k.right_jacobian(theta))

@@ -1075,7 +1075,7 @@ impl Layout {
         out: &mut PeriodPropagation<J, N>,
     ) -> Option<()> {
         let [_, wm, w1] = period.omega_c;
-        let [_, att_mid, att1] = self.trajectory_in(env_j, m_j, att0, period)?;
+        let [_, att_mid, att1] = self.trajectory(env_j, m_j, att0, period)?;
         let j = |v: &Vector3<f64>| v.map(nalgebra::convert::<f64, J>);
         let (att_mid_j, att1_j) = (j(&att_mid), j(&att1));
         out.f_mid = self.attitude_rate_jacobian(env_j, m_j, &att_mid_j, &j(&wm))?;
@@ -1093,24 +1093,13 @@ impl Layout {
 
     /// The attitude at the period's three nodes: one RK4 step driven by the
     /// commanded rate at the nodes, the midpoint from the cubic Hermite
-    /// interpolant (see [`Layout::propagate`]). `None` at gimbal lock.
-    fn trajectory<T: RealField + Copy>(
-        &self,
-        env: &Environment<T>,
-        m: &InstallationMatrices<T>,
-        att0: &Vector3<T>,
-        period: &Period<T>,
-    ) -> Option<[Vector3<T>; 3]> {
-        self.trajectory_in(env, m, att0, period)
-    }
-
-    /// [`Layout::trajectory`] of an attitude held in precision `P` whose
-    /// rates, and so its increments over the period, are evaluated in
-    /// precision `J` on `env_j` and `m_j`: the nodes are `att0` plus
-    /// increments rounded to `J`. For `J = P` it is [`Layout::trajectory`]
-    /// (the conversions are the identity); `P = f64`, `J = f32` is
+    /// interpolant (see [`Layout::propagate`]); `None` at gimbal lock. The
+    /// attitude `att0` is held in precision `P`, its rates, and so its
+    /// increments over the period, are evaluated in precision `J` on `env_j`
+    /// and `m_j`: the nodes are `att0` plus increments rounded to `J`. For
+    /// `J = P` the conversions are the identity; `P = f64`, `J = f32` is
     /// [`Layout::propagate_into_jacobians_in`]'s case (the error it makes).
-    fn trajectory_in<P: RealField + Copy, J: RealField + Copy>(
+    fn trajectory<P: RealField + Copy, J: RealField + Copy>(
         &self,
         env_j: &Environment<J>,
         m_j: &InstallationMatrices<J>,
