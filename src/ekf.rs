@@ -543,13 +543,15 @@ fn to_t<T: RealField + Copy, const R: usize, const C: usize>(
 }
 
 /// `H δ` (g, rad; Z components) in precision `T`, returned in f64: the
-/// linear term of the innovation, `δ` the (small) offset of the estimate
-/// from the linearisation point. `h` is the model's Jacobian, computed in
-/// `T`, so the product needs `T`'s digits only: on the paper's path `|H δ|` stays below ≈ 1e-5 g once the
-/// estimate is within a few σ of its linearisation point, whose f32
-/// rounding is ≈ 1e-12 g. On an FPU without double precision the f64
-/// product (6×18) costs ≈ 14 000 instructions. The same values as
-/// `h * delta` for `T = f64`.
+/// linear term of the innovation (or `Φ δ` of the linearised prediction),
+/// `δ` the small offset of the estimate from the linearisation point. `h`
+/// is the model's Jacobian, computed in `T`, so the product needs `T`'s
+/// digits only: with entries of `h` of order 1, a `δ` of 1e-4 rad (about
+/// σ of the weakest parameter, λy of M2-ps, 27″) gives `|H δ|` ≈ 1e-4 g,
+/// whose f32 rounding (≈ 1e-11 g) is five orders under the accelerometer
+/// noise (1e-6 g). On an FPU without double precision the f64 product is
+/// emulated (the M4F's linearised M2-ps period fell by 12 k instructions,
+/// BENCHMARKS.md). The same values as `h * delta` for `T = f64`.
 fn linear_term<T: RealField + Copy, const N: usize, const Z: usize>(
     h: &SMatrix<T, Z, N>,
     delta: &SVector<f64, N>,

@@ -76,9 +76,9 @@ pub fn dcm_and_right_jacobian<T: RealField + Copy>(theta: &Vector3<T>) -> (Matri
 /// < 1e-18); below `x² = 1e-2` (0.1 rad: the installation angles, a
 /// period's commanded increment, M1's misalignment) from five, by Horner
 /// (truncation < 3e-18, and no cancellation: `1 − cos x` and `x − sin x`
-/// of x = 1.7e-3 rad lose 1e-10 of their value to it, and `sin`/`cos` cost
-/// ≈ 2 000 instructions each where f64 is emulated); above, from `sin x`
-/// and `cos x`.
+/// of x = 1.7e-3 rad lose 1e-10 of their value to it; and where f64 is
+/// emulated, `sin` and `cos` are library calls of many emulated operations,
+/// the series 15); above, from `sin x` and `cos x`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct RotationCoefficients<T> {
     /// `sin x / x`.
@@ -460,8 +460,9 @@ impl<T: RealField + Copy> EulerTrig<T> {
     /// < 1e-17; the result is within a few ulp of [`EulerTrig::new`]), and
     /// by [`EulerTrig::new`]'s sine and cosine elsewhere. A period's nodes
     /// are a few mrad apart, and on an FPU without double precision a
-    /// sine-cosine pair in f64 costs ≈ 4 000 instructions, the series ≈ 15
-    /// operations.
+    /// sine-cosine pair in f64 is a library call of many emulated
+    /// operations, the series ≈ 15 (on the M4F the f32 filter's linearised
+    /// M2-ps period fell by 8 k instructions, BENCHMARKS.md).
     pub fn advanced_by(&self, angles: &Vector3<T>, delta: &Vector3<T>) -> Self {
         let step = |(s, c): (T, T), a: T, d: T| -> (T, T) {
             if d.abs() > nalgebra::convert(0.05) {
