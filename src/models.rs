@@ -796,26 +796,10 @@ impl Layout {
         c_rn: &Matrix3<T>,
         c_cn: &Matrix3<T>,
     ) -> Matrix3<T> {
-        let rot = match self.attitude {
-            AttitudeKind::Misalignment => dcm(att),
-            AttitudeKind::Gimbal | AttitudeKind::Attitude => gimbal_dcm(att),
-        };
-        self.platform_dcm_of(&rot, c_rn, c_cn)
-    }
-
-    /// [`Layout::platform_dcm`] from the attitude's rotation `rot` (`R(ψ)`
-    /// of M1's misalignment, the Euler DCM of M2/M3's gimbal angles and
-    /// M4's attitude).
-    fn platform_dcm_of<T: RealField + Copy>(
-        &self,
-        rot: &Matrix3<T>,
-        c_rn: &Matrix3<T>,
-        c_cn: &Matrix3<T>,
-    ) -> Matrix3<T> {
         match self.attitude {
-            AttitudeKind::Misalignment => rot * c_cn,
-            AttitudeKind::Gimbal => rot * c_rn,
-            AttitudeKind::Attitude => *rot,
+            AttitudeKind::Misalignment => dcm(att) * c_cn,
+            AttitudeKind::Gimbal => gimbal_dcm(att) * c_rn,
+            AttitudeKind::Attitude => gimbal_dcm(att),
         }
     }
 
@@ -1026,8 +1010,8 @@ impl Layout {
         Some(out)
     }
 
-    /// [`Layout::propagate`] written into `out` (the filter's pending slot:
-    /// no copy of the result). On `None` `out` holds a partial result.
+    /// [`Layout::propagate`] written into `out`. On `None` `out` holds a
+    /// partial result.
     pub fn propagate_into<T: RealField + Copy, const N: usize>(
         &self,
         env: &Environment<T>,
@@ -1036,53 +1020,42 @@ impl Layout {
         period: &Period<T>,
         out: &mut PeriodPropagation<T, N>,
     ) -> Option<()> {
-        let dt = period.dt;
-        let [_, wm, w1] = period.omega_c;
-        let [_, att_mid, att1] = self.trajectory(env, m, att0, period)?;
-        out.f_mid = self.attitude_rate_jacobian(env, m, &att_mid, &wm)?;
-        out.f_end = self.attitude_rate_jacobian(env, m, &att1, &w1)?;
-        out.phi_att = transition_rows(&out.f_mid, dt);
-        out.noise_map = self.noise_map(&att_mid)?;
-        out.att = [att0.clone_owned(), att_mid, att1];
-        if att1.iter().chain(out.phi_att.iter()).all(|v| v.is_finite()) {
-            Some(())
-        } else {
-            None
-        }
+        let mut att = [Vector3::zeros(); 3];
+        self.propagate_into_jacobians_in(env, m, att0, period, &mut att, out)
     }
 
-    /// [`Layout::propagate_into`] with the attitude in f64 and everything
-    /// else evaluated in precision `J` on `env_j` and `m_j` (the environment
-    /// and installation matrices in `J`): the attitude at the three nodes
-    /// into `att` (f64), the same rounded to `J` and the Jacobians into
-    /// `out` (for `J = f64`, the values of [`Layout::propagate_into`]). In `J`:
-    /// the
-    /// attitude's increments over the period (the RK4 stages) and the
-    /// Jacobians (`F` at the midpoint and the end, the transition rows, the
-    /// noise map). A single-precision filter needs its Jacobians to a few
-    /// digits only, and the increments are small: ≈ 1.7e-3 rad per period on
-    /// the paper's path (0.1 °/s, 1 s), exact in f32 to ≈ 3e-7 of
-    /// themselves, ≈ 5e-10 rad, three orders of magnitude under the paper's
-    /// gyro noise over a period (0.1 °/h · 1 s ≈ 4.8e-7 rad). On an FPU
-    /// without double precision they would otherwise be emulated f64.
-    pub fn propagate_into_jacobians_in<J: RealField + Copy, const N: usize>(
+    /// [`Layout::propagate_into`] with the attitude held in precision `P`
+    /// and everything else evaluated in precision `J` on `env_j` and `m_j`
+    /// (the environment and installation matrices in `J`): the attitude at
+    /// the three nodes into `att` (in `P`), the same rounded to `J` and the
+    /// Jacobians into `out`; for `J = P` the conversions are the identity,
+    /// which is [`Layout::propagate_into`]. In `J`: the attitude's
+    /// increments over the period (the RK4 stages) and the Jacobians (`F` at
+    /// the midpoint and the end, the transition rows, the noise map). A
+    /// single-precision filter (the filter's pending slot, `P = f64`,
+    /// `J = f32`) needs its Jacobians to a few digits only, and the
+    /// increments are small: ≈ 1.7e-3 rad per period on the paper's path
+    /// (0.1 °/s, 1 s), exact in f32 to ≈ 3e-7 of themselves, ≈ 5e-10 rad,
+    /// three orders of magnitude under the paper's gyro noise over a period
+    /// (0.1 °/h · 1 s ≈ 4.8e-7 rad). On an FPU without double precision
+    /// they would otherwise be emulated f64.
+    pub fn propagate_into_jacobians_in<P: RealField + Copy, J: RealField + Copy, const N: usize>(
         &self,
         env_j: &Environment<J>,
         m_j: &InstallationMatrices<J>,
-        att0: &Vector3<f64>,
-        period: &Period<f64>,
-        att: &mut [Vector3<f64>; 3],
+        att0: &Vector3<P>,
+        period: &Period<P>,
+        att: &mut [Vector3<P>; 3],
         out: &mut PeriodPropagation<J, N>,
     ) -> Option<()> {
         let [_, wm, w1] = period.omega_c;
         let [_, att_mid, att1] = self.trajectory(env_j, m_j, att0, period)?;
-        let j = |v: &Vector3<f64>| v.map(nalgebra::convert::<f64, J>);
-        let (att_mid_j, att1_j) = (j(&att_mid), j(&att1));
-        out.f_mid = self.attitude_rate_jacobian(env_j, m_j, &att_mid_j, &j(&wm))?;
-        out.f_end = self.attitude_rate_jacobian(env_j, m_j, &att1_j, &j(&w1))?;
-        out.phi_att = transition_rows(&out.f_mid, nalgebra::convert::<f64, J>(period.dt));
+        let (att_mid_j, att1_j) = (vector_in(&att_mid)?, vector_in(&att1)?);
+        out.f_mid = self.attitude_rate_jacobian(env_j, m_j, &att_mid_j, &vector_in(&wm)?)?;
+        out.f_end = self.attitude_rate_jacobian(env_j, m_j, &att1_j, &vector_in(&w1)?)?;
+        out.phi_att = transition_rows(&out.f_mid, scalar_in(period.dt)?);
         out.noise_map = self.noise_map(&att_mid_j)?;
-        out.att = [j(att0), att_mid_j, att1_j];
+        out.att = [vector_in(att0)?, att_mid_j, att1_j];
         *att = [*att0, att_mid, att1];
         if att1.iter().all(|v| v.is_finite()) && out.phi_att.iter().all(|v| v.is_finite()) {
             Some(())
@@ -1106,16 +1079,9 @@ impl Layout {
         att0: &Vector3<P>,
         period: &Period<P>,
     ) -> Option<[Vector3<P>; 3]> {
-        // Through f64, exact for f32 and f64 either way.
-        let scalar_j = |x: P| x.to_subset().map(|v: f64| J::from_subset(&v));
-        let to_j = |v: &Vector3<P>| -> Option<Vector3<J>> {
-            Some(Vector3::new(scalar_j(v.x)?, scalar_j(v.y)?, scalar_j(v.z)?))
-        };
-        let to_p = |v: Vector3<J>| -> Option<Vector3<P>> {
-            let scalar_p = |x: J| x.to_subset().map(|v: f64| P::from_subset(&v));
-            Some(Vector3::new(scalar_p(v.x)?, scalar_p(v.y)?, scalar_p(v.z)?))
-        };
-        let dt: J = scalar_j(period.dt)?;
+        let to_j = vector_in::<P, J>;
+        let to_p = |v: Vector3<J>| vector_in::<J, P>(&v);
+        let dt: J = scalar_in(period.dt)?;
         let half: J = nalgebra::convert(0.5);
         let two: J = nalgebra::convert(2.0);
         let six: J = nalgebra::convert(6.0);
@@ -1263,6 +1229,21 @@ impl Layout {
         put3(&mut out, ATT, &end);
         Some(out)
     }
+}
+
+/// `x` (precision `P`) in precision `J`, through f64: exact between f32 and
+/// f64 either way (rounded from f64 to f32). `None` if `x` has no f64 value.
+fn scalar_in<P: RealField + Copy, J: RealField + Copy>(x: P) -> Option<J> {
+    x.to_subset().map(|v: f64| J::from_subset(&v))
+}
+
+/// [`scalar_in`] of each component.
+fn vector_in<P: RealField + Copy, J: RealField + Copy>(v: &Vector3<P>) -> Option<Vector3<J>> {
+    Some(Vector3::new(
+        scalar_in(v.x)?,
+        scalar_in(v.y)?,
+        scalar_in(v.z)?,
+    ))
 }
 
 /// Attitude rows of `exp(F τ)` to second order for `F = [[F_a, F_p],[0, 0]]`:
