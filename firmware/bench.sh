@@ -104,8 +104,9 @@ echo "## Static stack use (tools/stack-usage.py: every sp decrement of a functio
 # One filter step is `Filter::step_with` (`step` is inlined into it); the
 # second figure leaves out the out-of-line branches of the options that are
 # off by default (second-order dynamics, the iterated update), which the
-# painted runs never enter.
-OFF_BY_DEFAULT='second_order_dynamics|iterated_innovation'
+# painted runs never enter and a flight image (without the cargo feature
+# research-options) does not link.
+OFF_BY_DEFAULT='second_order_dynamics|update_iterated|iterated_innovation'
 for v in m4f m7; do
     echo "$v:"
     su=$(python3 "$ROOT/tools/stack-usage.py" "$(elf_of $v)" '^main @|Filter<.*>::step_with @' | grep -E 'deepest' || true)

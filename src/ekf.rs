@@ -391,22 +391,6 @@ impl PartialEq for MatricesCache {
 }
 
 impl MatricesCache {
-    /// The matrices of the parameters of `x`, from the cache when they are
-    /// the cached ones (a reference into the cache or into `fresh`).
-    fn get<'a, const N: usize>(
-        &'a self,
-        layout: &Layout,
-        x: &SVector<f64, N>,
-        fresh: &'a mut Option<InstallationMatrices<f64>>,
-    ) -> &'a InstallationMatrices<f64> {
-        let params = layout.installation(x);
-        if params == self.0.params {
-            &self.0
-        } else {
-            fresh.insert(InstallationMatrices::new(params))
-        }
-    }
-
     /// Makes the cache hold the matrices of the parameters of `x`.
     fn refresh<const N: usize>(&mut self, layout: &Layout, x: &SVector<f64, N>) {
         let params = layout.installation(x);
@@ -1013,10 +997,16 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// Predicted measurement, its Jacobian (w.r.t. the state at the end of
     /// the period) for the state `x` whose period trajectory is `prop`, and
     /// the measurement's share of the period's process noise (see [`Noise`]).
-    fn measure(&self, x: &SVector<f64, N>, pending: &Pending<T, N>) -> Measured<T, N, Z> {
+    /// `m` holds the installation matrices of `x`'s parameters: the caller
+    /// builds or refreshes them, so that their trigonometry is not nested
+    /// below the measurement model's frames on the stack.
+    fn measure(
+        &self,
+        x: &SVector<f64, N>,
+        pending: &Pending<T, N>,
+        m: &InstallationMatrices<f64>,
+    ) -> Measured<T, N, Z> {
         let layout = Self::LAYOUT;
-        let mut fresh = None;
-        let m = self.matrices.get(&layout, x, &mut fresh);
         let env = &self.config.env;
         let as_f64 = (&pending.prop as &dyn Any).downcast_ref::<PeriodPropagation<f64, N>>();
         let (za, ha, da): (_, SMatrix<T, 3, N>, _) = if let Some(prop) = as_f64 {
@@ -1106,14 +1096,14 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         &self,
         x: &SVector<f64, N>,
         pending: &Pending<T, N>,
+        m: &InstallationMatrices<f64>,
     ) -> (Vector3<f64>, Matrix3<f64>) {
         let layout = Self::LAYOUT;
         // In T: a weighting of the update, needed to a few digits.
         let env: Environment<T> = env_t(&self.config.env);
         let [_, _, c_end] = pending.period.c_cn;
         let c_end: Matrix3<T> = to_t(&c_end);
-        let mut fresh = None;
-        let m = self.matrices.get(&layout, x, &mut fresh).to_precision();
+        let m = m.to_precision();
         let x: SVector<T, N> = to_t(x);
         // P at the end of the period, element by element from its factor
         // (only the ≤ 12 states the accelerometers see; no N×N matrix, and
@@ -1178,15 +1168,20 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
 
     /// The EKF's update of the pending period (pass 1), with the
     /// cold-start remedies of [`Options`].
+    #[inline(never)]
     fn update_extended(
         &mut self,
         z: &SVector<f64, Z>,
         r: &SMatrix<T, Z, Z>,
     ) -> Result<Innovation<T, Z>, Error> {
+        // The matrices of the linearisation point (the cache holds them
+        // since `predict`: it changed only the attitude).
+        self.matrices.refresh(&Self::LAYOUT, &self.x);
+        let m = &self.matrices.0;
         let pending = self.pending.get().ok_or(Error::NoPrediction)?;
         let opts = self.config.options;
         let (mean2, cov2) = if opts.second_order_covariance || opts.second_order_mean {
-            self.second_order(&self.x, pending)
+            self.second_order(&self.x, pending, m)
         } else {
             (Vector3::zeros(), Matrix3::zeros())
         };
@@ -1203,28 +1198,46 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         // Linearised at the iterated filter's relinearisation point (IEKF),
         // else at the prediction; the update itself is always the factored
         // one.
-        let (nu, Measured { h, noise, .. }) = if iterations > 0 {
-            self.iterated_innovation(z, pending, &r_v, &mean2, iterations)?
-        } else {
-            self.innovation_at(z, &self.x, pending, &mean2)
-        };
-        let x_base = self.x;
-        self.factored(&h, &nu, &r_v, &noise, true, &x_base)
+        if iterations > 0 {
+            return self.update_iterated(z, &r_v, &mean2, iterations);
+        }
+        // Used in place (moving its parts out would copy them in this frame,
+        // which is on the deepest path of a step).
+        let (nu, measured) = &self.innovation_at(z, &self.x, pending, &mean2, m);
+        self.factored(&measured.h, nu, &r_v, &measured.noise, true, None)
+    }
+
+    /// [`Filter::update_extended`] linearised at the iterated EKF's
+    /// relinearisation point ([`Filter::iterated_innovation`]). Out of line:
+    /// its measurement model stays out of the frame of every update that
+    /// does not iterate (the default).
+    #[inline(never)]
+    fn update_iterated(
+        &mut self,
+        z: &SVector<f64, Z>,
+        r_v: &SMatrix<T, Z, Z>,
+        mean2: &Vector3<f64>,
+        iterations: u8,
+    ) -> Result<Innovation<T, Z>, Error> {
+        let pending = self.pending.get().ok_or(Error::NoPrediction)?;
+        let (nu, measured) = &self.iterated_innovation(z, pending, r_v, mean2, iterations)?;
+        self.factored(&measured.h, nu, r_v, &measured.noise, true, None)
     }
 
     /// The innovation `ν = z − h(x_i) − H (x̂ − x_i)` of the EKF update
     /// linearised at `x_lin` (trajectory `lin`), less the second-order mean
     /// `mean2` when enabled, gimbal components wrapped; with the measurement
-    /// model there.
+    /// model there. `m`: the installation matrices of `x_lin`.
     fn innovation_at(
         &self,
         z: &SVector<f64, Z>,
         x_lin: &SVector<f64, N>,
         lin: &Pending<T, N>,
         mean2: &Vector3<f64>,
+        m: &InstallationMatrices<f64>,
     ) -> (SVector<f64, Z>, Measured<T, N, Z>) {
         let layout = Self::LAYOUT;
-        let measured = self.measure(x_lin, lin);
+        let measured = self.measure(x_lin, lin, m);
         let mut nu = z - measured.z;
         nu -= linear_term::<T, N, Z>(&measured.h, &layout.difference(&self.x, x_lin));
         if self.config.options.second_order_mean {
@@ -1262,7 +1275,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             if it > 0 {
                 lin = self.retrace(&x_lin, pending)?;
             }
-            let (nu, Measured { h, noise, .. }) = self.innovation_at(z, &x_lin, &lin, mean2);
+            let m = Self::LAYOUT.matrices(&x_lin);
+            let (nu, Measured { h, noise, .. }) = self.innovation_at(z, &x_lin, &lin, mean2, &m);
             let noise = Noise {
                 g: to_f64(&noise.g),
                 d: to_f64(&noise.d),
@@ -1271,7 +1285,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             x_lin = self.x + gain.k * nu;
         }
         let lin = self.retrace(&x_lin, pending)?;
-        Ok(self.innovation_at(z, &x_lin, &lin, mean2))
+        let m = Self::LAYOUT.matrices(&x_lin);
+        Ok(self.innovation_at(z, &x_lin, &lin, mean2, &m))
     }
 
     /// The measurement noise covariance `R` (diagonal: gimbal σ² (rad²) in
@@ -1292,6 +1307,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// `h(x_nom)` for `None` (then `ν = −H (x̂ − x_nom)`; the covariance
     /// update does not depend on `z`; the update is not gated and `S` is
     /// not computed, see [`Filter::factored`]).
+    #[inline(never)]
     fn update_linearised(
         &mut self,
         z: Option<&SVector<f64, Z>>,
@@ -1301,7 +1317,9 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             return Err(Error::NoPrediction);
         };
         let layout = Self::LAYOUT;
-        let Measured { z: z_nom, h, noise } = self.measure(x_nom, pending);
+        // The nominal's matrices (the cache holds them since `predict`).
+        self.matrices.refresh(&layout, x_nom);
+        let Measured { z: z_nom, h, noise } = self.measure(x_nom, pending, &self.matrices.0);
         let delta = layout.difference(&self.x, x_nom);
         let h_delta = linear_term::<T, N, Z>(&h, &delta);
         let mut nu = match z {
@@ -1314,7 +1332,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             }
         }
         let x_base = x_nom + delta;
-        self.factored(&h, &nu, r, &noise, z.is_some(), &x_base)
+        self.factored(&h, &nu, r, &noise, z.is_some(), Some(&x_base))
     }
 
     /// The factored update of one period, measurement and time update
@@ -1340,8 +1358,9 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// time update. The factor is then updated in place (no copy of it;
     /// see [`Filter::update`] for what a failure part-way leaves). The
     /// reported NIS is that of the scalar updates (equal to `νᵀ S⁻¹ ν` in
-    /// exact arithmetic). On success the state becomes `x_base` plus the
-    /// correction and the pending period is cleared.
+    /// exact arithmetic). On success the state becomes `x_base` (`None`:
+    /// the estimate itself) plus the correction and the pending period is
+    /// cleared.
     ///
     /// `measured`: a real measurement: compute the innovation covariance
     /// `S` for the [`Innovation`] and apply the NIS gate; without it (the
@@ -1354,7 +1373,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         r_v: &SMatrix<T, Z, Z>,
         noise: &Noise<T, N, Z>,
         measured: bool,
-        x_base: &SVector<f64, N>,
+        x_base: Option<&SVector<f64, N>>,
     ) -> Result<Innovation<T, Z>, Error> {
         let half: T = nalgebra::convert(0.5);
         let phi_att: SMatrix<T, 3, N> = self.pending.get().ok_or(Error::NoPrediction)?.prop.phi_att;
@@ -1444,7 +1463,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         // x̂_{k+1} − x̂⁻_{k+1} = Φ δ + J (z − H Φ δ) for the correction δ at t_k.
         let d_att = phi_att * dx + j_l * (nu_w - h_w * dx);
         dx.fixed_rows_mut::<3>(ATT).copy_from(&d_att);
-        let x_new = x_base + to_f64(&dx);
+        let x_new = x_base.unwrap_or(&self.x) + to_f64(&dx);
         if !all_finite(x_new.iter().copied()) || !nis.is_finite() {
             return Err(Error::NonFiniteState);
         }
@@ -1537,7 +1556,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     ) -> Result<(SVector<f64, Z>, SMatrix<f64, Z, N>), Error> {
         let pending = self.pending.get().ok_or(Error::NoPrediction)?;
         let lin = self.retrace(x, pending)?;
-        let m = self.measure(x, &lin);
+        let m = self.measure(x, &lin, &Self::LAYOUT.matrices(x));
         Ok((m.z, to_f64(&m.h)))
     }
 }

@@ -1136,8 +1136,10 @@ impl Layout {
         let mut d = Matrix3::zeros();
         let back = [-period.dt, -period.dt * half, T::zero()];
         // F over [t_j, t_{k+1}]: the midpoint F for the whole period, the mean
-        // of the midpoint and end F (centred at 3T/4) for its second half.
-        let f_nodes = [prop.f_mid, (prop.f_mid + prop.f_end) * half, prop.f_end];
+        // of the midpoint and end F (centred at 3T/4) for its second half
+        // (by reference: no copies of the 3×N matrices in this frame).
+        let f_late = (prop.f_mid + prop.f_end) * half;
+        let f_nodes = [&prop.f_mid, &f_late, &prop.f_end];
         for ((((att, c_cn), w), tau), f) in prop
             .att
             .iter()
@@ -1256,10 +1258,16 @@ pub fn transition_rows<T: RealField + Copy, const N: usize>(
     let sixth: T = nalgebra::convert(1.0 / 6.0);
     let fa = attitude_columns(f) * tau;
     let fa2 = fa * fa;
-    let ft = f * tau;
     // (I + F_a τ/2 + (F_a τ)²/6) F τ, then the attitude block
     // I + F_a τ + (F_a τ)²/2 + (F_a τ)³/6 (error ≈ |F τ|⁴/24 < 1e-12).
-    let mut phi = ft + (fa * half + fa2 * sixth) * ft;
+    // One column at a time, in place: no 3×N temporary beside the result
+    // (the same operations as the whole-matrix products).
+    let mix = fa * half + fa2 * sixth;
+    let mut phi = f * tau;
+    for col in phi.data.0.iter_mut() {
+        let ft = Vector3::from(*col);
+        *col = (ft + mix * ft).into();
+    }
     let aa = Matrix3::identity() + fa + fa2 * half + fa2 * fa * sixth;
     set_cols(&mut phi, ATT, &aa);
     phi

@@ -5,7 +5,7 @@ Usage: tools/stack-usage.py [--exclude XREGEX]... ELF REGEX [REGEX...]
 
 `--exclude XREGEX`: calls into functions matching XREGEX are not followed
 (e.g. the out-of-line branches of options that are off by default:
-`Filter::second_order_dynamics`, `Filter::iterated_innovation`); the figure then
+`Filter::second_order_dynamics`, `Filter::update_iterated`); the figure then
 bounds the runs that never enter them, and says so.
 
 For every function it reads the whole body in `arm-none-eabi-objdump -d`
