@@ -38,7 +38,11 @@ import subprocess
 import sys
 
 HEAD = re.compile(r"^([0-9a-f]+) <(.*)>:$")
-INSN = re.compile(r"^\s*([0-9a-f]+):\t(\S+)(?:\t(.*))?$")
+INSN = re.compile(r"^\s*([0-9a-f]+):\t([0-9a-f ]+?)\s*\t(\S+)(?:\t(.*))?$")
+# The linker (lld) fills the gap between two functions with 0xd4d4
+# halfwords, which disassemble as `bmi.n` into the function before: a run
+# of them at the end of a body is padding, not a call.
+PADDING = "d4d4"
 TARGET = re.compile(r"^([0-9a-f]+) <")
 BRANCH = re.compile(r"^(bl|blx|b|cbz|cbnz|b(eq|ne|cs|hs|cc|lo|mi|pl|vs|vc|hi|ls|ge|lt|gt|le|al))(\.[nw])?$")
 
@@ -90,13 +94,15 @@ def main():
         excludes.append(re.compile(args[1]))
         args = args[2:]
     elf, pats = args[0], [re.compile(p) for p in args[1:]]
-    dis = subprocess.run(["arm-none-eabi-objdump", "-d", "--no-show-raw-insn", "-C", elf],
+    dis = subprocess.run(["arm-none-eabi-objdump", "-d", "-C", elf],
                          capture_output=True, text=True, check=True).stdout
     frames, dynamic, targets, order, start = {}, set(), {}, [], {}
     cur = None
+    padding = []  # branch targets of a trailing run of PADDING halfwords
     for line in dis.splitlines():
         m = HEAD.match(line)
         if m:
+            padding = []
             cur = m.group(2) + " @" + m.group(1).lstrip("0")
             frames[cur], targets[cur] = 0, set()
             order.append(cur)
@@ -107,11 +113,18 @@ def main():
         m = INSN.match(line)
         if not m:
             continue
-        op, args = m.group(2), (m.group(3) or "").strip()
+        raw, op, args = m.group(2), m.group(3), (m.group(4) or "").strip()
         if op in ("cbz", "cbnz"):
             args = args.split(",", 1)[-1].strip()
+        t = TARGET.match(args) if BRANCH.match(op) else None
+        if raw == PADDING:
+            # Padding if nothing but padding follows it in this body.
+            if t:
+                padding.append(int(t.group(1), 16))
+            continue
+        targets[cur].update(padding)
+        padding = []
         if BRANCH.match(op):
-            t = TARGET.match(args)
             if t:
                 targets[cur].add(int(t.group(1), 16))
             continue
@@ -131,19 +144,30 @@ def main():
     excluded = {f for f in order if any(x.search(f) for x in excludes)}
     calls = {f: cs - excluded for f, cs in calls.items()}
     memo = {}
+    recursive = set()
 
+    # A call back into a function already on the path (recursion) is cut
+    # there and reported; a result computed below such a cut depends on the
+    # path that led to it, so it is not memoised (a memoised cut result
+    # would under-report every later caller).
     def deepest(f, stack=()):
         if f in memo:
             return memo[f]
-        if f in stack or f not in frames:
-            return (0, [])
+        if f in stack:
+            recursive.add(f)
+            return (0, [], True)
+        if f not in frames:
+            return (0, [], False)
         best = (0, [])
+        cut = False
         for c in sorted(calls.get(f, ())):
             d = deepest(c, stack + (f,))
+            cut = cut or d[2]
             if d[0] > best[0]:
-                best = d
-        r = (frames[f] + best[0], [f] + best[1])
-        memo[f] = r
+                best = d[:2]
+        r = (frames[f] + best[0], [f] + best[1], cut)
+        if not cut:
+            memo[f] = r
         return r
 
     sys.setrecursionlimit(10000)
@@ -153,8 +177,10 @@ def main():
 
     for f in order:
         if any(p.search(f) for p in pats):
-            total, path = deepest(f)
+            total, path, cut = deepest(f)
             flag = " (? dynamic sp adjustment on the path: not bounded)" if any(g in dynamic for g in path) else ""
+            if cut:
+                flag += " (recursion below it, cut at: " + ", ".join(sorted(short(g) for g in recursive)) + ")"
             if excluded:
                 flag += " (calls into " + ", ".join(x.pattern for x in excludes) + " not followed)"
             print(f"{short(f)}: own frame {frames[f]} B, deepest call path {total} B{flag}:")
