@@ -696,7 +696,7 @@ impl DecoderStats {
         .fold(0u32, |a, b| a.saturating_add(*b))
     }
 
-    fn count(&mut self, r: &Result<Message, FrameError>) {
+    fn count<R>(&mut self, r: &Result<R, FrameError>) {
         let c = match r {
             Ok(_) => &mut self.ok,
             Err(FrameError::Corrupt) => &mut self.corrupt,
@@ -744,6 +744,20 @@ fn cobs_decode_in_place(buf: &mut [u8]) -> Option<usize> {
 /// Decodes one frame given without its delimiter, in place (the buffer is
 /// overwritten).
 pub fn decode_frame(frame: &mut [u8]) -> Result<Message, FrameError> {
+    message_of(frame_payload(frame)?)
+}
+
+/// [`decode_frame`] with the message written into `msg` (what it held is
+/// replaced; untouched on error). A message is ≈ 3 KB (a checkpoint's size,
+/// whatever it holds): a firmware that keeps `msg` in static memory has no
+/// second copy of it on its stack.
+pub fn decode_frame_into(frame: &mut [u8], msg: &mut Message) -> Result<(), FrameError> {
+    message_into(frame_payload(frame)?, msg)
+}
+
+/// The postcard payload of a frame (COBS decoded in place; length, CRC and
+/// version checked).
+fn frame_payload(frame: &mut [u8]) -> Result<&[u8], FrameError> {
     let n = cobs_decode_in_place(frame).ok_or(FrameError::Truncated)?;
     let raw = frame.get(..n).ok_or(FrameError::Truncated)?;
     if n < MIN_DECODED_LEN {
@@ -759,8 +773,27 @@ pub fn decode_frame(frame: &mut [u8]) -> Result<Message, FrameError> {
     if version != VERSION {
         return Err(FrameError::WrongVersion(version));
     }
+    Ok(payload)
+}
+
+/// The message of a frame's payload: all of it, nothing left over.
+fn message_of(payload: &[u8]) -> Result<Message, FrameError> {
     match postcard::take_from_bytes::<Message>(payload) {
         Ok((msg, [])) => Ok(msg),
+        _ => Err(FrameError::Malformed),
+    }
+}
+
+/// [`message_of`] written into `msg` (untouched on error). Out of line:
+/// the decoding's copies of the message are in this frame only, not in
+/// its callers'.
+#[inline(never)]
+fn message_into(payload: &[u8], msg: &mut Message) -> Result<(), FrameError> {
+    match postcard::take_from_bytes::<Message>(payload) {
+        Ok((m, [])) => {
+            *msg = m;
+            Ok(())
+        }
         _ => Err(FrameError::Malformed),
     }
 }
@@ -825,6 +858,31 @@ impl<const CAP: usize> Decoder<CAP> {
     // frame, which holds the message while it is handled (firmware stack).
     #[inline(never)]
     pub fn push_byte(&mut self, byte: u8) -> Option<Result<Message, FrameError>> {
+        self.push_byte_with(byte, decode_frame)
+    }
+
+    /// [`Decoder::push_byte`] with a decoded message written into `msg`
+    /// (what it held is replaced; it is untouched when the frame is
+    /// rejected): `Some(Ok(()))` when `msg` holds a new message. A message
+    /// is ≈ 3 KB (a checkpoint's size, whatever it holds): a firmware that
+    /// keeps `msg` in static memory has none in its frames
+    /// ([`decode_frame_into`]).
+    #[inline(never)]
+    pub fn push_byte_into(
+        &mut self,
+        byte: u8,
+        msg: &mut Message,
+    ) -> Option<Result<(), FrameError>> {
+        self.push_byte_with(byte, |frame| decode_frame_into(frame, msg))
+    }
+
+    /// Accepts one byte; at a delimiter decodes the frame with `decode`
+    /// and counts the outcome.
+    fn push_byte_with<R>(
+        &mut self,
+        byte: u8,
+        decode: impl FnOnce(&mut [u8]) -> Result<R, FrameError>,
+    ) -> Option<Result<R, FrameError>> {
         if byte != 0 {
             if self.overflow {
                 return None;
@@ -847,7 +905,7 @@ impl<const CAP: usize> Decoder<CAP> {
             return None;
         } else {
             match self.buf.get_mut(..len) {
-                Some(frame) => decode_frame(frame),
+                Some(frame) => decode(frame),
                 None => Err(FrameError::Oversized),
             }
         };

@@ -41,7 +41,7 @@ use rollcal::calibrator::RejectReason;
 use rollcal::estimator::{EstimatorOptions, LogRecord, SampleLog, SliceLog};
 use rollcal::session::{Reply, Request, Session, SessionError};
 use rollcal::wire::{
-    decode_frame, encode, CalibratorConfig, EstimateKind, FrameDecoder, Message, MAX_FRAME_LEN,
+    decode_frame_into, encode, CalibratorConfig, EstimateKind, FrameDecoder, Message, MAX_FRAME_LEN,
 };
 use rollcal::Options;
 
@@ -83,14 +83,18 @@ fn log_storage() -> Option<&'static mut [LogRecord<Real>]> {
 }
 
 /// The stream's large state: the session (its calibrator, ≈ 6 KB), the
-/// frame decoder's buffer and the reply buffer (4 KB each). A static, not
-/// `run`'s locals: `main`'s frame, which every path of the firmware pays,
-/// would otherwise hold them (27 KB of frame on the M7 before). Only
-/// [`state`] touches it.
+/// frame decoder's buffer and the reply buffer (4 KB each), the last
+/// decoded message and the session's reply to it (≈ 3 KB each, the size of
+/// a checkpoint). A static, not `run`'s locals: `main`'s frame, which every
+/// path of the firmware pays, would otherwise hold them (27 KB of frame on
+/// the M7 before), and the message and the reply would be in the frames
+/// below which the estimator of record runs. Only [`state`] touches it.
 struct State {
     session: Session<Real>,
     decoder: FrameDecoder,
     out: [u8; MAX_FRAME_LEN],
+    message: Message,
+    reply: Reply,
 }
 
 static mut STATE: MaybeUninit<State> = MaybeUninit::uninit();
@@ -113,6 +117,8 @@ fn state() -> Option<&'static mut State> {
         addr_of_mut!((*base).session).write(Session::new(None, EstimatorOptions::default()));
         addr_of_mut!((*base).decoder).write(FrameDecoder::new());
         addr_of_mut!((*base).out).write([0; MAX_FRAME_LEN]);
+        addr_of_mut!((*base).message).write(Message::Reset);
+        addr_of_mut!((*base).reply).write(Reply::Nothing);
         Some(&mut *base)
     }
 }
@@ -164,11 +170,14 @@ enum Flow {
 }
 
 /// The stream's state: the protocol session (`rollcal::session`, the same
-/// one `host-sim calibrate` drives), its log, the reply link.
+/// one `host-sim calibrate` drives), its log, its reply, the reply link.
 struct Stream<'a> {
     args: &'a Args,
     link: Link,
     session: &'static mut Session<Real>,
+    /// What the session answered to the last message
+    /// (`Session::handle_into`).
+    reply: &'static mut Reply,
     log: SliceLog<'static, Real>,
     totals: Totals,
     /// The decoder's count of rejected frames, told to every calibrator.
@@ -197,15 +206,14 @@ impl Stream<'_> {
     /// receive loop's frame.
     #[inline(never)]
     fn other(&mut self, msg: &Message) {
-        let reply = self.session.handle(msg, &mut self.log);
-        self.reply(&reply);
+        self.session.handle_into(msg, &mut self.log, self.reply);
+        self.send_reply();
     }
 
-    /// Sends what the session answered, or logs why it could not act.
-    // By reference, as every message here: a reply moved in by value is
-    // a second copy (3 KB) in the caller's frame.
-    fn reply(&mut self, reply: &Reply) {
-        match reply {
+    /// Sends what the session answered (`self.reply`), or logs why it could
+    /// not act.
+    fn send_reply(&mut self) {
+        match &*self.reply {
             Reply::Send(m) => {
                 if let Message::Estimate(_) = m {
                     self.totals.estimates += 1;
@@ -252,10 +260,10 @@ impl Stream<'_> {
     fn sample(&mut self, msg: &Message, seq: u32) {
         self.totals.samples += 1;
         rollcal_mark_period_start();
-        let reply = self.session.handle(msg, &mut self.log);
+        self.session.handle_into(msg, &mut self.log, self.reply);
         rollcal_mark_period_end();
         let t = &mut self.totals;
-        match &reply {
+        match &*self.reply {
             Reply::Error(SessionError::NotConfigured) => {
                 t.dropped += 1;
                 if t.dropped == 1 {
@@ -285,11 +293,16 @@ impl Stream<'_> {
                     defmt::warn!("sample {} rejected: {}", seq, reason);
                 }
             }
-            _ => self.reply(&reply),
+            _ => self.send_reply(),
         }
-        if self.args.checkpoint_at != 0 && self.totals.samples == self.args.checkpoint_at {
-            self.selftest_checkpoint();
-        }
+    }
+
+    /// Whether the sample just handled is the one after which
+    /// `selftest=checkpoint-at=N` checkpoints and restores.
+    fn selftest_due(&self, msg: &Message) -> bool {
+        matches!(msg, Message::Sample(_))
+            && self.args.checkpoint_at != 0
+            && self.totals.samples == self.args.checkpoint_at
     }
 
     /// `Finish`: the estimator of record over the log, the final estimate.
@@ -298,9 +311,10 @@ impl Stream<'_> {
         rollcal_mark_finish_start();
         // A request, not `&Message::Finish`: that constant would be
         // message-sized (3 KB of flash).
-        let reply = self.session.request(Request::Finish, &mut self.log);
+        self.session
+            .request_into(Request::Finish, &mut self.log, self.reply);
         rollcal_mark_finish_end();
-        match &reply {
+        match &*self.reply {
             Reply::Send(Message::Estimate(est)) => match est.kind {
                 EstimateKind::Final { passes, converged } => {
                     self.totals.finals += 1;
@@ -322,7 +336,7 @@ impl Stream<'_> {
             Reply::Error(e) => defmt::error!("Finish: no estimate ({})", e),
             _ => {}
         }
-        self.reply(&reply);
+        self.send_reply();
         if self.args.exit_on_request {
             self.totals.logged = u32::try_from(self.log.len()).unwrap_or(u32::MAX);
             return Flow::Exit;
@@ -335,7 +349,8 @@ impl Stream<'_> {
     /// its next sample.
     #[inline(never)]
     fn restore(&mut self, msg: &Message) {
-        match self.session.handle(msg, &mut self.log) {
+        self.session.handle_into(msg, &mut self.log, self.reply);
+        match &*self.reply {
             Reply::Error(e) => defmt::warn!("checkpoint refused: {}", e),
             _ => {
                 if let Message::Checkpoint(cp) = msg {
@@ -353,10 +368,12 @@ impl Stream<'_> {
 
     /// `selftest=checkpoint-at=N`: `CheckpointRequest` → (wire frame) →
     /// `Reset` → `Checkpoint` from the decoded frame, through the session,
-    /// as if the host had sent them. Each step is its own function: the
-    /// messages (up to 3 KB each) are in their frames one at a time.
+    /// as if the host had sent them. The checkpoint is the session's reply
+    /// (the static slot), its frame is in the reply buffer, and it is
+    /// decoded into `slot` (the static slot of received messages): no
+    /// message on the stack.
     #[inline(never)]
-    fn selftest_checkpoint(&mut self) {
+    fn selftest_checkpoint(&mut self, slot: &mut Message) {
         let Some(n) = self.selftest_frame_checkpoint() else {
             return;
         };
@@ -368,7 +385,7 @@ impl Stream<'_> {
             logged
         );
         self.selftest_reset();
-        self.selftest_restore(n);
+        self.selftest_restore(n, slot);
     }
 
     /// The session's checkpoint, framed into the reply buffer (no second
@@ -376,8 +393,9 @@ impl Stream<'_> {
     /// decoded it). Returns the frame's length.
     #[inline(never)]
     fn selftest_frame_checkpoint(&mut self) -> Option<usize> {
-        let reply = self.session.request(Request::Checkpoint, &mut self.log);
-        let Reply::Send(ref cp @ Message::Checkpoint(_)) = reply else {
+        self.session
+            .request_into(Request::Checkpoint, &mut self.log, self.reply);
+        let Reply::Send(cp @ Message::Checkpoint(_)) = &*self.reply else {
             defmt::error!("selftest: no checkpoint");
             return None;
         };
@@ -392,24 +410,26 @@ impl Stream<'_> {
 
     #[inline(never)]
     fn selftest_reset(&mut self) {
-        if let Reply::Error(e) = self.session.request(Request::Reset, &mut self.log) {
+        self.session
+            .request_into(Request::Reset, &mut self.log, self.reply);
+        if let Reply::Error(e) = &*self.reply {
             defmt::error!("selftest: reset refused: {}", e);
         }
     }
 
-    /// Decodes the checkpoint frame of length `n` in the reply buffer and
-    /// restores from it.
+    /// Decodes the checkpoint frame of length `n` in the reply buffer into
+    /// `slot` and restores from it.
     #[inline(never)]
-    fn selftest_restore(&mut self, n: usize) {
+    fn selftest_restore(&mut self, n: usize, slot: &mut Message) {
         // The frame without its delimiter.
         let body = self
             .link
             .out
             .get_mut(..n.saturating_sub(1))
             .unwrap_or(&mut []);
-        match &decode_frame(body) {
-            Ok(m @ Message::Checkpoint(_)) => self.restore(m),
-            Ok(_) => defmt::error!("selftest: the checkpoint frame decoded to another message"),
+        match decode_frame_into(body, slot) {
+            Ok(()) if matches!(slot, Message::Checkpoint(_)) => self.restore(slot),
+            Ok(()) => defmt::error!("selftest: the checkpoint frame decoded to another message"),
             Err(e) => defmt::error!("selftest: the checkpoint frame does not decode: {}", e),
         }
     }
@@ -441,6 +461,8 @@ pub fn run(args: &Args) -> Totals {
         session,
         decoder,
         out,
+        message,
+        reply,
     }) = state()
     else {
         defmt::panic!("the stream state is already in use");
@@ -449,6 +471,7 @@ pub fn run(args: &Args) -> Totals {
         args,
         link: Link { uart, tx, out },
         session,
+        reply,
         log: SliceLog::new(storage),
         totals: Totals::default(),
         frame_errors: 0,
@@ -460,16 +483,18 @@ pub fn run(args: &Args) -> Totals {
                 break b;
             }
         };
-        // By reference: a binding by value would copy the message (3 KB).
-        let received = decoder.push_byte(byte);
-        let Some(frame) = &received else {
+        // Decoded into the static slot: no message (3 KB) in this frame.
+        let Some(frame) = decoder.push_byte_into(byte, message) else {
             continue;
         };
         match frame {
-            Ok(msg) => {
-                if stream.handle(msg) == Flow::Exit {
+            Ok(()) => {
+                if stream.handle(message) == Flow::Exit {
                     defmt::info!("Finish answered; decoder {}", decoder.stats());
                     return stream.totals;
+                }
+                if stream.selftest_due(message) {
+                    stream.selftest_checkpoint(message);
                 }
             }
             Err(e) => {
