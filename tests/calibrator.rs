@@ -791,6 +791,79 @@ fn a_checkpoint_restores_in_place_and_a_refused_one_leaves_the_calibrator_untouc
     assert_eq!(f32_target.checkpoint(), cp32);
 }
 
+/// `Session::handle_into` and `request_into` (a reply slot the caller owns,
+/// the firmware's way) are `handle` and `request`: the same replies, the
+/// same session after each message, whatever the slot held before (it
+/// starts with a stale checkpoint, then keeps the last reply); and the
+/// errors among them are counted.
+#[test]
+fn replies_into_a_slot_are_the_replies() {
+    use rollcal::estimator::{EstimatorOptions, LogRecord, SliceLog};
+    use rollcal::session::{Reply, Request, Session};
+    let (sc, data) = samples(40);
+    let cfg = settings(&sc, ConfigId::M1Pa, 10);
+    let blank = LogRecord::predicted(1.0, nalgebra::Vector3::zeros());
+    let mut storage = [vec![blank; 40], vec![blank; 40]];
+    let [a_storage, b_storage] = &mut storage;
+    let (mut a_log, mut b_log) = (SliceLog::new(a_storage), SliceLog::new(b_storage));
+    let mut a = Session::<f64>::new(None, EstimatorOptions::default());
+    let mut b = Session::<f64>::new(None, EstimatorOptions::default());
+    let mut stale = M1PaCalibrator::<f64>::new(cfg).unwrap();
+    for s in &data[..3] {
+        let _ = stale.push(s);
+    }
+    let mut slot = Reply::Send(Message::Checkpoint(stale.checkpoint()));
+    // Unconfigured first (errors), then a run with every request, a
+    // restore from the checkpoint taken half-way, and a Finish.
+    let mut messages = vec![Message::Sample(data[0]), Message::EstimateRequest];
+    messages.push(Message::Configure(cfg));
+    messages.extend(data[..20].iter().map(|s| Message::Sample(*s)));
+    messages.push(Message::CheckpointRequest);
+    let mut kinds = std::collections::BTreeSet::new();
+    let mut errors = 0;
+    for (k, msg) in messages.iter().enumerate() {
+        let want = a.handle(msg, &mut a_log);
+        b.handle_into(msg, &mut b_log, &mut slot);
+        assert_eq!(slot, want, "message {k}");
+        assert_eq!(a.stats(), b.stats(), "message {k}");
+        kinds.insert(format!("{:?}", std::mem::discriminant(&want)));
+        errors += u32::from(matches!(want, Reply::Error(_)));
+    }
+    let Reply::Send(Message::Checkpoint(cp)) = slot.clone() else {
+        panic!("no checkpoint: {slot:?}");
+    };
+    for s in &data[20..] {
+        let msg = Message::Sample(*s);
+        assert_eq!(a.handle(&msg, &mut a_log), {
+            b.handle_into(&msg, &mut b_log, &mut slot);
+            slot.clone()
+        });
+    }
+    let restore = Message::Checkpoint(cp);
+    assert_eq!(a.handle(&restore, &mut a_log), {
+        b.handle_into(&restore, &mut b_log, &mut slot);
+        slot.clone()
+    });
+    for r in [
+        Request::Estimate,
+        Request::Finish,
+        Request::Checkpoint,
+        Request::Reset,
+    ] {
+        let want = a.request(r, &mut a_log);
+        b.request_into(r, &mut b_log, &mut slot);
+        assert_eq!(slot, want, "{r:?}");
+        kinds.insert(format!("{:?}", std::mem::discriminant(&want)));
+        errors += u32::from(matches!(want, Reply::Error(_)));
+    }
+    assert_eq!(format!("{a:?}"), format!("{b:?}"));
+    assert_eq!(a.stats(), b.stats());
+    // Nothing, Send and Error replies were all compared, and every error
+    // was counted.
+    assert_eq!(kinds.len(), 3, "{kinds:?}");
+    assert_eq!(b.stats().errors, errors);
+}
+
 /// `Session::request(r)` is `Session::handle(&r.message())`: the same reply
 /// and the same session after it, configured or not, on every request.
 #[test]

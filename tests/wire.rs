@@ -10,9 +10,9 @@ use rand_chacha::ChaCha8Rng;
 use rollcal::ekf::Options;
 use rollcal::models::ConfigId;
 use rollcal::wire::{
-    crc32, decode_frame, encode, CalibratorConfig, Checkpoint, Decoder, DecoderStats, Estimate,
-    EstimateKind, FrameDecoder, FrameError, Message, Progress, RejectCounts, Sample,
-    SinglePassReason, MAX_COVARIANCE, MAX_FRAME_LEN, MAX_STATES, VERSION,
+    crc32, decode_frame, decode_frame_into, encode, CalibratorConfig, Checkpoint, Decoder,
+    DecoderStats, Estimate, EstimateKind, FrameDecoder, FrameError, Message, Progress,
+    RejectCounts, Sample, SinglePassReason, MAX_COVARIANCE, MAX_FRAME_LEN, MAX_STATES, VERSION,
 };
 
 fn frame(msg: &Message) -> Vec<u8> {
@@ -249,6 +249,67 @@ fn every_single_bit_flip_is_detected_and_resynchronised() {
                 assert_eq!(msgs.len(), 2, "{byte}.{bit}");
             }
         }
+    }
+}
+
+/// Decoding into a slot (`push_byte_into`, `decode_frame_into`, the
+/// firmware's way) gives the messages, errors and counts of decoding by
+/// value, and leaves the slot as it was on every rejected frame.
+#[test]
+fn decoding_into_a_slot_is_decoding_by_value() {
+    let good = all_messages();
+    let mut stream: Vec<u8> = good.iter().flat_map(frame).collect();
+    // Rejected frames of every kind between good ones: a flipped bit, a
+    // truncated frame, another version, an oversized frame.
+    let mut flipped = frame(&Message::Sample(sample(7)));
+    flipped[4] ^= 0x10;
+    let truncated = [&frame(&Message::Reset)[..2], &[0u8]].concat();
+    stream.extend(flipped);
+    stream.extend(frame(&Message::Sample(sample(8))));
+    stream.extend(truncated);
+    stream.extend(reference_frame(VERSION.wrapping_add(1), &[0]));
+    stream.extend(frame(&Message::Finish));
+    stream.extend(vec![1u8; MAX_FRAME_LEN + 3]);
+    stream.push(0);
+    stream.extend(frame(&Message::EstimateRequest));
+    let (mut by_value, mut into) = (FrameDecoder::new(), FrameDecoder::new());
+    // A stale message in the slot, as a firmware's static slot holds.
+    let mut slot = Message::Checkpoint(big_checkpoint());
+    let (mut messages, mut errors) = (0, 0);
+    for &b in &stream {
+        let before = slot.clone();
+        match (by_value.push_byte(b), into.push_byte_into(b, &mut slot)) {
+            (None, None) => assert!(same(&slot, &before)),
+            (Some(Ok(m)), Some(Ok(()))) => {
+                assert!(same(&slot, &m), "{m:?}");
+                messages += 1;
+            }
+            (Some(Err(e)), Some(Err(f))) => {
+                assert_eq!(e, f);
+                assert!(same(&slot, &before), "{e:?}");
+                errors += 1;
+            }
+            (a, b) => panic!("by value {a:?}, into a slot {b:?}"),
+        }
+    }
+    assert_eq!(messages, good.len() + 3);
+    assert_eq!(errors, 4);
+    assert_eq!(by_value.stats(), into.stats());
+    // decode_frame_into of one frame, good and bad.
+    for msg in &good {
+        let f = frame(msg);
+        let body = &f[..f.len() - 1];
+        let mut slot = Message::Reset;
+        assert_eq!(decode_frame_into(&mut body.to_vec(), &mut slot), Ok(()));
+        assert!(same(&slot, msg));
+        let mut bad = body.to_vec();
+        bad[1] ^= 0x01;
+        let before = slot.clone();
+        assert_eq!(
+            decode_frame_into(&mut bad.clone(), &mut slot).err(),
+            decode_frame(&mut bad).err()
+        );
+        assert!(same(&slot, &before));
     }
 }
 
