@@ -26,9 +26,13 @@ Calls are the direct branches to another function (`bl`, `blx <imm>`,
 also into the middle of a function. For each function whose (demangled) name
 and address ("name @addr") matches a REGEX it prints its own frame and the
 deepest path through the call graph below it (frame sums; a tail call's
-frame is added to its caller's, which again only over-counts). Indirect
-calls and recursion are not followed: the firmware has neither on these
-paths (tools/panic-check.py lists the indirect calls it meets).
+frame is added to its caller's, which again only over-counts). The
+0xd4d4 halfwords with which lld pads the gap after a function are not
+read as branches. Indirect calls are not followed (tools/panic-check.py
+lists the indirect calls it meets), and a recursive call is cut where it
+re-enters a function already on the path; the output says so and names
+where (the firmware's only recursion is in the panic handler's defmt
+logging, which the estimator's paths never enter: tools/panic-check.py).
 The firmware's stack painting (logged as "peak stack") measures one run
 dynamically; this figure bounds it on the direct call graph.
 """
