@@ -855,7 +855,8 @@ impl<const CAP: usize> Decoder<CAP> {
     /// Accepts one byte; at a delimiter returns the frame's outcome (already
     /// counted), otherwise `None`. Empty frames give `None`.
     // Not inlined: the decoder's temporaries stay out of the caller's
-    // frame, which holds the message while it is handled (firmware stack).
+    // frame, which holds the message while it is handled (a firmware, whose
+    // stack is small, uses `push_byte_into` and a static slot).
     #[inline(never)]
     pub fn push_byte(&mut self, byte: u8) -> Option<Result<Message, FrameError>> {
         self.push_byte_with(byte, decode_frame)
