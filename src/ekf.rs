@@ -1103,7 +1103,9 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let env: Environment<T> = env_t(&self.config.env);
         let [_, _, c_end] = pending.period.c_cn;
         let c_end: Matrix3<T> = to_t(&c_end);
-        let m = m.to_precision();
+        // No copy of the matrices when T is f64.
+        let mut rounded = None;
+        let m = matrices_in(m, &mut rounded);
         let x: SVector<T, N> = to_t(x);
         // P at the end of the period, element by element from its factor
         // (only the ≤ 12 states the accelerometers see; no N×N matrix, and
@@ -1113,7 +1115,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             .ud
             .predicted_attitude_rows(&pending.prop.phi_att, &self.process_noise(pending));
         let terms =
-            layout.accel_second_order_with(&env, &m, &layout.attitude(&x), &c_end, |i, j| {
+            layout.accel_second_order_with(&env, m, &layout.attitude(&x), &c_end, |i, j| {
                 match &rows {
                     Some(rows) => self.ud.covariance_entry_with_rows(rows, i, j),
                     // As `settled` (the unpropagated factor; predict checks it).

@@ -206,17 +206,20 @@ fn e_times<T: RealField + Copy>(k: usize, m: &Matrix3<T>) -> Matrix3<T> {
 }
 
 /// The pieces every block is made of.
-struct Pieces<T: RealField + Copy> {
+struct Pieces<'a, T: RealField + Copy> {
     /// `I + L(θaT)`.
     unit_t: Matrix3<T>,
     /// `R(−θaC)`.
     r_c: Matrix3<T>,
     /// `J_r(−θaC)`.
     j_c: Matrix3<T>,
-    platform: Platform<T>,
+    platform: &'a Platform<T>,
+    /// `∂²(R(−θaC) q)/∂θaC²` ([`d2_dcm_times`] at `−θaC`), when `θaC` is
+    /// a state.
+    ac_ac: &'a Option<Block<T>>,
 }
 
-impl<T: RealField + Copy> Pieces<T> {
+impl<T: RealField + Copy> Pieces<'_, T> {
     /// `∂(R(−θaC) q)/∂part` (3×3).
     fn f_jacobian(&self, part: Part) -> Matrix3<T> {
         match part {
@@ -237,26 +240,30 @@ impl<T: RealField + Copy> Pieces<T> {
         }
     }
 
-    /// The block `∂²h/∂(part i)_k ∂(part j)_l` ([`Block`]), `c_neg` = `−θaC`.
-    fn block(&self, i: Part, j: Part, c_neg: &Vector3<T>) -> Block<T> {
+    /// The block `∂²h/∂(part i)_k ∂(part j)_l` ([`Block`]).
+    fn block(&self, i: Part, j: Part) -> Block<T> {
         match (i, j) {
             // The mirrored orders: ∂²h/∂x_i∂x_j = ∂²h/∂x_j∂x_i.
             (Part::Att | Part::Lam, Part::Ac)
             | (Part::Att | Part::Ac | Part::Lam, Part::At)
-            | (Part::Lam, Part::Att) => swap(&self.canonical(j, i, c_neg)),
-            _ => self.canonical(i, j, c_neg),
+            | (Part::Lam, Part::Att) => swap(&self.canonical(j, i)),
+            _ => self.canonical(i, j),
         }
     }
 
     /// [`Pieces::block`] for the pairs in the order the formulas take them.
-    fn canonical(&self, i: Part, j: Part, c_neg: &Vector3<T>) -> Block<T> {
+    fn canonical(&self, i: Part, j: Part) -> Block<T> {
         let a = self.unit_t * self.r_c;
         let pl = &self.platform;
         match (i, j) {
             (Part::Att, Part::Att) => map_block(&pl.att_att, |b| a * b),
             (Part::Att, Part::Lam) => map_block(&pl.att_lam, |b| a * b),
             (Part::Lam, Part::Lam) => map_block(&pl.lam_lam, |b| a * b),
-            (Part::Ac, Part::Ac) => map_block(&d2_dcm_times(c_neg, &pl.q), |b| self.unit_t * b),
+            (Part::Ac, Part::Ac) => match self.ac_ac {
+                Some(b) => map_block(b, |b| self.unit_t * b),
+                // (Not reached: `ac_ac` is there when θaC is a state.)
+                None => zero_block(),
+            },
             (Part::Ac, y @ (Part::Att | Part::Lam)) => {
                 let ry = self.r_c * self.q_jacobian(y);
                 [0, 1, 2].map(|k| self.unit_t * skew(&col(&self.j_c, k)) * ry)
@@ -324,33 +331,42 @@ impl Layout {
         p: impl Fn(usize, usize) -> Option<T>,
     ) -> AccelSecondOrder<T> {
         let parts = self.accel_parts();
+        // The platform's derivatives and the θaC curvature here, not in
+        // `second_order_terms`: their frames (and their trigonometry) are
+        // then not nested below the Hessians' (firmware stack).
+        let platform = Platform::new(self, env, m, att, c_cn);
+        let ac_ac = parts
+            .iter()
+            .flatten()
+            .any(|(part, _)| *part == Part::Ac)
+            .then(|| d2_dcm_times(&-m.params.theta_a_c, &platform.q));
         match parts.iter().flatten().count() {
-            2 => self.second_order_terms::<T, 6>(env, m, att, c_cn, &p, &parts),
-            3 => self.second_order_terms::<T, 9>(env, m, att, c_cn, &p, &parts),
-            _ => self.second_order_terms::<T, 12>(env, m, att, c_cn, &p, &parts),
+            2 => self.second_order_terms::<T, 6>(m, &platform, &ac_ac, &p, &parts),
+            3 => self.second_order_terms::<T, 9>(m, &platform, &ac_ac, &p, &parts),
+            _ => self.second_order_terms::<T, 12>(m, &platform, &ac_ac, &p, &parts),
         }
     }
 
     /// [`Layout::accel_second_order`] with the Hessians on the `R` states of
-    /// `parts`. Out of line: the three sizes' frames would otherwise add up
-    /// in [`Layout::accel_second_order_with`]'s.
+    /// `parts`, from the platform's `q` and its derivatives. Out of line: the
+    /// three sizes' frames would otherwise add up in
+    /// [`Layout::accel_second_order_with`]'s.
     #[inline(never)]
     fn second_order_terms<T: RealField + Copy, const R: usize>(
         &self,
-        env: &Environment<T>,
         m: &InstallationMatrices<T>,
-        att: &Vector3<T>,
-        c_cn: &Matrix3<T>,
+        platform: &Platform<T>,
+        ac_ac: &Option<Block<T>>,
         p: &impl Fn(usize, usize) -> Option<T>,
         parts: &[Option<(Part, usize)>; 4],
     ) -> AccelSecondOrder<T> {
         let half: T = nalgebra::convert(0.5);
-        let c_neg = -m.params.theta_a_c;
         let pieces = Pieces {
             unit_t: m.unit_a_t,
             r_c: m.r_a_c,
             j_c: m.jr_a_c,
-            platform: Platform::new(self, env, m, att, c_cn),
+            platform,
+            ac_ac,
         };
         // The local index of each part's first state, and the state index.
         let mut at = [(Part::Att, 0usize, 0usize); 4];
@@ -363,7 +379,7 @@ impl Layout {
         let mut hess = [SMatrix::<T, R, R>::zeros(); 3];
         for (n, &(pi, li, _)) in at.iter().enumerate() {
             for &(pj, lj, _) in at.iter().skip(n) {
-                let blk = pieces.block(pi, pj, &c_neg);
+                let blk = pieces.block(pi, pj);
                 for (k, mk) in blk.iter().enumerate() {
                     for (l, v) in mk.data.0.iter().enumerate() {
                         for (ha, va) in hess.iter_mut().zip(v.iter()) {
