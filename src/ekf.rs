@@ -246,6 +246,47 @@ struct Measured<T: RealField + Copy, const N: usize, const Z: usize> {
     noise: Noise<T, N, Z>,
 }
 
+/// The factored update's inputs ([`Filter::whiten`]), all formed and
+/// checked before the factor is touched ([`Filter::apply_whitened`]).
+/// The whitened rows `L⁻¹ H Φ` (`L = chol(R_e)`) take the place of the
+/// measurement's `H`.
+struct Whitened<T: RealField + Copy, const N: usize, const Z: usize> {
+    /// The whitened innovation `L⁻¹ ν`.
+    nu_w: SVector<T, Z>,
+    /// The decorrelation gain times `L`, `J L` (attitude rows).
+    j_l: SMatrix<T, 3, Z>,
+    /// The decorrelated transition `Φ − J H Φ` (attitude rows).
+    phi_dec: SMatrix<T, 3, N>,
+    /// The decorrelated process noise `G Gᵀ − J R_e Jᵀ` (rad²).
+    q: Matrix3<T>,
+    /// `ν` and `S` as reported (`nis` is the update's).
+    innovation: Innovation<T, Z>,
+}
+
+impl<T: RealField + Copy, const N: usize, const Z: usize> Whitened<T, N, Z> {
+    fn zeros() -> Self {
+        Self {
+            nu_w: SVector::zeros(),
+            j_l: SMatrix::zeros(),
+            phi_dec: SMatrix::zeros(),
+            q: Matrix3::zeros(),
+            innovation: Innovation {
+                nu: SVector::zeros(),
+                s: SMatrix::zeros(),
+                nis: T::zero(),
+            },
+        }
+    }
+}
+
+/// The NIS gate's verdict on an update ([`Filter::whiten`]).
+enum Gate {
+    /// The update goes ahead.
+    Pass,
+    /// Refused: the period gets its time update only.
+    Refuse,
+}
+
 /// One Kalman gain with correlated noise, dense (the iterated filter's
 /// intermediate relinearisation points only).
 struct Gain<T: RealField + Copy, const N: usize, const Z: usize> {
@@ -1000,6 +1041,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// `m` holds the installation matrices of `x`'s parameters: the caller
     /// builds or refreshes them, so that their trigonometry is not nested
     /// below the measurement model's frames on the stack.
+    #[inline(always)]
     fn measure(
         &self,
         x: &SVector<f64, N>,
@@ -1026,32 +1068,36 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             );
             (za, ha, to_f64(&da))
         };
-        let mut z = SVector::<f64, Z>::zeros();
-        let mut h = SMatrix::<T, Z, N>::zeros();
+        // Filled where it is returned (no copies of its parts in this frame).
+        let mut out = Measured {
+            z: SVector::<f64, Z>::zeros(),
+            h: SMatrix::zeros(),
+            noise: Noise {
+                g: SMatrix::zeros(),
+                d: SMatrix::zeros(),
+            },
+        };
         if layout.gimbal_obs {
             let att = layout.attitude(x);
-            z.fixed_rows_mut::<3>(0).copy_from(&att);
-            h.fixed_view_mut::<3, 3>(0, ATT)
+            out.z.fixed_rows_mut::<3>(0).copy_from(&att);
+            out.h
+                .fixed_view_mut::<3, 3>(0, ATT)
                 .copy_from(&Matrix3::identity());
         }
         let accel_row = Self::ACCEL_ROW;
-        z.fixed_rows_mut::<3>(accel_row).copy_from(&za);
-        h.fixed_rows_mut::<3>(accel_row).copy_from(&ha);
+        out.z.fixed_rows_mut::<3>(accel_row).copy_from(&za);
+        out.h.fixed_rows_mut::<3>(accel_row).copy_from(&ha);
         // Unit-variance noise w = σ_g u: x_{k+1} gets G u, z gets D u.
         let sigma_g: f64 = self.config.sigma_gyro.to_subset().unwrap_or(f64::NAN);
-        let mut g = SMatrix::<T, N, 3>::zeros();
-        g.fixed_rows_mut::<3>(ATT).copy_from(
+        out.noise.g.fixed_rows_mut::<3>(ATT).copy_from(
             &(pending.prop.noise_map
                 * (self.config.sigma_gyro * nalgebra::convert::<f64, T>(pending.period.dt))),
         );
-        let mut d = SMatrix::<T, Z, 3>::zeros();
-        d.fixed_rows_mut::<3>(accel_row)
+        out.noise
+            .d
+            .fixed_rows_mut::<3>(accel_row)
             .copy_from(&to_t(&(da * sigma_g)));
-        Measured {
-            z,
-            h,
-            noise: Noise { g, d },
-        }
+        out
     }
 
     /// The trajectory over the pending period that ends at state `x`
@@ -1160,22 +1206,17 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         }
         z.fixed_rows_mut::<3>(Self::ACCEL_ROW)
             .copy_from(&to_f64(&obs.accel_mean));
-        let r = self.measurement_noise();
         if self.reference.is_some() {
-            self.update_linearised(Some(&z), &r)
+            self.update_linearised(Some(&z))
         } else {
-            self.update_extended(&z, &r)
+            self.update_extended(&z)
         }
     }
 
     /// The EKF's update of the pending period (pass 1), with the
     /// cold-start remedies of [`Options`].
     #[inline(never)]
-    fn update_extended(
-        &mut self,
-        z: &SVector<f64, Z>,
-        r: &SMatrix<T, Z, Z>,
-    ) -> Result<Innovation<T, Z>, Error> {
+    fn update_extended(&mut self, z: &SVector<f64, Z>) -> Result<Innovation<T, Z>, Error> {
         // The matrices of the linearisation point (the cache holds them
         // since `predict`: it changed only the attitude).
         self.matrices.refresh(&Self::LAYOUT, &self.x);
@@ -1187,7 +1228,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         } else {
             (Vector3::zeros(), Matrix3::zeros())
         };
-        let mut r_v = *r;
+        let mut r_v = self.measurement_noise();
         if opts.second_order_covariance {
             let mut blk = r_v.fixed_view_mut::<3, 3>(Self::ACCEL_ROW, Self::ACCEL_ROW);
             blk += to_t::<T, 3, 3>(&cov2);
@@ -1203,10 +1244,24 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         if iterations > 0 {
             return self.update_iterated(z, &r_v, &mean2, iterations);
         }
+        self.update_predicted(z, &r_v, &mean2)
+    }
+
+    /// [`Filter::update_extended`] linearised at the prediction (the
+    /// default). Out of line: the measurement model and the whitened update
+    /// it holds are not above the second-order terms' frames.
+    #[inline(never)]
+    fn update_predicted(
+        &mut self,
+        z: &SVector<f64, Z>,
+        r_v: &SMatrix<T, Z, Z>,
+        mean2: &Vector3<f64>,
+    ) -> Result<Innovation<T, Z>, Error> {
+        let pending = self.pending.get().ok_or(Error::NoPrediction)?;
         // Used in place (moving its parts out would copy them in this frame,
         // which is on the deepest path of a step).
-        let (nu, measured) = &self.innovation_at(z, &self.x, pending, &mean2, m);
-        self.factored(&measured.h, nu, &r_v, &measured.noise, true, None)
+        let (nu, measured) = &mut self.innovation_at(z, &self.x, pending, mean2, &self.matrices.0);
+        self.factored(&mut measured.h, nu, r_v, &measured.noise, true, None)
     }
 
     /// [`Filter::update_extended`] linearised at the iterated EKF's
@@ -1222,14 +1277,17 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         iterations: u8,
     ) -> Result<Innovation<T, Z>, Error> {
         let pending = self.pending.get().ok_or(Error::NoPrediction)?;
-        let (nu, measured) = &self.iterated_innovation(z, pending, r_v, mean2, iterations)?;
-        self.factored(&measured.h, nu, r_v, &measured.noise, true, None)
+        let (nu, measured) = &mut self.iterated_innovation(z, pending, r_v, mean2, iterations)?;
+        self.factored(&mut measured.h, nu, r_v, &measured.noise, true, None)
     }
 
     /// The innovation `ν = z − h(x_i) − H (x̂ − x_i)` of the EKF update
     /// linearised at `x_lin` (trajectory `lin`), less the second-order mean
     /// `mean2` when enabled, gimbal components wrapped; with the measurement
     /// model there. `m`: the installation matrices of `x_lin`.
+    // Inlined: the measurement model is built where the caller holds it
+    // (no copy of it in a frame of its own; firmware stack).
+    #[inline(always)]
     fn innovation_at(
         &self,
         z: &SVector<f64, Z>,
@@ -1313,7 +1371,6 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     fn update_linearised(
         &mut self,
         z: Option<&SVector<f64, Z>>,
-        r: &SMatrix<T, Z, Z>,
     ) -> Result<Innovation<T, Z>, Error> {
         let (Some(pending), Some(x_nom)) = (self.pending.get(), self.reference.as_ref()) else {
             return Err(Error::NoPrediction);
@@ -1321,11 +1378,12 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let layout = Self::LAYOUT;
         // The nominal's matrices (the cache holds them since `predict`).
         self.matrices.refresh(&layout, x_nom);
-        let Measured { z: z_nom, h, noise } = self.measure(x_nom, pending, &self.matrices.0);
+        // Used in place (moving its parts out would copy them in this frame).
+        let measured = &mut self.measure(x_nom, pending, &self.matrices.0);
         let delta = layout.difference(&self.x, x_nom);
-        let h_delta = linear_term::<T, N, Z>(&h, &delta);
+        let h_delta = linear_term::<T, N, Z>(&measured.h, &delta);
         let mut nu = match z {
-            Some(z) => z - z_nom - h_delta,
+            Some(z) => z - measured.z - h_delta,
             None => -h_delta,
         };
         if layout.gimbal_obs {
@@ -1334,7 +1392,15 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             }
         }
         let x_base = x_nom + delta;
-        self.factored(&h, &nu, r, &noise, z.is_some(), Some(&x_base))
+        let r = self.measurement_noise();
+        self.factored(
+            &mut measured.h,
+            &nu,
+            &r,
+            &measured.noise,
+            z.is_some(),
+            Some(&x_base),
+        )
     }
 
     /// The factored update of one period, measurement and time update
@@ -1368,60 +1434,90 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// `S` for the [`Innovation`] and apply the NIS gate; without it (the
     /// noise-free step of the bound) the result's `s` is `R_e` only (the
     /// update itself never uses `S`) and nothing is gated.
+    // Out of line: the whitened update it holds is in no frame above the
+    // measurement model's, and the updates' frames are not above the factor's
+    // (firmware stack).
+    #[inline(never)]
     fn factored(
         &mut self,
-        h: &SMatrix<T, Z, N>,
+        h: &mut SMatrix<T, Z, N>,
         nu_f64: &SVector<f64, Z>,
         r_v: &SMatrix<T, Z, Z>,
         noise: &Noise<T, N, Z>,
         measured: bool,
         x_base: Option<&SVector<f64, N>>,
     ) -> Result<Innovation<T, Z>, Error> {
+        let mut w = Whitened::zeros();
+        if let Gate::Refuse = self.whiten(h, nu_f64, r_v, noise, measured, &mut w)? {
+            // Predicted only: the time update without the measurement.
+            self.settle()?;
+            self.gated_run += 1;
+            self.pending.clear();
+            return Err(Error::Gated);
+        }
+        self.apply_whitened(h, &w, measured, x_base)
+    }
+
+    /// The first half of [`Filter::factored`]: the whitened rows `L⁻¹ H Φ`
+    /// in place of `h`; the whitened innovation, the decorrelated time
+    /// update and `S` into `w`; and the NIS gate's verdict, without touching
+    /// the factor. Out of line: its temporaries
+    /// (the Choleskys, `R_e`, `M`) are not below the factor's updates.
+    #[inline(never)]
+    fn whiten(
+        &self,
+        h: &mut SMatrix<T, Z, N>,
+        nu_f64: &SVector<f64, Z>,
+        r_v: &SMatrix<T, Z, Z>,
+        noise: &Noise<T, N, Z>,
+        measured: bool,
+        w: &mut Whitened<T, N, Z>,
+    ) -> Result<Gate, Error> {
         let half: T = nalgebra::convert(0.5);
-        let phi_att: SMatrix<T, 3, N> = self.pending.get().ok_or(Error::NoPrediction)?.prop.phi_att;
-        // H Φ in T (f64 is emulated on an FPU without it). It becomes the
-        // whitened rows in place below (one Z×N matrix in this frame, not
-        // three).
-        let mut h_w = crate::models::apply_transition(h, &phi_att);
+        let phi_att = &self.pending.get().ok_or(Error::NoPrediction)?.prop.phi_att;
         let nu: SVector<T, Z> = to_t(nu_f64);
         let g_att: Matrix3<T> = crate::models::attitude_rows(&noise.g);
         let h_att: SMatrix<T, Z, 3> = crate::models::attitude_columns(h);
+        // H Φ in T (f64 is emulated on an FPU without it), in place. It
+        // becomes the whitened rows in place below.
+        crate::models::apply_transition(h, phi_att);
         let m_e = h_att * g_att + noise.d;
         let mut r_e = m_e * m_e.transpose() + r_v;
         r_e = (r_e + r_e.transpose()) * half;
         // S = H Φ P Φᵀ Hᵀ + R_e, for the innovation report and the gate.
         let s = if measured {
-            r_e + self.ud.congruence(&h_w)
+            r_e + self.ud.congruence(h)
         } else {
             r_e
         };
         let Some(chol) = r_e.cholesky() else {
             return Err(Error::InnovationNotPositiveDefinite);
         };
-        let l = chol.l();
+        // The factor's lower triangle (the solves read nothing else).
+        let l = chol.l_dirty();
         // The triangular solves in place (no Option/Result moves of the
         // Z×N results).
-        let mut nu_w = nu;
+        w.nu_w = nu;
         // J L = G Mᵀ L⁻ᵀ (attitude rows), so J z = (J L) ν_w.
         let mut l_inv_m_g = m_e * g_att.transpose();
-        if !(l.solve_lower_triangular_mut(&mut nu_w)
-            && l.solve_lower_triangular_mut(&mut h_w)
+        if !(l.solve_lower_triangular_mut(&mut w.nu_w)
+            && l.solve_lower_triangular_mut(h)
             && l.solve_lower_triangular_mut(&mut l_inv_m_g))
         {
             return Err(Error::InnovationNotPositiveDefinite);
         }
-        let j_l: SMatrix<T, 3, Z> = l_inv_m_g.transpose();
+        w.j_l = l_inv_m_g.transpose();
         // Time update with Φ' = Φ − J H Φ and Q' = G Gᵀ − J R_e Jᵀ.
-        let phi_dec = phi_att - j_l * h_w;
-        let mut q = g_att * g_att.transpose() - j_l * j_l.transpose();
-        q = (q + q.transpose()) * half;
+        w.phi_dec = phi_att - w.j_l * *h;
+        let q = g_att * g_att.transpose() - w.j_l * w.j_l.transpose();
+        w.q = (q + q.transpose()) * half;
         let gate = self.config.options.nis_gate;
         if measured && gate > 0.0 && !self.gate_open && self.gated_run < MAX_GATED_RUN {
             let Some(chol_s) = s.cholesky() else {
                 return Err(Error::InnovationNotPositiveDefinite);
             };
             let mut y = nu;
-            if !chol_s.l().solve_lower_triangular_mut(&mut y) {
+            if !chol_s.l_dirty().solve_lower_triangular_mut(&mut y) {
                 return Err(Error::InnovationNotPositiveDefinite);
             }
             let nis_prior = y.norm_squared();
@@ -1429,28 +1525,43 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 return Err(Error::NonFiniteState);
             }
             if nis_prior > nalgebra::convert(gate) {
-                // Predicted only: the time update without the measurement.
-                self.settle()?;
-                self.gated_run += 1;
-                self.pending.clear();
-                return Err(Error::Gated);
+                return Ok(Gate::Refuse);
             }
         }
         // The factor is updated in place: check everything it reads first.
         if !all_finite(
-            h_w.iter()
-                .chain(nu_w.iter())
-                .chain(j_l.iter())
+            h.iter()
+                .chain(w.nu_w.iter())
+                .chain(w.j_l.iter())
                 .chain(phi_att.iter())
-                .chain(phi_dec.iter())
-                .chain(q.iter())
+                .chain(w.phi_dec.iter())
+                .chain(w.q.iter())
                 .copied(),
         ) {
             return Err(Error::NonFiniteState);
         }
+        w.innovation = Innovation {
+            nu,
+            s,
+            nis: T::zero(),
+        };
+        Ok(Gate::Pass)
+    }
+
+    /// The second half of [`Filter::factored`]: Bierman's scalar updates of
+    /// the whitened rows `h_w`, the decorrelated time update, the new state.
+    #[inline(never)]
+    fn apply_whitened(
+        &mut self,
+        h_w: &SMatrix<T, Z, N>,
+        w: &Whitened<T, N, Z>,
+        measured: bool,
+        x_base: Option<&SVector<f64, N>>,
+    ) -> Result<Innovation<T, Z>, Error> {
+        let phi_att = &self.pending.get().ok_or(Error::NoPrediction)?.prop.phi_att;
         let mut dx = SVector::<T, N>::zeros();
         let mut nis = T::zero();
-        for (row, nu_i) in h_w.row_iter().zip(nu_w.iter()) {
+        for (row, nu_i) in h_w.row_iter().zip(w.nu_w.iter()) {
             let row = row.transpose();
             let resid = *nu_i - row.dot(&dx);
             let Some(up) = self.ud.update(&row, T::one()) else {
@@ -1460,15 +1571,16 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             dx += up.gain * resid;
         }
         self.ud
-            .predict_attitude(&phi_dec, &q)
+            .predict_attitude(&w.phi_dec, &w.q)
             .ok_or(Error::CovarianceNotPositiveDefinite)?;
         // x̂_{k+1} − x̂⁻_{k+1} = Φ δ + J (z − H Φ δ) for the correction δ at t_k.
-        let d_att = phi_att * dx + j_l * (nu_w - h_w * dx);
+        let d_att = phi_att * dx + w.j_l * (w.nu_w - h_w * dx);
         dx.fixed_rows_mut::<3>(ATT).copy_from(&d_att);
         let x_new = x_base.unwrap_or(&self.x) + to_f64(&dx);
         if !all_finite(x_new.iter().copied()) || !nis.is_finite() {
             return Err(Error::NonFiniteState);
         }
+        let gate = self.config.options.nis_gate;
         let above = measured && gate > 0.0 && nis > nalgebra::convert(gate);
         // Keep the Euler attitude angles in (−π, π]; P is unchanged by 2π shifts.
         let mut x = x_new;
@@ -1482,7 +1594,11 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         self.updates = self.updates.saturating_add(1);
         self.gated_run = 0;
         self.gate_open = above;
-        Ok(Innovation { nu, s, nis })
+        Ok(Innovation {
+            nu: w.innovation.nu,
+            s: w.innovation.s,
+            nis,
+        })
     }
 
     /// One filter period: [`Filter::predict`] then [`Filter::update`].
@@ -1533,20 +1649,16 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         self.predict(dtheta_c, dt)?;
         let updated = match obs {
             Some(obs) => self.update(obs),
-            None => {
-                let r = self.measurement_noise();
-                self.update_linearised(None, &r)
-            }
+            None => self.update_linearised(None),
         };
-        match updated {
-            Ok(i) => Ok(i),
-            Err(Error::Gated) => Err(Error::Gated),
-            Err(e) => {
+        // Returned as it is (no copy of the innovation in this frame).
+        if let Err(e) = &updated {
+            if *e != Error::Gated {
                 (self.x, self.command, self.reference) = saved;
                 self.pending.clear();
-                Err(e)
             }
         }
+        updated
     }
 
     /// Measurement function and Jacobian at an arbitrary end-of-period state,

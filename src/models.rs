@@ -1148,16 +1148,17 @@ impl Layout {
             .zip(back)
             .zip(f_nodes.iter())
         {
-            let (zj, hj): (_, SMatrix<T, 3, N>) = self.accel_output_and_jacobian(env, m, att, c_cn);
+            let (zj, mut hj): (_, SMatrix<T, 3, N>) =
+                self.accel_output_and_jacobian(env, m, att, c_cn);
             z += zj * w;
-            if tau == T::zero() {
-                // The end node: Φ(t_{k+1} ← t_{k+1}) = I, and no noise
-                // accumulated after it.
-                h += hj * w;
-            } else {
-                h += apply_transition(&hj, &transition_rows(f, tau)) * w;
+            if tau != T::zero() {
                 d += hj.fixed_columns::<3>(ATT) * prop.noise_map * (w * tau);
+                apply_transition(&mut hj, &transition_rows(f, tau));
             }
+            // The end node: Φ(t_{k+1} ← t_{k+1}) = I, and no noise
+            // accumulated after it. In place (no 3×N temporaries).
+            hj *= w;
+            h += &hj;
         }
         (z, h, d)
     }
@@ -1273,19 +1274,22 @@ pub fn transition_rows<T: RealField + Copy, const N: usize>(
     phi
 }
 
-/// `H Φ` for a Φ whose parameter rows are the identity: only the attitude
-/// columns of `H` mix; `phi_att` are the attitude rows of Φ.
+/// `H ← H Φ` for a Φ whose parameter rows are the identity: only the
+/// attitude columns of `H` mix; `phi_att` are the attitude rows of Φ. In
+/// place, one column at a time (no `R×N` temporary).
 pub fn apply_transition<T: RealField + Copy, const R: usize, const N: usize>(
-    h: &SMatrix<T, R, N>,
+    h: &mut SMatrix<T, R, N>,
     phi_att: &SMatrix<T, 3, N>,
-) -> SMatrix<T, R, N> {
+) {
     let h_att = attitude_columns(h);
-    let mut out = h_att * phi_att;
-    // Parameter columns: H_p + H_a Φ_ap; attitude columns: H_a Φ_aa.
-    for j in 3..N {
-        if let (Some(mut o), Some(src)) = (out.column_iter_mut().nth(j), h.column_iter().nth(j)) {
-            o += src;
+    for (j, (mut col, phi)) in h.column_iter_mut().zip(phi_att.column_iter()).enumerate() {
+        let mixed = h_att * phi;
+        if j < ATT + 3 {
+            // Attitude columns: H_a Φ_aa.
+            col.copy_from(&mixed);
+        } else {
+            // Parameter columns: H_p + H_a Φ_ap.
+            col += mixed;
         }
     }
-    out
 }
