@@ -246,6 +246,19 @@ struct Measured<T: RealField + Copy, const N: usize, const Z: usize> {
     noise: Noise<T, N, Z>,
 }
 
+impl<T: RealField + Copy, const N: usize, const Z: usize> Measured<T, N, Z> {
+    fn zeros() -> Self {
+        Self {
+            z: SVector::zeros(),
+            h: SMatrix::zeros(),
+            noise: Noise {
+                g: SMatrix::zeros(),
+                d: SMatrix::zeros(),
+            },
+        }
+    }
+}
+
 /// The factored update's inputs ([`Filter::whiten`]), all formed and
 /// checked before the factor is touched ([`Filter::apply_whitened`]).
 /// The whitened rows `L⁻¹ H Φ` (`L = chol(R_e)`) take the place of the
@@ -1041,41 +1054,57 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// `m` holds the installation matrices of `x`'s parameters: the caller
     /// builds or refreshes them, so that their trigonometry is not nested
     /// below the measurement model's frames on the stack.
-    #[inline(always)]
     fn measure(
         &self,
         x: &SVector<f64, N>,
         pending: &Pending<T, N>,
         m: &InstallationMatrices<f64>,
     ) -> Measured<T, N, Z> {
+        let mut out = Measured::zeros();
+        self.measure_into(x, pending, m, &mut out);
+        out
+    }
+
+    /// [`Filter::measure`] into `out` (every part of it written). Out of
+    /// line, into the caller's slot: the model's temporaries are not in the
+    /// frame that holds the measurement while the factor is updated
+    /// (firmware stack).
+    #[inline(never)]
+    fn measure_into(
+        &self,
+        x: &SVector<f64, N>,
+        pending: &Pending<T, N>,
+        m: &InstallationMatrices<f64>,
+        out: &mut Measured<T, N, Z>,
+    ) {
         let layout = Self::LAYOUT;
         let env = &self.config.env;
         let as_f64 = (&pending.prop as &dyn Any).downcast_ref::<PeriodPropagation<f64, N>>();
-        let (za, ha, da): (_, SMatrix<T, 3, N>, _) = if let Some(prop) = as_f64 {
-            // T = f64: the nodes in `prop` are the f64 ones.
-            let (za, ha, da) = layout.mean_accel(env, m, prop, &pending.period);
-            (za, to_t(&ha), da)
+        out.z.fill(0.0);
+        out.h.fill(T::zero());
+        out.noise.g.fill(T::zero());
+        out.noise.d.fill(T::zero());
+        let accel_row = Self::ACCEL_ROW;
+        let h64 = (&mut out.h as &mut dyn Any).downcast_mut::<SMatrix<f64, Z, N>>();
+        let (za, da) = if let (Some(prop), Some(h64)) = (as_f64, h64) {
+            // T = f64: the nodes in `prop` are the f64 ones. The Jacobian
+            // is written into its rows of `out.h`.
+            let mut ha = h64.fixed_rows_mut::<3>(accel_row);
+            layout.mean_accel(env, m, prop, &pending.period, &mut ha)
         } else {
             // The value in f64 (it must resolve 1e-7 g of 1 g), the
             // Jacobians in T (they need a few digits; f64 is emulated on an
             // FPU without it), on the f64 installation matrices rounded.
             let za = layout.mean_accel_output(env, m, &pending.att, &pending.period);
-            let (_, ha, da): (_, SMatrix<T, 3, N>, _) = layout.mean_accel(
+            let mut ha = out.h.fixed_rows_mut::<3>(accel_row);
+            let (_, da) = layout.mean_accel(
                 &env_t(env),
                 &m.to_precision(),
                 &pending.prop,
                 &period_t(&pending.period),
+                &mut ha,
             );
-            (za, ha, to_f64(&da))
-        };
-        // Filled where it is returned (no copies of its parts in this frame).
-        let mut out = Measured {
-            z: SVector::<f64, Z>::zeros(),
-            h: SMatrix::zeros(),
-            noise: Noise {
-                g: SMatrix::zeros(),
-                d: SMatrix::zeros(),
-            },
+            (za, to_f64(&da))
         };
         if layout.gimbal_obs {
             let att = layout.attitude(x);
@@ -1084,9 +1113,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 .fixed_view_mut::<3, 3>(0, ATT)
                 .copy_from(&Matrix3::identity());
         }
-        let accel_row = Self::ACCEL_ROW;
         out.z.fixed_rows_mut::<3>(accel_row).copy_from(&za);
-        out.h.fixed_rows_mut::<3>(accel_row).copy_from(&ha);
         // Unit-variance noise w = σ_g u: x_{k+1} gets G u, z gets D u.
         let sigma_g: f64 = self.config.sigma_gyro.to_subset().unwrap_or(f64::NAN);
         out.noise.g.fixed_rows_mut::<3>(ATT).copy_from(
@@ -1097,7 +1124,6 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             .d
             .fixed_rows_mut::<3>(accel_row)
             .copy_from(&to_t(&(da * sigma_g)));
-        out
     }
 
     /// The trajectory over the pending period that ends at state `x`
@@ -1260,8 +1286,9 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let pending = self.pending.get().ok_or(Error::NoPrediction)?;
         // Used in place (moving its parts out would copy them in this frame,
         // which is on the deepest path of a step).
-        let (nu, measured) = &mut self.innovation_at(z, &self.x, pending, mean2, &self.matrices.0);
-        self.factored(&mut measured.h, nu, r_v, &measured.noise, true, None)
+        let mut measured = Measured::zeros();
+        let nu = self.innovation_at(z, &self.x, pending, mean2, &self.matrices.0, &mut measured);
+        self.factored(&mut measured.h, &nu, r_v, &measured.noise, true, None)
     }
 
     /// [`Filter::update_extended`] linearised at the iterated EKF's
@@ -1277,17 +1304,16 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         iterations: u8,
     ) -> Result<Innovation<T, Z>, Error> {
         let pending = self.pending.get().ok_or(Error::NoPrediction)?;
-        let (nu, measured) = &mut self.iterated_innovation(z, pending, r_v, mean2, iterations)?;
-        self.factored(&mut measured.h, nu, r_v, &measured.noise, true, None)
+        let mut measured = Measured::zeros();
+        let nu = self.iterated_innovation(z, pending, r_v, mean2, iterations, &mut measured)?;
+        self.factored(&mut measured.h, &nu, r_v, &measured.noise, true, None)
     }
 
     /// The innovation `ν = z − h(x_i) − H (x̂ − x_i)` of the EKF update
     /// linearised at `x_lin` (trajectory `lin`), less the second-order mean
     /// `mean2` when enabled, gimbal components wrapped; with the measurement
-    /// model there. `m`: the installation matrices of `x_lin`.
-    // Inlined: the measurement model is built where the caller holds it
-    // (no copy of it in a frame of its own; firmware stack).
-    #[inline(always)]
+    /// model there written into `measured`. `m`: the installation matrices
+    /// of `x_lin`.
     fn innovation_at(
         &self,
         z: &SVector<f64, Z>,
@@ -1295,9 +1321,10 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         lin: &Pending<T, N>,
         mean2: &Vector3<f64>,
         m: &InstallationMatrices<f64>,
-    ) -> (SVector<f64, Z>, Measured<T, N, Z>) {
+        measured: &mut Measured<T, N, Z>,
+    ) -> SVector<f64, Z> {
         let layout = Self::LAYOUT;
-        let measured = self.measure(x_lin, lin, m);
+        self.measure_into(x_lin, lin, m, measured);
         let mut nu = z - measured.z;
         nu -= linear_term::<T, N, Z>(&measured.h, &layout.difference(&self.x, x_lin));
         if self.config.options.second_order_mean {
@@ -1309,7 +1336,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 *v = wrap_angle(*v);
             }
         }
-        (nu, measured)
+        nu
     }
 
     /// [`Filter::innovation_at`] the iterated EKF's relinearisation point:
@@ -1326,7 +1353,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         r_v: &SMatrix<T, Z, Z>,
         mean2: &Vector3<f64>,
         iterations: u8,
-    ) -> Result<(SVector<f64, Z>, Measured<T, N, Z>), Error> {
+        measured: &mut Measured<T, N, Z>,
+    ) -> Result<SVector<f64, Z>, Error> {
         let p_prior = to_f64(&self.settled().covariance());
         let r_v = to_f64(r_v);
         let mut x_lin = self.x;
@@ -1336,17 +1364,17 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 lin = self.retrace(&x_lin, pending)?;
             }
             let m = Self::LAYOUT.matrices(&x_lin);
-            let (nu, Measured { h, noise, .. }) = self.innovation_at(z, &x_lin, &lin, mean2, &m);
+            let nu = self.innovation_at(z, &x_lin, &lin, mean2, &m, measured);
             let noise = Noise {
-                g: to_f64(&noise.g),
-                d: to_f64(&noise.d),
+                g: to_f64(&measured.noise.g),
+                d: to_f64(&measured.noise.d),
             };
-            let gain = dense_gain(&p_prior, &to_f64(&h), &r_v, &noise)?;
+            let gain = dense_gain(&p_prior, &to_f64(&measured.h), &r_v, &noise)?;
             x_lin = self.x + gain.k * nu;
         }
         let lin = self.retrace(&x_lin, pending)?;
         let m = Self::LAYOUT.matrices(&x_lin);
-        Ok(self.innovation_at(z, &x_lin, &lin, mean2, &m))
+        Ok(self.innovation_at(z, &x_lin, &lin, mean2, &m, measured))
     }
 
     /// The measurement noise covariance `R` (diagonal: gimbal σ² (rad²) in
@@ -1379,7 +1407,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         // The nominal's matrices (the cache holds them since `predict`).
         self.matrices.refresh(&layout, x_nom);
         // Used in place (moving its parts out would copy them in this frame).
-        let measured = &mut self.measure(x_nom, pending, &self.matrices.0);
+        let mut measured = Measured::zeros();
+        self.measure_into(x_nom, pending, &self.matrices.0, &mut measured);
         let delta = layout.difference(&self.x, x_nom);
         let h_delta = linear_term::<T, N, Z>(&measured.h, &delta);
         let mut nu = match z {
@@ -1628,7 +1657,9 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     }
 
     /// [`Filter::step`] with `obs`, or [`Filter::step_noise_free`] for
-    /// `None`.
+    /// `None`. Out of line: one filter step is this function
+    /// (`firmware/bench.sh` measures its stack).
+    #[inline(never)]
     fn step_with(
         &mut self,
         dtheta_c: &Vector3<f64>,
@@ -1651,12 +1682,9 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             Some(obs) => self.update(obs),
             None => self.update_linearised(None),
         };
-        // Returned as it is (no copy of the innovation in this frame).
-        if let Err(e) = &updated {
-            if *e != Error::Gated {
-                (self.x, self.command, self.reference) = saved;
-                self.pending.clear();
-            }
+        if matches!(updated, Err(e) if e != Error::Gated) {
+            (self.x, self.command, self.reference) = saved;
+            self.pending.clear();
         }
         updated
     }

@@ -21,7 +21,7 @@
 //! All states are radians. The state vector is
 //! `[attitude(3), θgC or θgC^pa (3), θgT (3), θaC (3, ps only), θaT (3), λ (3, M2/M3)]`.
 
-use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3};
+use nalgebra::{Const, Matrix, Matrix3, RealField, SMatrix, SVector, StorageMut, Vector3, U3};
 
 use crate::command::Period;
 use crate::geometry::{
@@ -1120,19 +1120,24 @@ impl Layout {
     /// *given* `x_{k+1}`: the noise moved the attitude by `B w (t − t_k)`
     /// while the model traces back from an end state that holds all of
     /// `B w T`, so `D = Σ_j w_j H_att(t_j) (t_j − t_{k+1}) B`.
-    pub fn mean_accel<T: RealField + Copy, const N: usize>(
+    ///
+    /// Returns the output and `D`; the Jacobian is written into `h` (3×N,
+    /// e.g. the accelerometer rows of a measurement's Jacobian: no 3×N copy
+    /// of it in the caller's frame).
+    pub fn mean_accel<T: RealField + Copy, const N: usize, S: StorageMut<T, U3, Const<N>>>(
         &self,
         env: &Environment<T>,
         m: &InstallationMatrices<T>,
         prop: &PeriodPropagation<T, N>,
         period: &Period<T>,
-    ) -> (Vector3<T>, SMatrix<T, 3, N>, Matrix3<T>) {
+        h: &mut Matrix<T, U3, Const<N>, S>,
+    ) -> (Vector3<T>, Matrix3<T>) {
         let six: T = nalgebra::convert(6.0);
         let four: T = nalgebra::convert(4.0);
         let half: T = nalgebra::convert(0.5);
         let weights = [T::one() / six, four / six, T::one() / six];
         let mut z = Vector3::zeros();
-        let mut h = SMatrix::<T, 3, N>::zeros();
+        h.fill(T::zero());
         let mut d = Matrix3::zeros();
         let back = [-period.dt, -period.dt * half, T::zero()];
         // F over [t_j, t_{k+1}]: the midpoint F for the whole period, the mean
@@ -1158,9 +1163,9 @@ impl Layout {
             // The end node: Φ(t_{k+1} ← t_{k+1}) = I, and no noise
             // accumulated after it. In place (no 3×N temporaries).
             hj *= w;
-            h += &hj;
+            *h += &hj;
         }
-        (z, h, d)
+        (z, d)
     }
 }
 

@@ -443,7 +443,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize, const 
         if !measured {
             return Ok((phi, self.info));
         }
-        let (_, h_accel, _) = layout.mean_accel(&env, &m, &prop, &period);
+        let mut h_accel = SMatrix::<f64, 3, N>::zeros();
+        layout.mean_accel(&env, &m, &prop, &period, &mut h_accel);
         // H_k Φ(k,0) and R⁻¹ (diagonal).
         let cfg = self.crlb.config();
         let mut h = SMatrix::<T, Z, N>::zeros();

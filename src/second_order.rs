@@ -240,18 +240,50 @@ impl<T: RealField + Copy> Pieces<'_, T> {
         }
     }
 
-    /// The block `∂²h/∂(part i)_k ∂(part j)_l` ([`Block`]).
-    fn block(&self, i: Part, j: Part) -> Block<T> {
-        match (i, j) {
-            // The mirrored orders: ∂²h/∂x_i∂x_j = ∂²h/∂x_j∂x_i.
+    /// Writes the block `∂²h/∂(part i)_k ∂(part j)_l` ([`Block`]) into the
+    /// three Hessians at local rows `li..li + 3`, columns `lj..lj + 3`, and
+    /// mirrored. A pair the formulas take in the other order is the
+    /// [`Pieces::canonical`] block `(j, i)` written at `(lj, li)` (and
+    /// mirrored): `∂²h/∂x_i∂x_j = ∂²h/∂x_j∂x_i`. Out of line: the block's
+    /// temporaries are not in the frame that holds the Hessians (firmware
+    /// stack).
+    #[inline(never)]
+    fn write_block<const R: usize>(
+        &self,
+        i: Part,
+        j: Part,
+        li: usize,
+        lj: usize,
+        hess: &mut [SMatrix<T, R, R>; 3],
+    ) {
+        let mirrored = matches!(
+            (i, j),
             (Part::Att | Part::Lam, Part::Ac)
-            | (Part::Att | Part::Ac | Part::Lam, Part::At)
-            | (Part::Lam, Part::Att) => swap(&self.canonical(j, i)),
-            _ => self.canonical(i, j),
+                | (Part::Att | Part::Ac | Part::Lam, Part::At)
+                | (Part::Lam, Part::Att)
+        );
+        let (i, j, li, lj) = if mirrored {
+            (j, i, lj, li)
+        } else {
+            (i, j, li, lj)
+        };
+        let blk = self.canonical(i, j);
+        for (k, mk) in blk.iter().enumerate() {
+            for (l, v) in mk.data.0.iter().enumerate() {
+                for (ha, va) in hess.iter_mut().zip(v.iter()) {
+                    if let Some(e) = ha.get_mut((li + k, lj + l)) {
+                        *e = *va;
+                    }
+                    if let Some(e) = ha.get_mut((lj + l, li + k)) {
+                        *e = *va;
+                    }
+                }
+            }
         }
     }
 
-    /// [`Pieces::block`] for the pairs in the order the formulas take them.
+    /// The block `∂²h/∂(part i)_k ∂(part j)_l` for the pairs in the order
+    /// the formulas take them (see [`Pieces::write_block`]).
     fn canonical(&self, i: Part, j: Part) -> Block<T> {
         let a = self.unit_t * self.r_c;
         let pl = &self.platform;
@@ -277,13 +309,6 @@ impl<T: RealField + Copy> Pieces<'_, T> {
             _ => zero_block(),
         }
     }
-}
-
-/// The block of the mirrored pair: element `k`, column `l` of the result
-/// is element `l`, column `k` of `b`.
-fn swap<T: RealField + Copy>(b: &Block<T>) -> Block<T> {
-    let [b0, b1, b2] = b;
-    [0, 1, 2].map(|k| Matrix3::from_columns(&[col(b0, k), col(b1, k), col(b2, k)]))
 }
 
 impl Layout {
@@ -379,19 +404,7 @@ impl Layout {
         let mut hess = [SMatrix::<T, R, R>::zeros(); 3];
         for (n, &(pi, li, _)) in at.iter().enumerate() {
             for &(pj, lj, _) in at.iter().skip(n) {
-                let blk = pieces.block(pi, pj);
-                for (k, mk) in blk.iter().enumerate() {
-                    for (l, v) in mk.data.0.iter().enumerate() {
-                        for (ha, va) in hess.iter_mut().zip(v.iter()) {
-                            if let Some(e) = ha.get_mut((li + k, lj + l)) {
-                                *e = *va;
-                            }
-                            if let Some(e) = ha.get_mut((lj + l, li + k)) {
-                                *e = *va;
-                            }
-                        }
-                    }
-                }
+                pieces.write_block(pi, pj, li, lj, &mut hess);
             }
         }
         // The covariance of the same states (symmetric: each element read
