@@ -1178,7 +1178,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         // No copy of the matrices when T is f64.
         let mut rounded = None;
         let m = matrices_in(m, &mut rounded);
-        let x: SVector<T, N> = to_t(x);
+        let att: Vector3<T> = to_t(&layout.attitude(x));
         // P at the end of the period, element by element from its factor
         // (only the ≤ 12 states the accelerometers see; no N×N matrix, and
         // no copy of the factor: the time update changes only its first
@@ -1186,14 +1186,13 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let rows = self
             .ud
             .predicted_attitude_rows(&pending.prop.phi_att, &self.process_noise(pending));
-        let terms =
-            layout.accel_second_order_with(&env, m, &layout.attitude(&x), &c_end, |i, j| {
-                match &rows {
-                    Some(rows) => self.ud.covariance_entry_with_rows(rows, i, j),
-                    // As `settled` (the unpropagated factor; predict checks it).
-                    None => self.ud.covariance_entry(i, j),
-                }
-            });
+        let terms = layout.accel_second_order_with(&env, m, &att, &c_end, |i, j| {
+            match &rows {
+                Some(rows) => self.ud.covariance_entry_with_rows(rows, i, j),
+                // As `settled` (the unpropagated factor; predict checks it).
+                None => self.ud.covariance_entry(i, j),
+            }
+        });
         (to_f64(&terms.mean), to_f64(&terms.cov))
     }
 
@@ -1254,11 +1253,6 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         } else {
             (Vector3::zeros(), Matrix3::zeros())
         };
-        let mut r_v = self.measurement_noise();
-        if opts.second_order_covariance {
-            let mut blk = r_v.fixed_view_mut::<3, 3>(Self::ACCEL_ROW, Self::ACCEL_ROW);
-            blk += to_t::<T, 3, 3>(&cov2);
-        }
         let iterations = if RESEARCH_OPTIONS && self.updates < opts.iterate_updates {
             opts.iterations
         } else {
@@ -1268,27 +1262,40 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         // else at the prediction; the update itself is always the factored
         // one.
         if iterations > 0 {
-            return self.update_iterated(z, &r_v, &mean2, iterations);
+            return self.update_iterated(z, &cov2, &mean2, iterations);
         }
-        self.update_predicted(z, &r_v, &mean2)
+        self.update_predicted(z, &cov2, &mean2)
+    }
+
+    /// The EKF's measurement noise `R_v`: `R` plus, when enabled, the
+    /// second-order covariance `cov2` (g²) of the accelerometer rows.
+    fn extended_noise(&self, cov2: &Matrix3<f64>) -> SMatrix<T, Z, Z> {
+        let mut r_v = self.measurement_noise();
+        if self.config.options.second_order_covariance {
+            let mut blk = r_v.fixed_view_mut::<3, 3>(Self::ACCEL_ROW, Self::ACCEL_ROW);
+            blk += to_t::<T, 3, 3>(cov2);
+        }
+        r_v
     }
 
     /// [`Filter::update_extended`] linearised at the prediction (the
-    /// default). Out of line: the measurement model and the whitened update
-    /// it holds are not above the second-order terms' frames.
+    /// default), with the second-order terms `cov2`, `mean2`. Out of line:
+    /// the measurement model, the noise and the whitened update it holds are
+    /// not above the second-order terms' frames.
     #[inline(never)]
     fn update_predicted(
         &mut self,
         z: &SVector<f64, Z>,
-        r_v: &SMatrix<T, Z, Z>,
+        cov2: &Matrix3<f64>,
         mean2: &Vector3<f64>,
     ) -> Result<Innovation<T, Z>, Error> {
         let pending = self.pending.get().ok_or(Error::NoPrediction)?;
-        // Used in place (moving its parts out would copy them in this frame,
+        // Filled in place (moving its parts would copy them in this frame,
         // which is on the deepest path of a step).
         let mut measured = Measured::zeros();
         let nu = self.innovation_at(z, &self.x, pending, mean2, &self.matrices.0, &mut measured);
-        self.factored(&mut measured.h, &nu, r_v, &measured.noise, true, None)
+        let r_v = self.extended_noise(cov2);
+        self.factored(&mut measured.h, &nu, &r_v, &measured.noise, true, None)
     }
 
     /// [`Filter::update_extended`] linearised at the iterated EKF's
@@ -1299,14 +1306,15 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     fn update_iterated(
         &mut self,
         z: &SVector<f64, Z>,
-        r_v: &SMatrix<T, Z, Z>,
+        cov2: &Matrix3<f64>,
         mean2: &Vector3<f64>,
         iterations: u8,
     ) -> Result<Innovation<T, Z>, Error> {
         let pending = self.pending.get().ok_or(Error::NoPrediction)?;
+        let r_v = self.extended_noise(cov2);
         let mut measured = Measured::zeros();
-        let nu = self.iterated_innovation(z, pending, r_v, mean2, iterations, &mut measured)?;
-        self.factored(&mut measured.h, &nu, r_v, &measured.noise, true, None)
+        let nu = self.iterated_innovation(z, pending, &r_v, mean2, iterations, &mut measured)?;
+        self.factored(&mut measured.h, &nu, &r_v, &measured.noise, true, None)
     }
 
     /// The innovation `ν = z − h(x_i) − H (x̂ − x_i)` of the EKF update
@@ -1675,18 +1683,33 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         }
         // `predict` and `update` leave the factor untouched on error (every
         // input of the in-place update is checked before it is touched; see
-        // `update` for the one exception), so only the state is saved.
-        let saved = (self.x, self.command, self.reference);
+        // `update` for the one exception), so only the state is saved: the
+        // estimate, the computed frame, and the nominal's attitude (`predict`
+        // moves only the attitude of the nominal).
+        let layout = Self::LAYOUT;
+        let saved = (
+            self.x,
+            self.command,
+            self.reference.as_ref().map(|r| layout.attitude(r)),
+        );
         self.predict(dtheta_c, dt)?;
         let updated = match obs {
             Some(obs) => self.update(obs),
             None => self.update_linearised(None),
         };
-        if matches!(updated, Err(e) if e != Error::Gated) {
-            (self.x, self.command, self.reference) = saved;
-            self.pending.clear();
+        match updated {
+            Err(e) if e != Error::Gated => {
+                let (x, command, nominal_att) = saved;
+                self.x = x;
+                self.command = command;
+                if let (Some(r), Some(att)) = (self.reference.as_mut(), nominal_att) {
+                    r.fixed_rows_mut::<3>(ATT).copy_from(&att);
+                }
+                self.pending.clear();
+                Err(e)
+            }
+            other => other,
         }
-        updated
     }
 
     /// Measurement function and Jacobian at an arbitrary end-of-period state,

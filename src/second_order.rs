@@ -161,27 +161,51 @@ fn symmetrise<T: RealField + Copy, const R: usize>(a: &mut SMatrix<T, R, R>, hal
     }
 }
 
+/// A symmetric `R×R` matrix held as its upper triangle, column by column
+/// (`P = R(R+1)/2` elements; element `(r, c)`, `r ≤ c`, at `c(c+1)/2 + r`):
+/// the covariance of the states the accelerometer sees in half the room.
+struct PackedSymmetric<T, const R: usize, const P: usize>([T; P]);
+
+impl<T: RealField + Copy, const R: usize, const P: usize> PackedSymmetric<T, R, P> {
+    fn zeros() -> Self {
+        Self([T::zero(); P])
+    }
+
+    /// Sets elements `(r, c)` and `(c, r)`, `r ≤ c`.
+    fn set(&mut self, r: usize, c: usize, v: T) {
+        if let Some(e) = self.0.get_mut(c * (c + 1) / 2 + r) {
+            *e = v;
+        }
+    }
+}
+
 /// `a ← a b` for square `R×R` matrices with `b` symmetric, in place, one
 /// row of `a` at a time (each row of the product needs only the same row of
-/// `a`): one row of temporaries instead of an `R×R` product. The row is
-/// accumulated from the columns of `b`, which equal its rows (contiguous
-/// and vectorisable, where `b`'s rows are strided); every element is still
-/// `Σ_k a_ik b_kj` summed over ascending `k` from zero, as nalgebra's
+/// `a`): one row of temporaries instead of an `R×R` product. Every element
+/// is `Σ_k a_ik b_kj` summed over ascending `k` from zero, as nalgebra's
 /// product would.
-fn mul_rows_by_symmetric_in_place<T: RealField + Copy, const R: usize>(
+fn mul_rows_by_symmetric_in_place<T: RealField + Copy, const R: usize, const P: usize>(
     a: &mut SMatrix<T, R, R>,
-    b: &SMatrix<T, R, R>,
+    b: &PackedSymmetric<T, R, P>,
 ) {
     for r in 0..R {
         let mut row = [T::zero(); R];
-        for (k, b_k) in b.data.0.iter().enumerate() {
-            let Some(&a_rk) = a.get((r, k)) else {
-                continue;
-            };
-            // b_k is column k of b, equal to its row k: b_kj for every j.
-            for (o, b_kj) in row.iter_mut().zip(b_k.iter()) {
-                *o += a_rk * *b_kj;
+        for (j, o) in row.iter_mut().enumerate() {
+            // b_kj: packed column j down to the diagonal, then row j of the
+            // columns to its right.
+            let column_j = j * (j + 1) / 2;
+            let mut s = T::zero();
+            for k in 0..R {
+                let at = if k <= j {
+                    column_j + k
+                } else {
+                    k * (k + 1) / 2 + j
+                };
+                if let (Some(&a_rk), Some(&b_kj)) = (a.get((r, k)), b.0.get(at)) {
+                    s += a_rk * b_kj;
+                }
             }
+            *o = s;
         }
         for (c, v) in row.iter().enumerate() {
             if let Some(e) = a.get_mut((r, c)) {
@@ -208,11 +232,11 @@ fn e_times<T: RealField + Copy>(k: usize, m: &Matrix3<T>) -> Matrix3<T> {
 /// The pieces every block is made of.
 struct Pieces<'a, T: RealField + Copy> {
     /// `I + L(θaT)`.
-    unit_t: Matrix3<T>,
+    unit_t: &'a Matrix3<T>,
     /// `R(−θaC)`.
-    r_c: Matrix3<T>,
+    r_c: &'a Matrix3<T>,
     /// `J_r(−θaC)`.
-    j_c: Matrix3<T>,
+    j_c: &'a Matrix3<T>,
     platform: &'a Platform<T>,
     /// `∂²(R(−θaC) q)/∂θaC²` ([`d2_dcm_times`] at `−θaC`), when `θaC` is
     /// a state.
@@ -226,7 +250,7 @@ impl<T: RealField + Copy> Pieces<'_, T> {
             Part::Att => self.r_c * self.platform.d_att,
             Part::Lam => self.r_c * self.platform.d_lam,
             // ∂(R(−θ) q)/∂θ = −∂(R(φ) q)/∂φ at φ = −θ.
-            Part::Ac => -(skew(&(self.r_c * self.platform.q)) * self.j_c),
+            Part::Ac => -(skew(&(self.r_c * self.platform.q)) * *self.j_c),
             Part::At => Matrix3::zeros(),
         }
     }
@@ -298,7 +322,7 @@ impl<T: RealField + Copy> Pieces<'_, T> {
             },
             (Part::Ac, y @ (Part::Att | Part::Lam)) => {
                 let ry = self.r_c * self.q_jacobian(y);
-                [0, 1, 2].map(|k| self.unit_t * skew(&col(&self.j_c, k)) * ry)
+                [0, 1, 2].map(|k| self.unit_t * skew(&col(self.j_c, k)) * ry)
             }
             (Part::At, Part::At) => zero_block(),
             (Part::At, other) => {
@@ -366,9 +390,9 @@ impl Layout {
             .any(|(part, _)| *part == Part::Ac)
             .then(|| d2_dcm_times(&-m.params.theta_a_c, &platform.q));
         match parts.iter().flatten().count() {
-            2 => self.second_order_terms::<T, 6>(m, &platform, &ac_ac, &p, &parts),
-            3 => self.second_order_terms::<T, 9>(m, &platform, &ac_ac, &p, &parts),
-            _ => self.second_order_terms::<T, 12>(m, &platform, &ac_ac, &p, &parts),
+            2 => self.second_order_terms::<T, 6, 21>(m, &platform, &ac_ac, &p, &parts),
+            3 => self.second_order_terms::<T, 9, 45>(m, &platform, &ac_ac, &p, &parts),
+            _ => self.second_order_terms::<T, 12, 78>(m, &platform, &ac_ac, &p, &parts),
         }
     }
 
@@ -377,7 +401,7 @@ impl Layout {
     /// three sizes' frames would otherwise add up in
     /// [`Layout::accel_second_order_with`]'s.
     #[inline(never)]
-    fn second_order_terms<T: RealField + Copy, const R: usize>(
+    fn second_order_terms<T: RealField + Copy, const R: usize, const P: usize>(
         &self,
         m: &InstallationMatrices<T>,
         platform: &Platform<T>,
@@ -387,9 +411,9 @@ impl Layout {
     ) -> AccelSecondOrder<T> {
         let half: T = nalgebra::convert(0.5);
         let pieces = Pieces {
-            unit_t: m.unit_a_t,
-            r_c: m.r_a_c,
-            j_c: m.jr_a_c,
+            unit_t: &m.unit_a_t,
+            r_c: &m.r_a_c,
+            j_c: &m.jr_a_c,
             platform,
             ac_ac,
         };
@@ -409,7 +433,7 @@ impl Layout {
         }
         // The covariance of the same states (symmetric: each element read
         // once, on or above the diagonal, and mirrored).
-        let mut p_r = SMatrix::<T, R, R>::zeros();
+        let mut p_r = PackedSymmetric::<T, R, P>::zeros();
         for &(_, li, si) in at {
             for &(_, lj, sj) in at {
                 for k in 0..3 {
@@ -419,12 +443,7 @@ impl Layout {
                             continue;
                         }
                         if let Some(v) = p(si + k, sj + l) {
-                            if let Some(dst) = p_r.get_mut((r, c)) {
-                                *dst = v;
-                            }
-                            if let Some(dst) = p_r.get_mut((c, r)) {
-                                *dst = v;
-                            }
+                            p_r.set(r, c, v);
                         }
                     }
                 }

@@ -45,9 +45,25 @@ fn filter(options: Options) -> M2PsFilter<f64> {
 
 #[test]
 fn bad_input_is_rejected_and_leaves_the_filter_untouched() {
+    bad_input_leaves(false);
+}
+
+/// The same for the linearised filter: a rejected step also leaves its
+/// nominal (which `predict` moves) where it was.
+#[test]
+fn bad_input_leaves_the_linearised_filter_and_its_nominal_untouched() {
+    bad_input_leaves(true);
+}
+
+/// Twenty good steps, then bad input in every place a step reads it; with
+/// `linearised`, about the estimate after ten steps as the nominal.
+fn bad_input_leaves(linearised: bool) {
     let samples = samples();
     let mut f = filter(Options::default());
-    for s in samples.iter().take(20) {
+    for (k, s) in samples.iter().take(20).enumerate() {
+        if linearised && k == 10 {
+            f.set_nominal(Some(*f.state()));
+        }
         f.step(
             &s.dtheta_cmd,
             s.dt,
@@ -58,6 +74,7 @@ fn bad_input_is_rejected_and_leaves_the_filter_untouched() {
         )
         .unwrap();
     }
+    assert_eq!(f.nominal().is_some(), linearised);
     let before = f.clone();
     let s = &samples[20];
     let good = Observation {
