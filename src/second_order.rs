@@ -161,51 +161,27 @@ fn symmetrise<T: RealField + Copy, const R: usize>(a: &mut SMatrix<T, R, R>, hal
     }
 }
 
-/// A symmetric `R×R` matrix held as its upper triangle, column by column
-/// (`P = R(R+1)/2` elements; element `(r, c)`, `r ≤ c`, at `c(c+1)/2 + r`):
-/// the covariance of the states the accelerometer sees in half the room.
-struct PackedSymmetric<T, const R: usize, const P: usize>([T; P]);
-
-impl<T: RealField + Copy, const R: usize, const P: usize> PackedSymmetric<T, R, P> {
-    fn zeros() -> Self {
-        Self([T::zero(); P])
-    }
-
-    /// Sets elements `(r, c)` and `(c, r)`, `r ≤ c`.
-    fn set(&mut self, r: usize, c: usize, v: T) {
-        if let Some(e) = self.0.get_mut(c * (c + 1) / 2 + r) {
-            *e = v;
-        }
-    }
-}
-
 /// `a ← a b` for square `R×R` matrices with `b` symmetric, in place, one
 /// row of `a` at a time (each row of the product needs only the same row of
-/// `a`): one row of temporaries instead of an `R×R` product. Every element
-/// is `Σ_k a_ik b_kj` summed over ascending `k` from zero, as nalgebra's
+/// `a`): one row of temporaries instead of an `R×R` product. The row is
+/// accumulated from the columns of `b`, which equal its rows (contiguous
+/// and vectorisable, where `b`'s rows are strided); every element is still
+/// `Σ_k a_ik b_kj` summed over ascending `k` from zero, as nalgebra's
 /// product would.
-fn mul_rows_by_symmetric_in_place<T: RealField + Copy, const R: usize, const P: usize>(
+fn mul_rows_by_symmetric_in_place<T: RealField + Copy, const R: usize>(
     a: &mut SMatrix<T, R, R>,
-    b: &PackedSymmetric<T, R, P>,
+    b: &SMatrix<T, R, R>,
 ) {
     for r in 0..R {
         let mut row = [T::zero(); R];
-        for (j, o) in row.iter_mut().enumerate() {
-            // b_kj: packed column j down to the diagonal, then row j of the
-            // columns to its right.
-            let column_j = j * (j + 1) / 2;
-            let mut s = T::zero();
-            for k in 0..R {
-                let at = if k <= j {
-                    column_j + k
-                } else {
-                    k * (k + 1) / 2 + j
-                };
-                if let (Some(&a_rk), Some(&b_kj)) = (a.get((r, k)), b.0.get(at)) {
-                    s += a_rk * b_kj;
-                }
+        for (k, b_k) in b.data.0.iter().enumerate() {
+            let Some(&a_rk) = a.get((r, k)) else {
+                continue;
+            };
+            // b_k is column k of b, equal to its row k: b_kj for every j.
+            for (o, b_kj) in row.iter_mut().zip(b_k.iter()) {
+                *o += a_rk * *b_kj;
             }
-            *o = s;
         }
         for (c, v) in row.iter().enumerate() {
             if let Some(e) = a.get_mut((r, c)) {
@@ -390,9 +366,9 @@ impl Layout {
             .any(|(part, _)| *part == Part::Ac)
             .then(|| d2_dcm_times(&-m.params.theta_a_c, &platform.q));
         match parts.iter().flatten().count() {
-            2 => self.second_order_terms::<T, 6, 21>(m, &platform, &ac_ac, &p, &parts),
-            3 => self.second_order_terms::<T, 9, 45>(m, &platform, &ac_ac, &p, &parts),
-            _ => self.second_order_terms::<T, 12, 78>(m, &platform, &ac_ac, &p, &parts),
+            2 => self.second_order_terms::<T, 6>(m, &platform, &ac_ac, &p, &parts),
+            3 => self.second_order_terms::<T, 9>(m, &platform, &ac_ac, &p, &parts),
+            _ => self.second_order_terms::<T, 12>(m, &platform, &ac_ac, &p, &parts),
         }
     }
 
@@ -401,7 +377,7 @@ impl Layout {
     /// three sizes' frames would otherwise add up in
     /// [`Layout::accel_second_order_with`]'s.
     #[inline(never)]
-    fn second_order_terms<T: RealField + Copy, const R: usize, const P: usize>(
+    fn second_order_terms<T: RealField + Copy, const R: usize>(
         &self,
         m: &InstallationMatrices<T>,
         platform: &Platform<T>,
@@ -433,7 +409,7 @@ impl Layout {
         }
         // The covariance of the same states (symmetric: each element read
         // once, on or above the diagonal, and mirrored).
-        let mut p_r = PackedSymmetric::<T, R, P>::zeros();
+        let mut p_r = SMatrix::<T, R, R>::zeros();
         for &(_, li, si) in at {
             for &(_, lj, sj) in at {
                 for k in 0..3 {
@@ -443,7 +419,12 @@ impl Layout {
                             continue;
                         }
                         if let Some(v) = p(si + k, sj + l) {
-                            p_r.set(r, c, v);
+                            if let Some(dst) = p_r.get_mut((r, c)) {
+                                *dst = v;
+                            }
+                            if let Some(dst) = p_r.get_mut((c, r)) {
+                                *dst = v;
+                            }
                         }
                     }
                 }
