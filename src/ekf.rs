@@ -867,8 +867,14 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
 
     /// Per-state standard deviations `√P_ii` (rad).
     pub fn sigma(&self) -> SVector<T, N> {
-        let variances = match self.pending.get() {
-            Some(_) => self.settled().variances(),
+        // With a period pending, those of `settled()`, from its new
+        // attitude rows (no copy of the factor).
+        let rows = self.pending.get().and_then(|p| {
+            self.ud
+                .predicted_attitude_rows(&p.prop.phi_att, &self.process_noise(p))
+        });
+        let variances = match rows {
+            Some(rows) => self.ud.variances_with_rows(&rows),
             None => self.ud.variances(),
         };
         variances.map(|v| v.max(T::zero()).sqrt())

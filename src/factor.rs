@@ -199,6 +199,16 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         })
     }
 
+    /// [`Ud::variances`] of the factor whose first three rows are `rows`
+    /// (as [`Ud::covariance_entry_with_rows`]; the same operations): the
+    /// variances after the time update, without forming that factor.
+    pub fn variances_with_rows(&self, rows: &SMatrix<T, 3, N>) -> SVector<T, N> {
+        SVector::from_fn(|i, _| {
+            self.covariance_entry_with_rows(rows, i, i)
+                .unwrap_or_else(T::zero)
+        })
+    }
+
     /// `P_ij = Σ_{k ≥ j} U_ik D_k U_jk` over the packed factor read
     /// through `at(row, col)`.
     fn entry_with(&self, i: usize, j: usize, at: impl Fn(usize, usize) -> Option<T>) -> Option<T> {

@@ -11,9 +11,9 @@
 //!   `accel_output` and `accel_jacobian` apart, for every configuration;
 //! - `Ud::covariance_entry` (one element of `P` from the factor) against
 //!   `Ud::covariance`;
-//! - `Ud::predicted_attitude_rows` and `Ud::covariance_entry_with_rows`
-//!   (`P` after the time update without forming its factor) against
-//!   `Ud::predict_attitude` on a copy.
+//! - `Ud::predicted_attitude_rows`, `Ud::covariance_entry_with_rows` and
+//!   `Ud::variances_with_rows` (`P` after the time update without forming
+//!   its factor) against `Ud::predict_attitude` on a copy.
 //!
 //! Equality is exact: these replace their originals on the estimator's path,
 //! and `tools/compare-runs.sh` relies on the answers not moving at all.
@@ -189,4 +189,5 @@ fn predicted_attitude_rows_equal_the_time_update() {
         }
     }
     assert_eq!(ud.covariance_entry_with_rows(&rows, 18, 0), None);
+    assert_eq!(ud.variances_with_rows(&rows), propagated.variances());
 }
