@@ -273,7 +273,13 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     // frames must not add up in one caller's frame (firmware stack).
     #[inline(never)]
     pub fn reset(&mut self) -> Result<(), Error> {
-        self.filter = Self::fresh_filter(&self.settings)?;
+        // The filter restarted in place (no filter-sized temporary).
+        let s = &self.settings;
+        self.filter.restart(
+            Self::filter_config(s),
+            SVector::zeros(),
+            SVector::repeat(to_t(s.prior_sigma_rad)),
+        )?;
         self.progress = Progress::default();
         Ok(())
     }

@@ -610,6 +610,35 @@ fn finish_is_the_estimator_of_record_over_the_log_or_says_why_not() {
     );
 }
 
+/// `reset` (the filter restarted in place) leaves the calibrator equal to a
+/// new one with the same settings, keeping only the receiver's count of
+/// rejected frames.
+#[test]
+fn reset_is_a_new_calibrator_in_place() {
+    use rollcal::estimator::{LogRecord, SliceLog};
+    let (sc, data) = samples(40);
+    let cfg = settings(&sc, ConfigId::M2Ps, 0);
+    let blank = LogRecord::predicted(1.0, nalgebra::Vector3::zeros());
+    let mut storage = vec![blank; 40];
+    let mut log = SliceLog::new(&mut storage);
+    let mut cal = M2PsCalibrator::<f64>::new(cfg).unwrap();
+    for s in &data {
+        cal.push_logged(s, &mut log).unwrap();
+    }
+    cal.set_frame_errors(3);
+    let fresh = M2PsCalibrator::<f64>::new(cfg).unwrap();
+    assert_ne!(cal.filter(), fresh.filter());
+    cal.reset().unwrap();
+    assert_eq!(cal.filter(), fresh.filter());
+    assert_eq!(cal.settings(), fresh.settings());
+    // (`Debug`: a fresh progress holds a NaN NIS, never `==` itself.)
+    assert_eq!(
+        format!("{:?}", cal.progress()),
+        format!("{:?}", fresh.progress())
+    );
+    assert_eq!(cal.estimate().frame_errors, 3);
+}
+
 #[test]
 fn the_session_checkpoints_resets_restores_and_finishes_as_if_uninterrupted() {
     use rollcal::estimator::{EstimatorOptions, LogRecord, SliceLog};
