@@ -257,7 +257,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     // Inlined: the session builds each configuration in a function of its
     // own (`AnyCalibrator::build_one`), where the calibrator is then built
     // in that frame instead of in one of its own below it and moved up
-    // (firmware stack: on the M7 the path below `build_one` was 18.6 KB, now
+    // (firmware stack: on the M7 the path below `build_one` was 20.5 KB, now
     // 14.0 KB).
     #[inline(always)]
     pub fn new(settings: CalibratorConfig) -> Result<Self, Error> {
