@@ -245,12 +245,20 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         }
     }
 
-    fn fresh_filter(s: &CalibratorConfig) -> Result<Filter<T, M, N, Z>, Error> {
-        Ok(Filter::new(
+    /// The filter's start of `s`: its settings, the zero estimate and the
+    /// prior σ (`prior_sigma_rad`) of every state: what a new calibrator, a
+    /// reset and every pass of the estimator of record start from.
+    fn prior(s: &CalibratorConfig) -> (FilterConfig<T>, SVector<f64, N>, SVector<T, N>) {
+        (
             Self::filter_config(s),
             SVector::zeros(),
             SVector::repeat(to_t(s.prior_sigma_rad)),
-        )?)
+        )
+    }
+
+    fn fresh_filter(s: &CalibratorConfig) -> Result<Filter<T, M, N, Z>, Error> {
+        let (config, x0, sigma0) = Self::prior(s);
+        Ok(Filter::new(config, x0, sigma0)?)
     }
 
     /// A calibrator at the prior (zero estimate, σ = `prior_sigma_rad`).
@@ -277,12 +285,8 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     #[inline(never)]
     pub fn reset(&mut self) -> Result<(), Error> {
         // The filter restarted in place (no filter-sized temporary).
-        let s = &self.settings;
-        self.filter.restart(
-            Self::filter_config(s),
-            SVector::zeros(),
-            SVector::repeat(to_t(s.prior_sigma_rad)),
-        )?;
+        let (config, x0, sigma0) = Self::prior(&self.settings);
+        self.filter.restart(config, x0, sigma0)?;
         self.progress = Progress::default();
         Ok(())
     }
@@ -734,9 +738,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         if let Some(r) = reason {
             return self.estimate_of(&self.filter, single(r));
         }
-        let sigma0 = SVector::repeat(to_t(self.settings.prior_sigma_rad));
-        let config = Self::filter_config(&self.settings);
-        let x0 = SVector::zeros();
+        let (config, x0, sigma0) = Self::prior(&self.settings);
         // Used where it was built (no move of the filter out of the Result).
         let mut built = Filter::new(config, x0, sigma0);
         let Ok(filter) = built.as_mut() else {
