@@ -706,12 +706,8 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
 
     /// [`Calibrator::finish`] without a filter returned by value: `on_final`
     /// sees the final filter when the passes ran (it is not called for a
-    /// single-pass answer). The passes run in one filter in this function's
-    /// frame ([`estimator::estimate_in`]), which the session's `Finish`
-    /// uses: the firmware's stack holds one filter there, not three.
-    // Not inlined: the session dispatches to seven of these, and their
-    // frames must not add up in one caller's frame (firmware stack).
-    #[inline(never)]
+    /// single-pass answer). The passes run in a copy of the running filter
+    /// in this function's frame ([`Calibrator::finish_in`]).
     pub fn finish_with<F, G>(
         &self,
         log: &mut (dyn SampleLog<T> + '_),
@@ -723,11 +719,38 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         F: FnMut(&PassEvent<'_, T, M, N, Z>),
         G: FnOnce(&Filter<T, M, N, Z>),
     {
+        let mut filter = self.filter.clone();
+        let estimate = self.finish_in(&mut filter, log, passes, observer);
+        if matches!(estimate.kind, EstimateKind::Final { .. }) {
+            on_final(&filter);
+        }
+        estimate
+    }
+
+    /// [`Calibrator::finish`] in the caller's `filter`: the passes restart
+    /// it ([`estimator::estimate_in`]; what it held does not matter), and
+    /// after an [`EstimateKind::Final`] answer it is the final filter
+    /// (otherwise it is left as it was or as the failing pass left it). A
+    /// firmware whose session keeps this filter in static memory
+    /// ([`crate::session::AnyFilter`]) has no filter on its stack under the
+    /// passes (5.8 KB of f64 filter on the M7).
+    // Not inlined: the session dispatches to seven of these, and their
+    // frames must not add up in one caller's frame (firmware stack).
+    #[inline(never)]
+    pub fn finish_in<F>(
+        &self,
+        filter: &mut Filter<T, M, N, Z>,
+        log: &mut (dyn SampleLog<T> + '_),
+        passes: &EstimatorOptions,
+        observer: F,
+    ) -> Estimate
+    where
+        F: FnMut(&PassEvent<'_, T, M, N, Z>),
+    {
         let logged = self.progress.logged;
         if log.len() > logged as usize && self.progress.log_incomplete.is_none() {
             log.truncate(logged as usize);
         }
-        let single = |reason| EstimateKind::SinglePass { reason, logged };
         let reason = match self.progress.log_incomplete {
             Some(r) => Some(r),
             None if u32::try_from(log.len()).ok() != Some(logged) => {
@@ -736,26 +759,26 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
             None => None,
         };
         if let Some(r) = reason {
-            return self.estimate_of(&self.filter, single(r));
+            return self.single_pass(r);
         }
         let (config, x0, sigma0) = Self::prior(&self.settings);
-        // Used where it was built (no move of the filter out of the Result).
-        let mut built = Filter::new(config, x0, sigma0);
-        let Ok(filter) = built.as_mut() else {
-            return self.estimate_of(&self.filter, single(SinglePassReason::Estimator));
-        };
         match estimator::estimate_in(filter, &config, &x0, &sigma0, log, passes, observer) {
             Ok(report) => {
                 let kind = EstimateKind::Final {
                     passes: report.passes,
                     converged: report.converged,
                 };
-                let estimate = self.estimate_of(filter, kind);
-                on_final(filter);
-                estimate
+                self.estimate_of(filter, kind)
             }
-            Err(_) => self.estimate_of(&self.filter, single(SinglePassReason::Estimator)),
+            Err(_) => self.single_pass(SinglePassReason::Estimator),
         }
+    }
+
+    /// The running estimate as the final answer when the passes cannot
+    /// run: [`EstimateKind::SinglePass`] with `reason`.
+    pub(crate) fn single_pass(&self, reason: SinglePassReason) -> Estimate {
+        let logged = self.progress.logged;
+        self.estimate_of(&self.filter, EstimateKind::SinglePass { reason, logged })
     }
 
     fn estimate_of(&self, filter: &Filter<T, M, N, Z>, kind: EstimateKind) -> Estimate {

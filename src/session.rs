@@ -7,7 +7,7 @@
 //! | `Configure` | a new calibrator of the named configuration, from the prior (its first sample empties the log) | — |
 //! | `Sample` | one period ([`Calibrator::push_logged`]) | an `Estimate` at the configured cadence |
 //! | `EstimateRequest` | — | the running `Estimate` |
-//! | `Finish` | the final passes over the log ([`Calibrator::finish_with`]) | the final `Estimate` |
+//! | `Finish` | the final passes over the log ([`Calibrator::finish_in`], in the session's filter) | the final `Estimate` |
 //! | `CheckpointRequest` | — | a `Checkpoint` |
 //! | `Checkpoint` | restore from it; the log is taken back to the records it counted (a log that survived a device reset continues) | — |
 //! | `Reset` | restart from the prior (its first sample empties the log) | — |
@@ -23,10 +23,11 @@
 use nalgebra::RealField;
 
 use crate::calibrator::{self, Calibrator, RejectReason};
+use crate::ekf::Filter;
 use crate::estimator::{EstimatorOptions, SampleLog};
 #[allow(unused_imports)] // the configurations left out of a build (cargo features)
 use crate::models::{ConfigId, M1Pa, M1Ps, M2Ps, M3Pa, M3Ps, M4Pa, M4Ps, Model};
-use crate::wire::{CalibratorConfig, Checkpoint, Estimate, Message, Progress};
+use crate::wire::{CalibratorConfig, Checkpoint, Estimate, Message, Progress, SinglePassReason};
 
 /// A calibrator of any of the seven configurations (the value-level side of
 /// [`crate::with_config!`]).
@@ -55,6 +56,37 @@ pub enum AnyCalibrator<T: RealField + Copy> {
     /// M4-ps.
     #[cfg(feature = "m4-ps")]
     M4Ps(Calibrator<T, M4Ps, 15, 3>),
+}
+
+/// A filter of any of the seven configurations: the one in which a
+/// session runs `Finish`'s passes ([`AnyCalibrator::finish`]). The session
+/// keeps it, so a firmware that holds its session in static memory has no
+/// filter on its stack under the passes (the M7's 5.8 KB f64 M2-ps filter).
+// The variants differ in size by their covariance; no heap to box them.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug, PartialEq)]
+pub enum AnyFilter<T: RealField + Copy> {
+    /// M1-pa.
+    #[cfg(feature = "m1-pa")]
+    M1Pa(Filter<T, M1Pa, 12, 3>),
+    /// M1-ps.
+    #[cfg(feature = "m1-ps")]
+    M1Ps(Filter<T, M1Ps, 15, 3>),
+    /// M2-ps.
+    #[cfg(feature = "m2-ps")]
+    M2Ps(Filter<T, M2Ps, 18, 6>),
+    /// M3-pa.
+    #[cfg(feature = "m3-pa")]
+    M3Pa(Filter<T, M3Pa, 15, 3>),
+    /// M3-ps.
+    #[cfg(feature = "m3-ps")]
+    M3Ps(Filter<T, M3Ps, 18, 3>),
+    /// M4-pa.
+    #[cfg(feature = "m4-pa")]
+    M4Pa(Filter<T, M4Pa, 12, 3>),
+    /// M4-ps.
+    #[cfg(feature = "m4-ps")]
+    M4Ps(Filter<T, M4Ps, 15, 3>),
 }
 
 macro_rules! each {
@@ -158,21 +190,53 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
         each!(self, c => c.estimate())
     }
 
-    /// [`Calibrator::finish_with`] (the final answer); `on_update(pass, nis)` is
-    /// called for every update of every pass (`nis` `None` for a period
-    /// without measurement, or a refused update).
+    /// [`Calibrator::finish_in`] (the final answer) in the filter held by
+    /// `scratch`: one of this configuration when it holds one (what it
+    /// held does not matter otherwise), else a copy of the running filter
+    /// put there first. `on_update(pass, nis)` is called for every update
+    /// of every pass (`nis` `None` for a period without measurement, or a
+    /// refused update).
     pub fn finish(
         &self,
+        scratch: &mut Option<AnyFilter<T>>,
         log: &mut (dyn SampleLog<T> + '_),
         passes: &EstimatorOptions,
         on_update: &mut dyn FnMut(u8, Option<T>),
     ) -> Estimate {
-        each!(self, c => c.finish_with(
-            log,
-            passes,
-            |e| on_update(e.pass, e.result.as_ref().ok().and_then(|r| r.map(|i| i.nis))),
-            |_| {}
-        ))
+        // `$v`: the configuration's variant of both enums.
+        macro_rules! finish_as {
+            ($c:ident, $v:ident) => {
+                finish_one(
+                    $c,
+                    scratch,
+                    |any| match any {
+                        AnyFilter::$v(f) => Some(f),
+                        #[allow(unreachable_patterns)] // a build of one configuration
+                        _ => None,
+                    },
+                    AnyFilter::$v,
+                    log,
+                    passes,
+                    on_update,
+                )
+            };
+        }
+        match self {
+            #[cfg(feature = "m1-pa")]
+            AnyCalibrator::M1Pa(c) => finish_as!(c, M1Pa),
+            #[cfg(feature = "m1-ps")]
+            AnyCalibrator::M1Ps(c) => finish_as!(c, M1Ps),
+            #[cfg(feature = "m2-ps")]
+            AnyCalibrator::M2Ps(c) => finish_as!(c, M2Ps),
+            #[cfg(feature = "m3-pa")]
+            AnyCalibrator::M3Pa(c) => finish_as!(c, M3Pa),
+            #[cfg(feature = "m3-ps")]
+            AnyCalibrator::M3Ps(c) => finish_as!(c, M3Ps),
+            #[cfg(feature = "m4-pa")]
+            AnyCalibrator::M4Pa(c) => finish_as!(c, M4Pa),
+            #[cfg(feature = "m4-ps")]
+            AnyCalibrator::M4Ps(c) => finish_as!(c, M4Ps),
+        }
     }
 
     /// [`Calibrator::checkpoint`].
@@ -212,6 +276,50 @@ fn restore_into<
     cp: &Checkpoint,
 ) -> Result<(), calibrator::Error> {
     c.restore_in_place(settings, cp)
+}
+
+/// [`AnyCalibrator::finish`] for one configuration: `of` is its variant of
+/// [`AnyFilter`] (`None` for another), `wrap` makes one.
+#[inline(never)]
+fn finish_one<
+    T: RealField + Copy,
+    M: crate::models::Model<N, Z> + Clone,
+    const N: usize,
+    const Z: usize,
+>(
+    c: &Calibrator<T, M, N, Z>,
+    scratch: &mut Option<AnyFilter<T>>,
+    of: fn(&mut AnyFilter<T>) -> Option<&mut Filter<T, M, N, Z>>,
+    wrap: fn(Filter<T, M, N, Z>) -> AnyFilter<T>,
+    log: &mut (dyn SampleLog<T> + '_),
+    passes: &EstimatorOptions,
+    on_update: &mut dyn FnMut(u8, Option<T>),
+) -> Estimate {
+    if scratch.as_mut().and_then(of).is_none() {
+        fill_scratch(scratch, c.filter(), wrap);
+    }
+    match scratch.as_mut().and_then(of) {
+        Some(filter) => c.finish_in(filter, log, passes, |e| {
+            on_update(
+                e.pass,
+                e.result.as_ref().ok().and_then(|r| r.map(|i| i.nis)),
+            );
+        }),
+        // Not reached: `fill_scratch` has just put this variant there.
+        None => c.single_pass(SinglePassReason::Estimator),
+    }
+}
+
+/// `*scratch = Some(wrap(running.clone()))`, in a frame of its own: the
+/// copy passes through this frame, which has returned before the passes
+/// run.
+#[inline(never)]
+fn fill_scratch<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize>(
+    scratch: &mut Option<AnyFilter<T>>,
+    running: &Filter<T, M, N, Z>,
+    wrap: fn(Filter<T, M, N, Z>) -> AnyFilter<T>,
+) {
+    *scratch = Some(wrap(running.clone()));
 }
 
 /// A message without payload ([`Session::request`]): the same answer as
@@ -319,6 +427,8 @@ pub struct SessionStats {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Session<T: RealField + Copy> {
     cal: Option<AnyCalibrator<T>>,
+    /// The filter `Finish` runs its passes in ([`AnyCalibrator::finish`]).
+    scratch: Option<AnyFilter<T>>,
     expected: Option<ConfigId>,
     passes: EstimatorOptions,
     stats: SessionStats,
@@ -331,6 +441,7 @@ impl<T: RealField + Copy> Session<T> {
     pub fn new(expected: Option<ConfigId>, passes: EstimatorOptions) -> Self {
         Self {
             cal: None,
+            scratch: None,
             expected,
             passes,
             stats: SessionStats::default(),
@@ -486,7 +597,7 @@ impl<T: RealField + Copy> Session<T> {
         };
         match request {
             Request::Estimate => Self::estimate(cal, reply),
-            Request::Finish => Self::finish(cal, log, &self.passes, reply),
+            Request::Finish => Self::finish(cal, &mut self.scratch, log, &self.passes, reply),
             Request::Checkpoint => Self::checkpoint(cal, reply),
             Request::Reset => {
                 *reply = match cal.reset() {
@@ -517,11 +628,12 @@ impl<T: RealField + Copy> Session<T> {
     #[inline(never)]
     fn finish(
         cal: &AnyCalibrator<T>,
+        scratch: &mut Option<AnyFilter<T>>,
         log: &mut (dyn SampleLog<T> + '_),
         passes: &EstimatorOptions,
         reply: &mut Reply,
     ) {
-        Self::send_estimate(cal.finish(log, passes, &mut |_, _| {}), reply);
+        Self::send_estimate(cal.finish(scratch, log, passes, &mut |_, _| {}), reply);
     }
 
     // Out of line: the estimate (≈ 0.5 KB) is not in `act_request`'s frame,

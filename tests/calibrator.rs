@@ -715,6 +715,49 @@ fn the_session_checkpoints_resets_restores_and_finishes_as_if_uninterrupted() {
     );
 }
 
+/// `Finish` runs its passes in the session's own filter
+/// (`AnyCalibrator::finish`, which a firmware keeps in static memory): the
+/// answer is the calibrator's own `finish` on a first `Finish`, on a
+/// repeated one (the filter then holds the last pass's end), and after the
+/// session ran another configuration (its filter then of another kind).
+#[test]
+fn the_sessions_finish_is_the_calibrators_whatever_its_filter_held() {
+    use rollcal::estimator::{EstimatorOptions, LogRecord, SliceLog};
+    use rollcal::session::{AnyCalibrator, Reply, Session};
+    use rollcal::wire::{Estimate, EstimateKind};
+    let (sc, data) = samples(200);
+    let blank = LogRecord::predicted(1.0, nalgebra::Vector3::zeros());
+    let opts = EstimatorOptions::default();
+    let mut session = Session::<f64>::new(None, opts);
+    let same = |a: &Estimate, b: &Estimate| {
+        assert!(matches!(a.kind, EstimateKind::Final { .. }), "{:?}", a.kind);
+        assert_eq!(a.kind, b.kind);
+        assert_eq!(a.state, b.state);
+        assert_eq!(a.sigma, b.sigma);
+        assert_eq!(a.updates, b.updates);
+    };
+    for id in [ConfigId::M2Ps, ConfigId::M1Pa, ConfigId::M2Ps] {
+        let mut storage = vec![blank; data.len()];
+        let mut log = SliceLog::new(&mut storage);
+        let configure = Message::Configure(settings(&sc, id, 0));
+        assert_eq!(session.handle(&configure, &mut log), Reply::Nothing);
+        for s in &data {
+            session.handle(&Message::Sample(*s), &mut log);
+        }
+        let own = match session.calibrator() {
+            Some(AnyCalibrator::M2Ps(c)) => c.finish(&mut log, &opts, |_| {}).0,
+            Some(AnyCalibrator::M1Pa(c)) => c.finish(&mut log, &opts, |_| {}).0,
+            other => panic!("{other:?}"),
+        };
+        for _ in 0..2 {
+            match session.handle(&Message::Finish, &mut log) {
+                Reply::Send(Message::Estimate(e)) => same(&e, &own),
+                other => panic!("{other:?}"),
+            }
+        }
+    }
+}
+
 /// Found by the `session` fuzz target: a finite prior σ whose variance
 /// overflows (f64::MAX) was accepted, giving an infinite covariance, so the
 /// calibrator's own checkpoint could not be restored. It is now refused.
