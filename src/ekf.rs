@@ -48,6 +48,7 @@ use crate::command::{CommandFrame, Period};
 use crate::factor::Ud;
 use crate::geometry::wrap_angle;
 use crate::models::{Environment, InstallationMatrices, Layout, Model, PeriodPropagation, ATT};
+use crate::second_order::AccelCovariance;
 
 /// Errors of the estimator.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -1185,21 +1186,31 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let mut rounded = None;
         let m = matrices_in(m, &mut rounded);
         let att: Vector3<T> = to_t(&layout.attitude(x));
-        // P at the end of the period, element by element from its factor
-        // (only the ≤ 12 states the accelerometers see; no N×N matrix, and
-        // no copy of the factor: the time update changes only its first
-        // three rows).
+        let mut p_r = AccelCovariance::zeros();
+        self.predicted_accel_covariance(pending, &mut p_r);
+        let terms = layout.accel_second_order_of(&env, m, &att, &c_end, &p_r);
+        (to_f64(&terms.mean), to_f64(&terms.cov))
+    }
+
+    /// The covariance at the end of the pending period of the states the
+    /// accelerometers see ([`Layout::accel_covariance`]), element by
+    /// element from the factor: no `N×N` matrix, and no copy of the factor
+    /// (the time update changes only its first three rows). Out of line:
+    /// those rows are in this frame, which has returned before pass 1's
+    /// Hessians are formed (firmware stack).
+    #[inline(never)]
+    fn predicted_accel_covariance(&self, pending: &Pending<T, N>, p_r: &mut AccelCovariance<T>) {
         let rows = self
             .ud
             .predicted_attitude_rows(&pending.prop.phi_att, &self.process_noise(pending));
-        let terms = layout.accel_second_order_with(&env, m, &att, &c_end, |i, j| {
-            match &rows {
+        Self::LAYOUT.accel_covariance(
+            |i, j| match &rows {
                 Some(rows) => self.ud.covariance_entry_with_rows(rows, i, j),
                 // As `settled` (the unpropagated factor; predict checks it).
                 None => self.ud.covariance_entry(i, j),
-            }
-        });
-        (to_f64(&terms.mean), to_f64(&terms.cov))
+            },
+            p_r,
+        );
     }
 
     /// Processes the measurement of the period that [`Filter::predict`] just

@@ -43,6 +43,12 @@ pub struct AccelSecondOrder<T: RealField + Copy> {
 /// whose column `l` is `∂²h/∂x_{i+k} ∂x_{j+l}`.
 type Block<T> = [Matrix3<T>; 3];
 
+/// The covariance (rad²) of the at most 12 states the accelerometer output
+/// depends on, in the order of the attitude, `θaC`, `θaT` and `λ` blocks
+/// that are states ([`Layout::accel_covariance`]); with fewer than 12 such
+/// states, only its top-left block is read.
+pub type AccelCovariance<T> = SMatrix<T, 12, 12>;
+
 /// The blocks of states `h` depends on: attitude, `θaC`, `θaT`, `λ`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Part {
@@ -84,6 +90,9 @@ fn col<T: RealField + Copy>(m: &Matrix3<T>, k: usize) -> Vector3<T> {
 }
 
 impl<T: RealField + Copy> Platform<T> {
+    // Not inlined: its temporaries are not in the frame that keeps the
+    // result under the Hessians (firmware stack).
+    #[inline(never)]
     fn new(
         layout: &Layout,
         env: &Environment<T>,
@@ -161,7 +170,8 @@ fn symmetrise<T: RealField + Copy, const R: usize>(a: &mut SMatrix<T, R, R>, hal
     }
 }
 
-/// `a ← a b` for square `R×R` matrices with `b` symmetric, in place, one
+/// `a ← a b` for square `R×R` matrices (`b` the top-left block of an
+/// [`AccelCovariance`]) with `b` symmetric, in place, one
 /// row of `a` at a time (each row of the product needs only the same row of
 /// `a`): one row of temporaries instead of an `R×R` product. The row is
 /// accumulated from the columns of `b`, which equal its rows (contiguous
@@ -170,11 +180,12 @@ fn symmetrise<T: RealField + Copy, const R: usize>(a: &mut SMatrix<T, R, R>, hal
 /// product would.
 fn mul_rows_by_symmetric_in_place<T: RealField + Copy, const R: usize>(
     a: &mut SMatrix<T, R, R>,
-    b: &SMatrix<T, R, R>,
+    b: &AccelCovariance<T>,
 ) {
     for r in 0..R {
         let mut row = [T::zero(); R];
-        for (k, b_k) in b.data.0.iter().enumerate() {
+        // The top-left R×R block of b (`zip` stops each column at R).
+        for (k, b_k) in b.data.0.iter().take(R).enumerate() {
             let Some(&a_rk) = a.get((r, k)) else {
                 continue;
             };
@@ -267,8 +278,8 @@ impl<T: RealField + Copy> Pieces<'_, T> {
         } else {
             (i, j, li, lj)
         };
-        let blk = self.canonical(i, j);
-        for (k, mk) in blk.iter().enumerate() {
+        for k in 0..3 {
+            let mk = self.canonical(i, j, k);
             for (l, v) in mk.data.0.iter().enumerate() {
                 for (ha, va) in hess.iter_mut().zip(v.iter()) {
                     if let Some(e) = ha.get_mut((li + k, lj + l)) {
@@ -282,31 +293,34 @@ impl<T: RealField + Copy> Pieces<'_, T> {
         }
     }
 
-    /// The block `∂²h/∂(part i)_k ∂(part j)_l` for the pairs in the order
-    /// the formulas take them (see [`Pieces::write_block`]).
-    fn canonical(&self, i: Part, j: Part) -> Block<T> {
-        let a = self.unit_t * self.r_c;
+    /// Element `k` of the block `∂²h/∂(part i)_k ∂(part j)_l` ([`Block`])
+    /// for the pairs in the order the formulas take them (see
+    /// [`Pieces::write_block`]). One matrix at a time, not the block: this
+    /// is the deepest frame of a pass-1 filter step (firmware stack).
+    fn canonical(&self, i: Part, j: Part, k: usize) -> Matrix3<T> {
         let pl = &self.platform;
+        let of = |b: &Block<T>| match b {
+            [b0, _, _] if k == 0 => *b0,
+            [_, b1, _] if k == 1 => *b1,
+            [_, _, b2] => *b2,
+        };
         match (i, j) {
-            (Part::Att, Part::Att) => map_block(&pl.att_att, |b| a * b),
-            (Part::Att, Part::Lam) => map_block(&pl.att_lam, |b| a * b),
-            (Part::Lam, Part::Lam) => map_block(&pl.lam_lam, |b| a * b),
+            (Part::Att, Part::Att) => self.unit_t * self.r_c * of(&pl.att_att),
+            (Part::Att, Part::Lam) => self.unit_t * self.r_c * of(&pl.att_lam),
+            (Part::Lam, Part::Lam) => self.unit_t * self.r_c * of(&pl.lam_lam),
             (Part::Ac, Part::Ac) => match self.ac_ac {
-                Some(b) => map_block(b, |b| self.unit_t * b),
+                Some(b) => self.unit_t * of(b),
                 // (Not reached: `ac_ac` is there when θaC is a state.)
-                None => zero_block(),
+                None => Matrix3::zeros(),
             },
             (Part::Ac, y @ (Part::Att | Part::Lam)) => {
                 let ry = self.r_c * self.q_jacobian(y);
-                [0, 1, 2].map(|k| self.unit_t * skew(&col(self.j_c, k)) * ry)
+                self.unit_t * skew(&col(self.j_c, k)) * ry
             }
-            (Part::At, Part::At) => zero_block(),
-            (Part::At, other) => {
-                let f = self.f_jacobian(other);
-                [0, 1, 2].map(|k| e_times(k, &f))
-            }
-            // Mirrored pairs (see `block`).
-            _ => zero_block(),
+            (Part::At, Part::At) => Matrix3::zeros(),
+            (Part::At, other) => e_times(k, &self.f_jacobian(other)),
+            // Mirrored pairs (see `write_block`).
+            _ => Matrix3::zeros(),
         }
     }
 }
@@ -325,6 +339,19 @@ impl Layout {
             Some((Part::At, self.at())),
             lam,
         ]
+    }
+
+    /// The parts of [`Layout::accel_parts`] that are states, each with the
+    /// local index of its first state (in the Hessians and in
+    /// [`AccelCovariance`]) and its state index; and how many there are.
+    fn accel_blocks(&self) -> ([(Part, usize, usize); 4], usize) {
+        let mut at = [(Part::Att, 0usize, 0usize); 4];
+        let mut count = 0;
+        for ((part, state), slot) in self.accel_parts().iter().flatten().zip(at.iter_mut()) {
+            *slot = (*part, 3 * count, *state);
+            count += 1;
+        }
+        (at, count)
     }
 
     /// The second-order terms of the accelerometer output
@@ -355,61 +382,23 @@ impl Layout {
         c_cn: &Matrix3<T>,
         p: impl Fn(usize, usize) -> Option<T>,
     ) -> AccelSecondOrder<T> {
-        let parts = self.accel_parts();
-        // The platform's derivatives and the θaC curvature here, not in
-        // `second_order_terms`: their frames (and their trigonometry) are
-        // then not nested below the Hessians' (firmware stack).
-        let platform = Platform::new(self, env, m, att, c_cn);
-        let ac_ac = parts
-            .iter()
-            .flatten()
-            .any(|(part, _)| *part == Part::Ac)
-            .then(|| d2_dcm_times(&-m.params.theta_a_c, &platform.q));
-        match parts.iter().flatten().count() {
-            2 => self.second_order_terms::<T, 6>(m, &platform, &ac_ac, &p, &parts),
-            3 => self.second_order_terms::<T, 9>(m, &platform, &ac_ac, &p, &parts),
-            _ => self.second_order_terms::<T, 12>(m, &platform, &ac_ac, &p, &parts),
-        }
+        let mut p_r = AccelCovariance::zeros();
+        self.accel_covariance(p, &mut p_r);
+        self.accel_second_order_of(env, m, att, c_cn, &p_r)
     }
 
-    /// [`Layout::accel_second_order`] with the Hessians on the `R` states of
-    /// `parts`, from the platform's `q` and its derivatives. Out of line: the
-    /// three sizes' frames would otherwise add up in
-    /// [`Layout::accel_second_order_with`]'s.
-    #[inline(never)]
-    fn second_order_terms<T: RealField + Copy, const R: usize>(
+    /// Writes into `p_r` the covariance of the states the accelerometer
+    /// output depends on ([`AccelCovariance`]) from its elements,
+    /// `p(i, j) = P_ij` (rad²; `None` outside the state, leaving the
+    /// element as it was): each read once, on or above the diagonal, and
+    /// mirrored.
+    pub fn accel_covariance<T: RealField + Copy>(
         &self,
-        m: &InstallationMatrices<T>,
-        platform: &Platform<T>,
-        ac_ac: &Option<Block<T>>,
-        p: &impl Fn(usize, usize) -> Option<T>,
-        parts: &[Option<(Part, usize)>; 4],
-    ) -> AccelSecondOrder<T> {
-        let half: T = nalgebra::convert(0.5);
-        let pieces = Pieces {
-            unit_t: &m.unit_a_t,
-            r_c: &m.r_a_c,
-            j_c: &m.jr_a_c,
-            platform,
-            ac_ac,
-        };
-        // The local index of each part's first state, and the state index.
-        let mut at = [(Part::Att, 0usize, 0usize); 4];
-        let mut count = 0;
-        for ((part, state), slot) in parts.iter().flatten().zip(at.iter_mut()) {
-            *slot = (*part, 3 * count, *state);
-            count += 1;
-        }
+        p: impl Fn(usize, usize) -> Option<T>,
+        p_r: &mut AccelCovariance<T>,
+    ) {
+        let (at, count) = self.accel_blocks();
         let at = at.get(..count).unwrap_or(&[]);
-        let mut hess = [SMatrix::<T, R, R>::zeros(); 3];
-        for (n, &(pi, li, _)) in at.iter().enumerate() {
-            for &(pj, lj, _) in at.iter().skip(n) {
-                pieces.write_block(pi, pj, li, lj, &mut hess);
-            }
-        }
-        // The covariance of the same states (symmetric: each element read
-        // once, on or above the diagonal, and mirrored).
-        let mut p_r = SMatrix::<T, R, R>::zeros();
         for &(_, li, si) in at {
             for &(_, lj, sj) in at {
                 for k in 0..3 {
@@ -430,12 +419,74 @@ impl Layout {
                 }
             }
         }
+    }
+
+    /// [`Layout::accel_second_order`] for the covariance `p_r` of the
+    /// states the output depends on ([`Layout::accel_covariance`]). The
+    /// filter fills `p_r` in a frame of its own, which has returned before
+    /// the Hessians are formed (firmware stack).
+    // Inlined: the platform's derivatives are then in the caller's frame,
+    // not in one more between it and the Hessians'.
+    #[inline(always)]
+    pub fn accel_second_order_of<T: RealField + Copy>(
+        &self,
+        env: &Environment<T>,
+        m: &InstallationMatrices<T>,
+        att: &Vector3<T>,
+        c_cn: &Matrix3<T>,
+        p_r: &AccelCovariance<T>,
+    ) -> AccelSecondOrder<T> {
+        let (at, count) = self.accel_blocks();
+        // The platform's derivatives and the θaC curvature here, not in
+        // `second_order_terms`: their frames (and their trigonometry) are
+        // then not nested below the Hessians' (firmware stack).
+        let platform = Platform::new(self, env, m, att, c_cn);
+        let ac_ac = self
+            .ac()
+            .is_some()
+            .then(|| d2_dcm_times(&-m.params.theta_a_c, &platform.q));
+        let at = at.get(..count).unwrap_or(&[]);
+        match count {
+            2 => self.second_order_terms::<T, 6>(m, &platform, &ac_ac, p_r, at),
+            3 => self.second_order_terms::<T, 9>(m, &platform, &ac_ac, p_r, at),
+            _ => self.second_order_terms::<T, 12>(m, &platform, &ac_ac, p_r, at),
+        }
+    }
+
+    /// [`Layout::accel_second_order`] with the Hessians on the `R` states of
+    /// `at` ([`Layout::accel_blocks`]), from the platform's `q` and its
+    /// derivatives, and the top-left `R×R` block of `p_r`. Out of line: the
+    /// three sizes' frames would otherwise add up in
+    /// [`Layout::accel_second_order_of`]'s.
+    #[inline(never)]
+    fn second_order_terms<T: RealField + Copy, const R: usize>(
+        &self,
+        m: &InstallationMatrices<T>,
+        platform: &Platform<T>,
+        ac_ac: &Option<Block<T>>,
+        p_r: &AccelCovariance<T>,
+        at: &[(Part, usize, usize)],
+    ) -> AccelSecondOrder<T> {
+        let half: T = nalgebra::convert(0.5);
+        let pieces = Pieces {
+            unit_t: &m.unit_a_t,
+            r_c: &m.r_a_c,
+            j_c: &m.jr_a_c,
+            platform,
+            ac_ac,
+        };
+        let mut hess = [SMatrix::<T, R, R>::zeros(); 3];
+        for (n, &(pi, li, _)) in at.iter().enumerate() {
+            for &(pj, lj, _) in at.iter().skip(n) {
+                pieces.write_block(pi, pj, li, lj, &mut hess);
+            }
+        }
         // ∇²h_a P in place of each Hessian, row by row (one row of R
         // temporaries: this frame is on the deepest path of a filter step).
         let mut mean = Vector3::zeros();
         for (ha, mu) in hess.iter_mut().zip(mean.iter_mut()) {
             symmetrise(ha, half);
-            mul_rows_by_symmetric_in_place(ha, &p_r);
+            mul_rows_by_symmetric_in_place(ha, p_r);
             *mu = ha.trace() * half;
         }
         let hp = &hess;
