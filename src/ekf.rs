@@ -624,6 +624,36 @@ fn dense_gain<T: RealField + Copy, const N: usize, const Z: usize>(
     Ok(Gain { k })
 }
 
+/// The covariance at the end of a filter's pending period, read by pass 1's
+/// second-order terms ([`Filter::second_order`]).
+struct PredictedCovariance<'a, T: RealField + Copy, M, const N: usize, const Z: usize> {
+    filter: &'a Filter<T, M, N, Z>,
+    pending: &'a Pending<T, N>,
+}
+
+impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> AccelCovariance<T>
+    for PredictedCovariance<'_, T, M, N, Z>
+{
+    /// Element by element from the factor: no `N×N` matrix, and no copy of
+    /// the factor (the time update changes only its first three rows). Out
+    /// of line: those rows are in this frame, which has returned before the
+    /// Hessians are formed (firmware stack).
+    #[inline(never)]
+    fn fill<const R: usize>(&self, layout: &Layout, p_r: &mut SMatrix<T, R, R>) {
+        let (f, pending) = (self.filter, self.pending);
+        let rows =
+            f.ud.predicted_attitude_rows(&pending.prop.phi_att, &f.process_noise(pending));
+        layout.accel_covariance(
+            |i, j| match &rows {
+                Some(rows) => f.ud.covariance_entry_with_rows(rows, i, j),
+                // As `settled` (the unpropagated factor; predict checks it).
+                None => f.ud.covariance_entry(i, j),
+            },
+            p_r,
+        );
+    }
+}
+
 impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter<T, M, N, Z> {
     const LAYOUT: Layout = M::LAYOUT;
     const SIZES_AGREE: () = assert!(M::LAYOUT.n() == N && M::LAYOUT.z() == Z);
@@ -1186,31 +1216,12 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let mut rounded = None;
         let m = matrices_in(m, &mut rounded);
         let att: Vector3<T> = to_t(&layout.attitude(x));
-        let mut p_r = AccelCovariance::zeros();
-        self.predicted_accel_covariance(pending, &mut p_r);
-        let terms = layout.accel_second_order_of(&env, m, &att, &c_end, &p_r);
+        let source = PredictedCovariance {
+            filter: self,
+            pending,
+        };
+        let terms = layout.accel_second_order_from(&env, m, &att, &c_end, &source);
         (to_f64(&terms.mean), to_f64(&terms.cov))
-    }
-
-    /// The covariance at the end of the pending period of the states the
-    /// accelerometers see ([`Layout::accel_covariance`]), element by
-    /// element from the factor: no `N×N` matrix, and no copy of the factor
-    /// (the time update changes only its first three rows). Out of line:
-    /// those rows are in this frame, which has returned before pass 1's
-    /// Hessians are formed (firmware stack).
-    #[inline(never)]
-    fn predicted_accel_covariance(&self, pending: &Pending<T, N>, p_r: &mut AccelCovariance<T>) {
-        let rows = self
-            .ud
-            .predicted_attitude_rows(&pending.prop.phi_att, &self.process_noise(pending));
-        Self::LAYOUT.accel_covariance(
-            |i, j| match &rows {
-                Some(rows) => self.ud.covariance_entry_with_rows(rows, i, j),
-                // As `settled` (the unpropagated factor; predict checks it).
-                None => self.ud.covariance_entry(i, j),
-            },
-            p_r,
-        );
     }
 
     /// Processes the measurement of the period that [`Filter::predict`] just

@@ -210,7 +210,10 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
     }
 
     /// `P_ij = Σ_{k ≥ j} U_ik D_k U_jk` over the packed factor read
-    /// through `at(row, col)`.
+    /// through `at(row, col)`. Not inlined: a caller that reads many
+    /// elements (pass 1's second-order terms) would hold an unrolled copy of
+    /// this loop for each.
+    #[inline(never)]
     fn entry_with(&self, i: usize, j: usize, at: impl Fn(usize, usize) -> Option<T>) -> Option<T> {
         let (i, j) = if i <= j { (i, j) } else { (j, i) };
         if j >= N {

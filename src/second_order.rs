@@ -43,11 +43,24 @@ pub struct AccelSecondOrder<T: RealField + Copy> {
 /// whose column `l` is `∂²h/∂x_{i+k} ∂x_{j+l}`.
 type Block<T> = [Matrix3<T>; 3];
 
-/// The covariance (rad²) of the at most 12 states the accelerometer output
-/// depends on, in the order of the attitude, `θaC`, `θaT` and `λ` blocks
-/// that are states ([`Layout::accel_covariance`]); with fewer than 12 such
-/// states, only its top-left block is read.
-pub type AccelCovariance<T> = SMatrix<T, 12, 12>;
+/// Where [`Layout::accel_second_order_from`] reads the covariance of the
+/// at most 12 states the accelerometer output depends on.
+pub trait AccelCovariance<T: RealField + Copy> {
+    /// Writes into `p_r` the covariance (rad²) of the `R` states of
+    /// `layout`'s accelerometer blocks (the attitude, `θaC`, `θaT` and `λ`
+    /// blocks that are states, in that order; [`Layout::accel_covariance`]).
+    fn fill<const R: usize>(&self, layout: &Layout, p_r: &mut SMatrix<T, R, R>);
+}
+
+/// An [`AccelCovariance`] given by its elements, `P_ij = f(i, j)` (rad²;
+/// `None` outside the state).
+pub struct Elements<F>(pub F);
+
+impl<T: RealField + Copy, F: Fn(usize, usize) -> Option<T>> AccelCovariance<T> for Elements<F> {
+    fn fill<const R: usize>(&self, layout: &Layout, p_r: &mut SMatrix<T, R, R>) {
+        layout.accel_covariance(&self.0, p_r);
+    }
+}
 
 /// The blocks of states `h` depends on: attitude, `θaC`, `θaT`, `λ`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -90,9 +103,11 @@ fn col<T: RealField + Copy>(m: &Matrix3<T>, k: usize) -> Vector3<T> {
 }
 
 impl<T: RealField + Copy> Platform<T> {
-    // Not inlined: its temporaries are not in the frame that keeps the
-    // result under the Hessians (firmware stack).
-    #[inline(never)]
+    /// `q` and its derivatives for `layout`'s attitude kind. Inlined, each
+    /// kind out of line: with the layout a constant (the filter's) only its
+    /// kind's code is linked, and the temporaries are not in the frame that
+    /// keeps the result under the Hessians (firmware stack).
+    #[inline(always)]
     fn new(
         layout: &Layout,
         env: &Environment<T>,
@@ -100,54 +115,69 @@ impl<T: RealField + Copy> Platform<T> {
         att: &Vector3<T>,
         c_cn: &Matrix3<T>,
     ) -> Self {
-        let g = env.gravity_n;
         match layout.attitude {
-            AttitudeKind::Misalignment => {
-                let w = c_cn * g;
-                Self {
-                    q: dcm(att) * w,
-                    d_att: d_dcm_times(att, &w),
-                    d_lam: Matrix3::zeros(),
-                    att_att: d2_dcm_times(att, &w),
-                    att_lam: zero_block(),
-                    lam_lam: zero_block(),
-                }
-            }
-            AttitudeKind::Attitude | AttitudeKind::Gimbal => {
-                let e = gimbal_dcm_partials(att);
-                let (u, base) = match (layout.attitude, layout.lam()) {
-                    (AttitudeKind::Gimbal, Some(_)) => (m.c_rn * g, true),
-                    (AttitudeKind::Gimbal, None) => (m.c_rn * g, false),
-                    _ => (g, false),
-                };
-                let [d0, d1, d2] = e.d;
-                let [[a00, a01, a02], [_, a11, a12], [_, _, a22]] = e.d2;
-                let d_att = Matrix3::from_columns(&[d0 * u, d1 * u, d2 * u]);
-                let att_att = [
-                    Matrix3::from_columns(&[a00 * u, a01 * u, a02 * u]),
-                    Matrix3::from_columns(&[a01 * u, a11 * u, a12 * u]),
-                    Matrix3::from_columns(&[a02 * u, a12 * u, a22 * u]),
-                ];
-                let (d_lam, att_lam, lam_lam) = if base {
-                    let lam = &m.params.lambda;
-                    let d1_lam = InstallationMatrices::d_rotation_times(&m.c_rn, &m.jr_lambda, &g);
-                    (
-                        e.c * d1_lam,
-                        [d0 * d1_lam, d1 * d1_lam, d2 * d1_lam],
-                        map_block(&d2_dcm_times(lam, &g), |b| e.c * b),
-                    )
-                } else {
-                    (Matrix3::zeros(), zero_block(), zero_block())
-                };
-                Self {
-                    q: e.c * u,
-                    d_att,
-                    d_lam,
-                    att_att,
-                    att_lam,
-                    lam_lam,
-                }
-            }
+            AttitudeKind::Misalignment => Self::misalignment(env, att, c_cn),
+            AttitudeKind::Attitude => Self::gimbals(env, m, att, None),
+            AttitudeKind::Gimbal => Self::gimbals(env, m, att, Some(layout.lam().is_some())),
+        }
+    }
+
+    /// M1: `q = R(ψ) C^c_n f^n`.
+    #[inline(never)]
+    fn misalignment(env: &Environment<T>, att: &Vector3<T>, c_cn: &Matrix3<T>) -> Self {
+        let w = c_cn * env.gravity_n;
+        Self {
+            q: dcm(att) * w,
+            d_att: d_dcm_times(att, &w),
+            d_lam: Matrix3::zeros(),
+            att_att: d2_dcm_times(att, &w),
+            att_lam: zero_block(),
+            lam_lam: zero_block(),
+        }
+    }
+
+    /// M2–M4: `q = C(θ) u`, `u = R(λ) f^n` when `gimbal` is `Some` (the
+    /// gimbal angles are the attitude; `Some(true)`: `λ` is a state), else
+    /// `u = f^n`.
+    #[inline(never)]
+    fn gimbals(
+        env: &Environment<T>,
+        m: &InstallationMatrices<T>,
+        att: &Vector3<T>,
+        gimbal: Option<bool>,
+    ) -> Self {
+        let g = env.gravity_n;
+        let e = gimbal_dcm_partials(att);
+        let (u, base) = match gimbal {
+            Some(lam) => (m.c_rn * g, lam),
+            None => (g, false),
+        };
+        let [d0, d1, d2] = e.d;
+        let [[a00, a01, a02], [_, a11, a12], [_, _, a22]] = e.d2;
+        let d_att = Matrix3::from_columns(&[d0 * u, d1 * u, d2 * u]);
+        let att_att = [
+            Matrix3::from_columns(&[a00 * u, a01 * u, a02 * u]),
+            Matrix3::from_columns(&[a01 * u, a11 * u, a12 * u]),
+            Matrix3::from_columns(&[a02 * u, a12 * u, a22 * u]),
+        ];
+        let (d_lam, att_lam, lam_lam) = if base {
+            let lam = &m.params.lambda;
+            let d1_lam = InstallationMatrices::d_rotation_times(&m.c_rn, &m.jr_lambda, &g);
+            (
+                e.c * d1_lam,
+                [d0 * d1_lam, d1 * d1_lam, d2 * d1_lam],
+                map_block(&d2_dcm_times(lam, &g), |b| e.c * b),
+            )
+        } else {
+            (Matrix3::zeros(), zero_block(), zero_block())
+        };
+        Self {
+            q: e.c * u,
+            d_att,
+            d_lam,
+            att_att,
+            att_lam,
+            lam_lam,
         }
     }
 }
@@ -170,8 +200,7 @@ fn symmetrise<T: RealField + Copy, const R: usize>(a: &mut SMatrix<T, R, R>, hal
     }
 }
 
-/// `a ← a b` for square `R×R` matrices (`b` the top-left block of an
-/// [`AccelCovariance`]) with `b` symmetric, in place, one
+/// `a ← a b` for square `R×R` matrices with `b` symmetric, in place, one
 /// row of `a` at a time (each row of the product needs only the same row of
 /// `a`): one row of temporaries instead of an `R×R` product. The row is
 /// accumulated from the columns of `b`, which equal its rows (contiguous
@@ -180,12 +209,11 @@ fn symmetrise<T: RealField + Copy, const R: usize>(a: &mut SMatrix<T, R, R>, hal
 /// product would.
 fn mul_rows_by_symmetric_in_place<T: RealField + Copy, const R: usize>(
     a: &mut SMatrix<T, R, R>,
-    b: &AccelCovariance<T>,
+    b: &SMatrix<T, R, R>,
 ) {
     for r in 0..R {
         let mut row = [T::zero(); R];
-        // The top-left R×R block of b (`zip` stops each column at R).
-        for (k, b_k) in b.data.0.iter().take(R).enumerate() {
+        for (k, b_k) in b.data.0.iter().enumerate() {
             let Some(&a_rk) = a.get((r, k)) else {
                 continue;
             };
@@ -342,8 +370,9 @@ impl Layout {
     }
 
     /// The parts of [`Layout::accel_parts`] that are states, each with the
-    /// local index of its first state (in the Hessians and in
-    /// [`AccelCovariance`]) and its state index; and how many there are.
+    /// local index of its first state (in the Hessians and in the
+    /// covariance of [`AccelCovariance::fill`]) and its state index; and how
+    /// many there are.
     fn accel_blocks(&self) -> ([(Part, usize, usize); 4], usize) {
         let mut at = [(Part::Att, 0usize, 0usize); 4];
         let mut count = 0;
@@ -382,61 +411,75 @@ impl Layout {
         c_cn: &Matrix3<T>,
         p: impl Fn(usize, usize) -> Option<T>,
     ) -> AccelSecondOrder<T> {
-        let mut p_r = AccelCovariance::zeros();
-        self.accel_covariance(p, &mut p_r);
-        self.accel_second_order_of(env, m, att, c_cn, &p_r)
+        self.accel_second_order_from(env, m, att, c_cn, &Elements(p))
     }
 
-    /// Writes into `p_r` the covariance of the states the accelerometer
-    /// output depends on ([`AccelCovariance`]) from its elements,
+    /// Writes into `p_r` the covariance of the `R` states the accelerometer
+    /// output depends on ([`AccelCovariance::fill`]) from its elements,
     /// `p(i, j) = P_ij` (rad²; `None` outside the state, leaving the
     /// element as it was): each read once, on or above the diagonal, and
     /// mirrored.
-    pub fn accel_covariance<T: RealField + Copy>(
+    pub fn accel_covariance<T: RealField + Copy, const R: usize>(
         &self,
         p: impl Fn(usize, usize) -> Option<T>,
-        p_r: &mut AccelCovariance<T>,
+        p_r: &mut SMatrix<T, R, R>,
     ) {
         let (at, count) = self.accel_blocks();
         let at = at.get(..count).unwrap_or(&[]);
-        for &(_, li, si) in at {
-            for &(_, lj, sj) in at {
-                for k in 0..3 {
-                    for l in 0..3 {
-                        let (r, c) = (li + k, lj + l);
-                        if r > c {
-                            continue;
-                        }
-                        if let Some(v) = p(si + k, sj + l) {
-                            if let Some(dst) = p_r.get_mut((r, c)) {
-                                *dst = v;
-                            }
-                            if let Some(dst) = p_r.get_mut((c, r)) {
-                                *dst = v;
-                            }
-                        }
+        // The state index of local index `i` (block `i / 3`, element `i % 3`).
+        let state = |i: usize| at.get(i / 3).map(|&(_, _, s)| s + i % 3);
+        for c in 0..R {
+            for r in 0..=c {
+                let (Some(si), Some(sj)) = (state(r), state(c)) else {
+                    continue;
+                };
+                if let Some(v) = p(si, sj) {
+                    if let Some(dst) = p_r.get_mut((r, c)) {
+                        *dst = v;
+                    }
+                    if let Some(dst) = p_r.get_mut((c, r)) {
+                        *dst = v;
                     }
                 }
             }
         }
     }
 
-    /// [`Layout::accel_second_order`] for the covariance `p_r` of the
-    /// states the output depends on ([`Layout::accel_covariance`]). The
-    /// filter fills `p_r` in a frame of its own, which has returned before
-    /// the Hessians are formed (firmware stack).
-    // Inlined: the platform's derivatives are then in the caller's frame,
-    // not in one more between it and the Hessians'.
+    /// [`Layout::accel_second_order`] with the covariance of the states the
+    /// output depends on from `source`, which the filter fills in a frame
+    /// of its own, returned before the Hessians are formed (firmware
+    /// stack). Inlined, as is the size's part: with the layout a constant
+    /// (the filter's) one size is left, and the platform's derivatives are
+    /// in the caller's frame, not in one more above the Hessians'.
     #[inline(always)]
-    pub fn accel_second_order_of<T: RealField + Copy>(
+    pub fn accel_second_order_from<T: RealField + Copy>(
         &self,
         env: &Environment<T>,
         m: &InstallationMatrices<T>,
         att: &Vector3<T>,
         c_cn: &Matrix3<T>,
-        p_r: &AccelCovariance<T>,
+        source: &impl AccelCovariance<T>,
     ) -> AccelSecondOrder<T> {
-        let (at, count) = self.accel_blocks();
+        // (Folds to one size when the layout is a constant.)
+        match self.accel_parts().iter().flatten().count() {
+            2 => self.accel_second_order_sized::<T, 6>(env, m, att, c_cn, source),
+            3 => self.accel_second_order_sized::<T, 9>(env, m, att, c_cn, source),
+            _ => self.accel_second_order_sized::<T, 12>(env, m, att, c_cn, source),
+        }
+    }
+
+    /// [`Layout::accel_second_order_from`] for `R` states.
+    #[inline(always)]
+    fn accel_second_order_sized<T: RealField + Copy, const R: usize>(
+        &self,
+        env: &Environment<T>,
+        m: &InstallationMatrices<T>,
+        att: &Vector3<T>,
+        c_cn: &Matrix3<T>,
+        source: &impl AccelCovariance<T>,
+    ) -> AccelSecondOrder<T> {
+        let mut p_r = SMatrix::<T, R, R>::zeros();
+        source.fill(self, &mut p_r);
         // The platform's derivatives and the θaC curvature here, not in
         // `second_order_terms`: their frames (and their trigonometry) are
         // then not nested below the Hessians' (firmware stack).
@@ -445,26 +488,23 @@ impl Layout {
             .ac()
             .is_some()
             .then(|| d2_dcm_times(&-m.params.theta_a_c, &platform.q));
+        let (at, count) = self.accel_blocks();
         let at = at.get(..count).unwrap_or(&[]);
-        match count {
-            2 => self.second_order_terms::<T, 6>(m, &platform, &ac_ac, p_r, at),
-            3 => self.second_order_terms::<T, 9>(m, &platform, &ac_ac, p_r, at),
-            _ => self.second_order_terms::<T, 12>(m, &platform, &ac_ac, p_r, at),
-        }
+        self.second_order_terms::<T, R>(m, &platform, &ac_ac, &p_r, at)
     }
 
     /// [`Layout::accel_second_order`] with the Hessians on the `R` states of
     /// `at` ([`Layout::accel_blocks`]), from the platform's `q` and its
-    /// derivatives, and the top-left `R×R` block of `p_r`. Out of line: the
-    /// three sizes' frames would otherwise add up in
-    /// [`Layout::accel_second_order_of`]'s.
+    /// derivatives, and the covariance `p_r` of those states. Out of line:
+    /// the three sizes' frames would otherwise add up in
+    /// [`Layout::accel_second_order_from`]'s.
     #[inline(never)]
     fn second_order_terms<T: RealField + Copy, const R: usize>(
         &self,
         m: &InstallationMatrices<T>,
         platform: &Platform<T>,
         ac_ac: &Option<Block<T>>,
-        p_r: &AccelCovariance<T>,
+        p_r: &SMatrix<T, R, R>,
         at: &[(Part, usize, usize)],
     ) -> AccelSecondOrder<T> {
         let half: T = nalgebra::convert(0.5);
