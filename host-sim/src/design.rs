@@ -1627,13 +1627,21 @@ pub struct DesignArgs {
     /// Largest rotation (°) of one coarse step of the search.
     #[arg(long, default_value_t = DEFAULT_STEP_DEG, value_parser = parse_positive)]
     pub step_deg: f64,
-    /// Write the designed path as a scenario file (accepted by run,
-    /// observability and montecarlo); default: designed-<config>.toml.
-    #[arg(long, value_name = "FILE")]
+    // (The help as an attribute: `<config>` in a doc comment is read by
+    // rustdoc as an HTML tag.)
+    #[arg(
+        long,
+        value_name = "FILE",
+        help = "Write the designed path as a scenario file (accepted by run, \
+                observability and montecarlo); default: designed-<config>.toml"
+    )]
     pub out: Option<PathBuf>,
-    /// σ(t) figure of every target parameter, designed against reference
-    /// path (PNG); default: designed-<config>.png.
-    #[arg(long, value_name = "FILE")]
+    #[arg(
+        long,
+        value_name = "FILE",
+        help = "σ(t) figure of every target parameter, designed against reference \
+                path (PNG); default: designed-<config>.png"
+    )]
     pub figure: Option<PathBuf>,
     /// Write the result (targets, path, σ, search statistics) as JSON.
     #[arg(long, value_name = "PATH")]
