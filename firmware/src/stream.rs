@@ -82,7 +82,8 @@ fn log_storage() -> Option<&'static mut [LogRecord<Real>]> {
     }
 }
 
-/// The stream's large state: the session (its calibrator, ≈ 6 KB), the
+/// The stream's large state: the session (its calibrator and the filter
+/// `Finish` runs the estimator of record in, ≈ 6 KB each on the M7), the
 /// frame decoder's buffer and the reply buffer (4 KB each), the last
 /// decoded message and the session's reply to it (≈ 3 KB each, the size of
 /// a checkpoint). A static, not `run`'s locals: `main`'s frame, which every
