@@ -427,7 +427,9 @@ pub struct SessionStats {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Session<T: RealField + Copy> {
     cal: Option<AnyCalibrator<T>>,
-    /// The filter `Finish` runs its passes in ([`AnyCalibrator::finish`]).
+    /// The filter `Finish` runs its passes in ([`AnyCalibrator::finish`]):
+    /// the last `Finish`'s final filter, part of the session's state (and
+    /// of its `==`).
     scratch: Option<AnyFilter<T>>,
     expected: Option<ConfigId>,
     passes: EstimatorOptions,
