@@ -256,11 +256,6 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         )
     }
 
-    fn fresh_filter(s: &CalibratorConfig) -> Result<Filter<T, M, N, Z>, Error> {
-        let (config, x0, sigma0) = Self::prior(s);
-        Ok(Filter::new(config, x0, sigma0)?)
-    }
-
     /// A calibrator at the prior (zero estimate, σ = `prior_sigma_rad`).
     // Inlined: the session builds each configuration in a function of its
     // own (`AnyCalibrator::build_one`), where the calibrator is then built
@@ -269,14 +264,35 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     // 14.0 KB).
     #[inline(always)]
     pub fn new(settings: CalibratorConfig) -> Result<Self, Error> {
+        let variance = Self::prior_variance(&settings)?;
+        Ok(Self::with_prior_variance(settings, &variance))
+    }
+
+    /// What [`Calibrator::new`] checks: the configuration and the prior,
+    /// whose variances (rad²) it returns for
+    /// [`Calibrator::with_prior_variance`].
+    pub(crate) fn prior_variance(settings: &CalibratorConfig) -> Result<SVector<T, N>, Error> {
         Self::check_config(settings.config)?;
-        Ok(Self {
-            filter: Self::fresh_filter(&settings)?,
+        let (config, x0, sigma0) = Self::prior(settings);
+        Ok(Filter::<T, M, N, Z>::prior_variance(&config, &x0, &sigma0)?)
+    }
+
+    /// [`Calibrator::new`] once [`Calibrator::prior_variance`] has
+    /// accepted `settings`: it cannot fail, so the session builds it
+    /// straight into its slot.
+    #[inline(always)]
+    pub(crate) fn with_prior_variance(
+        settings: CalibratorConfig,
+        variance: &SVector<T, N>,
+    ) -> Self {
+        let (config, x0, _) = Self::prior(&settings);
+        Self {
+            filter: Filter::with_prior_variance(config, x0, variance),
             settings,
             progress: Progress::default(),
             frame_errors: 0,
             _model: PhantomData,
-        })
+        }
     }
 
     /// Restarts from the prior with the current settings (counters cleared).

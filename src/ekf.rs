@@ -670,10 +670,22 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         sigma0: SVector<T, N>,
     ) -> Result<Self, Error> {
         let variance = Self::prior_variance(&config, &x0, &sigma0)?;
-        let ud = Ud::from_variances(&variance).ok_or(Error::NonFiniteInput)?;
-        Ok(Self {
+        Ok(Self::with_prior_variance(config, x0, &variance))
+    }
+
+    /// [`Filter::new`] from the prior variances `variance` that
+    /// [`Filter::prior_variance`] returned for `config`, `x0`: it cannot
+    /// fail, so a caller can build the filter straight into its place (the
+    /// session's calibrator slot) instead of out of a `Result`.
+    #[inline(always)]
+    pub(crate) fn with_prior_variance(
+        config: FilterConfig<T>,
+        x0: SVector<f64, N>,
+        variance: &SVector<T, N>,
+    ) -> Self {
+        Self {
             x: x0,
-            ud,
+            ud: Ud::diagonal(variance),
             command: CommandFrame::aligned(config.env.earth_rate_n),
             config,
             pending: PendingSlot::empty(),
@@ -683,7 +695,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             gate_open: false,
             matrices: MatricesCache(Self::LAYOUT.matrices(&x0)),
             _model: PhantomData,
-        })
+        }
     }
 
     /// Makes this filter equal to `Filter::new(config, x0, sigma0)`, in
@@ -716,7 +728,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
 
     /// The prior variances `σ0²` (rad²) of [`Filter::new`] after its
     /// checks of the inputs.
-    fn prior_variance(
+    pub(crate) fn prior_variance(
         config: &FilterConfig<T>,
         x0: &SVector<f64, N>,
         sigma0: &SVector<T, N>,
@@ -748,7 +760,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         // 1.8e19 in f32) would give an infinite covariance, from which no
         // checkpoint of the filter could be restored (`from_parts`).
         let variance = sigma0.component_mul(sigma0);
-        if !all_finite(variance.iter().copied()) {
+        // (Also one that underflows to zero: no factor has a zero variance.)
+        if !all_finite(variance.iter().copied()) || variance.iter().any(|v| *v <= T::zero()) {
             return Err(Error::NonFiniteInput);
         }
         if Self::LAYOUT.gimbal_obs && config.sigma_gimbal <= T::zero() {

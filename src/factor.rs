@@ -66,6 +66,14 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         })
     }
 
+    /// [`Ud::from_variances`] of variances the caller has checked (finite,
+    /// strictly positive).
+    pub(crate) fn diagonal(variances: &SVector<T, N>) -> Self {
+        Self {
+            m: SMatrix::from_diagonal(variances),
+        }
+    }
+
     /// Makes this factor [`Ud::from_variances`]'s of `variances`, in
     /// place; `false` (and the factor unchanged) unless every variance is
     /// finite and strictly positive.

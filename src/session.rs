@@ -161,8 +161,10 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
         settings: CalibratorConfig,
         variant: impl FnOnce(Calibrator<T, M, N, Z>) -> Self,
     ) -> Result<(), calibrator::Error> {
-        let cal = Calibrator::new(settings)?;
-        *slot = Some(variant(cal));
+        let variance = Calibrator::<T, M, N, Z>::prior_variance(&settings)?;
+        *slot = Some(variant(Calibrator::with_prior_variance(
+            settings, &variance,
+        )));
         Ok(())
     }
 

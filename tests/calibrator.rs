@@ -762,17 +762,27 @@ fn the_sessions_finish_is_the_calibrators_whatever_its_filter_held() {
 /// overflows (f64::MAX) was accepted, giving an infinite covariance, so the
 /// calibrator's own checkpoint could not be restored. It is now refused.
 #[test]
-fn a_prior_whose_variance_overflows_is_refused_and_every_accepted_one_restores() {
+fn a_prior_whose_variance_overflows_or_underflows_is_refused_and_every_accepted_one_restores() {
     for (sigma, ok) in [
         (f64::MAX, false),
         (1e155, false),
         (1e150, true),
         (1.0, true),
+        (1e-150, true),
+        // σ² underflows to zero: no factor has a zero variance.
+        (1e-200, false),
     ] {
         let cfg = CalibratorConfig {
             prior_sigma_rad: sigma,
             ..CalibratorConfig::paper(ConfigId::M4Pa)
         };
+        // The session builds its calibrator in place, through the same
+        // checks (`AnyCalibrator::build_into`).
+        assert_eq!(
+            rollcal::session::AnyCalibrator::<f64>::new(cfg).err(),
+            rollcal::M4PaCalibrator::<f64>::new(cfg).err(),
+            "{sigma}"
+        );
         match rollcal::M4PaCalibrator::<f64>::new(cfg) {
             Ok(cal) => {
                 assert!(ok, "{sigma}");
