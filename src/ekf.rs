@@ -664,6 +664,10 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
 
     /// A filter with initial estimate `x0` (rad) and prior standard
     /// deviations `sigma0` (rad), the computed frame aligned with n.
+    // Not inlined: a caller that holds its filter in its own frame (the
+    // firmware's synthetic run) then holds one `Result`, not the
+    // constructor's temporaries too.
+    #[inline(never)]
     pub fn new(
         config: FilterConfig<T>,
         x0: SVector<f64, N>,
