@@ -257,12 +257,8 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     }
 
     /// A calibrator at the prior (zero estimate, σ = `prior_sigma_rad`).
-    // Inlined: the session builds each configuration in a function of its
-    // own (`AnyCalibrator::build_one`), where the calibrator is then built
-    // in that frame instead of in one of its own below it and moved up
-    // (firmware stack: on the M7 the path below `build_one` was 20.5 KB, now
-    // 14.0 KB).
-    #[inline(always)]
+    /// (The session builds its calibrator in place instead:
+    /// [`crate::session::AnyCalibrator::build_into`].)
     pub fn new(settings: CalibratorConfig) -> Result<Self, Error> {
         let variance = Self::prior_variance(&settings)?;
         Ok(Self::with_prior_variance(settings, &variance))
