@@ -61,9 +61,7 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         if variances.iter().any(|v| !v.is_finite() || *v <= T::zero()) {
             return None;
         }
-        Some(Self {
-            m: SMatrix::from_diagonal(variances),
-        })
+        Some(Self::diagonal(variances))
     }
 
     /// [`Ud::from_variances`] of variances the caller has checked (finite,
