@@ -14,9 +14,11 @@
 //!
 //! Consequence: a path segment must start and end on a period boundary.
 
+use core::any::TypeId;
+
 use nalgebra::{Matrix3, RealField, Vector3};
 
-use crate::geometry::{dcm, right_jacobian_times};
+use crate::geometry::{dcm, dcm_deviation, right_jacobian_deviation_times, right_jacobian_times};
 
 /// The commanded motion over one period, at the three nodes `t_k`,
 /// `t_k + T/2`, `t_k + T` used by the RK4 step and by Simpson's rule.
@@ -172,6 +174,58 @@ impl<T: RealField + Copy> CommandFrame<T> {
     }
 }
 
+impl CommandFrame<f64> {
+    /// [`CommandFrame::period`] for a filter that computes in precision `J`
+    /// (f32 on an FPU without double precision, where f64 is emulated): the
+    /// frame and the rates in f64, their small parts in `J`. For `J = f64`
+    /// it is `period` itself.
+    ///
+    /// - The path rate `u = Δθc/T − C^c_n ω^n_ie − c(u)`: the first two
+    ///   terms in f64, the Earth-rate term's turn within the period
+    ///   `c(u) = (J_r(uT) − I) C^c_n ω^n_ie` (≈ 6e-8 rad/s at 0.1°/s,
+    ///   [`right_jacobian_deviation_times`]) in `J`, to `ε_J |c|` (4e-15
+    ///   rad/s in f32: < 3e-11 rad of the frame over the paper's 5 400 s).
+    /// - The end node `C^c_n(t_k + T) = R(uT) C^c_n(t_k)`, which the frame
+    ///   integrates, in f64 as `period` forms it.
+    /// - The midpoint node `C^c_n(t_k) + (R(uT/2) − I) C^c_n(t_k)`, the
+    ///   increment in `J` ([`dcm_deviation`]; a few `ε_J |uT|/2`: 3e-10
+    ///   at 0.16°/s in f32, so 3e-10 g of the mid node's specific force,
+    ///   three orders under the accelerometer noise; not integrated).
+    /// - The commanded rate at the later nodes `ω_c(t) = C^c_n(t) ω^n_ie + u`,
+    ///   as `ω_c(t_k) + (R(u(t − t_k)) − I) C^c_n(t_k) ω^n_ie`, the turn
+    ///   (≈ 1e-7 rad/s) in `J`.
+    pub fn period_in<J: RealField + Copy>(&self, dtheta_c: &Vector3<f64>, dt: f64) -> Period<f64> {
+        if TypeId::of::<J>() == TypeId::of::<f64>() {
+            return self.period(dtheta_c, dt);
+        }
+        let to_j = |v: &Vector3<f64>| v.map(nalgebra::convert::<f64, J>);
+        let to_f64 = |v: Vector3<J>| v.map(|x| x.to_subset().unwrap_or(f64::NAN));
+        let e = self.c_cn * self.earth_rate_n;
+        let base = dtheta_c / dt - e;
+        let (e_j, base_j, dt_j): (_, _, J) = (to_j(&e), to_j(&base), nalgebra::convert(dt));
+        // Fixed point u = base − c(u), as in CommandFrame::path_rate.
+        let mut u_j = base_j;
+        let mut turn = Vector3::zeros();
+        for _ in 0..3 {
+            turn = right_jacobian_deviation_times(&(u_j * dt_j), &e_j);
+            u_j = base_j - turn;
+        }
+        let u = base - to_f64(turn);
+        let half: J = nalgebra::convert(0.5);
+        let d_mid = dcm_deviation(&(u_j * (dt_j * half)));
+        let d_end = dcm_deviation(&(u_j * dt_j));
+        let c_j = self.c_cn.map(nalgebra::convert::<f64, J>);
+        let c_mid = self.c_cn + (d_mid * c_j).map(|x| x.to_subset().unwrap_or(f64::NAN));
+        let c_end = dcm(&(u * dt)) * self.c_cn;
+        let w0 = e + u;
+        Period {
+            dt,
+            omega_c: [w0, w0 + to_f64(d_mid * e_j), w0 + to_f64(d_end * e_j)],
+            c_cn: [self.c_cn, c_mid, c_end],
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     extern crate std;
@@ -219,6 +273,41 @@ mod tests {
             assert!(node_err < bound, "nodes off by {node_err:e}");
             assert!(rate_err < bound / dt, "rates off by {rate_err:e}");
         }
+    }
+
+    /// The single-precision period stays with the f64 one over the paper's
+    /// length of run (the frame it integrates, its nodes and rates), and
+    /// the f64 filter's is `period` itself.
+    #[test]
+    fn period_in_single_precision_follows_the_f64_frame() {
+        let w = earth_rate_n(EARTH_RATE, 34.25f64.to_radians());
+        let d = |k: usize| {
+            let s = k as f64 * 1e-3;
+            Vector3::new(1.7e-3 * s.cos(), -2.0e-3, 1.0e-3 * s.sin())
+        };
+        let (mut f64_frame, mut f32_frame) = (CommandFrame::aligned(w), CommandFrame::aligned(w));
+        let (mut node_err, mut rate_err): (f64, f64) = (0.0, 0.0);
+        for k in 0..5400 {
+            let p = f64_frame.period(&d(k), 1.0);
+            assert_eq!(f64_frame.period_in::<f64>(&d(k), 1.0), p);
+            let q = f32_frame.period_in::<f32>(&d(k), 1.0);
+            // Against the f64 period from the same (f32-integrated) frame.
+            let r = f32_frame.period(&d(k), 1.0);
+            for i in 0..3 {
+                node_err = node_err.max(max_abs(&(q.c_cn[i] - r.c_cn[i])));
+                rate_err = rate_err.max((q.omega_c[i] - r.omega_c[i]).amax());
+            }
+            f64_frame.advance(&p);
+            f32_frame.advance(&q);
+        }
+        let drift = crate::geometry::angle_between(&f32_frame.c_cn, &f64_frame.c_cn);
+        std::eprintln!(
+            "5400 periods: frame {drift:.1e} rad from f64's, nodes {node_err:.1e}, \
+             rates {rate_err:.1e} rad/s"
+        );
+        assert!(drift < 3e-11, "frame drifted {drift:e} rad");
+        assert!(node_err < 1e-9, "nodes off by {node_err:e}");
+        assert!(rate_err < 1e-13, "rates off by {rate_err:e}");
     }
 
     /// Thousands of periods forward and back return to the start frame.

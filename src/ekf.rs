@@ -1025,7 +1025,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let x_lin = self.reference.unwrap_or(self.x);
         self.matrices.refresh(&layout, &x_lin);
         let slot = &mut self.pending.value;
-        slot.period = self.command.period(dtheta_c, dt);
+        slot.period = self.command.period_in::<T>(dtheta_c, dt);
         let env = &self.config.env;
         let att0 = layout.attitude(&x_lin);
         // The attitude in f64, its increments over the period and the

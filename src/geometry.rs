@@ -141,6 +141,34 @@ impl<T: RealField + Copy> RotationCoefficients<T> {
     fn right_jacobian(&self, theta: &Vector3<T>) -> Matrix3<T> {
         Matrix3::identity() - skew(theta) * self.cosc + skew_squared(theta) * self.sinc3
     }
+
+    /// [`dcm_deviation`] of `theta` (whose coefficients these are).
+    fn dcm_deviation(&self, theta: &Vector3<T>) -> Matrix3<T> {
+        skew_squared(theta) * self.cosc - skew(theta) * self.sinc
+    }
+}
+
+/// `R(θ) − I = −a[θ×] + b[θ×]²` ([`dcm`] less the identity; `a = sin x / x`,
+/// `b = (1 − cos x)/x²`, `x = |θ|`, θ in rad) formed without the identity,
+/// so that every entry keeps its relative precision however small `θ`
+/// is: `dcm(θ) − I` cancels on the diagonal (in f32, `1 − 1.4e-6` keeps
+/// two digits). The single-precision filter forms a period's rotation
+/// increments this way ([`crate::command::CommandFrame::period_in`]).
+pub fn dcm_deviation<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T> {
+    RotationCoefficients::new(theta.norm_squared()).dcm_deviation(theta)
+}
+
+/// `J_r(θ) v − v = −a (θ × v) + b (θ × (θ × v))` ([`right_jacobian_times`]
+/// less `v`; `a = (1 − cos x)/x²`, `b = (x − sin x)/x³`, `x = |θ|`, θ in
+/// rad), formed without `v`: it keeps its relative precision however small
+/// it is beside `v`.
+pub fn right_jacobian_deviation_times<T: RealField + Copy>(
+    theta: &Vector3<T>,
+    v: &Vector3<T>,
+) -> Vector3<T> {
+    let k = RotationCoefficients::new(theta.norm_squared());
+    let tv = theta.cross(v);
+    theta.cross(&tv) * k.sinc3 - tv * k.cosc
 }
 
 /// The inverse of [`dcm`]: the rotation vector `θ` (rad) with `R(θ) = c`,
