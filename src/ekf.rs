@@ -1149,7 +1149,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             // The value in f64 (it must resolve 1e-7 g of 1 g), the
             // Jacobians in T (they need a few digits; f64 is emulated on an
             // FPU without it), on the f64 installation matrices rounded.
-            let za = layout.mean_accel_output(env, m, &pending.att, &pending.period);
+            let za = layout.mean_accel_output::<T>(env, m, &pending.att, &pending.period);
             let mut ha = out.h.fixed_rows_mut::<3>(accel_row);
             let (_, da) = layout.mean_accel(
                 &env_t(env),

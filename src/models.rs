@@ -25,8 +25,8 @@ use nalgebra::{Const, Matrix, Matrix3, RealField, SMatrix, SVector, StorageMut, 
 
 use crate::command::Period;
 use crate::geometry::{
-    d_lower_times, dcm, dcm_and_right_jacobian, gimbal_dcm, gimbal_rate_inverse, right_jacobian,
-    right_jacobian_inv, skew, wrap_angles, EulerTrig,
+    d_lower_times, dcm, dcm_and_right_jacobian, dcm_deviation, gimbal_dcm, gimbal_rate_inverse,
+    right_jacobian, right_jacobian_inv, skew, wrap_angles, EulerTrig,
 };
 
 /// How the attitude block of the state describes the platform attitude.
@@ -1170,53 +1170,62 @@ impl Layout {
 }
 
 impl Layout {
-    /// The mean accelerometer output over the period (g) alone, from the
-    /// attitude `att` at the period's three nodes (rad, `PeriodPropagation::att`):
-    /// the value of [`Layout::mean_accel`] without its Jacobians, equal to it to
-    /// rounding (a few ulp: the Euler angles' sines and cosines at the
-    /// midpoint and end come from the first node's,
-    /// [`EulerTrig::advanced_by`], and `f^n` is rotated one frame at a time).
-    /// The single-precision filter evaluates the value with it in f64 and
-    /// the Jacobians in its own precision; it is cheaper on an FPU without
-    /// double precision.
-    pub fn mean_accel_output<T: RealField + Copy>(
+    /// The mean accelerometer output over the period (g) alone, in f64, from
+    /// the attitude `att` at the period's three nodes (rad,
+    /// `PeriodPropagation::att`): the value of [`Layout::mean_accel`]
+    /// without its Jacobians, for the filter that computes those in
+    /// precision `J` (f32 on an FPU without double precision, where f64 is
+    /// emulated). Simpson's rule is applied before `A`: `A Σ w_j R_j f_j`
+    /// (one product by `A`, not three; `f_j` is `f^n` in the frame the
+    /// attitude rotation acts on).
+    ///
+    /// - Misalignment (M1): the small rotation's share `(R(θ_j) − I) f_j`
+    ///   in `J` ([`crate::geometry::dcm_deviation`]; `ε_J |θ| |f|`, e.g.
+    ///   6e-11 g for 1 mrad in f32), the rest in f64.
+    /// - Euler angles: in f64, the midpoint and end nodes' sines and
+    ///   cosines from the first node's ([`EulerTrig::advanced_by`], a few
+    ///   ulp from [`EulerTrig::new`]).
+    ///
+    /// For `J = f64` it equals `mean_accel`'s value to rounding.
+    pub fn mean_accel_output<J: RealField + Copy>(
         &self,
-        env: &Environment<T>,
-        m: &InstallationMatrices<T>,
-        att: &[Vector3<T>; 3],
-        period: &Period<T>,
-    ) -> Vector3<T> {
-        let six: T = nalgebra::convert(6.0);
-        let four: T = nalgebra::convert(4.0);
-        let weights = [T::one() / six, four / six, T::one() / six];
+        env: &Environment<f64>,
+        m: &InstallationMatrices<f64>,
+        att: &[Vector3<f64>; 3],
+        period: &Period<f64>,
+    ) -> Vector3<f64> {
+        let weights = [1.0 / 6.0, 4.0 / 6.0, 1.0 / 6.0];
         let [att0, att_mid, att1] = att;
-        // The attitude's rotation at the nodes; Euler angles' trigonometry
-        // from the first node's (EulerTrig::advanced_by).
-        let rotations = match self.attitude {
-            AttitudeKind::Misalignment => [dcm(att0), dcm(att_mid), dcm(att1)],
+        let mut mean = Vector3::zeros();
+        match self.attitude {
+            AttitudeKind::Misalignment => {
+                let to_j = |v: &Vector3<f64>| v.map(nalgebra::convert::<f64, J>);
+                let mut turned = Vector3::<J>::zeros();
+                for ((theta, c_cn), w) in att.iter().zip(period.c_cn.iter()).zip(weights) {
+                    let f = c_cn * env.gravity_n;
+                    mean += f * w;
+                    turned +=
+                        dcm_deviation(&to_j(theta)) * to_j(&f) * nalgebra::convert::<f64, J>(w);
+                }
+                mean += turned.map(|x| x.to_subset().unwrap_or(f64::NAN));
+            }
             AttitudeKind::Gimbal | AttitudeKind::Attitude => {
+                let f = match self.attitude {
+                    AttitudeKind::Gimbal => m.c_rn * env.gravity_n,
+                    _ => env.gravity_n,
+                };
                 let trig0 = EulerTrig::new(att0);
-                [
+                let rotations = [
                     trig0.dcm(),
                     trig0.advanced_by(att0, &(att_mid - att0)).dcm(),
                     trig0.advanced_by(att0, &(att1 - att0)).dcm(),
-                ]
+                ];
+                for (rot, w) in rotations.iter().zip(weights) {
+                    mean += rot * f * w;
+                }
             }
-        };
-        // f^n in the frame the attitude rotation acts on (C^c_n f^n, C^r_n f^n
-        // or f^n): rotated as R (C f^n), one matrix-vector product per node
-        // instead of accel_output's (R C) f^n (equal to rounding).
-        let c_rn_g = m.c_rn * env.gravity_n;
-        let mut z = Vector3::zeros();
-        for ((rot, c_cn), w) in rotations.iter().zip(period.c_cn.iter()).zip(weights) {
-            let f_ref = match self.attitude {
-                AttitudeKind::Misalignment => c_cn * env.gravity_n,
-                AttitudeKind::Gimbal => c_rn_g,
-                AttitudeKind::Attitude => env.gravity_n,
-            };
-            z += m.a * (rot * f_ref) * w;
         }
-        z
+        m.a * mean
     }
 }
 

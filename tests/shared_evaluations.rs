@@ -17,15 +17,22 @@
 //!
 //! Equality is exact: these replace their originals on the estimator's path,
 //! and `tools/compare-runs.sh` relies on the answers not moving at all.
+//!
+//! One is not exact: `Layout::mean_accel_output`, the single-precision
+//! filter's f64 value of the period's mean specific force, applies Simpson's
+//! rule before `A` and forms M1's small rotations in the filter's precision;
+//! it is checked against `Layout::mean_accel`'s value to the error its
+//! documentation states.
 
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
+use rollcal::command::CommandFrame;
 use rollcal::factor::Ud;
 use rollcal::geometry::{
     d_dcm_times, d_gimbal_dcm_times, d_gimbal_rate_inverse_times, dcm, earth_rate_n, gimbal_dcm,
     gimbal_rate_inverse, gimbal_rate_matrix, gravity_n, EulerTrig, EARTH_RATE,
 };
 use rollcal::instruments::{accel_matrix, gyro_matrix};
-use rollcal::models::{ConfigId, Environment, InstallationMatrices, Model};
+use rollcal::models::{ConfigId, Environment, InstallationMatrices, Model, PeriodPropagation};
 
 /// A deterministic sequence in (−1, 1).
 fn lcg(state: &mut u64) -> f64 {
@@ -118,6 +125,61 @@ fn accel_pair<M: Model<N, Z>, const N: usize, const Z: usize>(seed: u64) {
         // And the value against the definition Z_a = A C^p_n f^n.
         let c_pn: Matrix3<f64> = layout.platform_dcm(&att, &m.c_rn, &c_cn);
         assert_eq!(z, m.a * (c_pn * env.gravity_n));
+    }
+}
+
+/// The largest difference (g) of `mean_accel_output` in f64 and in f32 from
+/// `mean_accel`'s value, over periods at random attitudes (misalignment
+/// angles up to 1 mrad, Euler angles up to 2 rad) and installation errors.
+fn mean_accel_output_error<M: Model<N, Z>, const N: usize, const Z: usize>(
+    seed: u64,
+) -> (f64, f64) {
+    let mut s = seed;
+    let layout = M::LAYOUT;
+    let env = Environment {
+        earth_rate_n: earth_rate_n(EARTH_RATE, 0.6),
+        gravity_n: gravity_n(),
+    };
+    let (mut err64, mut err32): (f64, f64) = (0.0, 0.0);
+    for _ in 0..50 {
+        let mut x = SVector::<f64, N>::from_fn(|_, _| lcg(&mut s) * 1e-3);
+        if layout.attitude != rollcal::models::AttitudeKind::Misalignment {
+            for v in x.iter_mut().take(3) {
+                *v *= 2000.0;
+            }
+        }
+        let frame = CommandFrame {
+            c_cn: dcm(&vec3(&mut s, 2.0)),
+            earth_rate_n: env.earth_rate_n,
+        };
+        let period = frame.period(&vec3(&mut s, 3e-3), 1.0);
+        let m = layout.matrices(&x);
+        let prop: PeriodPropagation<f64, N> = layout
+            .propagate(&env, &m, &layout.attitude(&x), &period)
+            .expect("no gimbal lock");
+        let mut h = SMatrix::<f64, 3, N>::zeros();
+        let (z, _) = layout.mean_accel(&env, &m, &prop, &period, &mut h);
+        let z64 = layout.mean_accel_output::<f64>(&env, &m, &prop.att, &period);
+        let z32 = layout.mean_accel_output::<f32>(&env, &m, &prop.att, &period);
+        err64 = err64.max((z64 - z).amax());
+        err32 = err32.max((z32 - z).amax());
+    }
+    (err64, err32)
+}
+
+#[test]
+fn mean_accel_output_is_mean_accels_value() {
+    use rollcal::models::{M1Pa, M2Ps, M4Pa};
+    for (name, (e64, e32)) in [
+        ("M1-pa", mean_accel_output_error::<M1Pa, 12, 3>(21)),
+        ("M2-ps", mean_accel_output_error::<M2Ps, 18, 6>(22)),
+        ("M4-pa", mean_accel_output_error::<M4Pa, 12, 3>(23)),
+    ] {
+        eprintln!("{name}: mean_accel_output − mean_accel: f64 {e64:.1e} g, f32 {e32:.1e} g");
+        // f64: rounding (a few ulp of 1 g). f32: M1's rotations of ≤ 1.7 mrad
+        // in f32, ε_f32 |θ| ≈ 1e-10 g; the Euler kinds are all f64.
+        assert!(e64 < 2e-15, "{name}: f64 value off by {e64:e} g");
+        assert!(e32 < 3e-10, "{name}: f32 value off by {e32:e} g");
     }
 }
 
