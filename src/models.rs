@@ -1182,9 +1182,9 @@ impl Layout {
     /// - Misalignment (M1): the small rotation's share `(R(θ_j) − I) f_j`
     ///   in `J` ([`crate::geometry::dcm_deviation`]; `ε_J |θ| |f|`, e.g.
     ///   6e-11 g for 1 mrad in f32), the rest in f64.
-    /// - Euler angles: in f64, the midpoint and end nodes' sines and
-    ///   cosines from the first node's ([`EulerTrig::advanced_by`], a few
-    ///   ulp from [`EulerTrig::new`]).
+    /// - Euler angles: the midpoint and end nodes' sines and cosines from
+    ///   the first node's, their increments in `J`
+    ///   ([`EulerTrig::advanced_in`]; ≤ 7.2e-10 in f32), the rest in f64.
     ///
     /// For `J = f64` it equals `mean_accel`'s value to rounding.
     pub fn mean_accel_output<J: RealField + Copy>(
@@ -1217,8 +1217,8 @@ impl Layout {
                 let trig0 = EulerTrig::new(att0);
                 let rotations = [
                     trig0.dcm(),
-                    trig0.advanced_by(att0, &(att_mid - att0)).dcm(),
-                    trig0.advanced_by(att0, &(att1 - att0)).dcm(),
+                    trig0.advanced_in::<J>(att0, &(att_mid - att0)).dcm(),
+                    trig0.advanced_in::<J>(att0, &(att1 - att0)).dcm(),
                 ];
                 for (rot, w) in rotations.iter().zip(weights) {
                     mean += rot * f * w;
