@@ -47,7 +47,9 @@ use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3};
 use crate::command::{CommandFrame, Period};
 use crate::factor::Ud;
 use crate::geometry::wrap_angle;
-use crate::models::{Environment, InstallationMatrices, Layout, Model, PeriodPropagation, ATT};
+use crate::models::{
+    Environment, Installation, InstallationMatrices, Layout, Model, PeriodPropagation, ATT,
+};
 use crate::second_order::AccelCovariance;
 
 /// Errors of the estimator.
@@ -407,7 +409,7 @@ pub struct Filter<T: RealField + Copy, M, const N: usize, const Z: usize> {
     /// The installation matrices of the last linearisation point's
     /// parameters (constant over a linearised pass and shared by the
     /// prediction and the update of a period of pass 1).
-    matrices: MatricesCache,
+    matrices: MatricesCache<T>,
     _model: PhantomData<M>,
 }
 
@@ -432,26 +434,58 @@ pub struct Parts<'a, const N: usize> {
     pub gate_state: (u32, bool),
 }
 
-/// A cache of [`InstallationMatrices`], a pure function of the parameters
-/// it holds: not part of the filter's value (every cache equals every
-/// other, so two filters with equal state, factor and history compare
-/// equal whatever they last evaluated).
+/// The installation matrices of one parameter value as the filter uses
+/// them: all of them in `T` (rounded from f64; the Jacobians' and, for
+/// `T = f64`, everything's), `A` and `C^r_n` in f64 (the single-precision
+/// filter's f64 value of the mean specific force,
+/// [`Layout::mean_accel_output`]). Rounded once per parameter value, not
+/// once per use (on the M4F the linearised period fell by 11 k
+/// instructions).
+///
+/// As the filter's cache, a pure function of the parameters it holds: not
+/// part of the filter's value (every cache equals every other, so two
+/// filters with equal state, factor and history compare equal whatever they
+/// last evaluated).
 #[derive(Clone, Copy, Debug)]
-struct MatricesCache(InstallationMatrices<f64>);
+struct MatricesCache<T: RealField + Copy> {
+    /// The parameters (rad) they are the matrices of.
+    params: Installation<f64>,
+    /// `A` in f64.
+    a: Matrix3<f64>,
+    /// `C^r_n` in f64.
+    c_rn: Matrix3<f64>,
+    /// The matrices in `T`.
+    m: InstallationMatrices<T>,
+}
 
-impl PartialEq for MatricesCache {
+impl<T: RealField + Copy> PartialEq for MatricesCache<T> {
     fn eq(&self, _: &Self) -> bool {
         true
     }
 }
 
-impl MatricesCache {
+impl<T: RealField + Copy> MatricesCache<T> {
+    /// The matrices `m` as the filter uses them.
+    fn new(m: &InstallationMatrices<f64>) -> Self {
+        Self {
+            params: m.params,
+            a: m.a,
+            c_rn: m.c_rn,
+            m: m.to_precision(),
+        }
+    }
+
     /// Makes the cache hold the matrices of the parameters of `x`.
     fn refresh<const N: usize>(&mut self, layout: &Layout, x: &SVector<f64, N>) {
         let params = layout.installation(x);
-        if params != self.0.params {
-            self.0 = InstallationMatrices::new(params);
+        if params != self.params {
+            *self = Self::new(&InstallationMatrices::new(params));
         }
+    }
+
+    /// The matrices in f64 when `T` is f64.
+    fn as_f64(&self) -> Option<&InstallationMatrices<f64>> {
+        (&self.m as &dyn Any).downcast_ref()
     }
 }
 
@@ -558,19 +592,6 @@ fn env_t<T: RealField + Copy>(e: &Environment<f64>) -> Environment<T> {
     Environment {
         earth_rate_n: to_t(&e.earth_rate_n),
         gravity_n: to_t(&e.gravity_n),
-    }
-}
-
-/// The installation matrices `m` in precision `T`: `m` itself when `T` is
-/// f64, else rounded into `rounded` (no copy, and no storage in the frame,
-/// in the f64 filter).
-fn matrices_in<'a, T: RealField + Copy>(
-    m: &'a InstallationMatrices<f64>,
-    rounded: &'a mut Option<InstallationMatrices<T>>,
-) -> &'a InstallationMatrices<T> {
-    match (m as &dyn Any).downcast_ref::<InstallationMatrices<T>>() {
-        Some(same) => same,
-        None => rounded.insert(m.to_precision()),
     }
 }
 
@@ -697,7 +718,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             updates: 0,
             gated_run: 0,
             gate_open: false,
-            matrices: MatricesCache(Self::LAYOUT.matrices(&x0)),
+            matrices: MatricesCache::new(&Self::LAYOUT.matrices(&x0)),
             _model: PhantomData,
         }
     }
@@ -726,7 +747,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         self.updates = 0;
         self.gated_run = 0;
         self.gate_open = false;
-        self.matrices = MatricesCache(Self::LAYOUT.matrices(&x0));
+        self.matrices = MatricesCache::new(&Self::LAYOUT.matrices(&x0));
         Ok(())
     }
 
@@ -845,7 +866,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         self.reference = parts.nominal.copied();
         self.updates = parts.updates;
         (self.gated_run, self.gate_open) = parts.gate_state;
-        self.matrices = MatricesCache(Self::LAYOUT.matrices(&SVector::<f64, N>::zeros()));
+        self.matrices = MatricesCache::new(&Self::LAYOUT.matrices(&SVector::<f64, N>::zeros()));
         Ok(())
     }
 
@@ -1030,11 +1051,10 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let att0 = layout.attitude(&x_lin);
         // The attitude in f64, its increments over the period and the
         // Jacobians in T (see `Filter`).
-        let mut rounded = None;
         layout
             .propagate_into_jacobians_in(
                 &env_t::<T>(env),
-                matrices_in(&self.matrices.0, &mut rounded),
+                &self.matrices.m,
                 &att0,
                 &slot.period,
                 &mut slot.att,
@@ -1112,7 +1132,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         &self,
         x: &SVector<f64, N>,
         pending: &Pending<T, N>,
-        m: &InstallationMatrices<f64>,
+        m: &MatricesCache<T>,
     ) -> Measured<T, N, Z> {
         let mut out = Measured::zeros();
         self.measure_into(x, pending, m, &mut out);
@@ -1128,7 +1148,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         &self,
         x: &SVector<f64, N>,
         pending: &Pending<T, N>,
-        m: &InstallationMatrices<f64>,
+        m: &MatricesCache<T>,
         out: &mut Measured<T, N, Z>,
     ) {
         let layout = Self::LAYOUT;
@@ -1140,7 +1160,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         out.noise.d.fill(T::zero());
         let accel_row = Self::ACCEL_ROW;
         let h64 = (&mut out.h as &mut dyn Any).downcast_mut::<SMatrix<f64, Z, N>>();
-        let (za, da) = if let (Some(prop), Some(h64)) = (as_f64, h64) {
+        let (za, da) = if let (Some(prop), Some(h64), Some(m)) = (as_f64, h64, m.as_f64()) {
             // T = f64: the nodes in `prop` are the f64 ones. The Jacobian
             // is written into its rows of `out.h`.
             let mut ha = h64.fixed_rows_mut::<3>(accel_row);
@@ -1149,11 +1169,12 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             // The value in f64 (it must resolve 1e-7 g of 1 g), the
             // Jacobians in T (they need a few digits; f64 is emulated on an
             // FPU without it), on the f64 installation matrices rounded.
-            let za = layout.mean_accel_output::<T>(env, m, &pending.att, &pending.period);
+            let za =
+                layout.mean_accel_output::<T>(env, &m.a, &m.c_rn, &pending.att, &pending.period);
             let mut ha = out.h.fixed_rows_mut::<3>(accel_row);
             let (_, da) = layout.mean_accel(
                 &env_t(env),
-                &m.to_precision(),
+                &m.m,
                 &pending.prop,
                 &period_t(&pending.period),
                 &mut ha,
@@ -1222,22 +1243,19 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         &self,
         x: &SVector<f64, N>,
         pending: &Pending<T, N>,
-        m: &InstallationMatrices<f64>,
+        m: &MatricesCache<T>,
     ) -> (Vector3<f64>, Matrix3<f64>) {
         let layout = Self::LAYOUT;
         // In T: a weighting of the update, needed to a few digits.
         let env: Environment<T> = env_t(&self.config.env);
         let [_, _, c_end] = pending.period.c_cn;
         let c_end: Matrix3<T> = to_t(&c_end);
-        // No copy of the matrices when T is f64.
-        let mut rounded = None;
-        let m = matrices_in(m, &mut rounded);
         let att: Vector3<T> = to_t(&layout.attitude(x));
         let source = PredictedCovariance {
             filter: self,
             pending,
         };
-        let terms = layout.accel_second_order_from(&env, m, &att, &c_end, &source);
+        let terms = layout.accel_second_order_from(&env, &m.m, &att, &c_end, &source);
         (to_f64(&terms.mean), to_f64(&terms.cov))
     }
 
@@ -1290,7 +1308,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         // The matrices of the linearisation point (the cache holds them
         // since `predict`: it changed only the attitude).
         self.matrices.refresh(&Self::LAYOUT, &self.x);
-        let m = &self.matrices.0;
+        let m = &self.matrices;
         let pending = self.pending.get().ok_or(Error::NoPrediction)?;
         let opts = self.config.options;
         let (mean2, cov2) = if opts.second_order_covariance || opts.second_order_mean {
@@ -1338,7 +1356,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         // Filled in place (moving its parts would copy them in this frame,
         // which is on the deepest path of a step).
         let mut measured = Measured::zeros();
-        let nu = self.innovation_at(z, &self.x, pending, mean2, &self.matrices.0, &mut measured);
+        let nu = self.innovation_at(z, &self.x, pending, mean2, &self.matrices, &mut measured);
         let r_v = self.extended_noise(cov2);
         self.factored(&mut measured.h, &nu, &r_v, &measured.noise, true, None)
     }
@@ -1373,7 +1391,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         x_lin: &SVector<f64, N>,
         lin: &Pending<T, N>,
         mean2: &Vector3<f64>,
-        m: &InstallationMatrices<f64>,
+        m: &MatricesCache<T>,
         measured: &mut Measured<T, N, Z>,
     ) -> SVector<f64, Z> {
         let layout = Self::LAYOUT;
@@ -1416,7 +1434,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             if it > 0 {
                 lin = self.retrace(&x_lin, pending)?;
             }
-            let m = Self::LAYOUT.matrices(&x_lin);
+            let m = MatricesCache::new(&Self::LAYOUT.matrices(&x_lin));
             let nu = self.innovation_at(z, &x_lin, &lin, mean2, &m, measured);
             let noise = Noise {
                 g: to_f64(&measured.noise.g),
@@ -1426,7 +1444,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             x_lin = self.x + gain.k * nu;
         }
         let lin = self.retrace(&x_lin, pending)?;
-        let m = Self::LAYOUT.matrices(&x_lin);
+        let m = MatricesCache::new(&Self::LAYOUT.matrices(&x_lin));
         Ok(self.innovation_at(z, &x_lin, &lin, mean2, &m, measured))
     }
 
@@ -1461,7 +1479,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         self.matrices.refresh(&layout, x_nom);
         // Used in place (moving its parts out would copy them in this frame).
         let mut measured = Measured::zeros();
-        self.measure_into(x_nom, pending, &self.matrices.0, &mut measured);
+        self.measure_into(x_nom, pending, &self.matrices, &mut measured);
         let delta = layout.difference(&self.x, x_nom);
         let h_delta = linear_term::<T, N, Z>(&measured.h, &delta);
         let mut nu = match z {
@@ -1766,7 +1784,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     ) -> Result<(SVector<f64, Z>, SMatrix<f64, Z, N>), Error> {
         let pending = self.pending.get().ok_or(Error::NoPrediction)?;
         let lin = self.retrace(x, pending)?;
-        let m = self.measure(x, &lin, &Self::LAYOUT.matrices(x));
+        let m = self.measure(x, &lin, &MatricesCache::new(&Self::LAYOUT.matrices(x)));
         Ok((m.z, to_f64(&m.h)))
     }
 }

@@ -1177,7 +1177,8 @@ impl Layout {
     /// precision `J` (f32 on an FPU without double precision, where f64 is
     /// emulated). Simpson's rule is applied before `A`: `A Σ w_j R_j f_j`
     /// (one product by `A`, not three; `f_j` is `f^n` in the frame the
-    /// attitude rotation acts on).
+    /// attitude rotation acts on; `a` is `A`, `c_rn` is `C^r_n`,
+    /// [`InstallationMatrices`]).
     ///
     /// - Misalignment (M1): the small rotation's share `(R(θ_j) − I) f_j`
     ///   in `J` ([`crate::geometry::dcm_deviation`]; `ε_J |θ| |f|`, e.g.
@@ -1190,7 +1191,8 @@ impl Layout {
     pub fn mean_accel_output<J: RealField + Copy>(
         &self,
         env: &Environment<f64>,
-        m: &InstallationMatrices<f64>,
+        a: &Matrix3<f64>,
+        c_rn: &Matrix3<f64>,
         att: &[Vector3<f64>; 3],
         period: &Period<f64>,
     ) -> Vector3<f64> {
@@ -1211,7 +1213,7 @@ impl Layout {
             }
             AttitudeKind::Gimbal | AttitudeKind::Attitude => {
                 let f = match self.attitude {
-                    AttitudeKind::Gimbal => m.c_rn * env.gravity_n,
+                    AttitudeKind::Gimbal => c_rn * env.gravity_n,
                     _ => env.gravity_n,
                 };
                 let trig0 = EulerTrig::new(att0);
@@ -1225,7 +1227,7 @@ impl Layout {
                 }
             }
         }
-        m.a * mean
+        a * mean
     }
 }
 

@@ -161,8 +161,8 @@ fn mean_accel_output_error<M: Model<N, Z>, const N: usize, const Z: usize>(
             .expect("no gimbal lock");
         let mut h = SMatrix::<f64, 3, N>::zeros();
         let (z, _) = layout.mean_accel(&env, &m, &prop, &period, &mut h);
-        let z64 = layout.mean_accel_output::<f64>(&env, &m, &prop.att, &period);
-        let z32 = layout.mean_accel_output::<f32>(&env, &m, &prop.att, &period);
+        let z64 = layout.mean_accel_output::<f64>(&env, &m.a, &m.c_rn, &prop.att, &period);
+        let z32 = layout.mean_accel_output::<f32>(&env, &m.a, &m.c_rn, &prop.att, &period);
         err64 = err64.max((z64 - z).amax());
         err32 = err32.max((z32 - z).amax());
     }
