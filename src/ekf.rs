@@ -475,10 +475,18 @@ impl<T: RealField + Copy> MatricesCache<T> {
         }
     }
 
-    /// Makes the cache hold the matrices of the parameters of `x`.
+    /// Makes the cache hold the matrices of the parameters of `x`. The
+    /// parameters are compared bit for bit (a `−0` for a `0` recomputes the
+    /// same matrices; a NaN keeps the NaN matrices it gave): integer
+    /// comparisons, where an f64 comparison is a library call on an FPU
+    /// without double precision.
     fn refresh<const N: usize>(&mut self, layout: &Layout, x: &SVector<f64, N>) {
         let params = layout.installation(x);
-        if params != self.params {
+        let bits = |p: &Installation<f64>| {
+            [p.theta_g_c, p.theta_g_t, p.theta_a_c, p.theta_a_t, p.lambda]
+                .map(|v| v.map(f64::to_bits))
+        };
+        if bits(&params) != bits(&self.params) {
             *self = Self::new(&InstallationMatrices::new(params));
         }
     }
@@ -1628,16 +1636,17 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 return Ok(Gate::Refuse);
             }
         }
-        // The factor is updated in place: check everything it reads first.
-        if !all_finite(
-            h.iter()
-                .chain(w.nu_w.iter())
-                .chain(w.j_l.iter())
-                .chain(phi_att.iter())
-                .chain(w.phi_dec.iter())
-                .chain(w.q.iter())
-                .copied(),
-        ) {
+        // The factor is updated in place: check everything it reads first
+        // (slice by slice: a chain of iterators costs more than the checks).
+        let read = [
+            h.as_slice(),
+            w.nu_w.as_slice(),
+            w.j_l.as_slice(),
+            phi_att.as_slice(),
+            w.phi_dec.as_slice(),
+            w.q.as_slice(),
+        ];
+        if !read.iter().all(|part| all_finite(part.iter().copied())) {
             return Err(Error::NonFiniteState);
         }
         w.innovation = Innovation {
