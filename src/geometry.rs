@@ -845,6 +845,33 @@ mod tests {
         }
     }
 
+    /// The deviations of `R(θ)` and `J_r(θ)` formed without the identity
+    /// equal their definitions where those do not cancel, and keep their
+    /// relative precision in f32 where they would.
+    #[test]
+    fn deviations_keep_their_relative_precision() {
+        for theta in [
+            Vector3::new(0.3, -0.2, 0.5),
+            Vector3::new(1.2e-3, -0.7e-3, 0.4e-3),
+            Vector3::new(2e-6, 1e-6, -3e-6),
+        ] {
+            let v = Vector3::new(0.1, 0.9, -0.4);
+            let size = theta.norm();
+            // In f64 against the definitions (cancellation: ε of 1).
+            let deviation = dcm_deviation(&theta);
+            assert!((deviation - (dcm(&theta) - Matrix3::identity())).amax() < 4e-16);
+            let jv = right_jacobian_deviation_times(&theta, &v);
+            assert!((jv - (right_jacobian_times(&theta, &v) - v)).amax() < 4e-16);
+            // In f32 against f64, relative to their size (|θ|, |θ|/2).
+            let eps = f64::from(f32::EPSILON);
+            let t32 = theta.map(|x| x as f32);
+            let d32 = dcm_deviation(&t32).map(f64::from);
+            assert!((d32 - deviation).amax() / size < 4.0 * eps);
+            let jv32 = right_jacobian_deviation_times(&t32, &v.map(|x| x as f32));
+            assert!((jv32.map(f64::from) - jv).amax() / (size / 2.0) < 4.0 * eps);
+        }
+    }
+
     #[test]
     fn trigonometry_advanced_in_f32_is_within_its_bound() {
         let deltas = [0.0, 1e-9, -3.3e-4, 1.7e-3, -4e-3, 4e-3, -8.7e-3, 0.049];
