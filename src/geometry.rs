@@ -596,6 +596,19 @@ impl<T: RealField + Copy> EulerTrig<T> {
         )
     }
 
+    /// `C v` for `C` = [`EulerTrig::dcm`]: `R3(γ) (R2(β) (R1(α) v))`, the
+    /// three elementary rotations applied in turn (18 operations, where
+    /// forming `C` and the product take 31; equal to `dcm() * v` to
+    /// rounding).
+    pub fn rotate(&self, v: &Vector3<T>) -> Vector3<T> {
+        let (sa, ca) = self.alpha;
+        let (sb, cb) = self.beta;
+        let (sg, cg) = self.gamma;
+        let (y1, z1) = (ca * v.y + sa * v.z, ca * v.z - sa * v.y);
+        let (x2, z2) = (cb * v.x - sb * z1, sb * v.x + cb * z1);
+        Vector3::new(cg * x2 + sg * y1, cg * y1 - sg * x2, z2)
+    }
+
     /// `M(β, γ)` ([`gimbal_rate_matrix`]).
     pub fn rate_matrix(&self) -> Matrix3<T> {
         let (sb, cb) = self.beta;

@@ -1217,13 +1217,13 @@ impl Layout {
                     _ => env.gravity_n,
                 };
                 let trig0 = EulerTrig::new(att0);
-                let rotations = [
-                    trig0.dcm(),
-                    trig0.advanced_in::<J>(att0, &(att_mid - att0)).dcm(),
-                    trig0.advanced_in::<J>(att0, &(att1 - att0)).dcm(),
+                let nodes = [
+                    trig0,
+                    trig0.advanced_in::<J>(att0, &(att_mid - att0)),
+                    trig0.advanced_in::<J>(att0, &(att1 - att0)),
                 ];
-                for (rot, w) in rotations.iter().zip(weights) {
-                    mean += rot * f * w;
+                for (trig, w) in nodes.iter().zip(weights) {
+                    mean += trig.rotate(&f) * w;
                 }
             }
         }

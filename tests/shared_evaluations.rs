@@ -18,7 +18,8 @@
 //! Equality is exact: these replace their originals on the estimator's path,
 //! and `tools/compare-runs.sh` relies on the answers not moving at all.
 //!
-//! One is not exact: `Layout::mean_accel_output`, the single-precision
+//! Two are not exact. `EulerTrig::rotate` rotates a vector in its own order
+//! of operations (to rounding). `Layout::mean_accel_output`, the single-precision
 //! filter's f64 value of the period's mean specific force, applies Simpson's
 //! rule before `A` and forms M1's small rotations and the Euler angles'
 //! increments of trigonometry in the filter's precision;
@@ -56,6 +57,9 @@ fn euler_trig_equals_the_free_functions() {
         let trig = EulerTrig::new(&angles);
         let c = trig.dcm();
         assert_eq!(c, gimbal_dcm(&angles));
+        // Rotating a vector: to rounding (its own order of operations).
+        let v = vec3(&mut s, 1.0);
+        assert!((trig.rotate(&v) - c * v).amax() < 4.0 * f64::EPSILON);
         assert_eq!(trig.rate_matrix(), gimbal_rate_matrix(angles.y, angles.z));
         let t = trig.rate_inverse();
         assert_eq!(t, gimbal_rate_inverse(angles.y, angles.z));
