@@ -487,8 +487,24 @@ impl<T: RealField + Copy> MatricesCache<T> {
                 .map(|v| v.map(f64::to_bits))
         };
         if bits(&params) != bits(&self.params) {
-            *self = Self::new(&InstallationMatrices::new(params));
+            self.fill(params);
         }
+    }
+
+    /// Makes the cache hold the matrices of `params` (rad), in place: the
+    /// f64 filter's are built straight into their slot. Out of line: the
+    /// matrices' temporaries are in no frame of the filter's step.
+    #[inline(never)]
+    fn fill(&mut self, params: Installation<f64>) {
+        if let Some(m) = (&mut self.m as &mut dyn Any).downcast_mut::<InstallationMatrices<f64>>() {
+            *m = InstallationMatrices::new(params);
+            (self.a, self.c_rn) = (m.a, m.c_rn);
+        } else {
+            let m = InstallationMatrices::new(params);
+            self.m = m.to_precision();
+            (self.a, self.c_rn) = (m.a, m.c_rn);
+        }
+        self.params = params;
     }
 
     /// The matrices in f64 when `T` is f64.
@@ -755,7 +771,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         self.updates = 0;
         self.gated_run = 0;
         self.gate_open = false;
-        self.matrices = MatricesCache::new(&Self::LAYOUT.matrices(&x0));
+        self.matrices.fill(Self::LAYOUT.installation(&x0));
         Ok(())
     }
 
@@ -874,7 +890,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         self.reference = parts.nominal.copied();
         self.updates = parts.updates;
         (self.gated_run, self.gate_open) = parts.gate_state;
-        self.matrices = MatricesCache::new(&Self::LAYOUT.matrices(&SVector::<f64, N>::zeros()));
+        self.matrices
+            .fill(Self::LAYOUT.installation(&SVector::<f64, N>::zeros()));
         Ok(())
     }
 
