@@ -121,8 +121,9 @@ for v in m4f m7; do
 done
 
 # The synthetic runs use 1000× the paper's accelerometer and gimbal noise:
-# with the paper's values the f32 filter loses positive definiteness and a
-# failing step skips the covariance update, which would under-count. (The
+# with the paper's values the dense f32 filter of early trees lost positive
+# definiteness and a failing step skips the covariance update, which would
+# have under-counted; kept so that the counts compare across trees. (The
 # instruction count of a period does not depend on the noise level.)
 echo
 echo "## Instructions per period, synthetic motion (200 periods, Filter::step, noise ×1000)"
@@ -192,7 +193,7 @@ fi
 
 echo
 echo "## Instructions per period, recorded paper streams (seed 1, Calibrator::push, paper noise)"
-echo "(m4f: the f32 filter loses positive definiteness after ~57 updates and refuses nearly every period after; the run is cut at QEMU_TIMEOUT_F32 s, default 120; only its first updates are real periods)"
+echo "(every period of the stream: the m4f run is cut at QEMU_TIMEOUT_F32 s, default 120, and the m7 run at QEMU_TIMEOUT s, default 600)"
 for c in M2-ps M1-pa; do
     record_stream "$c"
 done

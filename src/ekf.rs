@@ -446,7 +446,7 @@ pub struct Parts<'a, const N: usize> {
 /// part of the filter's value (every cache equals every other, so two
 /// filters with equal state, factor and history compare equal whatever they
 /// last evaluated).
-#[derive(Clone, Copy, Debug)]
+#[derive(Copy, Debug)]
 struct MatricesCache<T: RealField + Copy> {
     /// The parameters (rad) they are the matrices of.
     params: Installation<f64>,
@@ -458,6 +458,15 @@ struct MatricesCache<T: RealField + Copy> {
     m: InstallationMatrices<T>,
 }
 
+// A copy (the derived `Clone` of a generic struct clones field by field, and
+// the filter's `clone` then went through an out-of-line copy with a 4.4 KB
+// frame on the M7).
+impl<T: RealField + Copy> Clone for MatricesCache<T> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
 impl<T: RealField + Copy> PartialEq for MatricesCache<T> {
     fn eq(&self, _: &Self) -> bool {
         true
@@ -465,10 +474,14 @@ impl<T: RealField + Copy> PartialEq for MatricesCache<T> {
 }
 
 impl<T: RealField + Copy> MatricesCache<T> {
-    /// The matrices `m` as the filter uses them.
-    fn new(m: &InstallationMatrices<f64>) -> Self {
+    /// The matrices of `params` (rad) as the filter uses them. Out of
+    /// line: the f64 matrices it rounds are not in the frame of the caller,
+    /// which builds a calibrator in place (firmware stack).
+    #[inline(never)]
+    fn new(params: Installation<f64>) -> Self {
+        let m = InstallationMatrices::new(params);
         Self {
-            params: m.params,
+            params,
             a: m.a,
             c_rn: m.c_rn,
             m: m.to_precision(),
@@ -742,7 +755,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             updates: 0,
             gated_run: 0,
             gate_open: false,
-            matrices: MatricesCache::new(&Self::LAYOUT.matrices(&x0)),
+            matrices: MatricesCache::new(Self::LAYOUT.installation(&x0)),
             _model: PhantomData,
         }
     }
@@ -1459,7 +1472,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             if it > 0 {
                 lin = self.retrace(&x_lin, pending)?;
             }
-            let m = MatricesCache::new(&Self::LAYOUT.matrices(&x_lin));
+            let m = MatricesCache::new(Self::LAYOUT.installation(&x_lin));
             let nu = self.innovation_at(z, &x_lin, &lin, mean2, &m, measured);
             let noise = Noise {
                 g: to_f64(&measured.noise.g),
@@ -1469,7 +1482,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             x_lin = self.x + gain.k * nu;
         }
         let lin = self.retrace(&x_lin, pending)?;
-        let m = MatricesCache::new(&Self::LAYOUT.matrices(&x_lin));
+        let m = MatricesCache::new(Self::LAYOUT.installation(&x_lin));
         Ok(self.innovation_at(z, &x_lin, &lin, mean2, &m, measured))
     }
 
@@ -1810,7 +1823,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     ) -> Result<(SVector<f64, Z>, SMatrix<f64, Z, N>), Error> {
         let pending = self.pending.get().ok_or(Error::NoPrediction)?;
         let lin = self.retrace(x, pending)?;
-        let m = self.measure(x, &lin, &MatricesCache::new(&Self::LAYOUT.matrices(x)));
+        let m = self.measure(x, &lin, &MatricesCache::new(Self::LAYOUT.installation(x)));
         Ok((m.z, to_f64(&m.h)))
     }
 }
