@@ -391,7 +391,12 @@ impl<T: RealField + Copy, const N: usize> PendingSlot<T, N> {
 /// attitude's increments over a period, added to the f64 attitude
 /// (≈ 1.7e-3 rad on the paper's path, exact to ≈ 5e-10 rad in f32, three
 /// orders under the gyro noise of a period;
-/// [`Layout::propagate_into_jacobians_in`](crate::models::Layout::propagate_into_jacobians_in)).
+/// [`Layout::propagate_into_jacobians_in`](crate::models::Layout::propagate_into_jacobians_in)),
+/// and the small parts of the computed frame's period and of the
+/// predicted measurement, each formed without the large quantity it is
+/// added to in f64
+/// ([`CommandFrame::period_in`](crate::command::CommandFrame::period_in),
+/// [`Layout::mean_accel_output`](crate::models::Layout::mean_accel_output)).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Filter<T: RealField + Copy, M, const N: usize, const Z: usize> {
     x: SVector<f64, N>,
