@@ -19,6 +19,7 @@ use core::any::TypeId;
 use nalgebra::{Matrix3, RealField, Vector3};
 
 use crate::geometry::{dcm, dcm_deviation, right_jacobian_deviation_times, right_jacobian_times};
+use crate::precision::{to_f64, to_t};
 
 /// The commanded motion over one period, at the three nodes `t_k`,
 /// `t_k + T/2`, `t_k + T` used by the RK4 step and by Simpson's rule.
@@ -198,11 +199,10 @@ impl CommandFrame<f64> {
         if TypeId::of::<J>() == TypeId::of::<f64>() {
             return self.period(dtheta_c, dt);
         }
-        let to_j = |v: &Vector3<f64>| v.map(nalgebra::convert::<f64, J>);
-        let to_f64 = |v: Vector3<J>| v.map(|x| x.to_subset().unwrap_or(f64::NAN));
         let e = self.c_cn * self.earth_rate_n;
         let base = dtheta_c / dt - e;
-        let (e_j, base_j, dt_j): (_, _, J) = (to_j(&e), to_j(&base), nalgebra::convert(dt));
+        let (e_j, base_j, dt_j): (Vector3<J>, Vector3<J>, J) =
+            (to_t(&e), to_t(&base), nalgebra::convert(dt));
         // Fixed point u = base − c(u), as in CommandFrame::path_rate.
         let mut u_j = base_j;
         let mut turn = Vector3::zeros();
@@ -210,17 +210,16 @@ impl CommandFrame<f64> {
             turn = right_jacobian_deviation_times(&(u_j * dt_j), &e_j);
             u_j = base_j - turn;
         }
-        let u = base - to_f64(turn);
+        let u = base - to_f64(&turn);
         let half: J = nalgebra::convert(0.5);
         let d_mid = dcm_deviation(&(u_j * (dt_j * half)));
         let d_end = dcm_deviation(&(u_j * dt_j));
-        let c_j = self.c_cn.map(nalgebra::convert::<f64, J>);
-        let c_mid = self.c_cn + (d_mid * c_j).map(|x| x.to_subset().unwrap_or(f64::NAN));
+        let c_mid = self.c_cn + to_f64(&(d_mid * to_t::<J, 3, 3>(&self.c_cn)));
         let c_end = dcm(&(u * dt)) * self.c_cn;
         let w0 = e + u;
         Period {
             dt,
-            omega_c: [w0, w0 + to_f64(d_mid * e_j), w0 + to_f64(d_end * e_j)],
+            omega_c: [w0, w0 + to_f64(&(d_mid * e_j)), w0 + to_f64(&(d_end * e_j))],
             c_cn: [self.c_cn, c_mid, c_end],
         }
     }

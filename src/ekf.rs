@@ -50,6 +50,7 @@ use crate::geometry::wrap_angle;
 use crate::models::{
     Environment, Installation, InstallationMatrices, Layout, Model, PeriodPropagation, ATT,
 };
+use crate::precision::{scalar_to_f64, to_f64, to_t};
 use crate::second_order::AccelCovariance;
 
 /// Errors of the estimator.
@@ -637,13 +638,6 @@ fn env_t<T: RealField + Copy>(e: &Environment<f64>) -> Environment<T> {
     }
 }
 
-/// A double-precision matrix in precision `T`.
-fn to_t<T: RealField + Copy, const R: usize, const C: usize>(
-    m: &SMatrix<f64, R, C>,
-) -> SMatrix<T, R, C> {
-    m.map(nalgebra::convert::<f64, T>)
-}
-
 /// `H δ` (g, rad; Z components) in precision `T`, returned in f64: the
 /// linear term of the innovation (or `Φ δ` of the linearised prediction),
 /// `δ` the small offset of the estimate from the linearisation point. `h`
@@ -659,13 +653,6 @@ fn linear_term<T: RealField + Copy, const N: usize, const Z: usize>(
     delta: &SVector<f64, N>,
 ) -> SVector<f64, Z> {
     to_f64(&(h * to_t::<T, N, 1>(delta)))
-}
-
-/// A matrix of precision `T` in double precision (exact for f32).
-fn to_f64<T: RealField + Copy, const R: usize, const C: usize>(
-    m: &SMatrix<T, R, C>,
-) -> SMatrix<f64, R, C> {
-    m.map(|v| v.to_subset().unwrap_or(f64::NAN))
 }
 
 /// The dense gain with measurement noise `R_v + D Dᵀ` correlated with the
@@ -1233,7 +1220,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         }
         out.z.fixed_rows_mut::<3>(accel_row).copy_from(&za);
         // Unit-variance noise w = σ_g u: x_{k+1} gets G u, z gets D u.
-        let sigma_g: f64 = self.config.sigma_gyro.to_subset().unwrap_or(f64::NAN);
+        let sigma_g = scalar_to_f64(self.config.sigma_gyro);
         out.noise.g.fixed_rows_mut::<3>(ATT).copy_from(
             &(pending.prop.noise_map
                 * (self.config.sigma_gyro * nalgebra::convert::<f64, T>(pending.period.dt))),

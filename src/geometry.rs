@@ -9,6 +9,7 @@ use core::any::TypeId;
 
 use nalgebra::{Matrix3, RealField, Vector3};
 
+use crate::precision::scalar_to_f64;
 use crate::trig::{cos, sin, sin_cos};
 
 /// `[v×]`: the skew-symmetric matrix with `[v×] w = v × w`.
@@ -517,8 +518,7 @@ impl EulerTrig<f64> {
         let step = |(s, c): (f64, f64), d: f64| -> (f64, f64) {
             let j = nalgebra::convert::<f64, J>;
             let (ds, dc) = angle_sum_increments(j(s), j(c), j(d));
-            let f = |x: J| x.to_subset().unwrap_or(f64::NAN);
-            (s + f(ds), c + f(dc))
+            (s + scalar_to_f64(ds), c + scalar_to_f64(dc))
         };
         Self {
             alpha: step(self.alpha, delta.x),

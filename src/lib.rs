@@ -58,6 +58,7 @@ pub mod geometry;
 pub mod instruments;
 pub mod models;
 pub mod observability;
+mod precision;
 pub mod second_order;
 pub mod session;
 pub mod trig;

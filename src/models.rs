@@ -28,6 +28,7 @@ use crate::geometry::{
     d_lower_times, dcm, dcm_and_right_jacobian, dcm_deviation, gimbal_dcm, gimbal_rate_inverse,
     right_jacobian, right_jacobian_inv, skew, wrap_angles, EulerTrig,
 };
+use crate::precision::{to_f64, to_t};
 
 /// How the attitude block of the state describes the platform attitude.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -1201,15 +1202,15 @@ impl Layout {
         let mut mean = Vector3::zeros();
         match self.attitude {
             AttitudeKind::Misalignment => {
-                let to_j = |v: &Vector3<f64>| v.map(nalgebra::convert::<f64, J>);
                 let mut turned = Vector3::<J>::zeros();
                 for ((theta, c_cn), w) in att.iter().zip(period.c_cn.iter()).zip(weights) {
                     let f = c_cn * env.gravity_n;
                     mean += f * w;
-                    turned +=
-                        dcm_deviation(&to_j(theta)) * to_j(&f) * nalgebra::convert::<f64, J>(w);
+                    turned += dcm_deviation(&to_t::<J, 3, 1>(theta))
+                        * to_t::<J, 3, 1>(&f)
+                        * nalgebra::convert::<f64, J>(w);
                 }
-                mean += turned.map(|x| x.to_subset().unwrap_or(f64::NAN));
+                mean += to_f64(&turned);
             }
             AttitudeKind::Gimbal | AttitudeKind::Attitude => {
                 let f = match self.attitude {
