@@ -23,7 +23,9 @@
  * block executed outside a mem* function before it, with its symbol) whose
  * calls into memcpy/memset/memclr/memmove cost the most instructions inside
  * regions (softfloat=1: calls into the f64 soft-float routines too, the
- * M4F's emulated double precision). Counts are exact and repeat run to run (no timing model involved).
+ * M4F's emulated double precision). With blocks=N it prints the N
+ * translation blocks (address, length, runs) with the most instructions
+ * inside regions: the hot loops of a function. Counts are exact and repeat run to run (no timing model involved).
  */
 #include <inttypes.h>
 #include <stdint.h>
@@ -64,7 +66,12 @@ static char out_path[512];
 struct sym { const char *name; uint64_t insns; };
 static struct sym *syms;
 static size_t n_syms, cap_syms;
-struct tbinfo { size_t sym; uint64_t n; uint64_t va; int mem; };
+struct tbinfo { size_t sym; uint64_t n; uint64_t va; int mem; uint64_t runs; };
+/* blocks=N: the N translation blocks with the most instructions inside
+ * regions (a block retranslated keeps one entry per translation). */
+static struct tbinfo **tbs;
+static size_t n_tbs, cap_tbs;
+static unsigned blocks_n;
 /* memcallers=N: instructions spent in mem* functions per calling block. */
 struct site { uint64_t va; size_t sym; uint64_t insns; };
 static struct site *sites;
@@ -108,6 +115,7 @@ static void on_tb(unsigned int vcpu, void *ud) {
     struct tbinfo *t = ud;
     if (!active) return;
     syms[t->sym].insns += t->n;
+    t->runs++;
     if (!memcallers_n) return;
     if (!t->mem) { last_caller = t; return; }
     if (!last_caller) return;
@@ -162,9 +170,18 @@ static size_t sym_index(const char *name) {
 static void tb_trans(qemu_plugin_id_t id, struct qemu_plugin_tb *tb) {
     (void)id;
     size_t n = qemu_plugin_tb_n_insns(tb);
-    if ((syms_n || memcallers_n) && n) {
+    if ((syms_n || memcallers_n || blocks_n) && n) {
         struct tbinfo *t = malloc(sizeof *t); /* lives as long as the TB may */
         if (!t) abort();
+        t->runs = 0;
+        if (blocks_n) {
+            if (n_tbs == cap_tbs) {
+                cap_tbs = cap_tbs ? 2 * cap_tbs : 1024;
+                tbs = realloc(tbs, cap_tbs * sizeof *tbs);
+                if (!tbs) abort();
+            }
+            tbs[n_tbs++] = t;
+        }
         const char *name = qemu_plugin_insn_symbol(qemu_plugin_tb_get_insn(tb, 0));
         t->sym = sym_index(name);
         t->n = n;
@@ -196,6 +213,12 @@ static void stats(const char *what, const uint64_t *d, size_t n) {
 static int by_insns(const void *a, const void *b) {
     const struct sym *x = a, *y = b;
     return x->insns < y->insns ? 1 : x->insns > y->insns ? -1 : 0;
+}
+
+static int by_block(const void *a, const void *b) {
+    const struct tbinfo *x = *(struct tbinfo *const *)a, *y = *(struct tbinfo *const *)b;
+    uint64_t u = x->runs * x->n, v = y->runs * y->n;
+    return u < v ? 1 : u > v ? -1 : 0;
 }
 
 static void at_exit(qemu_plugin_id_t id, void *p) {
@@ -230,6 +253,16 @@ static void at_exit(qemu_plugin_id_t id, void *p) {
         for (size_t i = 0; i < n_syms && i < syms_n && syms[i].insns; i++)
             outf("insnmark: %6.2f%% %14" PRIu64 "  %s\n", 100.0 * syms[i].insns / (in ? in : 1), syms[i].insns, syms[i].name);
     }
+    if (blocks_n && n_tbs) {
+        uint64_t in = 0;
+        for (size_t i = 0; i < n_tbs; i++) in += tbs[i]->runs * tbs[i]->n;
+        qsort(tbs, n_tbs, sizeof *tbs, by_block);
+        outf("insnmark: top blocks inside regions (%" PRIu64 " insns in all; address, instructions, runs):\n", in);
+        for (size_t i = 0; i < n_tbs && i < blocks_n && tbs[i]->runs; i++)
+            outf("insnmark: block %6.2f%% %12" PRIu64 "  0x%08" PRIx64 " %3" PRIu64 " x %-9" PRIu64 " %s\n",
+                 100.0 * tbs[i]->runs * tbs[i]->n / (in ? in : 1), tbs[i]->runs * tbs[i]->n, tbs[i]->va, tbs[i]->n,
+                 tbs[i]->runs, syms[tbs[i]->sym].name);
+    }
     if (out_path[0]) {
         FILE *f = fopen(out_path, "w");
         if (f) {
@@ -249,6 +282,7 @@ int qemu_plugin_install(qemu_plugin_id_t id, const qemu_info_t *info, int argc, 
         else if (!strncmp(argv[i], "first=", 6)) first_n = (unsigned)strtoul(argv[i] + 6, NULL, 0);
         else if (!strncmp(argv[i], "syms=", 5)) syms_n = (unsigned)strtoul(argv[i] + 5, NULL, 0);
         else if (!strncmp(argv[i], "memcallers=", 11)) memcallers_n = (unsigned)strtoul(argv[i] + 11, NULL, 0);
+        else if (!strncmp(argv[i], "blocks=", 7)) blocks_n = (unsigned)strtoul(argv[i] + 7, NULL, 0);
         else if (!strncmp(argv[i], "softfloat=", 10)) softfloat_too = atoi(argv[i] + 10);
         else if (!strncmp(argv[i], "out=", 4)) snprintf(out_path, sizeof out_path, "%s", argv[i] + 4);
         else { outf("insnmark: unknown argument %s\n", argv[i]); return -1; }
