@@ -249,31 +249,32 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         v
     }
 
-    /// `f = Uᵀ h` and `v = D Uᵀ h` for a row `h`, written in place.
-    fn project_into(&self, h: &SVector<T, N>, f: &mut SVector<T, N>, v: &mut SVector<T, N>) {
+    /// `f = Uᵀ h` and `v = D Uᵀ h` for a row `h` (each element written
+    /// once: no zeroing of the results first).
+    fn project(&self, h: &SVector<T, N>) -> ([T; N], [T; N]) {
         let a = &self.m.data.0;
-        for j in 0..N {
-            let mut s = h[j];
-            for i in 0..j {
-                s += a[j][i] * h[i];
-            }
-            f[j] = s;
-            v[j] = s * a[j][j];
-        }
+        let h = h.as_slice();
+        let f: [T; N] = core::array::from_fn(|j| {
+            a[j][..j]
+                .iter()
+                .zip(h)
+                .fold(h[j], |s, (u, h_i)| s + *u * *h_i)
+        });
+        let v = core::array::from_fn(|j| f[j] * a[j][j]);
+        (f, v)
     }
 
     /// `H P Hᵀ` for the `R` rows of `h` (one projection `Uᵀ hᵢᵀ` per row,
     /// then `Fᵀ D F`).
     pub fn congruence<const R: usize>(&self, h: &SMatrix<T, R, N>) -> SMatrix<T, R, R> {
-        let mut f = [SVector::<T, N>::zeros(); R];
-        let mut v = [SVector::<T, N>::zeros(); R];
-        for ((row, fi), vi) in h.row_iter().zip(f.iter_mut()).zip(v.iter_mut()) {
-            self.project_into(&row.transpose(), fi, vi);
-        }
+        let projected: [([T; N], [T; N]); R] =
+            core::array::from_fn(|i| self.project(&h.row(i).transpose()));
         let mut out = SMatrix::<T, R, R>::zeros();
         for a in 0..R {
             for b in a..R {
-                let x = f[b].dot(&v[a]);
+                let (f_b, _) = projected[b];
+                let (_, v_a) = projected[a];
+                let x = SVector::from(f_b).dot(&SVector::from(v_a));
                 out[(a, b)] = x;
                 out[(b, a)] = x;
             }
@@ -289,9 +290,7 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         if !(r > T::zero()) {
             return None;
         }
-        let mut f = SVector::<T, N>::zeros();
-        let mut v = SVector::<T, N>::zeros();
-        self.project_into(h, &mut f, &mut v);
+        let (f, v) = self.project(h);
         // The α sequence and the new D depend only on f, v and the old D:
         // check them first, so the update itself runs in place and cannot
         // fail half-way (no copy of the factor for a rollback).
@@ -300,37 +299,43 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         {
             let a = &self.m.data.0;
             let mut alpha = r;
+            // Σ D⁺: finite if and only if every D⁺ is (they are positive).
+            let mut sum_d = T::zero();
             for j in 0..N {
                 let beta = alpha;
                 alpha += v[j] * f[j];
-                if !(alpha > T::zero()) {
-                    return None;
-                }
+                // A NaN, non-positive or infinite α gives a D⁺ that is NaN,
+                // non-positive or infinite: one test below covers them.
                 let d = a[j][j] * (beta / alpha);
-                if !(d > T::zero()) || !d.is_finite() {
+                if !(d > T::zero()) {
                     return None;
                 }
+                sum_d += d;
                 alphas[j] = alpha;
                 new_d[j] = d;
             }
+            if !sum_d.is_finite() {
+                return None;
+            }
         }
         let a = &mut self.m.data.0;
-        let mut b = SVector::<T, N>::zeros();
+        let mut b = [T::zero(); N];
         let mut beta = r;
         for j in 0..N {
-            let alpha = alphas[j];
             let lambda = -f[j] / beta;
-            a[j][j] = new_d[j];
-            for i in 0..j {
-                let u = a[j][i];
-                a[j][i] = u + b[i] * lambda;
-                b[i] += u * v[j];
+            let v_j = v[j];
+            let col = &mut a[j];
+            col[j] = new_d[j];
+            for (u, b_i) in col[..j].iter_mut().zip(b.iter_mut()) {
+                let u_old = *u;
+                *u = u_old + *b_i * lambda;
+                *b_i += u_old * v_j;
             }
-            b[j] = v[j];
-            beta = alpha;
+            b[j] = v_j;
+            beta = alphas[j];
         }
         Some(ScalarUpdate {
-            gain: b / beta,
+            gain: SVector::from(b) / beta,
             alpha: beta,
         })
     }
@@ -415,5 +420,75 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A well-conditioned 6-state covariance with correlations.
+    fn covariance() -> SMatrix<f64, 6, 6> {
+        let a = SMatrix::<f64, 6, 6>::from_fn(|i, j| ((3 * i + 5 * j) % 7) as f64 / 7.0 - 0.4);
+        a * a.transpose() + SMatrix::identity() * 0.1
+    }
+
+    /// Bierman's update gives the dense `P − P hᵀ h P / α`, its gain and α.
+    #[test]
+    fn update_is_the_dense_update() {
+        let p = covariance();
+        let mut ud = Ud::from_covariance(&p).expect("positive definite");
+        let h = SVector::<f64, 6>::from_fn(|i, _| 0.3 * i as f64 - 0.7);
+        let r = 0.05;
+        let up = ud.update(&h, r).expect("a valid update");
+        let ph = p * h;
+        let alpha = h.dot(&ph) + r;
+        let want = p - ph * ph.transpose() / alpha;
+        assert!((up.alpha - alpha).abs() < 1e-13 * alpha);
+        assert!((up.gain - ph / alpha).amax() < 1e-13);
+        assert!(
+            (ud.covariance() - want).amax() < 1e-13,
+            "{}",
+            ud.covariance() - want
+        );
+    }
+
+    /// Every update that would leave `D` non-positive or non-finite is
+    /// refused with the factor untouched: a NaN or an infinity in `h`, an
+    /// α that overflows, a variance `r` that is not positive.
+    #[test]
+    fn a_refused_update_leaves_the_factor_untouched() {
+        let before = Ud::from_covariance(&covariance()).expect("positive definite");
+        let ok = SVector::<f64, 6>::repeat(0.5);
+        let cases = [
+            (ok, 0.0),
+            (ok, -1.0),
+            (ok, f64::NAN),
+            (
+                SVector::from_fn(|i, _| if i == 3 { f64::NAN } else { 0.5 }),
+                1.0,
+            ),
+            (
+                SVector::from_fn(|i, _| if i == 4 { f64::INFINITY } else { 0.5 }),
+                1.0,
+            ),
+            (
+                SVector::from_fn(|i, _| if i == 0 { 1e200 } else { 0.5 }),
+                1.0,
+            ),
+            // Only the last α overflows: its D⁺ is 0, the others valid.
+            (
+                SVector::from_fn(|i, _| if i == 5 { 1e200 } else { 0.5 }),
+                1.0,
+            ),
+            (SVector::repeat(1e160), 1.0),
+        ];
+        for (h, r) in cases {
+            let mut ud = before;
+            assert!(ud.update(&h, r).is_none(), "h = {h:?}, r = {r}");
+            assert_eq!(ud, before, "h = {h:?}, r = {r}");
+        }
+        let mut ud = before;
+        assert!(ud.update(&ok, 1.0).is_some());
     }
 }
