@@ -413,19 +413,21 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
             Ud::<T, 3>::from_covariance(&mm)?
         };
         let mut rows = SMatrix::<T, 3, N>::zeros();
-        // U₁₂ ← A U₁₂ + B U₂₂, column by column (U₂₂ unit upper).
-        for j in 3..N {
-            for r in 0..3 {
-                let mut s = phi[j][r];
-                for k in 0..3 {
-                    s += phi[k][r] * a[j][k];
-                }
-                for k in 3..j {
-                    s += phi[k][r] * a[j][k];
-                }
-                rows[(r, j)] = s;
+        // U₁₂ ← A U₁₂ + B U₂₂, column by column (U₂₂ unit upper): row r of
+        // column j is Φ_rj + Σ_{k<j} Φ_rk U_kj, summed in order of k, the
+        // three rows together.
+        in_runs::<N>(|j| {
+            if j < 3 {
+                return;
             }
-        }
+            let mut s = phi[j];
+            for (phi_k, u_kj) in phi.iter().zip(&a[j][..j]) {
+                for (s_r, phi_rk) in s.iter_mut().zip(phi_k) {
+                    *s_r += *phi_rk * *u_kj;
+                }
+            }
+            rows.data.0[j] = s;
+        });
         let b = &blk.m.data.0;
         for c in 0..3 {
             for r in 0..=c {
