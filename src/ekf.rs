@@ -655,6 +655,44 @@ fn linear_term<T: RealField + Copy, const N: usize, const Z: usize>(
     to_f64(&(h * to_t::<T, N, 1>(delta)))
 }
 
+/// `L⁻¹ B` in place of `B` for the lower triangle of `l` (its upper
+/// triangle is not read: a Cholesky factor's `l_dirty`). The operations of
+/// nalgebra's `solve_lower_triangular_mut`, in the same order (each column:
+/// `b_i ← b_i / L_ii`, then `b_k ← b_k − b_i L_ki` below it), so the same
+/// bits, without its per-column views: at fixed sizes it unrolls (the M4F's
+/// whitening of the `Z × N` rows). `false` (and `b` untouched) if a diagonal
+/// element is zero.
+fn solve_lower<T: RealField + Copy, const Z: usize, const C: usize>(
+    l: &SMatrix<T, Z, Z>,
+    b: &mut SMatrix<T, Z, C>,
+) -> bool {
+    let l = &l.data.0; // l[col][row]
+    let diagonal = |(i, l_i): (usize, &[T; Z])| l_i.get(i).copied();
+    if !l
+        .iter()
+        .enumerate()
+        .all(|c| diagonal(c).is_some_and(|d| !d.is_zero()))
+    {
+        return false;
+    }
+    for col in b.data.0.iter_mut() {
+        for (i, l_i) in l.iter().enumerate() {
+            let (Some(d), Some((b_i, below))) = (
+                diagonal((i, l_i)),
+                col.get_mut(i..).and_then(|rest| rest.split_first_mut()),
+            ) else {
+                continue;
+            };
+            let coeff = *b_i / d;
+            *b_i = coeff;
+            for (b_k, l_ki) in below.iter_mut().zip(l_i.iter().skip(i + 1)) {
+                *b_k -= coeff * *l_ki;
+            }
+        }
+    }
+    true
+}
+
 /// The dense gain with measurement noise `R_v + D Dᵀ` correlated with the
 /// process noise by `C = G Dᵀ`: `S = H P Hᵀ + H C + Cᵀ Hᵀ + R_eff`,
 /// `K = (P Hᵀ + C) S⁻¹`, for the predicted covariance `p`.
@@ -1630,10 +1668,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         w.nu_w = nu;
         // J L = G Mᵀ L⁻ᵀ (attitude rows), so J z = (J L) ν_w.
         let mut l_inv_m_g = m_e * g_att.transpose();
-        if !(l.solve_lower_triangular_mut(&mut w.nu_w)
-            && l.solve_lower_triangular_mut(h)
-            && l.solve_lower_triangular_mut(&mut l_inv_m_g))
-        {
+        if !(solve_lower(l, &mut w.nu_w) && solve_lower(l, h) && solve_lower(l, &mut l_inv_m_g)) {
             return Err(Error::InnovationNotPositiveDefinite);
         }
         w.j_l = l_inv_m_g.transpose();
@@ -1817,5 +1852,45 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let lin = self.retrace(x, pending)?;
         let m = self.measure(x, &lin, &MatricesCache::new(Self::LAYOUT.installation(x)));
         Ok((m.z, to_f64(&m.h)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `solve_lower` gives nalgebra's `solve_lower_triangular_mut` bit for
+    /// bit (the same operations in the same order), reading only the lower
+    /// triangle, and refuses a zero on the diagonal with `b` untouched.
+    #[test]
+    fn solve_lower_is_nalgebras_solve() {
+        let a = SMatrix::<f64, 6, 6>::from_fn(|i, j| ((7 * i + 3 * j) % 11) as f64 / 3.0 - 1.4);
+        let s = a * a.transpose() + SMatrix::identity() * 0.3;
+        let chol = s.cholesky().expect("positive definite");
+        let mut l = chol.l();
+        let want_l = l;
+        // Garbage above the diagonal, as in a Cholesky's `l_dirty`.
+        for i in 0..6 {
+            for j in i + 1..6 {
+                l[(i, j)] = f64::NAN;
+            }
+        }
+        let b = SMatrix::<f64, 6, 18>::from_fn(|i, j| ((5 * i + j) % 13) as f64 * 0.37 - 2.0);
+        let mut want = b;
+        assert!(want_l.solve_lower_triangular_mut(&mut want));
+        let mut got = b;
+        assert!(solve_lower(&l, &mut got));
+        assert_eq!(got, want);
+        let mut f32_got = b.map(|v| v as f32);
+        let mut f32_want = f32_got;
+        assert!(want_l
+            .map(|v| v as f32)
+            .solve_lower_triangular_mut(&mut f32_want));
+        assert!(solve_lower(&l.map(|v| v as f32), &mut f32_got));
+        assert_eq!(f32_got, f32_want);
+        l[(3, 3)] = 0.0;
+        let mut refused = b;
+        assert!(!solve_lower(&l, &mut refused));
+        assert_eq!(refused, b);
     }
 }
