@@ -273,8 +273,10 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         v
     }
 
-    /// `f = Uᵀ h` and `v = D Uᵀ h` for a row `h` (each element written
-    /// once: no zeroing of the results first).
+    /// `f = Uᵀ h` and `v = D Uᵀ h` for a row `h`. Inlined, so the pair is
+    /// built where the caller keeps it instead of returned through a copy
+    /// (the M4F's linearised M2-ps period: 102.7 k → 98.3 k instructions).
+    #[inline(always)]
     fn project(&self, h: &SVector<T, N>) -> ([T; N], [T; N]) {
         let a = &self.m.data.0;
         let h = h.as_slice();
