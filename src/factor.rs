@@ -273,14 +273,12 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         v
     }
 
-    /// `f = Uᵀ h` and `v = D Uᵀ h` for a row `h`. Inlined, so the pair is
-    /// built where the caller keeps it instead of returned through a copy
-    /// (the M4F's linearised M2-ps period: 102.7 k → 98.3 k instructions).
+    /// `f = Uᵀ h` and `v = D Uᵀ h` for a row `h`, written into `f` and `v`
+    /// (every element).
     #[inline(always)]
-    fn project(&self, h: &SVector<T, N>) -> ([T; N], [T; N]) {
+    fn project_to(&self, h: &SVector<T, N>, f: &mut [T; N], v: &mut [T; N]) {
         let a = &self.m.data.0;
         let h = h.as_slice();
-        let mut f = [T::zero(); N];
         in_runs::<N>(|j| {
             // f_j = h_j + Σ_{i<j} U_ij h_i, summed in order of i.
             f[j] = a[j][..j]
@@ -288,21 +286,35 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
                 .zip(h)
                 .fold(h[j], |s, (u, h_i)| s + *u * *h_i);
         });
-        let v = core::array::from_fn(|j| f[j] * a[j][j]);
-        (f, v)
+        for j in 0..N {
+            v[j] = f[j] * a[j][j];
+        }
+    }
+
+    /// [`Ud::project_to`] out of line, for the congruence's rows: its
+    /// temporaries are then not in the frame of the congruence's caller
+    /// (the whitening, on the deepest stack path of a filter step).
+    #[inline(never)]
+    fn project_row(&self, h: &SVector<T, N>, f: &mut [T; N], v: &mut [T; N]) {
+        self.project_to(h, f, v);
     }
 
     /// `H P Hᵀ` for the `R` rows of `h` (one projection `Uᵀ hᵢᵀ` per row,
     /// then `Fᵀ D F`).
     pub fn congruence<const R: usize>(&self, h: &SMatrix<T, R, N>) -> SMatrix<T, R, R> {
-        let projected: [([T; N], [T; N]); R] =
-            core::array::from_fn(|i| self.project(&h.row(i).transpose()));
+        // Row by row, keeping only the earlier rows' `v = D f` (half the
+        // projections' memory): the pair (b, a), b ≤ a, is `f_a · v_b`.
+        let mut earlier = [[T::zero(); N]; R];
+        let mut f_a = [T::zero(); N];
         let mut out = SMatrix::<T, R, R>::zeros();
-        for a in 0..R {
-            for b in a..R {
-                let (f_b, _) = projected[b];
-                let (_, v_a) = projected[a];
-                let x = SVector::from(f_b).dot(&SVector::from(v_a));
+        for (a, row) in h.row_iter().enumerate() {
+            let Some(v_a) = earlier.get_mut(a) else {
+                break;
+            };
+            self.project_row(&row.transpose(), &mut f_a, v_a);
+            let f_a = SVector::from(f_a);
+            for (b, v_b) in earlier.iter().enumerate().take(a + 1) {
+                let x = f_a.dot(&SVector::from(*v_b));
                 out[(a, b)] = x;
                 out[(b, a)] = x;
             }
@@ -318,7 +330,8 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         if !(r > T::zero()) {
             return None;
         }
-        let (f, v) = self.project(h);
+        let (mut f, mut v) = ([T::zero(); N], [T::zero(); N]);
+        self.project_to(h, &mut f, &mut v);
         // The α sequence and the new D depend only on f, v and the old D:
         // check them first, so the update itself runs in place and cannot
         // fail half-way (no copy of the factor for a rollback).
