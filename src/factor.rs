@@ -376,7 +376,8 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
             }
             b[j] = v_j;
         });
-        let alpha = alphas[N - 1];
+        // α after the last state (r for a factor of no states).
+        let alpha = alphas.last().copied().unwrap_or(r);
         Some(ScalarUpdate {
             gain: SVector::from(b) / alpha,
             alpha,
