@@ -61,7 +61,8 @@ const _ATTITUDE_FIRST: () = assert!(ATT == 0);
 /// unroll it whole; one loop over the triangle is not unrolled, and its inner
 /// loops of varying length cost more than their multiply-adds (Cortex-M4F:
 /// a projection `Uᵀ h` of 18 states 1 480 → 738 instructions, a scalar
-/// update 2 650 → 1 190; `firmware/bench.sh` counts the periods).
+/// update 2 650 → 1 190, counted with `tools/qemu-insnmark` on the call
+/// site; `firmware/bench.sh` counts the periods).
 #[inline(always)]
 fn in_runs<const N: usize>(mut column: impl FnMut(usize)) {
     for j in 0..N / 2 {
