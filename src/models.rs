@@ -1181,9 +1181,12 @@ impl Layout {
     /// attitude rotation acts on; `a` is `A`, `c_rn` is `C^r_n`,
     /// [`InstallationMatrices`]).
     ///
-    /// - Misalignment (M1): the small rotation's share `(R(θ_j) − I) f_j`
-    ///   in `J` ([`crate::geometry::dcm_deviation`]; `ε_J |θ| |f|`, e.g.
-    ///   6e-11 g for 1 mrad in f32), the rest in f64.
+    /// - Misalignment (M1): the first node's `f_0 = C^c_n(t_k) f^n` in f64;
+    ///   in `J` the later nodes' turn `(C_j − C_0) f^n` (`ε_J |uT| |f|`,
+    ///   1.7e-10 g at the paper's 0.16°/s over 1 s in f32) and the small
+    ///   rotation's share `(R(θ_j) − I) f_j`
+    ///   ([`crate::geometry::dcm_deviation`]; `ε_J |θ| |f|`, e.g. 6e-11 g
+    ///   for 1 mrad in f32).
     /// - Euler angles: the midpoint and end nodes' sines and cosines from
     ///   the first node's, their increments in `J`
     ///   ([`EulerTrig::advanced_in`]; ≤ 7.2e-10 in f32), the rest in f64.
@@ -1202,15 +1205,22 @@ impl Layout {
         let mut mean = Vector3::zeros();
         match self.attitude {
             AttitudeKind::Misalignment => {
-                let mut turned = Vector3::<J>::zeros();
-                for ((theta, c_cn), w) in att.iter().zip(period.c_cn.iter()).zip(weights) {
-                    let f = c_cn * env.gravity_n;
-                    mean += f * w;
-                    turned += dcm_deviation(&to_t::<J, 3, 1>(theta))
-                        * to_t::<J, 3, 1>(&f)
-                        * nalgebra::convert::<f64, J>(w);
+                // f_j = C_j f^n = f_0 + (C_j − C_0) f^n: f_0 in f64, the
+                // later nodes' turn within the period (≤ |uT| |f|) in J.
+                let [c0, c_mid, c1] = &period.c_cn;
+                let f0 = c0 * env.gravity_n;
+                let (f0_j, g_j): (Vector3<J>, Vector3<J>) = (to_t(&f0), to_t(&env.gravity_n));
+                let turns = [
+                    Vector3::zeros(),
+                    to_t::<J, 3, 3>(&(c_mid - c0)) * g_j,
+                    to_t::<J, 3, 3>(&(c1 - c0)) * g_j,
+                ];
+                let mut small = Vector3::<J>::zeros();
+                for ((theta, turn), w) in att.iter().zip(turns).zip(weights) {
+                    let w: J = nalgebra::convert(w);
+                    small += (turn + dcm_deviation(&to_t::<J, 3, 1>(theta)) * (f0_j + turn)) * w;
                 }
-                mean += to_f64(&turned);
+                mean = f0 + to_f64(&small);
             }
             AttitudeKind::Gimbal | AttitudeKind::Attitude => {
                 let f = match self.attitude {

@@ -183,7 +183,8 @@ fn mean_accel_output_is_mean_accels_value() {
     ] {
         eprintln!("{name}: mean_accel_output − mean_accel: f64 {e64:.1e} g, f32 {e32:.1e} g");
         // f64: rounding (a few ulp of 1 g). f32: M1's rotations of ≤ 1.7 mrad
-        // in f32, ε_f32 |θ| ≈ 1e-10 g; the Euler kinds' steps of ≤ 3e-3 rad
+        // and its frame's turn within the period (≤ 5.2 mrad) in f32,
+        // ε_f32 |θ| ≈ 1e-10 g and ε_f32 |uT| ≈ 3e-10 g; the Euler kinds' steps of ≤ 3e-3 rad
         // in f32, ≤ 3 ε_f32 |δ| ≤ 7.2e-10 per sine and cosine
         // (EulerTrig::advanced_in), a few of them in each entry of the DCM.
         assert!(e64 < 2e-15, "{name}: f64 value off by {e64:e} g");

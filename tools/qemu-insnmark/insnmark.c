@@ -23,7 +23,8 @@
  * block executed outside a mem* function before it, with its symbol) whose
  * calls into memcpy/memset/memclr/memmove cost the most instructions inside
  * regions (softfloat=1: calls into the f64 soft-float routines too, the
- * M4F's emulated double precision). With blocks=N it prints the N
+ * M4F's emulated double precision; callee=NAME: only calls into the
+ * routines whose symbol contains NAME, e.g. callee=__aeabi_d2f). With blocks=N it prints the N
  * translation blocks (address, length, runs) with the most instructions
  * inside regions: the hot loops of a function. Counts are exact and repeat run to run (no timing model involved).
  */
@@ -78,6 +79,7 @@ static struct site *sites;
 static size_t n_sites, cap_sites;
 static unsigned memcallers_n;
 static int softfloat_too; /* softfloat=1: soft-float routines count as mem* */
+static char callee[128];  /* callee=NAME: only routines whose symbol contains NAME count as mem* */
 static const struct tbinfo *last_caller;
 
 static void outf(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
@@ -139,6 +141,7 @@ static void on_tb(unsigned int vcpu, void *ud) {
 /* A memory-copy/fill routine of the runtime (compiler_builtins, __aeabi_*). */
 static int is_mem(const char *name) {
     if (!name) return 0;
+    if (callee[0]) return strstr(name, callee) != NULL;
     if (softfloat_too && (strstr(name, "__aeabi_d") || strstr(name, "__aeabi_f2d") || strstr(name, "::float::") ||
                           strstr(name, "df3")))
         return 1;
@@ -284,6 +287,7 @@ int qemu_plugin_install(qemu_plugin_id_t id, const qemu_info_t *info, int argc, 
         else if (!strncmp(argv[i], "memcallers=", 11)) memcallers_n = (unsigned)strtoul(argv[i] + 11, NULL, 0);
         else if (!strncmp(argv[i], "blocks=", 7)) blocks_n = (unsigned)strtoul(argv[i] + 7, NULL, 0);
         else if (!strncmp(argv[i], "softfloat=", 10)) softfloat_too = atoi(argv[i] + 10);
+        else if (!strncmp(argv[i], "callee=", 7)) snprintf(callee, sizeof callee, "%s", argv[i] + 7);
         else if (!strncmp(argv[i], "out=", 4)) snprintf(out_path, sizeof out_path, "%s", argv[i] + 4);
         else { outf("insnmark: unknown argument %s\n", argv[i]); return -1; }
     }
