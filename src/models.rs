@@ -839,6 +839,22 @@ impl Layout {
         omega_c: &Vector3<T>,
     ) -> Option<SMatrix<T, 3, N>> {
         let mut f = SMatrix::<T, 3, N>::zeros();
+        self.attitude_rate_jacobian_into(env, m, att, omega_c, &mut f)?;
+        Some(f)
+    }
+
+    /// [`Layout::attitude_rate_jacobian`] written into `f` (every entry;
+    /// `None` at gimbal lock, `f` then unspecified): no 3×N copy of the
+    /// result where the caller keeps it.
+    pub fn attitude_rate_jacobian_into<T: RealField + Copy, const N: usize>(
+        &self,
+        env: &Environment<T>,
+        m: &InstallationMatrices<T>,
+        att: &Vector3<T>,
+        omega_c: &Vector3<T>,
+        f: &mut SMatrix<T, 3, N>,
+    ) -> Option<()> {
+        f.fill(T::zero());
         // ∂(G ωc)/∂θgC and ∂(G ωc)/∂θgT.
         let d_g_c =
             InstallationMatrices::d_rotation_times(&m.r_g_c, &m.jr_g_c, &(m.unit_g_t * omega_c));
@@ -855,9 +871,9 @@ impl Layout {
                 let d_jinv = -skew(&w_cp) / two
                     - (skew(&att.cross(&w_cp)) + skew(att) * skew(&w_cp)) / twelve;
                 let d_att = d_jinv - jinv * skew(&r_wc) * right_jacobian(att);
-                set_cols(&mut f, ATT, &d_att);
-                set_cols(&mut f, GC, &(jinv * d_g_c));
-                set_cols(&mut f, GT, &(jinv * d_g_t));
+                set_cols(f, ATT, &d_att);
+                set_cols(f, GC, &(jinv * d_g_c));
+                set_cols(f, GT, &(jinv * d_g_t));
             }
             AttitudeKind::Gimbal | AttitudeKind::Attitude => {
                 let trig = EulerTrig::new(att);
@@ -866,9 +882,9 @@ impl Layout {
                 let rl_w = m.c_rn * env.earth_rate_n;
                 let w = w_ip - c * rl_w;
                 let d_att = trig.d_rate_inverse_times(&t, &w) - t * trig.d_dcm_times(&c, &rl_w);
-                set_cols(&mut f, ATT, &d_att);
-                set_cols(&mut f, GC, &(t * d_g_c));
-                set_cols(&mut f, GT, &(t * d_g_t));
+                set_cols(f, ATT, &d_att);
+                set_cols(f, GC, &(t * d_g_c));
+                set_cols(f, GT, &(t * d_g_t));
                 if let Some(il) = self.lam() {
                     let d_lam = -(t
                         * c
@@ -877,11 +893,11 @@ impl Layout {
                             &m.jr_lambda,
                             &env.earth_rate_n,
                         ));
-                    set_cols(&mut f, il, &d_lam);
+                    set_cols(f, il, &d_lam);
                 }
             }
         }
-        Some(f)
+        Some(())
     }
 
     /// The accelerometer output `Z_a = A C^p_n f^n` (g) at one instant.
@@ -1052,9 +1068,9 @@ impl Layout {
         let [_, wm, w1] = period.omega_c;
         let [_, att_mid, att1] = self.trajectory(env_j, m_j, att0, period)?;
         let (att_mid_j, att1_j) = (vector_in(&att_mid)?, vector_in(&att1)?);
-        out.f_mid = self.attitude_rate_jacobian(env_j, m_j, &att_mid_j, &vector_in(&wm)?)?;
-        out.f_end = self.attitude_rate_jacobian(env_j, m_j, &att1_j, &vector_in(&w1)?)?;
-        out.phi_att = transition_rows(&out.f_mid, scalar_in(period.dt)?);
+        self.attitude_rate_jacobian_into(env_j, m_j, &att_mid_j, &vector_in(&wm)?, &mut out.f_mid)?;
+        self.attitude_rate_jacobian_into(env_j, m_j, &att1_j, &vector_in(&w1)?, &mut out.f_end)?;
+        transition_rows_into(&out.f_mid, scalar_in(period.dt)?, &mut out.phi_att);
         out.noise_map = self.noise_map(&att_mid_j)?;
         out.att = [vector_in(att0)?, att_mid_j, att1_j];
         *att = [*att0, att_mid, att1];
@@ -1282,6 +1298,18 @@ pub fn transition_rows<T: RealField + Copy, const N: usize>(
     f: &SMatrix<T, 3, N>,
     tau: T,
 ) -> SMatrix<T, 3, N> {
+    let mut phi = SMatrix::zeros();
+    transition_rows_into(f, tau, &mut phi);
+    phi
+}
+
+/// [`transition_rows`] written into `phi` (every entry): no 3×N copy of
+/// the result where the caller keeps it.
+pub fn transition_rows_into<T: RealField + Copy, const N: usize>(
+    f: &SMatrix<T, 3, N>,
+    tau: T,
+    phi: &mut SMatrix<T, 3, N>,
+) {
     let half: T = nalgebra::convert(0.5);
     let sixth: T = nalgebra::convert(1.0 / 6.0);
     let fa = attitude_columns(f) * tau;
@@ -1291,14 +1319,12 @@ pub fn transition_rows<T: RealField + Copy, const N: usize>(
     // One column at a time, in place: no 3×N temporary beside the result
     // (the same operations as the whole-matrix products).
     let mix = fa * half + fa2 * sixth;
-    let mut phi = f * tau;
-    for col in phi.data.0.iter_mut() {
-        let ft = Vector3::from(*col);
+    for (col, f_col) in phi.data.0.iter_mut().zip(f.data.0.iter()) {
+        let ft = Vector3::from(*f_col) * tau;
         *col = (ft + mix * ft).into();
     }
     let aa = Matrix3::identity() + fa + fa2 * half + fa2 * fa * sixth;
-    set_cols(&mut phi, ATT, &aa);
-    phi
+    set_cols(phi, ATT, &aa);
 }
 
 /// `H ← H Φ` for a Φ whose parameter rows are the identity: only the
