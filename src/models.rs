@@ -1175,7 +1175,7 @@ impl Layout {
             z += zj * w;
             if tau != T::zero() {
                 d += hj.fixed_columns::<3>(ATT) * prop.noise_map * (w * tau);
-                apply_transition(&mut hj, &transition_rows(f, tau));
+                apply_transition_of(&mut hj, f, tau);
             }
             // The end node: Φ(t_{k+1} ← t_{k+1}) = I, and no noise
             // accumulated after it. In place (no 3×N temporaries).
@@ -1310,21 +1310,70 @@ pub fn transition_rows_into<T: RealField + Copy, const N: usize>(
     tau: T,
     phi: &mut SMatrix<T, 3, N>,
 ) {
-    let half: T = nalgebra::convert(0.5);
-    let sixth: T = nalgebra::convert(1.0 / 6.0);
-    let fa = attitude_columns(f) * tau;
-    let fa2 = fa * fa;
-    // (I + F_a τ/2 + (F_a τ)²/6) F τ, then the attitude block
-    // I + F_a τ + (F_a τ)²/2 + (F_a τ)³/6 (error ≈ |F τ|⁴/24 < 1e-12).
-    // One column at a time, in place: no 3×N temporary beside the result
-    // (the same operations as the whole-matrix products).
-    let mix = fa * half + fa2 * sixth;
-    for (col, f_col) in phi.data.0.iter_mut().zip(f.data.0.iter()) {
-        let ft = Vector3::from(*f_col) * tau;
-        *col = (ft + mix * ft).into();
+    let pieces = TransitionPieces::new(f, tau);
+    for (j, (col, f_col)) in phi.data.0.iter_mut().zip(f.data.0.iter()).enumerate() {
+        *col = pieces.column(j, f_col, tau).into();
     }
-    let aa = Matrix3::identity() + fa + fa2 * half + fa2 * fa * sixth;
-    set_cols(phi, ATT, &aa);
+}
+
+/// The two matrices of [`transition_rows`] of `F` and `τ`, from which each
+/// of its columns follows alone (see [`TransitionPieces::column`]).
+struct TransitionPieces<T> {
+    /// `F_a τ/2 + (F_a τ)²/6`: a parameter column is `(I + mix) F_j τ`.
+    mix: Matrix3<T>,
+    /// The attitude block `I + F_a τ + (F_a τ)²/2 + (F_a τ)³/6` (error
+    /// ≈ |F τ|⁴/24 < 1e-12).
+    aa: Matrix3<T>,
+}
+
+impl<T: RealField + Copy> TransitionPieces<T> {
+    fn new<const N: usize>(f: &SMatrix<T, 3, N>, tau: T) -> Self {
+        let half: T = nalgebra::convert(0.5);
+        let sixth: T = nalgebra::convert(1.0 / 6.0);
+        let fa = attitude_columns(f) * tau;
+        let fa2 = fa * fa;
+        Self {
+            mix: fa * half + fa2 * sixth,
+            aa: Matrix3::identity() + fa + fa2 * half + fa2 * fa * sixth,
+        }
+    }
+
+    /// Column `j` of the transition rows, `f_col` being column `j` of `F`:
+    /// a column of the attitude block, or `F_j τ + mix F_j τ` (the same
+    /// operations as the whole-matrix products).
+    fn column(&self, j: usize, f_col: &[T; 3], tau: T) -> Vector3<T> {
+        match j.checked_sub(ATT) {
+            Some(a) if a < 3 => self
+                .aa
+                .column_iter()
+                .nth(a)
+                .map_or_else(Vector3::zeros, |c| c.into_owned()),
+            _ => {
+                let ft = Vector3::from(*f_col) * tau;
+                ft + self.mix * ft
+            }
+        }
+    }
+}
+
+/// `H ← H Φ` with Φ's attitude rows the [`transition_rows`] of `F` and `τ`,
+/// each column of Φ formed where it is used ([`apply_transition`] of
+/// `transition_rows(f, tau)` without the 3×N Φ; the same operations).
+pub fn apply_transition_of<T: RealField + Copy, const R: usize, const N: usize>(
+    h: &mut SMatrix<T, R, N>,
+    f: &SMatrix<T, 3, N>,
+    tau: T,
+) {
+    let pieces = TransitionPieces::new(f, tau);
+    let h_att = attitude_columns(h);
+    for (j, (mut col, f_col)) in h.column_iter_mut().zip(f.data.0.iter()).enumerate() {
+        let mixed = h_att * pieces.column(j, f_col, tau);
+        if j < ATT + 3 {
+            col.copy_from(&mixed);
+        } else {
+            col += mixed;
+        }
+    }
 }
 
 /// `H ← H Φ` for a Φ whose parameter rows are the identity: only the
