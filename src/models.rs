@@ -933,6 +933,25 @@ impl Layout {
         c_cn: &Matrix3<T>,
     ) -> (Vector3<T>, SMatrix<T, 3, N>) {
         let mut h = SMatrix::<T, 3, N>::zeros();
+        let z = self.accel_output_and_jacobian_into(env, m, att, c_cn, &mut h);
+        (z, h)
+    }
+
+    /// [`Layout::accel_output_and_jacobian`] with the Jacobian written into
+    /// `h` (every entry): no 3×N copy of it where the caller keeps it.
+    // Out of line: inlined into `mean_accel`'s loop over the nodes, LLVM
+    // unrolled the lot into a 1.5 KB frame of spilled addresses (the M4F's
+    // linearised M1-pa period went from 42 k to 93 k instructions).
+    #[inline(never)]
+    pub fn accel_output_and_jacobian_into<T: RealField + Copy, const N: usize>(
+        &self,
+        env: &Environment<T>,
+        m: &InstallationMatrices<T>,
+        att: &Vector3<T>,
+        c_cn: &Matrix3<T>,
+        h: &mut SMatrix<T, 3, N>,
+    ) -> Vector3<T> {
+        h.fill(T::zero());
         let g = &env.gravity_n;
         // The attitude's rotation (R(ψ) or C(θ)) and ∂(C^p_n f^n)/∂att.
         let (rot, d_att) = match self.attitude {
@@ -957,25 +976,25 @@ impl Layout {
             AttitudeKind::Attitude => rot,
         };
         let f_p = c_pn * g;
-        set_cols(&mut h, ATT, &(m.a * d_att));
+        set_cols(h, ATT, &(m.a * d_att));
         let f_a = m.r_a_c * f_p;
         if let Some(ic) = self.ac() {
             // ∂(R(−θ) v)/∂θ = −∂(R(φ) v)/∂φ at φ = −θ.
             set_cols(
-                &mut h,
+                h,
                 ic,
                 &(-(m.unit_a_t
                     * InstallationMatrices::d_rotation_times(&m.r_a_c, &m.jr_a_c, &f_p))),
             );
         }
-        set_cols(&mut h, self.at(), &d_lower_times(&f_a));
+        set_cols(h, self.at(), &d_lower_times(&f_a));
         if let (Some(il), AttitudeKind::Gimbal) = (self.lam(), self.attitude) {
             let d_lam = m.a
                 * rot
                 * InstallationMatrices::d_rotation_times(&m.c_rn, &m.jr_lambda, &env.gravity_n);
-            set_cols(&mut h, il, &d_lam);
+            set_cols(h, il, &d_lam);
         }
-        (m.a * f_p, h)
+        m.a * f_p
     }
 }
 
@@ -1162,6 +1181,7 @@ impl Layout {
         // (by reference: no copies of the 3×N matrices in this frame).
         let f_late = (prop.f_mid + prop.f_end) * half;
         let f_nodes = [&prop.f_mid, &f_late, &prop.f_end];
+        let mut hj = SMatrix::<T, 3, N>::zeros();
         for ((((att, c_cn), w), tau), f) in prop
             .att
             .iter()
@@ -1170,8 +1190,7 @@ impl Layout {
             .zip(back)
             .zip(f_nodes.iter())
         {
-            let (zj, mut hj): (_, SMatrix<T, 3, N>) =
-                self.accel_output_and_jacobian(env, m, att, c_cn);
+            let zj = self.accel_output_and_jacobian_into(env, m, att, c_cn, &mut hj);
             z += zj * w;
             if tau != T::zero() {
                 d += hj.fixed_columns::<3>(ATT) * prop.noise_map * (w * tau);
@@ -1345,9 +1364,10 @@ impl<T: RealField + Copy> TransitionPieces<T> {
         match j.checked_sub(ATT) {
             Some(a) if a < 3 => self
                 .aa
-                .column_iter()
-                .nth(a)
-                .map_or_else(Vector3::zeros, |c| c.into_owned()),
+                .data
+                .0
+                .get(a)
+                .map_or_else(Vector3::zeros, |c| Vector3::from(*c)),
             _ => {
                 let ft = Vector3::from(*f_col) * tau;
                 ft + self.mix * ft
