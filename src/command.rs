@@ -201,8 +201,26 @@ impl CommandFrame<f64> {
     ///   (`ε_J |ω_c|`, 2e-10 rad/s at 0.16°/s in f32): the filter uses it in
     ///   `J` only (the attitude's increments and the Jacobians).
     pub fn period_in<J: RealField + Copy>(&self, dtheta_c: &Vector3<f64>, dt: f64) -> Period<f64> {
+        let mut out = Period {
+            dt,
+            omega_c: [Vector3::zeros(); 3],
+            c_cn: [Matrix3::zeros(); 3],
+        };
+        self.period_in_into::<J>(dtheta_c, dt, &mut out);
+        out
+    }
+
+    /// [`CommandFrame::period_in`] written into `out` (every field): no
+    /// copy of the ≈ 300-byte period where the caller keeps it.
+    pub fn period_in_into<J: RealField + Copy>(
+        &self,
+        dtheta_c: &Vector3<f64>,
+        dt: f64,
+        out: &mut Period<f64>,
+    ) {
         if TypeId::of::<J>() == TypeId::of::<f64>() {
-            return self.period(dtheta_c, dt);
+            *out = self.period(dtheta_c, dt);
+            return;
         }
         let e = self.c_cn * self.earth_rate_n;
         let base = dtheta_c / dt - e;
@@ -219,18 +237,18 @@ impl CommandFrame<f64> {
         let half: J = nalgebra::convert(0.5);
         let d_mid = dcm_deviation(&(u_j * (dt_j * half)));
         let d_end = dcm_deviation(&(u_j * dt_j));
-        let c_mid = self.c_cn + to_f64(&(d_mid * to_t::<J, 3, 3>(&self.c_cn)));
-        let c_end = rotated_in::<J>(&(u * dt), &self.c_cn);
         let w0 = e_j + u_j;
-        Period {
-            dt,
-            omega_c: [
-                to_f64(&w0),
-                to_f64(&(w0 + d_mid * e_j)),
-                to_f64(&(w0 + d_end * e_j)),
-            ],
-            c_cn: [self.c_cn, c_mid, c_end],
-        }
+        out.dt = dt;
+        out.omega_c = [
+            to_f64(&w0),
+            to_f64(&(w0 + d_mid * e_j)),
+            to_f64(&(w0 + d_end * e_j)),
+        ];
+        out.c_cn = [
+            self.c_cn,
+            self.c_cn + to_f64(&(d_mid * to_t::<J, 3, 3>(&self.c_cn))),
+            rotated_in::<J>(&(u * dt), &self.c_cn),
+        ];
     }
 }
 

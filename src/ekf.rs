@@ -1110,13 +1110,15 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         self.settle()?;
         self.pending.clear();
         let layout = Self::LAYOUT;
-        // The linearisation point: the estimate (EKF) or the nominal.
-        let x_lin = self.reference.unwrap_or(self.x);
-        self.matrices.refresh(&layout, &x_lin);
+        // The linearisation point: the estimate (EKF) or the nominal (by
+        // reference: no copy of the state).
+        let x_lin = self.reference.as_ref().unwrap_or(&self.x);
+        self.matrices.refresh(&layout, x_lin);
         let slot = &mut self.pending.value;
-        slot.period = self.command.period_in::<T>(dtheta_c, dt);
+        self.command
+            .period_in_into::<T>(dtheta_c, dt, &mut slot.period);
         let env = &self.config.env;
-        let att0 = layout.attitude(&x_lin);
+        let att0 = layout.attitude(x_lin);
         // The attitude in f64, its increments over the period and the
         // Jacobians in T (see `Filter`).
         layout
@@ -1139,23 +1141,33 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             return Err(Error::NonFiniteState);
         }
         let [_, _, att1] = new.att;
-        let mut x_lin_end = x_lin;
-        x_lin_end.fixed_rows_mut::<3>(ATT).copy_from(&att1);
-        let x_new = match self.reference {
-            // x̂_{k+1} = x_nom,k+1 ⊞ Φ (x̂_k ⊟ x_nom,k).
-            Some(_) => {
-                let mut delta = layout.difference(&self.x, &x_lin);
-                let d_att = linear_term::<T, N, 3>(&new.prop.phi_att, &delta);
-                delta.fixed_rows_mut::<3>(ATT).copy_from(&d_att);
-                x_lin_end + delta
+        let x_new = match &self.reference {
+            // x̂_{k+1} = x_nom,k+1 ⊞ Φ (x̂_k ⊟ x_nom,k): the parameters
+            // x_nom + δ, the attitude att_{k+1} + Φ_att δ (formed in δ's
+            // place).
+            Some(x_nom) => {
+                let mut x = layout.difference(&self.x, x_nom);
+                let d_att = linear_term::<T, N, 3>(&new.prop.phi_att, &x);
+                for (i, (v, nom)) in x.iter_mut().zip(x_nom.iter()).enumerate() {
+                    if i >= ATT + 3 {
+                        *v = *nom + *v;
+                    }
+                }
+                x.fixed_rows_mut::<3>(ATT).copy_from(&(att1 + d_att));
+                x
             }
-            None => x_lin_end,
+            // The estimate with the attitude at the period's end.
+            None => {
+                let mut x = self.x;
+                x.fixed_rows_mut::<3>(ATT).copy_from(&att1);
+                x
+            }
         };
         if !all_finite(x_new.iter().copied()) {
             return Err(Error::NonFiniteState);
         }
-        if self.reference.is_some() {
-            self.reference = Some(x_lin_end);
+        if let Some(x_nom) = self.reference.as_mut() {
+            x_nom.fixed_rows_mut::<3>(ATT).copy_from(&att1);
         }
         self.x = x_new;
         self.command.advance(&self.pending.value.period);
