@@ -1150,7 +1150,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 let d_att = linear_term::<T, N, 3>(&new.prop.phi_att, &x);
                 for (i, (v, nom)) in x.iter_mut().zip(x_nom.iter()).enumerate() {
                     if i >= ATT + 3 {
-                        *v = *nom + *v;
+                        *v += *nom;
                     }
                 }
                 x.fixed_rows_mut::<3>(ATT).copy_from(&(att1 + d_att));
