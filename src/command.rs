@@ -36,6 +36,15 @@ pub struct Period<T: RealField + Copy> {
 }
 
 impl<T: RealField + Copy> Period<T> {
+    /// An all-zero period (a slot's content before its first period).
+    pub fn zeros() -> Self {
+        Self {
+            dt: T::zero(),
+            omega_c: [Vector3::zeros(); 3],
+            c_cn: [Matrix3::zeros(); 3],
+        }
+    }
+
     /// The same period traversed backwards in time (`dt < 0`, nodes
     /// reversed), for integrating the dynamics from `t_{k+1}` back to `t_k`.
     pub fn reversed(&self) -> Self {
@@ -45,6 +54,20 @@ impl<T: RealField + Copy> Period<T> {
             dt: -self.dt,
             omega_c: [w1, wm, w0],
             c_cn: [c1, cm, c0],
+        }
+    }
+}
+
+impl Period<f64> {
+    /// The period in precision `J` (each value rounded; the identity for
+    /// `J = f64`).
+    pub fn to_precision<J: RealField + Copy>(&self) -> Period<J> {
+        let [w0, wm, w1] = &self.omega_c;
+        let [c0, cm, c1] = &self.c_cn;
+        Period {
+            dt: nalgebra::convert(self.dt),
+            omega_c: [to_t(w0), to_t(wm), to_t(w1)],
+            c_cn: [to_t(c0), to_t(cm), to_t(c1)],
         }
     }
 }
@@ -200,26 +223,31 @@ impl CommandFrame<f64> {
     ///   `ω_c(t_k) + (R(u(t − t_k)) − I) C^c_n(t_k) ω^n_ie`, in `J`
     ///   (`ε_J |ω_c|`, 2e-10 rad/s at 0.16°/s in f32): the filter uses it in
     ///   `J` only (the attitude's increments and the Jacobians).
-    pub fn period_in<J: RealField + Copy>(&self, dtheta_c: &Vector3<f64>, dt: f64) -> Period<f64> {
-        let mut out = Period {
-            dt,
-            omega_c: [Vector3::zeros(); 3],
-            c_cn: [Matrix3::zeros(); 3],
-        };
-        self.period_in_into::<J>(dtheta_c, dt, &mut out);
-        out
+    pub fn period_in<J: RealField + Copy>(
+        &self,
+        dtheta_c: &Vector3<f64>,
+        dt: f64,
+    ) -> (Period<f64>, Period<J>) {
+        let (mut out, mut out_j) = (Period::zeros(), Period::zeros());
+        self.period_in_into::<J>(dtheta_c, dt, &mut out, &mut out_j);
+        (out, out_j)
     }
 
-    /// [`CommandFrame::period_in`] written into `out` (every field): no
-    /// copy of the ≈ 300-byte period where the caller keeps it.
+    /// [`CommandFrame::period_in`] written into `out` and `out_j` (every
+    /// field): the period, and the same period in `J` (each value rounded
+    /// to `J` once, [`Period::to_precision`]) for the filter's Jacobians and
+    /// the attitude's increments. No copy of either where the caller keeps
+    /// them, and no second rounding of what `J` computed.
     pub fn period_in_into<J: RealField + Copy>(
         &self,
         dtheta_c: &Vector3<f64>,
         dt: f64,
         out: &mut Period<f64>,
+        out_j: &mut Period<J>,
     ) {
         if TypeId::of::<J>() == TypeId::of::<f64>() {
             *out = self.period(dtheta_c, dt);
+            *out_j = out.to_precision();
             return;
         }
         let e = self.c_cn * self.earth_rate_n;
@@ -237,18 +265,20 @@ impl CommandFrame<f64> {
         let half: J = nalgebra::convert(0.5);
         let d_mid = dcm_deviation(&(u_j * (dt_j * half)));
         let d_end = dcm_deviation(&(u_j * dt_j));
+        let c_j = to_t::<J, 3, 3>(&self.c_cn);
         let w0 = e_j + u_j;
+        out_j.dt = dt_j;
+        out_j.omega_c = [w0, w0 + d_mid * e_j, w0 + d_end * e_j];
+        let [w0, w_mid, w_end] = &out_j.omega_c;
         out.dt = dt;
-        out.omega_c = [
-            to_f64(&w0),
-            to_f64(&(w0 + d_mid * e_j)),
-            to_f64(&(w0 + d_end * e_j)),
-        ];
+        out.omega_c = [to_f64(w0), to_f64(w_mid), to_f64(w_end)];
         out.c_cn = [
             self.c_cn,
-            self.c_cn + to_f64(&(d_mid * to_t::<J, 3, 3>(&self.c_cn))),
+            self.c_cn + to_f64(&(d_mid * c_j)),
             rotated_in::<J>(&(u * dt), &self.c_cn),
         ];
+        let [_, c_mid, c_end] = &out.c_cn;
+        out_j.c_cn = [c_j, to_t(c_mid), to_t(c_end)];
     }
 }
 
@@ -315,8 +345,10 @@ mod tests {
         let (mut node_err, mut rate_err): (f64, f64) = (0.0, 0.0);
         for k in 0..5400 {
             let p = f64_frame.period(&d(k), 1.0);
-            assert_eq!(f64_frame.period_in::<f64>(&d(k), 1.0), p);
-            let q = f32_frame.period_in::<f32>(&d(k), 1.0);
+            assert_eq!(f64_frame.period_in::<f64>(&d(k), 1.0), (p, p));
+            let (q, q_j) = f32_frame.period_in::<f32>(&d(k), 1.0);
+            // The f32 period is the f64 one rounded once.
+            assert_eq!(q_j, q.to_precision::<f32>());
             // Against the f64 period from the same (f32-integrated) frame.
             let r = f32_frame.period(&d(k), 1.0);
             for i in 0..3 {

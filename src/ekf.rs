@@ -315,6 +315,10 @@ struct Gain<T: RealField + Copy, const N: usize, const Z: usize> {
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Pending<T: RealField + Copy, const N: usize> {
     period: Period<f64>,
+    /// The same period in `T` (each value rounded once,
+    /// [`CommandFrame::period_in_into`](crate::command::CommandFrame::period_in_into)):
+    /// what the Jacobians and the attitude's increments read.
+    period_t: Period<T>,
     /// The attitude at the period's three nodes (rad).
     att: [Vector3<f64>; 3],
     /// The same nodes rounded to `T`, with the period's transition rows,
@@ -329,11 +333,8 @@ impl<T: RealField + Copy, const N: usize> Pending<T, N> {
     /// An all-zero period (the content of an empty slot).
     fn zeros() -> Self {
         Self {
-            period: Period {
-                dt: 0.0,
-                omega_c: [Vector3::zeros(); 3],
-                c_cn: [Matrix3::zeros(); 3],
-            },
+            period: Period::zeros(),
+            period_t: Period::zeros(),
             att: [Vector3::zeros(); 3],
             prop: PeriodPropagation::zeros(),
             q_extra: Matrix3::zeros(),
@@ -603,17 +604,6 @@ pub(crate) fn hessian_terms<T: RealField + Copy, const N: usize>(
 
 fn all_finite<T: RealField + Copy>(it: impl IntoIterator<Item = T>) -> bool {
     it.into_iter().all(|v| v.is_finite())
-}
-
-/// A period in precision `T`.
-fn period_t<T: RealField + Copy>(p: &Period<f64>) -> Period<T> {
-    let [w0, wm, w1] = p.omega_c;
-    let [c0, cm, c1] = p.c_cn;
-    Period {
-        dt: nalgebra::convert(p.dt),
-        omega_c: [to_t(&w0), to_t(&wm), to_t(&w1)],
-        c_cn: [to_t(&c0), to_t(&cm), to_t(&c1)],
-    }
 }
 
 /// A period's trajectory and transition in precision `T`.
@@ -1116,7 +1106,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         self.matrices.refresh(&layout, x_lin);
         let slot = &mut self.pending.value;
         self.command
-            .period_in_into::<T>(dtheta_c, dt, &mut slot.period);
+            .period_in_into::<T>(dtheta_c, dt, &mut slot.period, &mut slot.period_t);
         let env = &self.config.env;
         let att0 = layout.attitude(x_lin);
         // The attitude in f64, its increments over the period and the
@@ -1126,7 +1116,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 &env_t::<T>(env),
                 &self.matrices.m,
                 &att0,
-                &slot.period,
+                &slot.period_t,
                 &mut slot.att,
                 &mut slot.prop,
             )
@@ -1252,13 +1242,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             let za =
                 layout.mean_accel_output::<T>(env, &m.a, &m.c_rn, &pending.att, &pending.period);
             let mut ha = out.h.fixed_rows_mut::<3>(accel_row);
-            let (_, da) = layout.mean_accel(
-                &env_t(env),
-                &m.m,
-                &pending.prop,
-                &period_t(&pending.period),
-                &mut ha,
-            );
+            let (_, da) =
+                layout.mean_accel(&env_t(env), &m.m, &pending.prop, &pending.period_t, &mut ha);
             (za, to_f64(&da))
         };
         if layout.gimbal_obs {
@@ -1307,6 +1292,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         };
         Ok(Pending {
             period: *pr,
+            period_t: pending.period_t,
             att: prop.att,
             prop: propagation_t(&prop),
             q_extra: pending.q_extra,
