@@ -442,12 +442,16 @@ pub struct Parts<'a, const N: usize> {
 }
 
 /// The installation matrices of one parameter value as the filter uses
-/// them: all of them in `T` (rounded from f64; the Jacobians' and, for
-/// `T = f64`, everything's), `A` and `C^r_n` in f64 (the single-precision
-/// filter's f64 value of the mean specific force,
-/// [`Layout::mean_accel_output`]). Rounded once per parameter value, not
-/// once per use (on the M4F the linearised period fell by 11 k
-/// instructions).
+/// them: all of them in `T` (the Jacobians' and the attitude increments',
+/// and for `T = f64` everything's; computed in `T` from the parameters
+/// rounded to `T`), `A` and `C^r_n` in f64 (the single-precision filter's
+/// f64 value of the mean specific force, [`Layout::mean_accel_output`]).
+/// Computed once per parameter value, not once per use (on the M4F the
+/// linearised period fell by 11 k instructions); in `T`, not rounded from
+/// f64, so that pass 1, whose parameters move every period, emulates no
+/// f64 trigonometry and rounding it does not need (the M4F's pass-1
+/// period fell from 79 k to 60 k instructions for M1-pa, 176 k to 144 k
+/// for M2-ps).
 ///
 /// As the filter's cache, a pure function of the parameters it holds: not
 /// part of the filter's value (every cache equals every other, so two
@@ -520,9 +524,17 @@ impl<T: RealField + Copy> MatricesCache<T> {
             *m = InstallationMatrices::new(params);
             (self.a, self.c_rn) = (m.a, m.c_rn);
         } else {
-            let m = InstallationMatrices::new(params);
-            self.m = m.to_precision();
-            (self.a, self.c_rn) = (m.a, m.c_rn);
+            // In T from the parameters rounded to T (the Jacobians' and the
+            // attitude increments' few digits), A and C^r_n also in f64.
+            let p = &params;
+            self.m = InstallationMatrices::new(Installation {
+                theta_g_c: to_t(&p.theta_g_c),
+                theta_g_t: to_t(&p.theta_g_t),
+                theta_a_c: to_t(&p.theta_a_c),
+                theta_a_t: to_t(&p.theta_a_t),
+                lambda: to_t(&p.lambda),
+            });
+            (self.a, self.c_rn) = InstallationMatrices::accel_and_base(p);
         }
         self.params = params;
     }

@@ -711,6 +711,15 @@ impl<T: RealField + Copy> InstallationMatrices<T> {
         }
     }
 
+    /// `A = (I + L(θaT)) R(−θaC)` and `C^r_n = R(λ)` of `params` (rad)
+    /// alone, the same values as [`InstallationMatrices::new`]'s: the two
+    /// that the single-precision filter needs in f64 (the value of the
+    /// mean specific force, [`Layout::mean_accel_output`]).
+    pub fn accel_and_base(params: &Installation<T>) -> (Matrix3<T>, Matrix3<T>) {
+        let unit_a_t = Matrix3::identity() + crate::geometry::lower(&params.theta_a_t);
+        (unit_a_t * dcm(&-params.theta_a_c), dcm(&params.lambda))
+    }
+
     /// `∂(R(θ) v)/∂θ = [(R(θ) v)×] J_r(θ)` from `R(θ)` and `J_r(θ)`
     /// ([`crate::geometry::d_dcm_times`] without its trigonometry).
     pub fn d_rotation_times(r: &Matrix3<T>, jr: &Matrix3<T>, v: &Vector3<T>) -> Matrix3<T> {
