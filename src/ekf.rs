@@ -450,7 +450,7 @@ pub struct Parts<'a, const N: usize> {
 /// linearised period fell by 11 k instructions); in `T`, not rounded from
 /// f64, so that pass 1, whose parameters move every period, emulates no
 /// f64 trigonometry and rounding it does not need (the M4F's pass-1
-/// period fell from 79 k to 60 k instructions for M1-pa, 176 k to 144 k
+/// period fell from 79 k to 60 k instructions for M1-pa, 166 k to 144 k
 /// for M2-ps).
 ///
 /// As the filter's cache, a pure function of the parameters it holds: not
