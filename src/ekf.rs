@@ -417,6 +417,9 @@ pub struct Filter<T: RealField + Copy, M, const N: usize, const Z: usize> {
     /// parameters (constant over a linearised pass and shared by the
     /// prediction and the update of a period of pass 1).
     matrices: MatricesCache<T>,
+    /// `config.env` rounded to `T` (for the Jacobians and the attitude's
+    /// increments), rounded once with the configuration, not every period.
+    env_t: Environment<T>,
     _model: PhantomData<M>,
 }
 
@@ -788,6 +791,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             gated_run: 0,
             gate_open: false,
             matrices: MatricesCache::new(Self::LAYOUT.installation(&x0)),
+            env_t: env_t(&config.env),
             _model: PhantomData,
         }
     }
@@ -810,6 +814,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         }
         self.x = x0;
         self.command = CommandFrame::aligned(config.env.earth_rate_n);
+        self.env_t = env_t(&config.env);
         self.config = config;
         self.pending.clear();
         self.reference = None;
@@ -930,6 +935,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         self.x = *parts.x;
         self.command = CommandFrame::aligned(config.env.earth_rate_n);
         self.command.c_cn = *parts.c_cn;
+        self.env_t = env_t(&config.env);
         self.config = config;
         self.pending.clear();
         self.reference = parts.nominal.copied();
@@ -1119,13 +1125,12 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let slot = &mut self.pending.value;
         self.command
             .period_in_into::<T>(dtheta_c, dt, &mut slot.period, &mut slot.period_t);
-        let env = &self.config.env;
         let att0 = layout.attitude(x_lin);
         // The attitude in f64, its increments over the period and the
         // Jacobians in T (see `Filter`).
         layout
             .propagate_into_jacobians_in(
-                &env_t::<T>(env),
+                &self.env_t,
                 &self.matrices.m,
                 &att0,
                 &slot.period_t,
@@ -1255,7 +1260,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 layout.mean_accel_output::<T>(env, &m.a, &m.c_rn, &pending.att, &pending.period);
             let mut ha = out.h.fixed_rows_mut::<3>(accel_row);
             let (_, da) =
-                layout.mean_accel(&env_t(env), &m.m, &pending.prop, &pending.period_t, &mut ha);
+                layout.mean_accel(&self.env_t, &m.m, &pending.prop, &pending.period_t, &mut ha);
             (za, to_f64(&da))
         };
         if layout.gimbal_obs {
@@ -1325,7 +1330,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     ) -> (Vector3<f64>, Matrix3<f64>) {
         let layout = Self::LAYOUT;
         // In T: a weighting of the update, needed to a few digits.
-        let env: Environment<T> = env_t(&self.config.env);
+        let env = self.env_t;
         let [_, _, c_end] = pending.period.c_cn;
         let c_end: Matrix3<T> = to_t(&c_end);
         let att: Vector3<T> = to_t(&layout.attitude(x));
