@@ -488,18 +488,33 @@ impl<T: RealField + Copy> PartialEq for MatricesCache<T> {
 }
 
 impl<T: RealField + Copy> MatricesCache<T> {
-    /// The matrices of `params` (rad) as the filter uses them. Out of
-    /// line: the f64 matrices it rounds are not in the frame of the caller,
-    /// which builds a calibrator in place (firmware stack).
+    /// The matrices of `params` (rad) as the filter uses them, the same
+    /// as [`MatricesCache::fill`] makes them. Out of line: the matrices'
+    /// temporaries are not in the frame of the caller, which builds a
+    /// calibrator in place (firmware stack).
     #[inline(never)]
     fn new(params: Installation<f64>) -> Self {
-        let m = InstallationMatrices::new(params);
+        let (a, c_rn) = InstallationMatrices::accel_and_base(&params);
         Self {
             params,
-            a: m.a,
-            c_rn: m.c_rn,
-            m: m.to_precision(),
+            a,
+            c_rn,
+            m: Self::in_t(&params),
         }
+    }
+
+    /// The matrices in `T` of `params` (rad): computed in `T` from the
+    /// parameters rounded to `T` (the Jacobians' and the attitude
+    /// increments' few digits; for `T = f64`, `InstallationMatrices::new`
+    /// of `params` itself).
+    fn in_t(params: &Installation<f64>) -> InstallationMatrices<T> {
+        InstallationMatrices::new(Installation {
+            theta_g_c: to_t(&params.theta_g_c),
+            theta_g_t: to_t(&params.theta_g_t),
+            theta_a_c: to_t(&params.theta_a_c),
+            theta_a_t: to_t(&params.theta_a_t),
+            lambda: to_t(&params.lambda),
+        })
     }
 
     /// Makes the cache hold the matrices of the parameters of `x`. The
@@ -527,17 +542,8 @@ impl<T: RealField + Copy> MatricesCache<T> {
             *m = InstallationMatrices::new(params);
             (self.a, self.c_rn) = (m.a, m.c_rn);
         } else {
-            // In T from the parameters rounded to T (the Jacobians' and the
-            // attitude increments' few digits), A and C^r_n also in f64.
-            let p = &params;
-            self.m = InstallationMatrices::new(Installation {
-                theta_g_c: to_t(&p.theta_g_c),
-                theta_g_t: to_t(&p.theta_g_t),
-                theta_a_c: to_t(&p.theta_a_c),
-                theta_a_t: to_t(&p.theta_a_t),
-                lambda: to_t(&p.lambda),
-            });
-            (self.a, self.c_rn) = InstallationMatrices::accel_and_base(p);
+            self.m = Self::in_t(&params);
+            (self.a, self.c_rn) = InstallationMatrices::accel_and_base(&params);
         }
         self.params = params;
     }
@@ -1873,6 +1879,37 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The installation matrices cache holds the same values however it
+    /// got them (built for the parameters, or refilled for them after
+    /// others): a pure function of the parameters, in f32 and in f64; the
+    /// f64 `A` and `C^r_n` are `InstallationMatrices::new`'s.
+    #[test]
+    fn matrices_cache_is_a_function_of_its_parameters() {
+        let v = |a: f64, b: f64, c: f64| Vector3::new(a, b, c);
+        let p = Installation {
+            theta_g_c: v(1e-3, -2e-3, 0.5e-3),
+            theta_g_t: v(3e-4, 1e-4, -2e-4),
+            theta_a_c: v(-7e-4, 2e-4, 9e-4),
+            theta_a_t: v(1e-4, -3e-4, 5e-4),
+            lambda: v(0.3, -1.2, 2.0),
+        };
+        let q = Installation {
+            lambda: v(0.0, 0.0, 0.0),
+            ..p
+        };
+        fn check<T: RealField + Copy>(p: Installation<f64>, q: Installation<f64>) {
+            let built = MatricesCache::<T>::new(p);
+            let mut refilled = MatricesCache::<T>::new(q);
+            refilled.fill(p);
+            assert_eq!(built.m, refilled.m);
+            assert_eq!((built.a, built.c_rn), (refilled.a, refilled.c_rn));
+            let f64_matrices = InstallationMatrices::new(p);
+            assert_eq!((built.a, built.c_rn), (f64_matrices.a, f64_matrices.c_rn));
+        }
+        check::<f32>(p, q);
+        check::<f64>(p, q);
+    }
 
     /// `solve_lower` gives nalgebra's `solve_lower_triangular_mut` bit for
     /// bit (the same operations in the same order), reading only the lower
