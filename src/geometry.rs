@@ -167,8 +167,8 @@ pub fn dcm_deviation<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T> {
 /// first-order part `c − θ × c` (column by column) in f64, the rest,
 /// `(1 − a) [θ×] c + b [θ×]² c` (≈ `x²/2 |c|`), in `J`, with
 /// `1 − a = x² (x − sin x)/x³` formed without cancellation. Its error is
-/// `ε_J x²/2 |c|` beside f64's rounding (2e-13 at `x = 2.8e-3`, the paper's
-/// 0.16°/s over 1 s, in f32), where `dcm(θ) * c` in emulated f64 costs
+/// `ε_J x²/2 |c|` beside f64's rounding (in f32 1e-13 at the paper's
+/// 0.1°/s over 1 s, `x = 1.75e-3`; 2e-13 at `x = 2.8e-3`), where `dcm(θ) * c` in emulated f64 costs
 /// about 80 operations more. For `J = f64` it equals `dcm(θ) * c` to
 /// rounding.
 pub fn rotated_in<J: RealField + Copy>(theta: &Vector3<f64>, c: &Matrix3<f64>) -> Matrix3<f64> {

@@ -1223,7 +1223,7 @@ impl Layout {
     ///
     /// - Misalignment (M1): the first node's `f_0 = C^c_n(t_k) f^n` in f64;
     ///   in `J` the later nodes' turn `(C_j − C_0) f^n` (`ε_J |uT| |f|`,
-    ///   1.7e-10 g at the paper's 0.16°/s over 1 s in f32) and the small
+    ///   1.0e-10 g at the paper's 0.1°/s over 1 s in f32) and the small
     ///   rotation's share `(R(θ_j) − I) f_j`
     ///   ([`crate::geometry::dcm_deviation`]; `ε_J |θ| |f|`, e.g. 6e-11 g
     ///   for 1 mrad in f32).
