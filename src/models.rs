@@ -1390,15 +1390,7 @@ pub fn apply_transition_of<T: RealField + Copy, const R: usize, const N: usize>(
     tau: T,
 ) {
     let pieces = TransitionPieces::new(f, tau);
-    let h_att = attitude_columns(h);
-    for (j, (mut col, f_col)) in h.column_iter_mut().zip(f.data.0.iter()).enumerate() {
-        let mixed = h_att * pieces.column(j, f_col, tau);
-        if j < ATT + 3 {
-            col.copy_from(&mixed);
-        } else {
-            col += mixed;
-        }
-    }
+    mix_columns(h, f, |j, f_col| pieces.column(j, f_col, tau));
 }
 
 /// `H ← H Φ` for a Φ whose parameter rows are the identity: only the
@@ -1408,14 +1400,23 @@ pub fn apply_transition<T: RealField + Copy, const R: usize, const N: usize>(
     h: &mut SMatrix<T, R, N>,
     phi_att: &SMatrix<T, 3, N>,
 ) {
+    mix_columns(h, phi_att, |_, phi_col| Vector3::from(*phi_col));
+}
+
+/// `H ← H Φ` for a Φ whose parameter rows are the identity, column `j` of
+/// Φ's attitude rows being `phi_column(j, &source[j])`: the attitude
+/// columns become `H_a Φ_aa`, the parameter columns `H_p + H_a Φ_ap`.
+fn mix_columns<T: RealField + Copy, const R: usize, const N: usize>(
+    h: &mut SMatrix<T, R, N>,
+    source: &SMatrix<T, 3, N>,
+    phi_column: impl Fn(usize, &[T; 3]) -> Vector3<T>,
+) {
     let h_att = attitude_columns(h);
-    for (j, (mut col, phi)) in h.column_iter_mut().zip(phi_att.column_iter()).enumerate() {
-        let mixed = h_att * phi;
+    for (j, (mut col, src)) in h.column_iter_mut().zip(source.data.0.iter()).enumerate() {
+        let mixed = h_att * phi_column(j, src);
         if j < ATT + 3 {
-            // Attitude columns: H_a Φ_aa.
             col.copy_from(&mixed);
         } else {
-            // Parameter columns: H_p + H_a Φ_ap.
             col += mixed;
         }
     }
