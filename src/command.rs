@@ -72,6 +72,42 @@ impl Period<f64> {
     }
 }
 
+/// A period as a filter that computes in precision `J` reads it
+/// ([`CommandFrame::period_in_into`]): the nodes and rates for its
+/// Jacobians and the attitude's increments, and the frame's turn within
+/// the period for the value of M1's specific force
+/// ([`crate::models::Layout::mean_accel_output`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PeriodIn<J: RealField + Copy> {
+    /// The period, each value rounded to `J` once ([`Period::to_precision`]).
+    pub period: Period<J>,
+    /// The computed frame's turn within the period, `C^c_n(t) − C^c_n(t_k)`
+    /// at the midpoint and the end node (≈ `|uT|`), formed without
+    /// `C^c_n(t_k)`: to a few `ε_J |uT|`, which the difference of the
+    /// rounded nodes would lose to cancellation.
+    pub turn: [Matrix3<J>; 2],
+}
+
+impl<J: RealField + Copy> PeriodIn<J> {
+    /// An all-zero period (a slot's content before its first period).
+    pub fn zeros() -> Self {
+        Self {
+            period: Period::zeros(),
+            turn: [Matrix3::zeros(); 2],
+        }
+    }
+
+    /// `period` in `J`: each value, and each turn `C_j − C_0` formed in
+    /// f64, rounded to `J` once.
+    pub fn of(period: &Period<f64>) -> Self {
+        let [c0, cm, c1] = &period.c_cn;
+        Self {
+            period: period.to_precision(),
+            turn: [to_t(&(cm - c0)), to_t(&(c1 - c0))],
+        }
+    }
+}
+
 /// The computed frame `c`: `C^c_n`, integrated from the commanded increments.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CommandFrame<T: RealField + Copy> {
@@ -227,8 +263,8 @@ impl CommandFrame<f64> {
         &self,
         dtheta_c: &Vector3<f64>,
         dt: f64,
-    ) -> (Period<f64>, Period<J>) {
-        let (mut out, mut out_j) = (Period::zeros(), Period::zeros());
+    ) -> (Period<f64>, PeriodIn<J>) {
+        let (mut out, mut out_j) = (Period::zeros(), PeriodIn::zeros());
         self.period_in_into::<J>(dtheta_c, dt, &mut out, &mut out_j);
         (out, out_j)
     }
@@ -236,18 +272,22 @@ impl CommandFrame<f64> {
     /// [`CommandFrame::period_in`] written into `out` and `out_j` (every
     /// field): the period, and the same period in `J` (each value rounded
     /// to `J` once, [`Period::to_precision`]) for the filter's Jacobians and
-    /// the attitude's increments. No copy of either where the caller keeps
-    /// them, and no second rounding of what `J` computed.
+    /// the attitude's increments, with the frame's turn within the period
+    /// ([`PeriodIn::turn`]: `(R(uT/2) − I) C^c_n(t_k)` as the midpoint
+    /// node's increment is formed, and the end node's two parts, each
+    /// rounded to `J` once). No copy of either where the caller keeps
+    /// them, and no second rounding of what `J` computed. For `J = f64`,
+    /// `out_j` is [`PeriodIn::of`] `out`.
     pub fn period_in_into<J: RealField + Copy>(
         &self,
         dtheta_c: &Vector3<f64>,
         dt: f64,
         out: &mut Period<f64>,
-        out_j: &mut Period<J>,
+        out_j: &mut PeriodIn<J>,
     ) {
         if TypeId::of::<J>() == TypeId::of::<f64>() {
             *out = self.period(dtheta_c, dt);
-            *out_j = out.to_precision();
+            *out_j = PeriodIn::of(out);
             return;
         }
         let e = self.c_cn * self.earth_rate_n;
@@ -256,29 +296,29 @@ impl CommandFrame<f64> {
             (to_t(&e), to_t(&base), nalgebra::convert(dt));
         // Fixed point u = base − c(u), as in CommandFrame::path_rate.
         let mut u_j = base_j;
-        let mut turn = Vector3::zeros();
+        let mut c_u = Vector3::zeros();
         for _ in 0..3 {
-            turn = right_jacobian_deviation_times(&(u_j * dt_j), &e_j);
-            u_j = base_j - turn;
+            c_u = right_jacobian_deviation_times(&(u_j * dt_j), &e_j);
+            u_j = base_j - c_u;
         }
-        let u = base - to_f64(&turn);
+        let u = base - to_f64(&c_u);
         let half: J = nalgebra::convert(0.5);
         let d_mid = dcm_deviation(&(u_j * (dt_j * half)));
         let d_end = dcm_deviation(&(u_j * dt_j));
         let c_j = to_t::<J, 3, 3>(&self.c_cn);
         let w0 = e_j + u_j;
-        out_j.dt = dt_j;
-        out_j.omega_c = [w0, w0 + d_mid * e_j, w0 + d_end * e_j];
-        let [w0, w_mid, w_end] = &out_j.omega_c;
+        let turn_mid = d_mid * c_j;
+        let (c_end, turn_end) = rotated_in::<J>(&(u * dt), &self.c_cn);
         out.dt = dt;
+        out.c_cn = [self.c_cn, self.c_cn + to_f64(&turn_mid), c_end];
+        let p_j = &mut out_j.period;
+        p_j.dt = dt_j;
+        p_j.omega_c = [w0, w0 + d_mid * e_j, w0 + d_end * e_j];
+        let [w0, w_mid, w_end] = &p_j.omega_c;
         out.omega_c = [to_f64(w0), to_f64(w_mid), to_f64(w_end)];
-        out.c_cn = [
-            self.c_cn,
-            self.c_cn + to_f64(&(d_mid * c_j)),
-            rotated_in::<J>(&(u * dt), &self.c_cn),
-        ];
         let [_, c_mid, c_end] = &out.c_cn;
-        out_j.c_cn = [c_j, to_t(c_mid), to_t(c_end)];
+        p_j.c_cn = [c_j, to_t(c_mid), to_t(c_end)];
+        out_j.turn = [turn_mid, turn_end];
     }
 }
 
@@ -342,18 +382,25 @@ mod tests {
             Vector3::new(1.7e-3 * s.cos(), -2.0e-3, 1.0e-3 * s.sin())
         };
         let (mut f64_frame, mut f32_frame) = (CommandFrame::aligned(w), CommandFrame::aligned(w));
-        let (mut node_err, mut rate_err): (f64, f64) = (0.0, 0.0);
+        let (mut node_err, mut rate_err, mut turn_err): (f64, f64, f64) = (0.0, 0.0, 0.0);
         for k in 0..5400 {
             let p = f64_frame.period(&d(k), 1.0);
-            assert_eq!(f64_frame.period_in::<f64>(&d(k), 1.0), (p, p));
+            assert_eq!(
+                f64_frame.period_in::<f64>(&d(k), 1.0),
+                (p, PeriodIn::of(&p))
+            );
             let (q, q_j) = f32_frame.period_in::<f32>(&d(k), 1.0);
             // The f32 period is the f64 one rounded once.
-            assert_eq!(q_j, q.to_precision::<f32>());
+            assert_eq!(q_j.period, q.to_precision::<f32>());
             // Against the f64 period from the same (f32-integrated) frame.
             let r = f32_frame.period(&d(k), 1.0);
             for i in 0..3 {
                 node_err = node_err.max(max_abs(&(q.c_cn[i] - r.c_cn[i])));
                 rate_err = rate_err.max((q.omega_c[i] - r.omega_c[i]).amax() / r.omega_c[i].norm());
+            }
+            for (turn, c) in q_j.turn.iter().zip(&r.c_cn[1..]) {
+                let exact = c - r.c_cn[0];
+                turn_err = turn_err.max(max_abs(&(turn.map(f64::from) - exact)) / d(k).norm());
             }
             f64_frame.advance(&p);
             f32_frame.advance(&q);
@@ -361,7 +408,7 @@ mod tests {
         let drift = crate::geometry::angle_between(&f32_frame.c_cn, &f64_frame.c_cn);
         std::eprintln!(
             "5400 periods: frame {drift:.1e} rad from f64's, nodes {node_err:.1e}, \
-             rates {rate_err:.1e} of their size"
+             rates {rate_err:.1e} of their size, turns {turn_err:.1e} of |Δθ|"
         );
         // The end node's f32 part errs by ≈ ε_f32 |uT|²/2 ≈ 2e-13 rad a
         // period (|uT| ≤ 2.7e-3 rad here), which walks to ≈ 2e-11 rad over
@@ -373,6 +420,12 @@ mod tests {
         assert!(
             rate_err < 4.0 * f64::from(f32::EPSILON),
             "rates off by {rate_err:e}"
+        );
+        // The frame's turns in f32 (M1's specific force turns by them): a
+        // few of its roundings of the angle turned.
+        assert!(
+            turn_err < 4.0 * f64::from(f32::EPSILON),
+            "turns off by {turn_err:e} of the angle"
         );
     }
 

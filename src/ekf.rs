@@ -44,7 +44,7 @@ use core::marker::PhantomData;
 
 use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3};
 
-use crate::command::{CommandFrame, Period};
+use crate::command::{CommandFrame, Period, PeriodIn};
 use crate::factor::Ud;
 use crate::geometry::wrap_angle;
 use crate::models::{
@@ -317,8 +317,9 @@ struct Pending<T: RealField + Copy, const N: usize> {
     period: Period<f64>,
     /// The same period in `T` (each value rounded once,
     /// [`CommandFrame::period_in_into`](crate::command::CommandFrame::period_in_into)):
-    /// what the Jacobians and the attitude's increments read.
-    period_t: Period<T>,
+    /// what the Jacobians and the attitude's increments read, and the
+    /// frame's turn within it (M1's specific force).
+    period_t: PeriodIn<T>,
     /// The attitude at the period's three nodes (rad).
     att: [Vector3<f64>; 3],
     /// The same nodes rounded to `T`, with the period's transition rows,
@@ -334,7 +335,7 @@ impl<T: RealField + Copy, const N: usize> Pending<T, N> {
     fn zeros() -> Self {
         Self {
             period: Period::zeros(),
-            period_t: Period::zeros(),
+            period_t: PeriodIn::zeros(),
             att: [Vector3::zeros(); 3],
             prop: PeriodPropagation::zeros(),
             q_extra: Matrix3::zeros(),
@@ -1139,7 +1140,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 &self.env_t,
                 &self.matrices.m,
                 &att0,
-                &slot.period_t,
+                &slot.period_t.period,
                 &mut slot.att,
                 &mut slot.prop,
             )
@@ -1262,11 +1263,22 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             // The value in f64 (it must resolve 1e-7 g of 1 g), the
             // Jacobians in T (they need a few digits; f64 is emulated on an
             // FPU without it), on the f64 installation matrices rounded.
-            let za =
-                layout.mean_accel_output::<T>(env, &m.a, &m.c_rn, &pending.att, &pending.period);
+            let za = layout.mean_accel_output::<T>(
+                env,
+                &m.a,
+                &m.c_rn,
+                &pending.att,
+                &pending.period,
+                &pending.period_t.turn,
+            );
             let mut ha = out.h.fixed_rows_mut::<3>(accel_row);
-            let (_, da) =
-                layout.mean_accel(&self.env_t, &m.m, &pending.prop, &pending.period_t, &mut ha);
+            let (_, da) = layout.mean_accel(
+                &self.env_t,
+                &m.m,
+                &pending.prop,
+                &pending.period_t.period,
+                &mut ha,
+            );
             (za, to_f64(&da))
         };
         if layout.gimbal_obs {

@@ -171,19 +171,27 @@ pub fn dcm_deviation<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T> {
 /// 0.1°/s over 1 s, `x = 1.75e-3`; 2e-13 at `x = 2.8e-3`), where `dcm(θ) * c` in emulated f64 costs
 /// about 80 operations more. For `J = f64` it equals `dcm(θ) * c` to
 /// rounding.
-pub fn rotated_in<J: RealField + Copy>(theta: &Vector3<f64>, c: &Matrix3<f64>) -> Matrix3<f64> {
+///
+/// Also returns the turn `R(θ) c − c` in `J`, from the same two parts (the
+/// first-order one rounded to `J` once): to `ε_J x |c|` (1e-10 at 0.1°/s
+/// over 1 s in f32), which `R(θ) c − c` in `J` would lose to cancellation.
+pub fn rotated_in<J: RealField + Copy>(
+    theta: &Vector3<f64>,
+    c: &Matrix3<f64>,
+) -> (Matrix3<f64>, Matrix3<J>) {
     let first = columns(c).map(|c_j| theta.cross(&c_j));
     let theta_j: Vector3<J> = to_t(theta);
     let y = theta_j.norm_squared();
     let k = RotationCoefficients::new(y);
     let one_minus_a = y * k.sinc3;
-    let rest = first.map(|f| {
-        let f_j: Vector3<J> = to_t(&f);
-        to_f64(&(f_j * one_minus_a + theta_j.cross(&f_j) * k.cosc))
-    });
+    let first_j: [Vector3<J>; 3] = first.map(|f| to_t(&f));
+    let rest_j = first_j.map(|f_j| f_j * one_minus_a + theta_j.cross(&f_j) * k.cosc);
     let [f0, f1, f2] = first;
-    let [r0, r1, r2] = rest;
-    c - Matrix3::from_columns(&[f0, f1, f2]) + Matrix3::from_columns(&[r0, r1, r2])
+    let [r0, r1, r2] = rest_j;
+    let [g0, g1, g2] = first_j;
+    let rest = Matrix3::from_columns(&[to_f64(&r0), to_f64(&r1), to_f64(&r2)]);
+    let turn = Matrix3::from_columns(&[r0 - g0, r1 - g1, r2 - g2]);
+    (c - Matrix3::from_columns(&[f0, f1, f2]) + rest, turn)
 }
 
 /// The columns of `m`.
@@ -921,10 +929,12 @@ mod tests {
 
     /// `R(θ) C` with its first-order part in f64 and the rest in f32 is
     /// `dcm(θ) C` to `ε_f32 |θ|²/2` (and in f64 to rounding), where the
-    /// whole product in f32 would be `ε_f32` off.
+    /// whole product in f32 would be `ε_f32` off; its turn `R(θ) C − C` in
+    /// f32 is `dcm(θ) C − C` to a few `ε_f32 |θ|`.
     #[test]
     fn rotated_in_keeps_the_first_order_part_in_f64() {
         let c = dcm(&Vector3::new(0.4, -1.1, 2.3));
+        let eps = f64::from(f32::EPSILON);
         for theta in [
             Vector3::new(1.7e-3, -2.0e-3, 0.9e-3),
             Vector3::new(2e-6, 1e-6, -3e-6),
@@ -932,12 +942,21 @@ mod tests {
             Vector3::new(0.3, -0.2, 0.5),
         ] {
             let exact = dcm(&theta) * c;
-            assert!((rotated_in::<f64>(&theta, &c) - exact).amax() < 4e-16);
-            let err = (rotated_in::<f32>(&theta, &c) - exact).amax();
-            let bound = 4.0 * f64::from(f32::EPSILON) * theta.norm_squared() / 2.0;
+            let (r64, turn64) = rotated_in::<f64>(&theta, &c);
+            assert!((r64 - exact).amax() < 4e-16);
+            assert!((turn64 - (exact - c)).amax() < 4e-16);
+            let (r32, turn32) = rotated_in::<f32>(&theta, &c);
+            let err = (r32 - exact).amax();
+            let bound = 4.0 * eps * theta.norm_squared() / 2.0;
             assert!(
                 err < bound + 4e-16,
                 "θ {theta:?}: {err:e} against {bound:e}"
+            );
+            let turn_err = (turn32.map(f64::from) - (exact - c)).amax();
+            let turn_bound = 2.0 * eps * theta.norm();
+            assert!(
+                turn_err < turn_bound,
+                "θ {theta:?}: turn {turn_err:e} against {turn_bound:e}"
             );
         }
     }

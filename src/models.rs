@@ -1222,7 +1222,9 @@ impl Layout {
     /// [`InstallationMatrices`]).
     ///
     /// - Misalignment (M1): the first node's `f_0 = C^c_n(t_k) f^n` in f64;
-    ///   in `J` the later nodes' turn `(C_j − C_0) f^n` (`ε_J |uT| |f|`,
+    ///   in `J` the later nodes' turn `(C_j − C_0) f^n` from the frame's
+    ///   turn within the period `turn`
+    ///   ([`PeriodIn::turn`](crate::command::PeriodIn::turn); `ε_J |uT| |f|`,
     ///   1.0e-10 g at the paper's 0.1°/s over 1 s in f32) and the small
     ///   rotation's share `(R(θ_j) − I) f_j`
     ///   ([`crate::geometry::dcm_deviation`]; `ε_J |θ| |f|`, e.g. 6e-11 g
@@ -1239,6 +1241,7 @@ impl Layout {
         c_rn: &Matrix3<f64>,
         att: &[Vector3<f64>; 3],
         period: &Period<f64>,
+        turn: &[Matrix3<J>; 2],
     ) -> Vector3<f64> {
         let weights = [1.0 / 6.0, 4.0 / 6.0, 1.0 / 6.0];
         let [att0, att_mid, att1] = att;
@@ -1247,14 +1250,11 @@ impl Layout {
             AttitudeKind::Misalignment => {
                 // f_j = C_j f^n = f_0 + (C_j − C_0) f^n: f_0 in f64, the
                 // later nodes' turn within the period (≤ |uT| |f|) in J.
-                let [c0, c_mid, c1] = &period.c_cn;
+                let [c0, _, _] = &period.c_cn;
                 let f0 = c0 * env.gravity_n;
                 let (f0_j, g_j): (Vector3<J>, Vector3<J>) = (to_t(&f0), to_t(&env.gravity_n));
-                let turns = [
-                    Vector3::zeros(),
-                    to_t::<J, 3, 3>(&(c_mid - c0)) * g_j,
-                    to_t::<J, 3, 3>(&(c1 - c0)) * g_j,
-                ];
+                let [turn_mid, turn_end] = turn;
+                let turns = [Vector3::zeros(), turn_mid * g_j, turn_end * g_j];
                 let mut small = Vector3::<J>::zeros();
                 for ((theta, turn), w) in att.iter().zip(turns).zip(weights) {
                     let w: J = nalgebra::convert(w);

@@ -27,7 +27,7 @@
 //! documentation states.
 
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
-use rollcal::command::CommandFrame;
+use rollcal::command::{CommandFrame, PeriodIn};
 use rollcal::factor::Ud;
 use rollcal::geometry::{
     d_dcm_times, d_gimbal_dcm_times, d_gimbal_rate_inverse_times, dcm, earth_rate_n, gimbal_dcm,
@@ -158,15 +158,21 @@ fn mean_accel_output_error<M: Model<N, Z>, const N: usize, const Z: usize>(
             c_cn: dcm(&vec3(&mut s, 2.0)),
             earth_rate_n: env.earth_rate_n,
         };
-        let period = frame.period(&vec3(&mut s, 3e-3), 1.0);
+        let increment = vec3(&mut s, 3e-3);
+        let period = frame.period(&increment, 1.0);
         let m = layout.matrices(&x);
         let prop: PeriodPropagation<f64, N> = layout
             .propagate(&env, &m, &layout.attitude(&x), &period)
             .expect("no gimbal lock");
         let mut h = SMatrix::<f64, 3, N>::zeros();
         let (z, _) = layout.mean_accel(&env, &m, &prop, &period, &mut h);
-        let z64 = layout.mean_accel_output::<f64>(&env, &m.a, &m.c_rn, &prop.att, &period);
-        let z32 = layout.mean_accel_output::<f32>(&env, &m.a, &m.c_rn, &prop.att, &period);
+        let turn64 = PeriodIn::<f64>::of(&period).turn;
+        let z64 = layout.mean_accel_output(&env, &m.a, &m.c_rn, &prop.att, &period, &turn64);
+        // In f32 with the frame's turn as the single-precision filter forms
+        // it (its f64 nodes are `period`'s to 1e-13).
+        let (period32, period_in32) = frame.period_in::<f32>(&increment, 1.0);
+        let z32 =
+            layout.mean_accel_output(&env, &m.a, &m.c_rn, &prop.att, &period32, &period_in32.turn);
         err64 = err64.max((z64 - z).amax());
         err32 = err32.max((z32 - z).amax());
     }
