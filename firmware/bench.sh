@@ -82,6 +82,7 @@ for feature in config-m2ps config-m1pa; do
         b=$(flash_bytes "$elf")
         echo "$v $feature: flash $b bytes"
         goal "flash-one-config-$v-${feature#config-}" "$b" 65536
+        python3 "$ROOT/tools/flash-by-area.py" "$elf" --top 5 | sed "s/^/    /"
         # Inlining differs with one configuration: its panicking calls too.
         out=$(PANIC_CHECK_ALLOW_FAIL=1 python3 "$ROOT/tools/panic-check.py" --quiet "$elf")
         echo "$out" | grep -E '^panic-check: [0-9]+ reachable' | sed "s/^/    /"
@@ -89,6 +90,18 @@ for feature in config-m2ps config-m1pa; do
         goal "panic-calls-$v-${feature#config-}" "${n:-999}" 0
     done
 done
+
+echo
+echo "## The floor: the M1-pa M4F image at the size-optimised profile (opt-level = \"z\")"
+# What the code itself weighs, whatever the optimiser trades for speed: if
+# this is over the limit, no profile of the same code meets it.
+(cd "$FW" && CARGO_PROFILE_RELEASE_OPT_LEVEL=z DEFMT_LOG=info cargo build --release \
+    --no-default-features --features "f32,config-m1pa" --target-dir target/m4f-one-z) >&2
+Z_ELF="$FW/target/m4f-one-z/$THUMB/release/rollcal-firmware"
+z_bytes=$(flash_bytes "$Z_ELF")
+echo "m4f config-m1pa at opt-level z: flash $z_bytes bytes"
+python3 "$ROOT/tools/flash-by-area.py" "$Z_ELF" --top 3 | sed "s/^/    /"
+figure flash-one-config-m4f-m1pa-opt-z "$z_bytes" bytes
 
 echo
 echo "## Panicking calls reachable from the estimator's entry points (tools/panic-check.py, all-configuration images)"
