@@ -825,6 +825,7 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<DataVerdict
         )
     };
     let idle = Duration::from_secs_f64(args.idle_timeout.max(0.1));
+    let csv_read = csv.is_some();
     let read = match csv {
         // Driven exactly as a frame stream: the Configure, then the samples.
         Some((samples, settings)) => {
@@ -854,7 +855,12 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<DataVerdict
         }),
     };
     let (accepted, text) = detail(&host, &decoder);
-    progress.finish(accepted, &text);
+    // The summary line unless the input never gave a frame (e.g. a file
+    // that does not open): then the error alone says what happened.
+    let stats = decoder.stats();
+    if read.is_ok() || csv_read || stats.ok > 0 || stats.errors() > 0 || stats.empty > 0 {
+        progress.finish(accepted, &text);
+    }
     read.map_err(|e| {
         if e.starts_with("the stream configures") {
             match (args.config, &args.platform) {

@@ -295,6 +295,8 @@ fn calibrate_reports_bad_streams_cleanly() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains("cannot open"), "{err}");
+    // Without a summary of a stream that was never read.
+    assert!(!err.contains("samples accepted"), "{err}");
     // A recorded stream with bit flips in a few frames: those frames are
     // counted and skipped, the missing samples bridged, the run completes.
     let stream = dir.join("stream.bin");
