@@ -1223,7 +1223,7 @@ impl Layout {
     ///
     /// - Misalignment (M1): the first node's `f_0 = C^c_n(t_k) f^n` in f64;
     ///   in `J` the later nodes' turn `(C_j − C_0) f^n` from the frame's
-    ///   turn within the period `turn`
+    ///   turn within the period `turn` (read by M1 only)
     ///   ([`PeriodIn::turn`](crate::command::PeriodIn::turn); `ε_J |uT| |f|`,
     ///   1.0e-10 g at the paper's 0.1°/s over 1 s in f32) and the small
     ///   rotation's share `(R(θ_j) − I) f_j`
@@ -1254,11 +1254,12 @@ impl Layout {
                 let f0 = c0 * env.gravity_n;
                 let (f0_j, g_j): (Vector3<J>, Vector3<J>) = (to_t(&f0), to_t(&env.gravity_n));
                 let [turn_mid, turn_end] = turn;
-                let turns = [Vector3::zeros(), turn_mid * g_j, turn_end * g_j];
+                let f_turns = [Vector3::zeros(), turn_mid * g_j, turn_end * g_j];
                 let mut small = Vector3::<J>::zeros();
-                for ((theta, turn), w) in att.iter().zip(turns).zip(weights) {
+                for ((theta, f_turn), w) in att.iter().zip(f_turns).zip(weights) {
                     let w: J = nalgebra::convert(w);
-                    small += (turn + dcm_deviation(&to_t::<J, 3, 1>(theta)) * (f0_j + turn)) * w;
+                    small +=
+                        (f_turn + dcm_deviation(&to_t::<J, 3, 1>(theta)) * (f0_j + f_turn)) * w;
                 }
                 mean = f0 + to_f64(&small);
             }
