@@ -16,7 +16,7 @@
 
 use libfuzzer_sys::arbitrary::{Result, Unstructured};
 use libfuzzer_sys::fuzz_target;
-use nalgebra::{RealField, SVector, Vector3};
+use nalgebra::{RealField, SMatrix, SVector, Vector3};
 use rollcal::command::CommandFrame;
 use rollcal::estimator::{EstimatorOptions, LogRecord, SampleLog, SliceLog};
 use rollcal::geometry::{quaternion_from_dcm, wrap_angles};
@@ -200,7 +200,8 @@ impl Platform {
             .layout
             .propagate::<f64, 18>(&self.env, &m, &att, &period)
         {
-            let (z, _, _) = self.layout.mean_accel(&self.env, &m, &prop, &period);
+            let mut h = SMatrix::<f64, 3, 18>::zeros();
+            let (z, _) = self.layout.mean_accel(&self.env, &m, &prop, &period, &mut h);
             let [_, _, end] = prop.att;
             self.x.fixed_rows_mut::<3>(0).copy_from(&end);
             self.accel = [z.x as f32, z.y as f32, z.z as f32];
