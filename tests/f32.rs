@@ -90,3 +90,130 @@ fn f32_matches_f64_m2ps() {
     let (d, hi, lo) = compare::<M2Ps, 18, 6>("M2-ps");
     assert!(d < 0.1 && hi < 1.05 && lo > 1.0 / 1.05);
 }
+
+/// A noise-free stream of configuration `id` rolling at `rate` (rad/s, c
+/// frame, a few degrees a second) from zero errors, as the platform would
+/// send it (accelerometer means and gimbal angles in f32), fed to a
+/// session in precision `T`: the number of samples it refused, and its
+/// final estimate of record.
+fn fast_roll<T: RealField + Copy>(
+    id: rollcal::models::ConfigId,
+    rate: nalgebra::Vector3<f64>,
+    periods: u32,
+) -> (u32, rollcal::wire::Estimate) {
+    use nalgebra::{SMatrix, Vector3};
+    use rollcal::command::CommandFrame;
+    use rollcal::geometry::{quaternion_from_dcm, wrap_angles};
+    use rollcal::models::Environment;
+    use rollcal::session::{Reply, Session};
+    use rollcal::wire::Message;
+
+    let settings = CalibratorConfig::paper(id);
+    let env = Environment {
+        earth_rate_n: Vector3::from(settings.earth_rate_n),
+        gravity_n: Vector3::from(settings.gravity_n),
+    };
+    let layout = id.layout();
+    let mut x = SVector::<f64, 18>::zeros();
+    let mut frame = CommandFrame::aligned(env.earth_rate_n);
+    let mut records = vec![LogRecord::<T>::predicted(1.0, Vector3::zeros()); periods as usize];
+    let mut log = SliceLog::new(&mut records);
+    let mut session = Session::<T>::new(None, EstimatorOptions::default());
+    assert!(matches!(
+        session.handle(&Message::Configure(settings), &mut log),
+        Reply::Nothing
+    ));
+    let mut refused = 0;
+    for seq in 1..=periods {
+        let dtheta = frame.increment(&rate, 1.0);
+        let period = frame.period_at_rate(&rate, 1.0);
+        let m = layout.matrices(&x);
+        let prop = layout
+            .propagate::<f64, 18>(&env, &m, &layout.attitude(&x), &period)
+            .expect("no gimbal lock");
+        let mut h = SMatrix::<f64, 3, 18>::zeros();
+        let (z, _) = layout.mean_accel(&env, &m, &prop, &period, &mut h);
+        let [_, _, end] = prop.att;
+        x.fixed_rows_mut::<3>(0).copy_from(&end);
+        frame.advance(&period);
+        let g = wrap_angles(&layout.attitude(&x));
+        let sample = Sample {
+            seq,
+            t_us: u64::from(seq) * 1_000_000,
+            dt: 1.0,
+            dtheta_cmd: [dtheta.x, dtheta.y, dtheta.z],
+            c_cn_quat: quaternion_from_dcm(&frame.c_cn).map(|v| v as f32),
+            accel_mean: [z.x as f32, z.y as f32, z.z as f32],
+            gimbal: layout
+                .gimbal_obs
+                .then_some([g.x as f32, g.y as f32, g.z as f32]),
+        };
+        if let Reply::Rejected(_) = session.handle(&Message::Sample(sample), &mut log) {
+            refused += 1;
+        }
+    }
+    match session.handle(&Message::Finish, &mut log) {
+        Reply::Send(Message::Estimate(e)) => (refused, e),
+        other => panic!("Finish answered {other:?}"),
+    }
+}
+
+/// A fast roll drives the attitude's variance about its best-observed axis
+/// to ≈ 1e-12 rad² within a few periods, while the worst stays ≈ 2e-5
+/// rad²: the time update's attitude block then spans more than f32
+/// resolves. Formed densely and refactored, it came out indefinite and
+/// the f32 filter refused every period from the 9th on at 1.7°/s about
+/// each axis (from the 19th at 0.57°/s; `CovarianceNotPositiveDefinite`,
+/// found by the session fuzz target). Refactored by weighted Gram–Schmidt
+/// (`factor::attitude_block`) every period is accepted. At 0.57°/s about
+/// each axis (6× the paper's rate) f32 ends within 0.1σ of f64 with σ
+/// within 1.05×, as on the shipped scenarios. At 1.7°/s the estimate still
+/// ends within 0.1σ, but f32's σ of the weakest M2-ps states after these
+/// 120 s (≈ 0.4° of a 1° prior) comes out up to 22 % under f64's: printed,
+/// not asserted (an open question, README "Single precision").
+#[test]
+fn f32_survives_a_fast_roll() {
+    use rollcal::models::ConfigId;
+    for (rate, sigma_checked) in [
+        (nalgebra::Vector3::new(-0.01, -0.01, -0.01), true),
+        (nalgebra::Vector3::new(-0.03, -0.03, -0.03), false),
+    ] {
+        for id in [ConfigId::M1Pa, ConfigId::M2Ps] {
+            let (refused64, e64) = fast_roll::<f64>(id, rate, 120);
+            let (refused32, e32) = fast_roll::<f32>(id, rate, 120);
+            let mut worst = (0.0_f64, 1.0_f64, 1.0_f64);
+            for ((x32, x64), (s32, s64)) in e32
+                .state
+                .iter()
+                .zip(&e64.state)
+                .zip(e32.sigma.iter().zip(&e64.sigma))
+            {
+                let r = s32 / s64;
+                worst = (
+                    worst.0.max((x32 - x64).abs() / s64),
+                    worst.1.min(r),
+                    worst.2.max(r),
+                );
+            }
+            eprintln!(
+                "{id} at {:.2} rad/s per axis: refused f64 {refused64}, f32 {refused32}; \
+                 max |dx|/sigma {:.4}, sigma ratio {:.4}..{:.4}",
+                rate.x.abs(),
+                worst.0,
+                worst.1,
+                worst.2
+            );
+            assert_eq!((refused64, refused32), (0, 0), "{id}");
+            assert_eq!(e32.kind, e64.kind, "{id}");
+            assert!(worst.0 < 0.1, "{id}: f32 {:.3} sigma from f64", worst.0);
+            if sigma_checked {
+                assert!(
+                    worst.1 > 1.0 / 1.05 && worst.2 < 1.05,
+                    "{id}: sigma ratio {:.4}..{:.4}",
+                    worst.1,
+                    worst.2
+                );
+            }
+        }
+    }
+}
