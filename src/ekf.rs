@@ -45,7 +45,7 @@ use core::marker::PhantomData;
 use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3};
 
 use crate::command::{CommandFrame, Period, PeriodIn};
-use crate::factor::Ud;
+use crate::factor::{AttitudeNoise, Ud};
 use crate::geometry::wrap_angle;
 use crate::models::{
     Environment, Installation, InstallationMatrices, Layout, Model, PeriodPropagation, ATT,
@@ -274,8 +274,8 @@ struct Whitened<T: RealField + Copy, const N: usize, const Z: usize> {
     j_l: SMatrix<T, 3, Z>,
     /// The decorrelated transition `Φ − J H Φ` (attitude rows).
     phi_dec: SMatrix<T, 3, N>,
-    /// The decorrelated process noise `G Gᵀ − J R_e Jᵀ` (rad²).
-    q: Matrix3<T>,
+    /// The decorrelated process noise `G Gᵀ − J R_e Jᵀ` (rad²), factored.
+    q: AttitudeNoise<T>,
     /// `ν` and `S` as reported (`nis` is the update's).
     innovation: Innovation<T, Z>,
 }
@@ -286,7 +286,7 @@ impl<T: RealField + Copy, const N: usize, const Z: usize> Whitened<T, N, Z> {
             nu_w: SVector::zeros(),
             j_l: SMatrix::zeros(),
             phi_dec: SMatrix::zeros(),
-            q: Matrix3::zeros(),
+            q: AttitudeNoise::zero(),
             innovation: Innovation {
                 nu: SVector::zeros(),
                 s: SMatrix::zeros(),
@@ -741,8 +741,9 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> AccelC
     #[inline(never)]
     fn fill<const R: usize>(&self, layout: &Layout, p_r: &mut SMatrix<T, R, R>) {
         let (f, pending) = (self.filter, self.pending);
-        let rows =
-            f.ud.predicted_attitude_rows(&pending.prop.phi_att, &f.process_noise(pending));
+        let rows = f
+            .process_noise(pending)
+            .and_then(|q| f.ud.predicted_attitude_rows(&pending.prop.phi_att, &q));
         layout.accel_covariance(
             |i, j| match &rows {
                 Some(rows) => f.ud.covariance_entry_with_rows(rows, i, j),
@@ -1022,8 +1023,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         // With a period pending, those of `settled()`, from its new
         // attitude rows (no copy of the factor).
         let rows = self.pending.get().and_then(|p| {
-            self.ud
-                .predicted_attitude_rows(&p.prop.phi_att, &self.process_noise(p))
+            self.process_noise(p)
+                .and_then(|q| self.ud.predicted_attitude_rows(&p.prop.phi_att, &q))
         });
         let variances = match rows {
             Some(rows) => self.ud.variances_with_rows(&rows),
@@ -1046,11 +1047,18 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         self.propagated_factor().unwrap_or(self.ud)
     }
 
-    /// The process noise of a pending period on the attitude (rad²).
-    fn process_noise(&self, pending: &Pending<T, N>) -> Matrix3<T> {
+    /// The process noise of a pending period on the attitude (rad²): the
+    /// gyro noise's map `B Bᵀ` as it is, factored only with second-order
+    /// dynamics' `Q_extra` added. `None` if it is not finite (or, with
+    /// `Q_extra`, not positive semi-definite).
+    fn process_noise(&self, pending: &Pending<T, N>) -> Option<AttitudeNoise<T>> {
         let b = pending.prop.noise_map
             * (self.config.sigma_gyro * nalgebra::convert::<f64, T>(pending.period.dt));
-        b * b.transpose() + pending.q_extra
+        if pending.q_extra.iter().all(|v| *v == T::zero()) {
+            AttitudeNoise::from_map(&b)
+        } else {
+            AttitudeNoise::from_covariance(&(b * b.transpose() + pending.q_extra))
+        }
     }
 
     /// Applies the pending period's time update without a measurement, in
@@ -1058,7 +1066,9 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// the factor is untouched.
     fn settle(&mut self) -> Result<(), Error> {
         if let Some(pending) = self.pending.get() {
-            let q = self.process_noise(pending);
+            let q = self
+                .process_noise(pending)
+                .ok_or(Error::CovarianceNotPositiveDefinite)?;
             self.ud
                 .predict_attitude(&pending.prop.phi_att, &q)
                 .ok_or(Error::CovarianceNotPositiveDefinite)?;
@@ -1071,7 +1081,10 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     fn propagated_factor(&self) -> Result<Ud<T, N>, Error> {
         let mut ud = self.ud;
         if let Some(pending) = self.pending.get() {
-            ud.predict_attitude(&pending.prop.phi_att, &self.process_noise(pending))
+            let q = self
+                .process_noise(pending)
+                .ok_or(Error::CovarianceNotPositiveDefinite)?;
+            ud.predict_attitude(&pending.prop.phi_att, &q)
                 .ok_or(Error::CovarianceNotPositiveDefinite)?;
         }
         Ok(ud)
@@ -1708,7 +1721,11 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         // Time update with Φ' = Φ − J H Φ and Q' = G Gᵀ − J R_e Jᵀ.
         w.phi_dec = phi_att - w.j_l * *h;
         let q = g_att * g_att.transpose() - w.j_l * w.j_l.transpose();
-        w.q = (q + q.transpose()) * half;
+        // Factored here, before the factor is touched: a `Q'` that is not
+        // positive semi-definite (garbage noise settings) is refused now,
+        // not after the scalar updates have been applied.
+        w.q = AttitudeNoise::from_covariance(&((q + q.transpose()) * half))
+            .ok_or(Error::CovarianceNotPositiveDefinite)?;
         let gate = self.config.options.nis_gate;
         if measured && gate > 0.0 && !self.gate_open && self.gated_run < MAX_GATED_RUN {
             let Some(chol_s) = s.cholesky() else {
@@ -1734,7 +1751,6 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             w.j_l.as_slice(),
             phi_att.as_slice(),
             w.phi_dec.as_slice(),
-            w.q.as_slice(),
         ];
         if !read.iter().all(|part| all_finite(part.iter().copied())) {
             return Err(Error::NonFiniteState);

@@ -79,35 +79,104 @@ fn in_runs<const N: usize>(mut column: impl FnMut(usize)) {
     }
 }
 
+/// Process noise on the three attitude states (rad²) in the form the time
+/// update reads: `Q = B diag(w) Bᵀ`, `w ≥ 0` (3×3 each).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AttitudeNoise<T: RealField + Copy> {
+    /// `B`: its columns are the directions of independent noises.
+    b: Matrix3<T>,
+    /// `w`: their variances (rad² for a unit column).
+    w: [T; 3],
+}
+
+impl<T: RealField + Copy> AttitudeNoise<T> {
+    /// No process noise.
+    pub fn zero() -> Self {
+        Self {
+            b: Matrix3::zeros(),
+            w: [T::zero(); 3],
+        }
+    }
+
+    /// `Q = B Bᵀ` (rad²), e.g. a rate noise's map to the attitude times its
+    /// σ and the period: nothing to factor. `None` unless `B` is finite.
+    pub fn from_map(b: &Matrix3<T>) -> Option<Self> {
+        b.iter().all(|v| v.is_finite()).then_some(Self {
+            b: *b,
+            w: [T::one(); 3],
+        })
+    }
+
+    /// A symmetric positive semi-definite `Q` (rad²), factored as
+    /// `U D Uᵀ` (`B = U`, `w = D`). A pivot within a few roundings of zero
+    /// (`|D_j| ≤ 16 ε max_k Q_kk`: a singular `Q` formed as a difference,
+    /// e.g. the decorrelated process noise when the accelerometers see the
+    /// gyro noise far above their own) counts as zero and leaves its column
+    /// of `U` zero. `None` if a pivot is more negative than that or an
+    /// entry is not finite.
+    pub fn from_covariance(q: &Matrix3<T>) -> Option<Self> {
+        let sixteen: T = nalgebra::convert(16.0);
+        let scale = q[(0, 0)].abs().max(q[(1, 1)].abs()).max(q[(2, 2)].abs());
+        let tolerance = sixteen * T::default_epsilon() * scale;
+        if !q.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        let mut u = Matrix3::<T>::identity();
+        let mut d = [T::zero(); 3];
+        for j in (0..3).rev() {
+            let mut d_j = q[(j, j)];
+            for k in j + 1..3 {
+                d_j -= u[(j, k)] * u[(j, k)] * d[k];
+            }
+            if !d_j.is_finite() || d_j < -tolerance {
+                return None;
+            }
+            let d_j = d_j.max(T::zero());
+            d[j] = d_j;
+            for i in 0..j {
+                let mut s = q[(i, j)];
+                for k in j + 1..3 {
+                    s -= u[(i, k)] * u[(j, k)] * d[k];
+                }
+                u[(i, j)] = if d_j > T::zero() { s / d_j } else { T::zero() };
+            }
+        }
+        Some(Self { b: u, w: d })
+    }
+
+    /// `Q = B diag(w) Bᵀ` (rad²).
+    pub fn covariance(&self) -> Matrix3<T> {
+        self.b * Matrix3::from_diagonal(&nalgebra::Vector3::from(self.w)) * self.b.transpose()
+    }
+}
+
 /// The U-D factor of `W diag(d) Wᵀ + Q` (3×3, rad²), formed without
 /// that matrix: Thornton's modified weighted Gram–Schmidt (Bierman 1977,
 /// §VI.2; Grewal & Andrews, *Kalman Filtering*, §6.6) on the rows of
-/// `[W  U_q]` with weights `[d  D_q]`, where `Q = U_q D_q U_qᵀ`. The rows
-/// are made orthogonal in that weighting from the last up; each new `D`
-/// is a row's weighted sum of squares, so it keeps its own relative
-/// precision. Formed densely, the block's smallest eigenvalue drowns in
-/// the rounding of its largest: after a few periods of a fast roll the
-/// attitude about the best-observed axis has a variance of ≈ 1e-12 rad²
-/// beside ≈ 2e-5 rad² about the worst, a ratio beyond f32's `1/ε`, and
-/// the f32 filter refused every later period
-/// (`CovarianceNotPositiveDefinite`; found by `fuzz/`'s session target).
-/// `None` if `Q` is not positive semi-definite, an input is not finite,
-/// or the block comes out singular.
+/// `[W  B]` with weights `[d  w]`, where `Q = B diag(w) Bᵀ`. The rows are
+/// made orthogonal in that weighting from the last up; each new `D` is a
+/// row's weighted sum of squares, so it keeps its own relative precision.
+/// Formed densely, the block's smallest eigenvalue drowns in the rounding
+/// of its largest: after a few periods of a fast roll the attitude about
+/// the best-observed axis has a variance of ≈ 1e-12 rad² beside ≈ 2e-5
+/// rad² about the worst, a ratio beyond f32's `1/ε`, and the f32 filter
+/// refused every later period (`CovarianceNotPositiveDefinite`; found by
+/// `fuzz/`'s session target). `None` if the block comes out singular or
+/// not finite.
 fn attitude_block<T: RealField + Copy>(
     w: &Matrix3<T>,
     d: [T; 3],
-    q: &Matrix3<T>,
+    q: &AttitudeNoise<T>,
 ) -> Option<Ud<T, 3>> {
-    let (u_q, d_q) = psd_ud3(q)?;
-    // y[i] = row i of [W  U_q]; weights [d  D_q].
+    // y[i] = row i of [W  B]; weights [d  w].
     let mut y = [[T::zero(); 6]; 3];
     for (i, row) in y.iter_mut().enumerate() {
         for k in 0..3 {
             row[k] = w[(i, k)];
-            row[3 + k] = u_q[(i, k)];
+            row[3 + k] = q.b[(i, k)];
         }
     }
-    let weights = [d[0], d[1], d[2], d_q[0], d_q[1], d_q[2]];
+    let weights = [d[0], d[1], d[2], q.w[0], q.w[1], q.w[2]];
     let mut out = Matrix3::<T>::zeros();
     for j in (0..3).rev() {
         let y_j = y[j];
@@ -132,41 +201,6 @@ fn attitude_block<T: RealField + Copy>(
         }
     }
     Some(Ud { m: out })
-}
-
-/// `Q = U D Uᵀ` (3×3, `U` unit upper triangular, `D ≥ 0`) of a symmetric
-/// positive semi-definite `Q` by the backward modified Cholesky
-/// decomposition. A pivot within a few roundings of zero (`|D_j| ≤ 16 ε
-/// max_k Q_kk`: a singular `Q` formed as a difference, e.g. the decorrelated
-/// process noise when the accelerometers see the gyro noise far above
-/// their own) counts as zero and leaves its column of `U` zero (no process
-/// noise on that combination). `None` if a pivot is more negative than
-/// that or not finite.
-fn psd_ud3<T: RealField + Copy>(q: &Matrix3<T>) -> Option<(Matrix3<T>, [T; 3])> {
-    let sixteen: T = nalgebra::convert(16.0);
-    let scale = q[(0, 0)].abs().max(q[(1, 1)].abs()).max(q[(2, 2)].abs());
-    let tolerance = sixteen * T::default_epsilon() * scale;
-    let mut u = Matrix3::<T>::identity();
-    let mut d = [T::zero(); 3];
-    for j in (0..3).rev() {
-        let mut d_j = q[(j, j)];
-        for k in j + 1..3 {
-            d_j -= u[(j, k)] * u[(j, k)] * d[k];
-        }
-        if !d_j.is_finite() || d_j < -tolerance {
-            return None;
-        }
-        let d_j = d_j.max(T::zero());
-        d[j] = d_j;
-        for i in 0..j {
-            let mut s = q[(i, j)];
-            for k in j + 1..3 {
-                s -= u[(i, k)] * u[(j, k)] * d[k];
-            }
-            u[(i, j)] = if d_j > T::zero() { s / d_j } else { T::zero() };
-        }
-    }
-    Some((u, d))
 }
 
 impl<T: RealField + Copy, const N: usize> Ud<T, N> {
@@ -477,9 +511,13 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
 
     /// The time update `P ← Φ P Φᵀ + Q` of a transition `Φ` that is the
     /// identity but for its first three (attitude) rows `phi_att` (3×N), with
-    /// process noise `q` (3×3, rad²) on the attitude states only. `None`
+    /// process noise `q` (rad², [`AttitudeNoise`]) on the attitude states only. `None`
     /// (factor untouched) if the new attitude block is not positive definite.
-    pub fn predict_attitude(&mut self, phi_att: &SMatrix<T, 3, N>, q: &Matrix3<T>) -> Option<()> {
+    pub fn predict_attitude(
+        &mut self,
+        phi_att: &SMatrix<T, 3, N>,
+        q: &AttitudeNoise<T>,
+    ) -> Option<()> {
         let rows = self.predicted_attitude_rows(phi_att, q)?;
         let a = &mut self.m.data.0;
         for (c, col) in a.iter_mut().enumerate() {
@@ -497,7 +535,7 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
     pub fn predicted_attitude_rows(
         &self,
         phi_att: &SMatrix<T, 3, N>,
-        q: &Matrix3<T>,
+        q: &AttitudeNoise<T>,
     ) -> Option<SMatrix<T, 3, N>> {
         let phi = &phi_att.data.0; // phi[col][row]
         let a = &self.m.data.0;
@@ -587,13 +625,25 @@ mod tests {
             Matrix3::zeros(),
             rank_one * rank_one.transpose(),
         ] {
-            let got = attitude_block(&w, d, &q).expect("positive definite");
+            let noise = AttitudeNoise::from_covariance(&q).expect("semi-definite");
+            assert!((noise.covariance() - q).amax() < 1e-22);
+            let got = attitude_block(&w, d, &noise).expect("positive definite");
             let want = dense_block(&w, d, &q);
             let err = (got.covariance() - want).amax();
             assert!(err < 1e-16, "{err:e}");
             let dense = Ud::<f64, 3>::from_covariance(&want).expect("positive definite");
             assert!((got.packed() - dense.packed()).amax() < 1e-11);
         }
+        // Q = G Gᵀ given by its map: the same factor to rounding.
+        let by_map = attitude_block(&w, d, &AttitudeNoise::from_map(&g).expect("finite"))
+            .expect("positive definite");
+        let by_covariance = attitude_block(
+            &w,
+            d,
+            &AttitudeNoise::from_covariance(&(g * g.transpose())).expect("semi-definite"),
+        )
+        .expect("positive definite");
+        assert!((by_map.packed() - by_covariance.packed()).amax() < 1e-15);
     }
 
     /// In f32, a block whose eigenvalues span more than `1/ε_f32` (the
@@ -610,9 +660,11 @@ mod tests {
         let d = [9e-13, 5e-9, 2e-5];
         let q = Matrix3::from_diagonal(&nalgebra::Vector3::new(2.4e-13, 2.2e-13, 2.3e-13));
         let f32_of = |m: &Matrix3<f64>| m.map(|v| v as f32);
-        let want = attitude_block(&w, d, &q).expect("positive definite in f64");
+        let noise = AttitudeNoise::from_covariance(&q).expect("semi-definite");
+        let noise32 = AttitudeNoise::from_covariance(&f32_of(&q)).expect("semi-definite");
+        let want = attitude_block(&w, d, &noise).expect("positive definite in f64");
         let dense32 = Ud::<f32, 3>::from_covariance(&f32_of(&dense_block(&w, d, &q)));
-        let got = attitude_block(&f32_of(&w), d.map(|v| v as f32), &f32_of(&q))
+        let got = attitude_block(&f32_of(&w), d.map(|v| v as f32), &noise32)
             .expect("positive definite in f32");
         for i in 0..3 {
             let (g, x) = (f64::from(got.packed()[(i, i)]), want.packed()[(i, i)]);
@@ -629,15 +681,17 @@ mod tests {
     /// A process noise that is not positive semi-definite, or not finite,
     /// is refused; one within a few roundings of singular is not.
     #[test]
-    fn attitude_block_refuses_an_indefinite_process_noise() {
-        let w = Matrix3::identity();
-        let d = [1e-6, 1e-6, 1e-6];
+    fn a_process_noise_that_is_not_semi_definite_is_refused() {
         let mut q = Matrix3::from_diagonal(&nalgebra::Vector3::new(1e-12, 1e-12, -1e-12));
-        assert!(attitude_block(&w, d, &q).is_none());
+        assert!(AttitudeNoise::from_covariance(&q).is_none());
         q[(2, 2)] = -1e-12 * f64::EPSILON;
-        assert!(attitude_block(&w, d, &q).is_some());
+        let noise = AttitudeNoise::from_covariance(&q).expect("singular to rounding");
+        assert_eq!(noise.w[2], 0.0);
         q[(2, 2)] = f64::NAN;
-        assert!(attitude_block(&w, d, &q).is_none());
+        assert!(AttitudeNoise::from_covariance(&q).is_none());
+        let mut b = Matrix3::identity();
+        b[(1, 2)] = f64::INFINITY;
+        assert!(AttitudeNoise::from_map(&b).is_none());
     }
 
     /// Bierman's update gives the dense `P − P hᵀ h P / α`, its gain and α.

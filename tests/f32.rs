@@ -169,7 +169,7 @@ fn fast_roll<T: RealField + Copy>(
 /// each axis (6× the paper's rate) f32 ends within 0.1σ of f64 with σ
 /// within 1.05×, as on the shipped scenarios. At 1.7°/s the estimate still
 /// ends within 0.1σ, but f32's σ of the weakest M2-ps states after these
-/// 120 s (≈ 0.4° of a 1° prior) comes out up to 22 % under f64's: printed,
+/// 120 s (≈ 0.4° of a 1° prior) comes out up to 23 % under f64's: printed,
 /// not asserted (an open question, README "Single precision").
 #[test]
 fn f32_survives_a_fast_roll() {

@@ -28,7 +28,7 @@
 
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use rollcal::command::{CommandFrame, PeriodIn};
-use rollcal::factor::Ud;
+use rollcal::factor::{AttitudeNoise, Ud};
 use rollcal::geometry::{
     d_dcm_times, d_gimbal_dcm_times, d_gimbal_rate_inverse_times, dcm, earth_rate_n, gimbal_dcm,
     gimbal_rate_inverse, gimbal_rate_matrix, gravity_n, EulerTrig, EARTH_RATE,
@@ -241,7 +241,7 @@ fn predicted_attitude_rows_equal_the_time_update() {
         }
     });
     let b = SMatrix::<f64, 3, 3>::from_fn(|_, _| lcg(&mut s));
-    let q = b * b.transpose();
+    let q = AttitudeNoise::from_map(&b).expect("finite");
     let mut propagated = ud;
     propagated
         .predict_attitude(&phi_att, &q)
