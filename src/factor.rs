@@ -14,7 +14,9 @@
 //!   this problem: the parameters are constant, so only the three attitude
 //!   states (the first three, [`crate::models::ATT`]) move. With `Φ` equal to
 //!   the identity below its first three rows, `U₁₂ ← A U₁₂ + B U₂₂` and the
-//!   3×3 block `A U₁₁ D₁ U₁₁ᵀ Aᵀ + Q` is refactored; `U₂₂` and `D₂` do not
+//!   3×3 block `A U₁₁ D₁ U₁₁ᵀ Aᵀ + Q` is refactored, by Thornton's weighted
+//!   Gram–Schmidt on its square-root form, never formed (in f32 its
+//!   eigenvalues can span more than f32 resolves); `U₂₂` and `D₂` do not
 //!   change. That costs `3 N²/2` products instead of Thornton's `N³`.
 //!
 //! The factor is stored packed in one `N×N` matrix: `D` on the diagonal,
