@@ -119,37 +119,55 @@ impl<T: RealField + Copy> AttitudeNoise<T> {
     pub fn from_covariance(q: &Matrix3<T>) -> Option<Self> {
         let sixteen: T = nalgebra::convert(16.0);
         let scale = q[(0, 0)].abs().max(q[(1, 1)].abs()).max(q[(2, 2)].abs());
-        let tolerance = sixteen * T::default_epsilon() * scale;
-        if !q.iter().all(|v| v.is_finite()) {
-            return None;
-        }
-        let mut u = Matrix3::<T>::identity();
-        let mut d = [T::zero(); 3];
-        for j in (0..3).rev() {
-            let mut d_j = q[(j, j)];
-            for k in j + 1..3 {
-                d_j -= u[(j, k)] * u[(j, k)] * d[k];
-            }
-            if !d_j.is_finite() || d_j < -tolerance {
-                return None;
-            }
-            let d_j = d_j.max(T::zero());
-            d[j] = d_j;
-            for i in 0..j {
-                let mut s = q[(i, j)];
-                for k in j + 1..3 {
-                    s -= u[(i, k)] * u[(j, k)] * d[k];
-                }
-                u[(i, j)] = if d_j > T::zero() { s / d_j } else { T::zero() };
-            }
-        }
-        Some(Self { b: u, w: d })
+        let packed = backward_ud(q, Some(sixteen * T::default_epsilon() * scale))?;
+        let mut b = packed.upper_triangle();
+        let w = [packed[(0, 0)], packed[(1, 1)], packed[(2, 2)]];
+        b.fill_diagonal(T::one());
+        Some(Self { b, w })
     }
 
     /// `Q = B diag(w) Bᵀ` (rad²).
     pub fn covariance(&self) -> Matrix3<T> {
         self.b * Matrix3::from_diagonal(&nalgebra::Vector3::from(self.w)) * self.b.transpose()
     }
+}
+
+/// `P = U D Uᵀ` by the backward modified Cholesky decomposition, packed
+/// (`D` on the diagonal, `U` strictly above, zeros below). Without
+/// `zero_pivot`, every pivot must be positive and finite; with
+/// `Some(tolerance)`, a pivot down to `−tolerance` counts as zero and
+/// leaves its column of `U` zero (a positive semi-definite `P`). `None`
+/// otherwise, or if an entry of `P` is not finite.
+fn backward_ud<T: RealField + Copy, const N: usize>(
+    p: &SMatrix<T, N, N>,
+    zero_pivot: Option<T>,
+) -> Option<SMatrix<T, N, N>> {
+    if p.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let mut m = SMatrix::<T, N, N>::zeros();
+    let a = &mut m.data.0; // a[col][row]
+    let p = &p.data.0;
+    for j in (0..N).rev() {
+        let mut d = p[j][j];
+        for k in j + 1..N {
+            d -= a[k][j] * a[k][j] * a[k][k];
+        }
+        let d = match zero_pivot {
+            None if d > T::zero() && d.is_finite() => d,
+            Some(tolerance) if d.is_finite() && d >= -tolerance => d.max(T::zero()),
+            _ => return None,
+        };
+        a[j][j] = d;
+        for i in 0..j {
+            let mut s = p[j][i];
+            for k in j + 1..N {
+                s -= a[k][i] * a[k][j] * a[k][k];
+            }
+            a[j][i] = if d > T::zero() { s / d } else { T::zero() };
+        }
+    }
+    Some(m)
 }
 
 /// The U-D factor of `W diag(d) Wᵀ + Q` (3×3, rad²), formed without
@@ -278,30 +296,7 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
     /// backward modified Cholesky decomposition; `None` if `p` is not
     /// positive definite or not finite.
     pub fn from_covariance(p: &SMatrix<T, N, N>) -> Option<Self> {
-        if p.iter().any(|v| !v.is_finite()) {
-            return None;
-        }
-        let mut m = SMatrix::<T, N, N>::zeros();
-        let a = &mut m.data.0; // a[col][row]
-        let p = &p.data.0;
-        for j in (0..N).rev() {
-            let mut d = p[j][j];
-            for k in j + 1..N {
-                d -= a[k][j] * a[k][j] * a[k][k];
-            }
-            if !(d > T::zero()) || !d.is_finite() {
-                return None;
-            }
-            a[j][j] = d;
-            for i in 0..j {
-                let mut s = p[j][i];
-                for k in j + 1..N {
-                    s -= a[k][i] * a[k][j] * a[k][k];
-                }
-                a[j][i] = s / d;
-            }
-        }
-        Some(Self { m })
+        backward_ud(p, None).map(|m| Self { m })
     }
 
     /// The packed factor: `D` on the diagonal, `U` strictly above.
