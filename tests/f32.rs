@@ -94,13 +94,15 @@ fn f32_matches_f64_m2ps() {
 /// A noise-free stream of configuration `id` rolling at `rate` (rad/s, c
 /// frame, a few degrees a second) from zero errors, as the platform would
 /// send it (accelerometer means and gimbal angles in f32), fed to a
-/// session in precision `T`: the number of samples it refused, and its
-/// final estimate of record.
+/// session in precision `T`: the number of samples it refused, its final
+/// estimate of record, and how close the path came to gimbal lock (the
+/// smallest `90° − |β|` of the true middle gimbal angle at the period ends,
+/// in degrees).
 fn fast_roll<T: RealField + Copy>(
     id: rollcal::models::ConfigId,
     rate: nalgebra::Vector3<f64>,
     periods: u32,
-) -> (u32, rollcal::wire::Estimate) {
+) -> (u32, rollcal::wire::Estimate, f64) {
     use nalgebra::{SMatrix, Vector3};
     use rollcal::command::CommandFrame;
     use rollcal::geometry::{quaternion_from_dcm, wrap_angles};
@@ -124,6 +126,7 @@ fn fast_roll<T: RealField + Copy>(
         Reply::Nothing
     ));
     let mut refused = 0;
+    let mut lock_margin_deg = 90.0_f64;
     for seq in 1..=periods {
         let dtheta = frame.increment(&rate, 1.0);
         let period = frame.period_at_rate(&rate, 1.0);
@@ -137,6 +140,7 @@ fn fast_roll<T: RealField + Copy>(
         x.fixed_rows_mut::<3>(0).copy_from(&end);
         frame.advance(&period);
         let g = wrap_angles(&layout.attitude(&x));
+        lock_margin_deg = lock_margin_deg.min(g.y.cos().abs().asin().to_degrees());
         let sample = Sample {
             seq,
             t_us: u64::from(seq) * 1_000_000,
@@ -153,7 +157,7 @@ fn fast_roll<T: RealField + Copy>(
         }
     }
     match session.handle(&Message::Finish, &mut log) {
-        Reply::Send(Message::Estimate(e)) => (refused, e),
+        Reply::Send(Message::Estimate(e)) => (refused, e, lock_margin_deg),
         other => panic!("Finish answered {other:?}"),
     }
 }
@@ -165,22 +169,36 @@ fn fast_roll<T: RealField + Copy>(
 /// the f32 filter refused every period from the 9th on at 1.7°/s about
 /// each axis (from the 19th at 0.57°/s; `CovarianceNotPositiveDefinite`,
 /// found by the session fuzz target). Refactored by weighted Gram–Schmidt
-/// (`factor::attitude_block`) every period is accepted. At 0.57°/s about
-/// each axis (6× the paper's rate) f32 ends within 0.1σ of f64 with σ
-/// within 1.05×, as on the shipped scenarios. At 1.7°/s the estimate still
-/// ends within 0.1σ, but f32's σ of the weakest M2-ps states after these
-/// 120 s (≈ 0.4° of a 1° prior) comes out up to 23 % under f64's: printed,
-/// not asserted (an open question, README "Single precision").
+/// (`factor::attitude_block`) every period is accepted, and f32 ends within
+/// 0.1σ of f64 with σ within 1.05×, as on the shipped scenarios: at
+/// 0.57°/s about each axis (6× the paper's rate) over 120 s, and at 1.7°/s
+/// over the 72 s before the path nears gimbal lock.
+///
+/// Rolled on at 1.7°/s about each axis, the platform's middle gimbal
+/// passes within 0.94° of gimbal lock at 80 s (a path `host-sim` refuses
+/// for M2, which measures the gimbal angles: `truth::MAX_GIMBAL_BETA_DEG`,
+/// 85°). There the Euler angles' sensitivity grows as `1/cos β` (≈ 60×)
+/// and the linearisation breaks down in both precisions: a linearised f64
+/// filter whose nominal is 1e-3 rad off in the parameters puts the middle
+/// gimbal angle's σ at 8e-10 rad at 82 s, five orders below the gimbal
+/// angles' noise, and the f32 one refuses that period. On the 120 s run
+/// that crosses it the test asserts only that f32 refuses nothing and ends
+/// within 0.1σ of f64; f32's σ of M2-ps's weakest states comes out up to
+/// 22 % under f64's (printed). Before the crossing (72 s, 20.9° from lock)
+/// they agree within 0.02 %. M1 holds no gimbal angles among its states
+/// (its attitude is the platform's misalignment):
+/// its σ is checked on all three runs.
 #[test]
 fn f32_survives_a_fast_roll() {
     use rollcal::models::ConfigId;
-    for (rate, sigma_checked) in [
-        (nalgebra::Vector3::new(-0.01, -0.01, -0.01), true),
-        (nalgebra::Vector3::new(-0.03, -0.03, -0.03), false),
-    ] {
+    let slow = nalgebra::Vector3::new(-0.01, -0.01, -0.01);
+    let fast = nalgebra::Vector3::new(-0.03, -0.03, -0.03);
+    // (rate, periods, whether M2's path keeps 5° from gimbal lock).
+    for (rate, periods, clear_of_lock) in [(slow, 120, true), (fast, 72, true), (fast, 120, false)]
+    {
         for id in [ConfigId::M1Pa, ConfigId::M2Ps] {
-            let (refused64, e64) = fast_roll::<f64>(id, rate, 120);
-            let (refused32, e32) = fast_roll::<f32>(id, rate, 120);
+            let (refused64, e64, margin) = fast_roll::<f64>(id, rate, periods);
+            let (refused32, e32, _) = fast_roll::<f32>(id, rate, periods);
             let mut worst = (0.0_f64, 1.0_f64, 1.0_f64);
             for ((x32, x64), (s32, s64)) in e32
                 .state
@@ -195,18 +213,30 @@ fn f32_survives_a_fast_roll() {
                     worst.2.max(r),
                 );
             }
+            // M1 holds no gimbal angles (its attitude states are the
+            // platform's small misalignment): nothing nears a lock.
+            let gimbal_path = id.layout().gimbal_obs;
+            let clear = !gimbal_path || margin >= 5.0;
+            let lock = if gimbal_path {
+                format!(", {margin:.2} deg from gimbal lock")
+            } else {
+                String::new()
+            };
             eprintln!(
-                "{id} at {:.2} rad/s per axis: refused f64 {refused64}, f32 {refused32}; \
-                 max |dx|/sigma {:.4}, sigma ratio {:.4}..{:.4}",
+                "{id} at {:.2} rad/s per axis over {periods} s{lock}: refused f64 {refused64}, \
+                 f32 {refused32}; max |dx|/sigma {:.4}, sigma ratio {:.4}..{:.4}",
                 rate.x.abs(),
                 worst.0,
                 worst.1,
                 worst.2
             );
+            if gimbal_path {
+                assert_eq!(clear, clear_of_lock, "{id}: {margin:.2} deg from lock");
+            }
             assert_eq!((refused64, refused32), (0, 0), "{id}");
             assert_eq!(e32.kind, e64.kind, "{id}");
             assert!(worst.0 < 0.1, "{id}: f32 {:.3} sigma from f64", worst.0);
-            if sigma_checked {
+            if clear {
                 assert!(
                     worst.1 > 1.0 / 1.05 && worst.2 < 1.05,
                     "{id}: sigma ratio {:.4}..{:.4}",
