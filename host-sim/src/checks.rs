@@ -122,8 +122,13 @@ impl fmt::Display for DataVerdict {
 /// All checks and the verdict.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Judgement {
-    /// Every check made, in order: NIS, whiteness, bias.
+    /// Every statistical check made, in order: NIS, whiteness, bias.
     pub checks: Vec<Check>,
+    /// The path's distance from gimbal lock ([`gimbal_lock_check`]), for
+    /// a configuration that measures the gimbal angles: a condition of the
+    /// model, not a statistic (it has no false-alarm rate and is not one of
+    /// the `checks`). A failed one makes the verdict a warning.
+    pub path: Option<Check>,
     /// The verdict.
     pub verdict: DataVerdict,
     /// The significance of each check (`FALSE_ALARM / checks.len()`).
@@ -132,15 +137,75 @@ pub struct Judgement {
 
 impl Judgement {
     /// The JSON of the judgement: `{"false_alarm", "alpha_each", "checks",
-    /// "data_verdict": {"verdict", "failed"|"reason"}}`.
+    /// "path", "data_verdict": {"verdict", "failed"|"reason"}}` (`path`
+    /// null without gimbal angles).
     pub fn json(&self) -> serde_json::Value {
         serde_json::json!({
             "false_alarm": FALSE_ALARM,
             "alpha_each": self.alpha_each,
             "checks": self.checks,
+            "path": self.path,
             "data_verdict": self.verdict,
         })
     }
+
+    /// This judgement with the path's check `path` ([`gimbal_lock_check`]);
+    /// a failed one is put first among the verdict's failed checks (a
+    /// verdict that was `consistent` or `not_checked` becomes a warning).
+    pub fn with_path(mut self, path: Option<Check>) -> Self {
+        if let Some(c) = path.as_ref().filter(|c| !c.passed) {
+            match &mut self.verdict {
+                DataVerdict::Warning { failed } => failed.insert(0, c.clone()),
+                v => {
+                    *v = DataVerdict::Warning {
+                        failed: vec![c.clone()],
+                    }
+                }
+            }
+        }
+        self.path = path;
+        self
+    }
+}
+
+/// How close a recorded path came to gimbal lock: the largest angle of the
+/// middle gimbal from upright, `acos |cos β|` (°; `|β|` for `|β| ≤ 90°`),
+/// over the gimbal angles of `records` (M2 measures them at the end of each
+/// period), against [`crate::truth::MAX_GIMBAL_BETA_DEG`], the limit the
+/// simulator holds its paths to. Near lock the outer and inner angles'
+/// sensitivity to the attitude grows as `1/cos β` and the linearised model
+/// breaks down (README "Fast rolls"). `None` for a configuration `id` that
+/// does not measure the gimbal angles (its model holds through lock; M1's
+/// samples carry them all the same) or when no record carries them.
+pub fn gimbal_lock_check(
+    id: rollcal::models::ConfigId,
+    records: &[rollcal::LogRecord<f64>],
+) -> Option<Check> {
+    if !id.layout().gimbal_obs {
+        return None;
+    }
+    let limit = crate::truth::MAX_GIMBAL_BETA_DEG;
+    let (worst, at) = records
+        .iter()
+        .enumerate()
+        .filter_map(|(k, r)| Some((r.observation?.gimbal?.y, k)))
+        .map(|(beta, k)| (beta.cos().abs().min(1.0).acos().to_degrees(), k))
+        .fold(None, |w: Option<(f64, usize)>, b| match w {
+            // NaN angles are refused by the calibrator before the log.
+            Some(w) if b.0 <= w.0 => Some(w),
+            _ => Some(b),
+        })?;
+    Some(check(
+        "gimbal_lock",
+        "path".into(),
+        worst,
+        (0.0, limit),
+        format!(
+            "largest |β| of the middle gimbal {worst:.2}° (record {}, t = {:.0} s into the log); gimbal lock at 90°, the model is kept to ≤ {limit}°",
+            at + 1,
+            records.iter().take(at + 1).map(|r| r.dt).sum::<f64>()
+        ),
+    ))
 }
 
 /// Standard normal quantile `Φ⁻¹(p)`, `0 < p < 1` (Acklam's rational
@@ -245,6 +310,7 @@ pub fn judge_updates(
     if z == 0 || ups.len() < 2 {
         return Judgement {
             checks: Vec::new(),
+            path: None,
             verdict: DataVerdict::NotChecked {
                 reason: "no innovations of a final pass: the checks need the final passes (not run with --passes 1, or when the log is not the whole run)".into(),
             },
@@ -338,6 +404,7 @@ pub fn judge_updates(
     };
     Judgement {
         checks,
+        path: None,
         verdict,
         alpha_each: alpha,
     }
@@ -407,6 +474,14 @@ pub fn print(j: &Judgement) {
         if passed_bias > 0 {
             println!("  bias       {passed_bias} segment × component checks passed");
         }
+    }
+    if let Some(c) = &j.path {
+        println!(
+            "path: {} ({}): {}",
+            c.name,
+            c.detail,
+            if c.passed { "pass" } else { "FAIL" }
+        );
     }
     println!("data verdict: {}", j.verdict);
 }

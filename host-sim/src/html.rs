@@ -527,6 +527,10 @@ pub fn report_of_calibration(
     header: Vec<(String, String)>,
 ) -> Result<PathBuf, String> {
     let verdict = judgement.verdict.to_string();
+    let mut warnings = failure_warnings(r);
+    if let Some(c) = judgement.path.as_ref().filter(|c| !c.passed) {
+        warnings.push(format!("the path nears gimbal lock: {}", c.detail));
+    }
     write_report(
         dir,
         &Report {
@@ -539,7 +543,7 @@ pub fn report_of_calibration(
             truth_history: None,
             checks: &judgement.checks,
             verdict: &verdict,
-            warnings: failure_warnings(r),
+            warnings,
         },
     )
 }

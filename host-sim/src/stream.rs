@@ -1031,7 +1031,8 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<DataVerdict
         print_table(&r, crlb);
         None
     };
-    let judgement = checks::judge(&r);
+    let judgement =
+        checks::judge(&r).with_path(checks::gimbal_lock_check(id, &host.log.records_f64()));
     checks::print(&judgement);
     let rj = reject_json(&p.rejects);
     let frames = if format == Format::Csv {
@@ -1099,6 +1100,7 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<DataVerdict
         }
         let j = judgement.json();
         json["checks"] = j["checks"].clone();
+        json["path_check"] = j["path"].clone();
         json["data_verdict"] = j["data_verdict"].clone();
         json["data_false_alarm"] = j["false_alarm"].clone();
         json["pass1"] = serde_json::json!({
