@@ -24,7 +24,8 @@
 //! are then predicted along it without measurement and counted in
 //! [`Progress::bridged`]. When no hypothesis fits (a longer gap, or several
 //! switches), the motion is not known: the missing periods are predicted
-//! along the shortest rotation to the reported frame, the computed frame is
+//! along the shortest rotation to the reported frame (at most the last
+//! [`MAX_UNKNOWN_GAP_STEPS`] of them), the computed frame is
 //! set from the report, and the attitude states are **re-acquired**
 //! ([`crate::ekf::Filter::reacquire_attitude`]: their covariance re-opened to
 //! the prior, the parameters' information kept), counted in
@@ -183,6 +184,20 @@ struct Validated {
     /// Its timestamp re-anchors the time after a clock step.
     reanchored: bool,
 }
+
+/// The most periods a gap of unknown motion costs: across a longer gap the
+/// motion to the reported frame is predicted over its last
+/// `MAX_UNKNOWN_GAP_STEPS` periods only, and the model's time is not
+/// advanced over the earlier part (the parameters are constant; the
+/// attitude, whose motion is not known, is re-acquired: its covariance is
+/// re-opened to the prior without correlation to the parameters). One
+/// sample then never costs more than the configured bridge search
+/// ([`Limits::max_bridge`] periods) and this many predictions, where a jump
+/// of the sequence number and the time by 2³² periods, which validation
+/// accepts, took hours (fuzz/README.md). 7200 is the default
+/// [`Limits::max_bridge`] (2 h of 1 s periods); every gap up to it is
+/// predicted period by period over its whole length.
+pub const MAX_UNKNOWN_GAP_STEPS: u32 = 7200;
 
 /// The commanded motion across a gap.
 #[derive(Clone, Copy, Debug)]
@@ -476,11 +491,15 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
                 Ok(last)
             }
             Motion::Unknown { start } => {
-                if gap > 0 {
+                // At most MAX_UNKNOWN_GAP_STEPS periods are predicted: the
+                // model's time is not advanced over the earlier part of a
+                // longer gap (see the constant).
+                let predicted = gap.min(MAX_UNKNOWN_GAP_STEPS);
+                if predicted > 0 {
                     let c0 = self.filter.command_frame().c_cn;
-                    let periods = f64::from(gap);
+                    let periods = f64::from(predicted);
                     let u = rotation_vector(&(start * c0.transpose())) / (dt * periods);
-                    for _ in 0..gap {
+                    for _ in 0..predicted {
                         let inc = self.filter.command_frame().increment(&u, dt);
                         self.filter.predict(&inc, dt)?;
                         last = inc;

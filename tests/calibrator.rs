@@ -435,6 +435,65 @@ fn a_gap_at_a_segment_switch_is_bridged_and_an_unknown_motion_reacquires() {
     assert!(angle < 1e-6, "{angle:e}");
 }
 
+/// A jump of the sequence number and the time by `extra` periods before
+/// sample 1700 of the paper stream (M1-pa, no search for the motion across
+/// a gap): the calibrator's estimate after the remaining samples, pushed
+/// with the jump.
+fn after_a_gap_of(extra: u32) -> rollcal::wire::Estimate {
+    let (sc, data) = samples(3000);
+    // No search for the motion: every gap is of unknown motion (a gap of
+    // whole turns of the paper's path would be found).
+    let mut cfg = settings(&sc, ConfigId::M1Pa, 0);
+    cfg.limits.max_bridge = 0;
+    let mut cal = M1PaCalibrator::<f64>::new(cfg).unwrap();
+    for s in &data[..1700] {
+        cal.push(s).unwrap();
+    }
+    let before = cal.estimate();
+    for s in &data[1700..] {
+        let moved = Sample {
+            seq: s.seq + extra,
+            t_us: s.t_us + u64::from(extra) * 1_000_000,
+            ..*s
+        };
+        if let Err(e) = cal.push(&moved) {
+            panic!("gap {extra}: sample {} refused: {e:?}", s.seq);
+        }
+        if s.seq == data[1700].seq {
+            let p = cal.estimate().progress;
+            assert_eq!((p.reacquired, p.reacquired_periods), (1, extra));
+            for i in 3..12 {
+                assert!(cal.estimate().sigma[i] <= before.sigma[i] * (1.0 + 1e-9));
+            }
+        }
+    }
+    let end = cal.estimate();
+    assert_eq!(end.progress.accepted, 3000);
+    assert_eq!(end.progress.rejects.total(), 0);
+    let q = data[2999].c_cn_quat.map(f64::from);
+    let reported = rollcal::geometry::dcm_from_quaternion(&q, 1e-6).unwrap();
+    let angle = rollcal::geometry::angle_between(&reported, &cal.filter().command_frame().c_cn);
+    assert!(angle < 1e-6, "{angle:e}");
+    end
+}
+
+/// A gap of unknown motion longer than `MAX_UNKNOWN_GAP_STEPS` periods is
+/// predicted over its last that many periods only, so one sample's cost is
+/// bounded: a jump of 2³² periods, which validation accepts when the time
+/// jumps with it, took hours of predictions before (and this test with it).
+/// The answer is then that of a gap of exactly that length, and the
+/// calibration goes on with the parameters' information kept.
+#[test]
+fn a_huge_gap_costs_a_bounded_number_of_predictions() {
+    use rollcal::calibrator::MAX_UNKNOWN_GAP_STEPS;
+    let exact = after_a_gap_of(MAX_UNKNOWN_GAP_STEPS);
+    for extra in [MAX_UNKNOWN_GAP_STEPS + 1, u32::MAX - 3001] {
+        let e = after_a_gap_of(extra);
+        assert_eq!(e.state, exact.state, "{extra}");
+        assert_eq!(e.sigma, exact.sigma, "{extra}");
+    }
+}
+
 #[test]
 fn a_clock_step_is_reanchored_once_confirmed() {
     let (sc, data) = samples(300);

@@ -35,9 +35,10 @@ const MAX_FINISH: u32 = 4;
 /// Capacity of the sample log (records).
 const LOG_CAP: usize = 64;
 /// Largest jump of the sequence number past the last accepted sample.
-/// Larger jumps are folded below it: the calibrator predicts every missing
-/// period of a gap, so a jump of 1e9 periods with agreeing timestamps is a
-/// very long (but finite) computation, not a bug this target looks for.
+/// Larger jumps are folded below it: a gap of up to `max_bridge` periods
+/// (7200 by default) is searched and predicted period by period, and one of
+/// unknown motion predicts up to `MAX_UNKNOWN_GAP_STEPS` (7200) periods:
+/// bounded, but slow enough to spend a campaign on (fuzz/README.md).
 const MAX_GAP: u32 = 32;
 
 fuzz_target!(|data: &[u8]| {
