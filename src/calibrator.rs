@@ -25,7 +25,7 @@
 //! [`Progress::bridged`]. When no hypothesis fits (a longer gap, or several
 //! switches), the motion is not known: the missing periods are predicted
 //! along the shortest rotation to the reported frame (at most the last
-//! [`MAX_UNKNOWN_GAP_STEPS`] of them), the computed frame is
+//! [`MAX_UNKNOWN_GAP_PERIODS`] of them), the computed frame is
 //! set from the report, and the attitude states are **re-acquired**
 //! ([`crate::ekf::Filter::reacquire_attitude`]: their covariance re-opened to
 //! the prior, the parameters' information kept), counted in
@@ -187,7 +187,7 @@ struct Validated {
 
 /// The most periods a gap of unknown motion costs: across a longer gap the
 /// motion to the reported frame is predicted over its last
-/// `MAX_UNKNOWN_GAP_STEPS` periods only, and the model's time is not
+/// `MAX_UNKNOWN_GAP_PERIODS` periods only, and the model's time is not
 /// advanced over the earlier part (the parameters are constant; the
 /// attitude, whose motion is not known, is re-acquired: its covariance is
 /// re-opened to the prior without correlation to the parameters). One
@@ -197,7 +197,7 @@ struct Validated {
 /// accepts, took hours (fuzz/README.md). 7200 is the default
 /// [`Limits::max_bridge`] (2 h of 1 s periods); every gap up to it is
 /// predicted period by period over its whole length.
-pub const MAX_UNKNOWN_GAP_STEPS: u32 = 7200;
+pub const MAX_UNKNOWN_GAP_PERIODS: u32 = 7200;
 
 /// The commanded motion across a gap.
 #[derive(Clone, Copy, Debug)]
@@ -491,10 +491,10 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
                 Ok(last)
             }
             Motion::Unknown { start } => {
-                // At most MAX_UNKNOWN_GAP_STEPS periods are predicted: the
+                // At most MAX_UNKNOWN_GAP_PERIODS periods are predicted: the
                 // model's time is not advanced over the earlier part of a
                 // longer gap (see the constant).
-                let predicted = gap.min(MAX_UNKNOWN_GAP_STEPS);
+                let predicted = gap.min(MAX_UNKNOWN_GAP_PERIODS);
                 if predicted > 0 {
                     let c0 = self.filter.command_frame().c_cn;
                     let periods = f64::from(predicted);

@@ -477,7 +477,7 @@ fn after_a_gap_of(extra: u32) -> rollcal::wire::Estimate {
     end
 }
 
-/// A gap of unknown motion longer than `MAX_UNKNOWN_GAP_STEPS` periods is
+/// A gap of unknown motion longer than `MAX_UNKNOWN_GAP_PERIODS` periods is
 /// predicted over its last that many periods only, so one sample's cost is
 /// bounded: a jump of 2³² periods, which validation accepts when the time
 /// jumps with it, took hours of predictions before (and this test with it).
@@ -485,9 +485,9 @@ fn after_a_gap_of(extra: u32) -> rollcal::wire::Estimate {
 /// calibration goes on with the parameters' information kept.
 #[test]
 fn a_huge_gap_costs_a_bounded_number_of_predictions() {
-    use rollcal::calibrator::MAX_UNKNOWN_GAP_STEPS;
-    let exact = after_a_gap_of(MAX_UNKNOWN_GAP_STEPS);
-    for extra in [MAX_UNKNOWN_GAP_STEPS + 1, u32::MAX - 3001] {
+    use rollcal::calibrator::MAX_UNKNOWN_GAP_PERIODS;
+    let exact = after_a_gap_of(MAX_UNKNOWN_GAP_PERIODS);
+    for extra in [MAX_UNKNOWN_GAP_PERIODS + 1, u32::MAX - 3001] {
         let e = after_a_gap_of(extra);
         assert_eq!(e.state, exact.state, "{extra}");
         assert_eq!(e.sigma, exact.sigma, "{extra}");
