@@ -25,12 +25,13 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use nalgebra::{SMatrix, SVector, Vector3};
+use nalgebra::{SVector, Vector3};
 use rollcal::ekf::{M1PaFilter, M2PsFilter};
 use rollcal::models::Model;
 use rollcal::wire::CalibratorConfig;
 use rollcal::{Filter, Observation, Options};
 
+mod dense;
 #[path = "../tests/support/mod.rs"]
 mod support;
 
@@ -122,43 +123,11 @@ fn bench_period<M: Model<N, Z> + Clone, const N: usize, const Z: usize>(
     );
 }
 
-/// One period of naive dense covariance arithmetic, `N` states and `Z`
-/// measurements.
-fn dense_period<const N: usize, const Z: usize>(
-    phi: &SMatrix<f64, N, N>,
-    p: &SMatrix<f64, N, N>,
-    q: &SMatrix<f64, N, N>,
-    h: &SMatrix<f64, Z, N>,
-    r: &SMatrix<f64, Z, Z>,
-) -> SMatrix<f64, N, N> {
-    let pp = phi * p * phi.transpose() + q;
-    let s = h * pp * h.transpose() + r;
-    let Some(chol) = s.cholesky() else {
-        return pp;
-    };
-    let k = chol.solve(&(h * pp)).transpose();
-    let ikh = SMatrix::<f64, N, N>::identity() - k * h;
-    let out = ikh * pp * ikh.transpose() + k * r * k.transpose();
-    (out + out.transpose()) * 0.5
-}
-
 fn bench_dense<const N: usize, const Z: usize>(c: &mut Criterion, name: &str) {
-    // Fixed, well-conditioned inputs: Φ near the identity, P and Q SPD.
-    let phi = SMatrix::<f64, N, N>::from_fn(|i, j| {
-        if i == j {
-            1.0
-        } else {
-            1e-3 * ((i + 2 * j) % 7) as f64
-        }
-    });
-    let a = SMatrix::<f64, N, N>::from_fn(|i, j| 1e-2 * (((3 * i + j) % 11) as f64 - 5.0));
-    let p = a * a.transpose() + SMatrix::<f64, N, N>::identity() * 1e-4;
-    let q = SMatrix::<f64, N, N>::identity() * 1e-10;
-    let h = SMatrix::<f64, Z, N>::from_fn(|i, j| (((i + 5 * j) % 13) as f64 - 6.0) / 6.0);
-    let r = SMatrix::<f64, Z, Z>::identity() * 1e-12;
+    let (phi, p, q, h, r) = dense::inputs::<N, Z>();
     c.benchmark_group("period").bench_function(name, |b| {
         b.iter(|| {
-            dense_period(
+            dense::period(
                 black_box(&phi),
                 black_box(&p),
                 black_box(&q),
