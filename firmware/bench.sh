@@ -19,12 +19,17 @@
 # <value> met|missed` (and `figure <name> ...` lines for figures without a
 # limit).
 # Usage: firmware/bench.sh [--quick]   (--quick: skip the recorded streams)
-# Needs defmt-print for the logged numbers (cargo install --locked defmt-print).
+# Needs defmt-print for the logged numbers (the stack peaks, the filters'
+# sizes): installed with `cargo install --locked defmt-print` when missing.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 QUICK=${1:-}
 
 ensure_tools
+if ! command -v defmt-print >/dev/null; then
+    echo "==> installing defmt-print (cargo install --locked defmt-print)" >&2
+    cargo install --locked defmt-print >&2
+fi
 build_host
 build_firmware
 build_plugin
