@@ -130,73 +130,51 @@ fn unmodelled_accel_bias_is_flagged_by_segment_bias() {
     );
 }
 
-/// Noise-free samples of `id` on the paper's settings rolling at 1.7°/s
-/// about each axis for `periods` s from zero errors, as a platform sends
-/// them (the path `tests/f32.rs` rolls; M2's middle gimbal reaches 86.1° at
-/// 79 s, a path `record` refuses).
-fn fast_roll_samples(id: ConfigId, periods: u32) -> Vec<rollcal::wire::Sample> {
-    use nalgebra::{SMatrix, SVector, Vector3};
-    use rollcal::command::CommandFrame;
-    use rollcal::geometry::{quaternion_from_dcm, wrap_angles};
-    use rollcal::models::Environment;
-    let settings = rollcal::wire::CalibratorConfig::paper(id);
-    let env = Environment {
-        earth_rate_n: Vector3::from(settings.earth_rate_n),
-        gravity_n: Vector3::from(settings.gravity_n),
-    };
-    let rate = Vector3::new(-0.03, -0.03, -0.03);
-    let layout = id.layout();
-    let mut x = SVector::<f64, 18>::zeros();
-    let mut frame = CommandFrame::aligned(env.earth_rate_n);
-    (1..=periods)
-        .map(|seq| {
-            let dtheta = frame.increment(&rate, 1.0);
-            let period = frame.period_at_rate(&rate, 1.0);
-            let m = layout.matrices(&x);
-            let prop = layout
-                .propagate::<f64, 18>(&env, &m, &layout.attitude(&x), &period)
-                .unwrap();
-            let mut h = SMatrix::<f64, 3, 18>::zeros();
-            let (z, _) = layout.mean_accel(&env, &m, &prop, &period, &mut h);
-            x.fixed_rows_mut::<3>(0).copy_from(&prop.att[2]);
-            frame.advance(&period);
-            let g = wrap_angles(&layout.attitude(&x));
-            rollcal::wire::Sample {
-                seq,
-                t_us: u64::from(seq) * 1_000_000,
-                dt: 1.0,
-                dtheta_cmd: [dtheta.x, dtheta.y, dtheta.z],
-                c_cn_quat: quaternion_from_dcm(&frame.c_cn).map(|v| v as f32),
-                accel_mean: [z.x as f32, z.y as f32, z.z as f32],
-                gimbal: layout
-                    .gimbal_obs
-                    .then_some([g.x as f32, g.y as f32, g.z as f32]),
-            }
-        })
-        .collect()
-}
-
 /// A log of M2-ps whose middle gimbal comes within 5° of gimbal lock is
 /// flagged by the path check (README "Fast rolls": the model breaks down
-/// there), exit status 3, the check first among the failed ones. M1's
-/// model holds no gimbal angles: no path check (`tests/serial.rs` calibrates
-/// an M1-pa stream whose gimbal angles, sent all the same, reach 89.65°:
-/// exit 0).
+/// there), exit status 3, the check first among the failed ones; `record`
+/// refuses such a path, so the log is written from the truth simulator
+/// here: the paper's settings, 87° about Up at 1°/s (β reaches 86.9°),
+/// with noise. M1's model holds no gimbal angles: no path check on the same
+/// log (`tests/serial.rs` also calibrates an M1-pa stream whose gimbal
+/// angles reach 89.65°: exit 0).
 #[test]
 fn a_log_near_gimbal_lock_is_flagged() {
+    use host_sim::truth::{simulate, SimOptions};
     let d = dir("lock");
+    let scenario = support::paper_with_path(&d, "lock", &[("up", 87.0, 1.0)], "87.0");
+    let sc = Scenario::from_file(&scenario).unwrap();
+    let sim = simulate(
+        &sc,
+        SimOptions {
+            seed: 6,
+            noise: true,
+            earth_rate: true,
+        },
+    );
+    let samples: Vec<_> = sim
+        .samples
+        .iter()
+        .map(host_sim::stream::to_sample)
+        .collect();
     let (csv, json) = (d.join("run.csv"), d.join("cal.json"));
+    std::fs::write(&csv, host_sim::csvlog::write(&samples)).unwrap();
+    // The largest angle from upright, from the samples as sent.
+    let (k, worst) = samples
+        .iter()
+        .enumerate()
+        .map(|(k, s)| {
+            let beta = f64::from(s.gimbal.unwrap()[1]);
+            (k, beta.cos().abs().acos().to_degrees())
+        })
+        .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
+    assert!(worst > 86.0 && worst < 87.0, "{worst}");
     for id in [ConfigId::M2Ps, ConfigId::M1Pa] {
-        let samples = fast_roll_samples(id, 79);
-        std::fs::write(&csv, host_sim::csvlog::write(&samples)).unwrap();
         let out = host_sim()
             .args(["calibrate", "--config", &id.to_string(), "--input"])
             .arg(&csv)
             .arg("--platform")
-            .arg(concat!(
-                env!("CARGO_MANIFEST_DIR"),
-                "/../scenarios/paper.toml"
-            ))
+            .arg(&scenario)
             .arg("--json")
             .arg(&json)
             .output()
@@ -204,26 +182,11 @@ fn a_log_near_gimbal_lock_is_flagged() {
         let v = json_file(&json);
         let text = stdout(&out);
         if id == ConfigId::M1Pa {
+            assert_eq!(out.status.code(), Some(0), "{text}");
             assert!(v["path_check"].is_null(), "{}", v["path_check"]);
             assert!(!text.contains("path: "), "{text}");
             continue;
         }
-        // The largest angle from upright, from the samples as sent.
-        let (k, worst) = samples
-            .iter()
-            .enumerate()
-            .map(|(k, s)| {
-                (
-                    k,
-                    f64::from(s.gimbal.unwrap()[1])
-                        .cos()
-                        .abs()
-                        .acos()
-                        .to_degrees(),
-                )
-            })
-            .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
-        assert!(worst > 86.0 && worst < 87.0, "{worst}");
         assert_eq!(out.status.code(), Some(i32::from(WARNING_EXIT)), "{text}");
         let path = &v["path_check"];
         assert_eq!(path["name"], "gimbal_lock");
