@@ -171,7 +171,8 @@ impl Judgement {
 /// How close a recorded path came to gimbal lock: the largest angle of the
 /// middle gimbal from upright, `acos |cos β|` (°; `|β|` for `|β| ≤ 90°`),
 /// over the gimbal angles of `records` (M2 measures them at the end of each
-/// period), against [`crate::truth::MAX_GIMBAL_BETA_DEG`], the limit the
+/// period; `calibrate` passes the calibrator's log, the whole run unless
+/// the log is incomplete, without the periods predicted only), against [`crate::truth::MAX_GIMBAL_BETA_DEG`], the limit the
 /// simulator holds its paths to. Near lock the outer and inner angles'
 /// sensitivity to the attitude grows as `1/cos β` and the linearised model
 /// breaks down (README "Fast rolls"). `None` for a configuration `id` that
