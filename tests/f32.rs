@@ -178,10 +178,9 @@ fn fast_roll<T: RealField + Copy>(
 /// passes within 0.94° of gimbal lock at 80 s (a path `host-sim` refuses
 /// for M2, which measures the gimbal angles: `truth::MAX_GIMBAL_BETA_DEG`,
 /// 85°). There the Euler angles' sensitivity grows as `1/cos β` (≈ 60×)
-/// and the linearisation breaks down in both precisions: a linearised f64
-/// filter whose nominal is 1e-3 rad off in the parameters puts the middle
-/// gimbal angle's σ at 8e-10 rad at 82 s, five orders below the gimbal
-/// angles' noise, and the f32 one refuses that period. On the 120 s run
+/// and the linearisation breaks down, in f64 too (the measurements behind
+/// `MAX_GIMBAL_BETA_DEG`: updates gated from 87.4°, divergence at 89.5°).
+/// On the 120 s run
 /// that crosses it the test asserts only that f32 refuses nothing and ends
 /// within 0.1σ of f64; f32's σ of M2-ps's weakest states comes out up to
 /// 22 % under f64's (printed). Before the crossing (72 s, 20.9° from lock)
