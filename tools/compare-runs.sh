@@ -2,7 +2,9 @@
 # Compares two host-sim binaries (e.g. before and after a change to the
 # filter) on all seven configurations and the three shipped scenarios
 # (seed 1, `run --json`): prints per case the largest estimate difference
-# in units of the first binary's σ and the largest relative σ difference.
+# in units of the first binary's σ, the largest relative σ difference and
+# whether the two JSON files are byte-identical (`identical` or `DIFFER`);
+# exits 1 when any pair differs in a byte (a refactor must change nothing).
 # Usage: tools/compare-runs.sh OLD_HOST_SIM NEW_HOST_SIM [OUT_DIR]
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -17,10 +19,14 @@ done
 python3 - "$OUT" <<'PY'
 import glob, json, sys
 out = sys.argv[1]
+differ = False
 for old in sorted(glob.glob(out + "/old-*.json")):
     a = json.load(open(old))["states"]
     b = json.load(open(old.replace("/old-", "/new-")))["states"]
     dx = max(abs(x["estimate_rad"] - y["estimate_rad"]) / x["sigma_rad"] for x, y in zip(a, b))
     ds = max(abs(y["sigma_rad"] / x["sigma_rad"] - 1) for x, y in zip(a, b))
-    print(f"{old.split('old-')[1][:-5]:<24} max |dx|/sigma {dx:.2e}   max |sigma ratio - 1| {ds:.2e}")
+    same = open(old, "rb").read() == open(old.replace("/old-", "/new-"), "rb").read()
+    differ = differ or not same
+    print(f"{old.split('old-')[1][:-5]:<24} max |dx|/sigma {dx:.2e}   max |sigma ratio - 1| {ds:.2e}   {'identical' if same else 'DIFFER'}")
+sys.exit(1 if differ else 0)
 PY
