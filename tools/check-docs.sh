@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Docs as code: every page's links and commands are checked.
 #
-#   tools/check-docs.sh [--links-only]
+#   tools/check-docs.sh [--links-only | --list]
 #
+# (--list prints the commands of (b) with their page and expected status.)
 # (a) Every relative link of README.md, docs/*.md, firmware/README.md,
 #     BENCHMARKS.md, CHANGELOG.md and fuzz/README.md resolves: the file
 #     exists inside the repository and, for `page.md#anchor`, the page has
@@ -116,8 +117,6 @@ if [ "${1:-}" = "--links-only" ]; then
     exit 0
 fi
 
-[ -x "$HOST_SIM" ] || fail "no $HOST_SIM: run 'cargo build --release -p host-sim' first"
-
 # ------------------------------------------------- (b) the pages' commands
 # One record per command: page, kind (run|show), expected exit status, line.
 extract_commands() {
@@ -152,6 +151,12 @@ extract_commands() {
 subcommand_of() {
     sed -nE 's/.*(-p host-sim( -[-a-z]+)* --|^host-sim) ([a-z][a-z-]*).*/\3/p' <<<"$1" | head -1
 }
+
+if [ "${1:-}" = "--list" ]; then
+    for page in "${RUN_PAGES[@]}"; do extract_commands "$page"; done
+    exit 0
+fi
+[ -x "$HOST_SIM" ] || fail "no $HOST_SIM: run 'cargo build --release -p host-sim' first"
 
 snapshot() {
     find . \( -path ./.git -o -path ./target -o -path ./firmware/target -o -path ./fuzz/target \
