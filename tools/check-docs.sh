@@ -223,9 +223,9 @@ echo "ran $RAN commands, checked the options of $SHOWN shown ones"
 echo "==> host-sim --help of every subcommand the pages name"
 SUBCOMMANDS=$(
     {
-        grep -ohE -- '-p host-sim( -[-a-z]+)* -- [a-z][a-z-]*' "${LINK_PAGES[@]}" | awk '{print $NF}'
-        grep -ohE -- '`host-sim [a-z][a-z-]*' "${LINK_PAGES[@]}" | awk '{print $2}'
-        grep -ohE -- '^host-sim [a-z][a-z-]*' "${LINK_PAGES[@]}" | awk '{print $2}'
+        grep -ohE -- '-p host-sim( -[-a-z]+)* -- [a-z][a-z-]*' "${LINK_PAGES[@]}" | awk '{print $NF}' || true
+        grep -ohE -- '`host-sim [a-z][a-z-]*' "${LINK_PAGES[@]}" | awk '{print $2}' || true
+        grep -ohE -- '^host-sim [a-z][a-z-]*' "${LINK_PAGES[@]}" | awk '{print $2}' || true
     } | LC_ALL=C sort -u
 )
 "$HOST_SIM" --help >/dev/null || fail "'host-sim --help' failed"
