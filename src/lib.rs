@@ -70,6 +70,12 @@ pub mod wire;
 #[doc = include_str!("../README.md")]
 pub struct ReadmeDoctests;
 
+/// docs/wire.md's Rust example, compiled and run as a doc-test; not part
+/// of the API.
+#[cfg(doctest)]
+#[doc = include_str!("../docs/wire.md")]
+pub struct WireDoctests;
+
 pub use calibrator::{Calibrator, M1PaCalibrator, M2PsCalibrator, M4PaCalibrator, RejectReason};
 pub use ekf::{Error, Filter, FilterConfig, Innovation, Observation, Options};
 pub use estimator::{EstimatorOptions, LogRecord, SampleLog, SliceLog};

@@ -1,7 +1,7 @@
 //! User-facing defects of the command line (issue 11, item 7), one test
 //! each: progress a log can read, resource limits before allocation, a path
 //! the duration would cut, binary on a terminal, empty studies, and the
-//! verdict words of the README.
+//! verdict words of docs/cli.md.
 
 mod support;
 use std::path::{Path, PathBuf};
@@ -210,12 +210,12 @@ fn empty_studies_are_refused() {
     assert!(out.stdout.is_empty());
 }
 
-/// The words the README's "Verdict words" list defines.
+/// The words the "Verdict words" list of docs/cli.md defines.
 fn readme_verdict_words() -> Vec<String> {
-    let readme = include_str!("../../README.md");
+    let readme = include_str!("../../docs/cli.md");
     let start = readme
         .find("### Verdict words")
-        .expect("README has a Verdict words section");
+        .expect("docs/cli.md has a Verdict words section");
     readme[start..]
         .lines()
         .skip(1)
