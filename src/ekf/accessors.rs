@@ -18,6 +18,37 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// of the multi-pass estimator (the nominal is the previous pass's estimate
     /// propagated back to the start), and, with the true initial state as
     /// nominal, the Riccati recursion of the posterior Cramér–Rao bound.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// # use nalgebra::{SVector, Vector3};
+    /// # use rollcal::ekf::{FilterConfig, M1PaFilter, Observation, Options};
+    /// # use rollcal::geometry::{earth_rate_n, gravity_n, EARTH_RATE};
+    /// # use rollcal::models::Environment;
+    /// # let deg = core::f64::consts::PI / 180.0;
+    /// # let w_ie = earth_rate_n(EARTH_RATE, 34.25 * deg);
+    /// # let config = FilterConfig::<f64> {
+    /// #     env: Environment { earth_rate_n: w_ie, gravity_n: gravity_n() },
+    /// #     sigma_accel: 1e-6,
+    /// #     sigma_gyro: 0.1 * deg / 3600.0,
+    /// #     sigma_gimbal: 10.0 * deg / 3600.0,
+    /// #     options: Options::default(),
+    /// # };
+    /// # let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
+    /// # // Holding still with the computed frame on n: the commanded increment is
+    /// # // the Earth rate over the period, the accelerometers read gravity (g).
+    /// # let (dtheta_c, dt) = (w_ie * 1.0, 1.0);
+    /// # let obs = Observation { accel_mean: gravity_n::<f64>(), gimbal: None };
+    /// f.step(&dtheta_c, dt, &obs)?;
+    /// // Linearised about the estimate from here on.
+    /// f.set_nominal(Some(*f.state()));
+    /// assert!(f.nominal().is_some());
+    /// f.step(&dtheta_c, dt, &obs)?;
+    /// f.set_nominal(None); // back to the extended filter
+    /// assert!(f.nominal().is_none());
+    /// # Ok::<(), rollcal::Error>(())
+    /// ```
     pub fn set_nominal(&mut self, x_nominal: Option<SVector<f64, N>>) {
         self.reference = x_nominal;
     }
@@ -29,6 +60,35 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
 
     /// The state estimate (rad), in the configuration's state order; held
     /// in double precision whatever `T` (see [`Filter`]).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// # use nalgebra::{SVector, Vector3};
+    /// # use rollcal::ekf::{FilterConfig, M1PaFilter, Observation, Options};
+    /// # use rollcal::geometry::{earth_rate_n, gravity_n, EARTH_RATE};
+    /// # use rollcal::models::Environment;
+    /// # let deg = core::f64::consts::PI / 180.0;
+    /// # let w_ie = earth_rate_n(EARTH_RATE, 34.25 * deg);
+    /// # let config = FilterConfig::<f64> {
+    /// #     env: Environment { earth_rate_n: w_ie, gravity_n: gravity_n() },
+    /// #     sigma_accel: 1e-6,
+    /// #     sigma_gyro: 0.1 * deg / 3600.0,
+    /// #     sigma_gimbal: 10.0 * deg / 3600.0,
+    /// #     options: Options::default(),
+    /// # };
+    /// # let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
+    /// # // Holding still with the computed frame on n: the commanded increment is
+    /// # // the Earth rate over the period, the accelerometers read gravity (g).
+    /// # let (dtheta_c, dt) = (w_ie * 1.0, 1.0);
+    /// # let obs = Observation { accel_mean: gravity_n::<f64>(), gimbal: None };
+    /// f.step(&dtheta_c, dt, &obs)?;
+    /// // 12 states of M1-pa, in the order of `ConfigId::M1Pa.states()`.
+    /// let names = rollcal::ConfigId::M1Pa.states();
+    /// assert_eq!(f.state().len(), names.len());
+    /// assert!(f.state().iter().all(|v| v.is_finite()));
+    /// # Ok::<(), rollcal::Error>(())
+    /// ```
     pub fn state(&self) -> &SVector<f64, N> {
         &self.x
     }
@@ -42,6 +102,36 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     }
 
     /// Per-state standard deviations `√P_ii` (rad).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// # use nalgebra::{SVector, Vector3};
+    /// # use rollcal::ekf::{FilterConfig, M1PaFilter, Observation, Options};
+    /// # use rollcal::geometry::{earth_rate_n, gravity_n, EARTH_RATE};
+    /// # use rollcal::models::Environment;
+    /// # let deg = core::f64::consts::PI / 180.0;
+    /// # let w_ie = earth_rate_n(EARTH_RATE, 34.25 * deg);
+    /// # let config = FilterConfig::<f64> {
+    /// #     env: Environment { earth_rate_n: w_ie, gravity_n: gravity_n() },
+    /// #     sigma_accel: 1e-6,
+    /// #     sigma_gyro: 0.1 * deg / 3600.0,
+    /// #     sigma_gimbal: 10.0 * deg / 3600.0,
+    /// #     options: Options::default(),
+    /// # };
+    /// # let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
+    /// # // Holding still with the computed frame on n: the commanded increment is
+    /// # // the Earth rate over the period, the accelerometers read gravity (g).
+    /// # let (dtheta_c, dt) = (w_ie * 1.0, 1.0);
+    /// # let obs = Observation { accel_mean: gravity_n::<f64>(), gimbal: None };
+    /// f.step(&dtheta_c, dt, &obs)?;
+    /// // σ is the square root of the covariance's diagonal.
+    /// let (sigma, p) = (f.sigma(), f.covariance());
+    /// for i in 0..12 {
+    ///     assert!((sigma[i] * sigma[i] - p[(i, i)]).abs() <= 1e-12 * p[(i, i)]);
+    /// }
+    /// # Ok::<(), rollcal::Error>(())
+    /// ```
     pub fn sigma(&self) -> SVector<T, N> {
         // With a period pending, those of `settled()`, from its new
         // attitude rows (no copy of the factor).

@@ -15,6 +15,41 @@ use crate::models::Model;
 impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter<T, M, N, Z> {
     /// A filter with initial estimate `x0` (rad) and prior standard
     /// deviations `sigma0` (rad), the computed frame aligned with n.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// # use nalgebra::{SVector, Vector3};
+    /// # use rollcal::ekf::{FilterConfig, M1PaFilter, Observation, Options};
+    /// # use rollcal::geometry::{earth_rate_n, gravity_n, EARTH_RATE};
+    /// # use rollcal::models::Environment;
+    /// # let deg = core::f64::consts::PI / 180.0;
+    /// # let w_ie = earth_rate_n(EARTH_RATE, 34.25 * deg);
+    /// # let config = FilterConfig::<f64> {
+    /// #     env: Environment { earth_rate_n: w_ie, gravity_n: gravity_n() },
+    /// #     sigma_accel: 1e-6,
+    /// #     sigma_gyro: 0.1 * deg / 3600.0,
+    /// #     sigma_gimbal: 10.0 * deg / 3600.0,
+    /// #     options: Options::default(),
+    /// # };
+    /// # let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
+    /// # // Holding still with the computed frame on n: the commanded increment is
+    /// # // the Earth rate over the period, the accelerometers read gravity (g).
+    /// # let (dtheta_c, dt) = (w_ie * 1.0, 1.0);
+    /// # let obs = Observation { accel_mean: gravity_n::<f64>(), gimbal: None };
+    /// // An M1-pa filter from its configuration and prior: zero initial estimate,
+    /// // 1° on each of its 12 states.
+    /// let f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
+    /// assert_eq!(f.state().len(), 12);
+    /// assert_eq!(f.sigma(), SVector::<f64, 12>::repeat(deg));
+    /// assert_eq!(f.updates(), 0);
+    /// // A prior σ that is not strictly positive is refused.
+    /// assert_eq!(
+    ///     M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::zeros()).unwrap_err(),
+    ///     rollcal::Error::CovarianceNotPositiveDefinite
+    /// );
+    /// # Ok::<(), rollcal::Error>(())
+    /// ```
     // Not inlined: a caller that holds its filter in its own frame (the
     // firmware's synthetic run) then holds one `Result`, not the
     // constructor's temporaries too.
@@ -58,6 +93,34 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// place (no filter-sized temporary: the estimator's passes restart one
     /// filter, [`crate::estimator::estimate_in`]). On error the filter is
     /// unchanged.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// # use nalgebra::{SVector, Vector3};
+    /// # use rollcal::ekf::{FilterConfig, M1PaFilter, Observation, Options};
+    /// # use rollcal::geometry::{earth_rate_n, gravity_n, EARTH_RATE};
+    /// # use rollcal::models::Environment;
+    /// # let deg = core::f64::consts::PI / 180.0;
+    /// # let w_ie = earth_rate_n(EARTH_RATE, 34.25 * deg);
+    /// # let config = FilterConfig::<f64> {
+    /// #     env: Environment { earth_rate_n: w_ie, gravity_n: gravity_n() },
+    /// #     sigma_accel: 1e-6,
+    /// #     sigma_gyro: 0.1 * deg / 3600.0,
+    /// #     sigma_gimbal: 10.0 * deg / 3600.0,
+    /// #     options: Options::default(),
+    /// # };
+    /// # let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
+    /// # // Holding still with the computed frame on n: the commanded increment is
+    /// # // the Earth rate over the period, the accelerometers read gravity (g).
+    /// # let (dtheta_c, dt) = (w_ie * 1.0, 1.0);
+    /// # let obs = Observation { accel_mean: gravity_n::<f64>(), gimbal: None };
+    /// f.step(&dtheta_c, dt, &obs)?;
+    /// // Back to the prior, in place: the same filter as a new one.
+    /// f.restart(config, SVector::zeros(), SVector::repeat(deg))?;
+    /// assert_eq!(f, M1PaFilter::new(config, SVector::zeros(), SVector::repeat(deg))?);
+    /// # Ok::<(), rollcal::Error>(())
+    /// ```
     // Not inlined: once per pass, and its code once per configuration.
     #[inline(never)]
     pub fn restart(

@@ -10,6 +10,25 @@ use crate::models::Environment;
 use super::Error;
 
 /// Cold-start remedies and gating.
+///
+/// # Examples
+///
+/// ```
+/// use rollcal::ekf::{Options, DEFAULT_NIS_GATE};
+///
+/// // The default: the second-order covariance (the cold-start remedy) and
+/// // the NIS gate.
+/// let o = Options::default();
+/// assert!(o.second_order_covariance && !o.second_order_mean);
+/// assert_eq!(o.nis_gate, DEFAULT_NIS_GATE);
+/// assert!(o.is_built());
+/// // A plain EKF, without remedy or gate.
+/// let plain = Options::plain();
+/// assert!(!plain.second_order_covariance && plain.nis_gate == 0.0);
+/// // Research options, e.g. two iterations of the first 100 updates.
+/// let iterated = Options { iterations: 2, iterate_updates: 100, ..o };
+/// assert_eq!(iterated.is_built(), rollcal::ekf::RESEARCH_OPTIONS);
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Options {
     /// Add the second-order terms of the accelerometer measurement to the
@@ -87,6 +106,40 @@ impl Options {
 }
 
 /// Noise levels and environment of a filter.
+///
+/// # Examples
+///
+/// ```
+/// # use nalgebra::{SVector, Vector3};
+/// # use rollcal::ekf::{FilterConfig, M1PaFilter, Observation, Options};
+/// # use rollcal::geometry::{earth_rate_n, gravity_n, EARTH_RATE};
+/// # use rollcal::models::Environment;
+/// # let deg = core::f64::consts::PI / 180.0;
+/// # let w_ie = earth_rate_n(EARTH_RATE, 34.25 * deg);
+/// # let config = FilterConfig::<f64> {
+/// #     env: Environment { earth_rate_n: w_ie, gravity_n: gravity_n() },
+/// #     sigma_accel: 1e-6,
+/// #     sigma_gyro: 0.1 * deg / 3600.0,
+/// #     sigma_gimbal: 10.0 * deg / 3600.0,
+/// #     options: Options::default(),
+/// # };
+/// # let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
+/// # // Holding still with the computed frame on n: the commanded increment is
+/// # // the Earth rate over the period, the accelerometers read gravity (g).
+/// # let (dtheta_c, dt) = (w_ie * 1.0, 1.0);
+/// # let obs = Observation { accel_mean: gravity_n::<f64>(), gimbal: None };
+/// // The settings in f64, then for a single-precision filter (the covariance
+/// // arithmetic in f32; state and nominal stay f64).
+/// let f32_config: FilterConfig<f32> = config.to_precision();
+/// assert_eq!(f32_config.sigma_accel, 1e-6_f32);
+/// assert_eq!(f32_config.env, config.env);
+/// let mut g = M1PaFilter::<f32>::new(f32_config, SVector::zeros(), SVector::repeat(deg as f32))?;
+/// let obs32 = Observation { accel_mean: gravity_n::<f32>(), gimbal: None };
+/// g.step(&dtheta_c, dt, &obs32)?;
+/// f.step(&dtheta_c, dt, &obs)?;
+/// assert!((g.state() - f.state()).amax() < 1e-6);
+/// # Ok::<(), rollcal::Error>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FilterConfig<T: RealField + Copy> {
     /// Earth rate and gravity, in double precision whatever `T` (they drive

@@ -39,6 +39,47 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// of the linearised mode, the update counter and the state of the NIS
     /// gate ([`Filter::gate_state`]). The Earth rate of the computed frame is
     /// the one of `config`.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// # use nalgebra::{SVector, Vector3};
+    /// # use rollcal::ekf::{FilterConfig, M1PaFilter, Observation, Options};
+    /// # use rollcal::geometry::{earth_rate_n, gravity_n, EARTH_RATE};
+    /// # use rollcal::models::Environment;
+    /// # let deg = core::f64::consts::PI / 180.0;
+    /// # let w_ie = earth_rate_n(EARTH_RATE, 34.25 * deg);
+    /// # let config = FilterConfig::<f64> {
+    /// #     env: Environment { earth_rate_n: w_ie, gravity_n: gravity_n() },
+    /// #     sigma_accel: 1e-6,
+    /// #     sigma_gyro: 0.1 * deg / 3600.0,
+    /// #     sigma_gimbal: 10.0 * deg / 3600.0,
+    /// #     options: Options::default(),
+    /// # };
+    /// # let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
+    /// # // Holding still with the computed frame on n: the commanded increment is
+    /// # // the Earth rate over the period, the accelerometers read gravity (g).
+    /// # let (dtheta_c, dt) = (w_ie * 1.0, 1.0);
+    /// # let obs = Observation { accel_mean: gravity_n::<f64>(), gimbal: None };
+    /// for _ in 0..3 {
+    ///     f.step(&dtheta_c, dt, &obs)?;
+    /// }
+    /// // A checkpoint's parts, and the filter rebuilt from them.
+    /// let mut g = M1PaFilter::from_parts(
+    ///     *f.config(),
+    ///     *f.state(),
+    ///     *f.factor(),
+    ///     f.command_frame().c_cn,
+    ///     f.nominal().copied(),
+    ///     f.updates(),
+    ///     f.gate_state(),
+    /// )?;
+    /// assert_eq!(g, f);
+    /// // It continues bit-identically.
+    /// assert_eq!(g.step(&dtheta_c, dt, &obs)?, f.step(&dtheta_c, dt, &obs)?);
+    /// assert_eq!(g.state(), f.state());
+    /// # Ok::<(), rollcal::Error>(())
+    /// ```
     pub fn from_parts(
         config: FilterConfig<T>,
         x: SVector<f64, N>,
@@ -68,6 +109,48 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// it is: no `N×N` temporary). Every part is checked before the filter
     /// is touched: on error it is unchanged ([`Error::NonFiniteInput`] also
     /// for a factor that has not `N·N` entries).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// # use nalgebra::{SVector, Vector3};
+    /// # use rollcal::ekf::{FilterConfig, M1PaFilter, Observation, Options};
+    /// # use rollcal::geometry::{earth_rate_n, gravity_n, EARTH_RATE};
+    /// # use rollcal::models::Environment;
+    /// # let deg = core::f64::consts::PI / 180.0;
+    /// # let w_ie = earth_rate_n(EARTH_RATE, 34.25 * deg);
+    /// # let config = FilterConfig::<f64> {
+    /// #     env: Environment { earth_rate_n: w_ie, gravity_n: gravity_n() },
+    /// #     sigma_accel: 1e-6,
+    /// #     sigma_gyro: 0.1 * deg / 3600.0,
+    /// #     sigma_gimbal: 10.0 * deg / 3600.0,
+    /// #     options: Options::default(),
+    /// # };
+    /// # let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
+    /// # // Holding still with the computed frame on n: the commanded increment is
+    /// # // the Earth rate over the period, the accelerometers read gravity (g).
+    /// # let (dtheta_c, dt) = (w_ie * 1.0, 1.0);
+    /// # let obs = Observation { accel_mean: gravity_n::<f64>(), gimbal: None };
+    /// f.step(&dtheta_c, dt, &obs)?;
+    /// // The factor in a checkpoint's layout: its entries row by row, in f64.
+    /// let rows: Vec<f64> = f.factor().transpose().iter().copied().collect();
+    /// let parts = rollcal::ekf::Parts {
+    ///     x: f.state(),
+    ///     factor: &rows,
+    ///     c_cn: &f.command_frame().c_cn,
+    ///     nominal: f.nominal(),
+    ///     updates: f.updates(),
+    ///     gate_state: f.gate_state(),
+    /// };
+    /// let mut g = M1PaFilter::new(config, SVector::zeros(), SVector::repeat(deg))?;
+    /// g.set_parts(config, &parts)?;
+    /// assert_eq!(g, f);
+    /// // A factor of the wrong size is refused, the filter left as it was.
+    /// let short = rollcal::ekf::Parts { factor: &rows[..10], ..parts };
+    /// assert_eq!(g.set_parts(config, &short), Err(rollcal::Error::NonFiniteInput));
+    /// assert_eq!(g, f);
+    /// # Ok::<(), rollcal::Error>(())
+    /// ```
     pub fn set_parts(
         &mut self,
         config: FilterConfig<T>,

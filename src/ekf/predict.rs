@@ -76,6 +76,37 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// predicted before without its update gets its time update (as the
     /// next `predict` or `step` would apply it): the period is propagated
     /// straight into the filter's pending slot, which that period held.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// # use nalgebra::{SVector, Vector3};
+    /// # use rollcal::ekf::{FilterConfig, M1PaFilter, Observation, Options};
+    /// # use rollcal::geometry::{earth_rate_n, gravity_n, EARTH_RATE};
+    /// # use rollcal::models::Environment;
+    /// # let deg = core::f64::consts::PI / 180.0;
+    /// # let w_ie = earth_rate_n(EARTH_RATE, 34.25 * deg);
+    /// # let config = FilterConfig::<f64> {
+    /// #     env: Environment { earth_rate_n: w_ie, gravity_n: gravity_n() },
+    /// #     sigma_accel: 1e-6,
+    /// #     sigma_gyro: 0.1 * deg / 3600.0,
+    /// #     sigma_gimbal: 10.0 * deg / 3600.0,
+    /// #     options: Options::default(),
+    /// # };
+    /// # let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
+    /// # // Holding still with the computed frame on n: the commanded increment is
+    /// # // the Earth rate over the period, the accelerometers read gravity (g).
+    /// # let (dtheta_c, dt) = (w_ie * 1.0, 1.0);
+    /// # let obs = Observation { accel_mean: gravity_n::<f64>(), gimbal: None };
+    /// f.predict(&dtheta_c, dt)?;
+    /// // The covariance's time update waits for the update (or the next predict).
+    /// assert_eq!(f.updates(), 0);
+    /// f.update(&obs)?;
+    /// assert_eq!(f.updates(), 1);
+    /// // A period must be strictly positive.
+    /// assert_eq!(f.predict(&dtheta_c, 0.0), Err(rollcal::Error::InvalidPeriod));
+    /// # Ok::<(), rollcal::Error>(())
+    /// ```
     pub fn predict(&mut self, dtheta_c: &Vector3<f64>, dt: f64) -> Result<(), Error> {
         if !all_finite(dtheta_c.iter().copied().chain([dt])) {
             return Err(Error::NonFiniteInput);

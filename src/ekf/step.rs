@@ -9,6 +9,38 @@ use crate::models::{Model, ATT};
 
 impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter<T, M, N, Z> {
     /// One filter period: [`Filter::predict`] then [`Filter::update`].
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// # use nalgebra::{SVector, Vector3};
+    /// # use rollcal::ekf::{FilterConfig, M1PaFilter, Observation, Options};
+    /// # use rollcal::geometry::{earth_rate_n, gravity_n, EARTH_RATE};
+    /// # use rollcal::models::Environment;
+    /// # let deg = core::f64::consts::PI / 180.0;
+    /// # let w_ie = earth_rate_n(EARTH_RATE, 34.25 * deg);
+    /// # let config = FilterConfig::<f64> {
+    /// #     env: Environment { earth_rate_n: w_ie, gravity_n: gravity_n() },
+    /// #     sigma_accel: 1e-6,
+    /// #     sigma_gyro: 0.1 * deg / 3600.0,
+    /// #     sigma_gimbal: 10.0 * deg / 3600.0,
+    /// #     options: Options::default(),
+    /// # };
+    /// # let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
+    /// # // Holding still with the computed frame on n: the commanded increment is
+    /// # // the Earth rate over the period, the accelerometers read gravity (g).
+    /// # let (dtheta_c, dt) = (w_ie * 1.0, 1.0);
+    /// # let obs = Observation { accel_mean: gravity_n::<f64>(), gimbal: None };
+    /// let prior = f.sigma();
+    /// for _ in 0..10 {
+    ///     let innovation = f.step(&dtheta_c, dt, &obs)?;
+    ///     assert!(innovation.nis.is_finite());
+    /// }
+    /// assert_eq!(f.updates(), 10);
+    /// // The tilt about North (ψ_N, state 0) is observed by the accelerometers.
+    /// assert!(f.sigma()[0] < prior[0]);
+    /// # Ok::<(), rollcal::Error>(())
+    /// ```
     pub fn step(
         &mut self,
         dtheta_c: &Vector3<f64>,

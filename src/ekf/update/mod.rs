@@ -27,6 +27,37 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// the part already applied. Every input of the update is checked
     /// before the factor is touched, so this takes a covariance that has
     /// already lost its numerical positive definiteness; no test reaches it.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// # use nalgebra::{SVector, Vector3};
+    /// # use rollcal::ekf::{FilterConfig, M1PaFilter, Observation, Options};
+    /// # use rollcal::geometry::{earth_rate_n, gravity_n, EARTH_RATE};
+    /// # use rollcal::models::Environment;
+    /// # let deg = core::f64::consts::PI / 180.0;
+    /// # let w_ie = earth_rate_n(EARTH_RATE, 34.25 * deg);
+    /// # let config = FilterConfig::<f64> {
+    /// #     env: Environment { earth_rate_n: w_ie, gravity_n: gravity_n() },
+    /// #     sigma_accel: 1e-6,
+    /// #     sigma_gyro: 0.1 * deg / 3600.0,
+    /// #     sigma_gimbal: 10.0 * deg / 3600.0,
+    /// #     options: Options::default(),
+    /// # };
+    /// # let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
+    /// # // Holding still with the computed frame on n: the commanded increment is
+    /// # // the Earth rate over the period, the accelerometers read gravity (g).
+    /// # let (dtheta_c, dt) = (w_ie * 1.0, 1.0);
+    /// # let obs = Observation { accel_mean: gravity_n::<f64>(), gimbal: None };
+    /// // An update needs the period predicted first.
+    /// assert_eq!(f.update(&obs).unwrap_err(), rollcal::Error::NoPrediction);
+    /// let before = f.sigma();
+    /// f.predict(&dtheta_c, dt)?;
+    /// let innovation = f.update(&obs)?;
+    /// assert!(innovation.nis >= 0.0 && innovation.s[(0, 0)] > 0.0);
+    /// assert!(f.sigma()[0] < before[0]);
+    /// # Ok::<(), rollcal::Error>(())
+    /// ```
     pub fn update(&mut self, obs: &Observation<T>) -> Result<Innovation<T, Z>, Error> {
         let layout = Self::LAYOUT;
         if self.pending.get().is_none() {
