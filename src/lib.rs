@@ -20,9 +20,9 @@
 //! - [`instruments`]: installation models `G`, `A` (eqs. 6, 10, 11);
 //! - [`command`]: the computed frame and the commanded rate;
 //! - [`models`]: the seven configurations (paper §1.3);
-//! - [`ekf`]: the filter (docs/model.md §Estimator);
-//! - [`second_order`]: the analytic Hessian of the accelerometer model
-//!   (the filter's second-order terms);
+//! - [`ekf`]: the filter (docs/model.md §Estimator), with its U-D factored
+//!   covariance and the analytic Hessian of the accelerometer model (the
+//!   filter's second-order terms) as private modules;
 //! - [`estimator`]: the estimator of record, the multi-pass filter over a
 //!   whole run kept in a caller-provided [`estimator::SampleLog`];
 //! - [`observability`]: information matrix, null space and Cramér–Rao
@@ -53,15 +53,13 @@ pub mod calibrator;
 pub mod command;
 pub mod ekf;
 pub mod estimator;
-pub mod factor;
 pub mod geometry;
 pub mod instruments;
 pub mod models;
 pub mod observability;
 mod precision;
-pub mod second_order;
 pub mod session;
-pub mod trig;
+mod trig;
 pub mod wire;
 
 /// The README's Rust examples, compiled and run as doc-tests

@@ -8,12 +8,11 @@
 //!   installation angles, computed once per parameter value) against
 //!   `gyro_matrix`, `accel_matrix`, `dcm` and `d_dcm_times`;
 //! - `Layout::accel_output_and_jacobian` (one rotation per node) against
-//!   `accel_output` and `accel_jacobian` apart, for every configuration;
-//! - `Ud::covariance_entry` (one element of `P` from the factor) against
-//!   `Ud::covariance`;
-//! - `Ud::predicted_attitude_rows`, `Ud::covariance_entry_with_rows` and
-//!   `Ud::variances_with_rows` (`P` after the time update without forming
-//!   its factor) against `Ud::predict_attitude` on a copy.
+//!   `accel_output` and `accel_jacobian` apart, for every configuration.
+//!
+//! (The U-D factor's shared evaluations, `Ud::covariance_entry` and the
+//! time update's rows without forming the factor, are checked the same way
+//! by the unit tests of the crate's private `ekf::factor`.)
 //!
 //! Equality is exact: these replace their originals on the estimator's path,
 //! and `tools/compare-runs.sh` relies on the answers not moving at all.
@@ -28,7 +27,6 @@
 
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use rollcal::command::{CommandFrame, PeriodIn};
-use rollcal::factor::{AttitudeNoise, Ud};
 use rollcal::geometry::{
     d_dcm_times, d_gimbal_dcm_times, d_gimbal_rate_inverse_times, dcm, earth_rate_n, gimbal_dcm,
     gimbal_rate_inverse, gimbal_rate_matrix, gravity_n, EulerTrig, EARTH_RATE,
@@ -208,63 +206,4 @@ fn accel_output_and_jacobian_equal_the_two_apart() {
     accel_pair::<M3Ps, 18, 3>(5);
     accel_pair::<M4Pa, 12, 3>(6);
     accel_pair::<M4Ps, 15, 3>(7);
-}
-
-#[test]
-fn covariance_entry_equals_the_covariance() {
-    let mut s = 13;
-    let a = SMatrix::<f64, 18, 18>::from_fn(|_, _| lcg(&mut s));
-    let p = a * a.transpose() + SMatrix::<f64, 18, 18>::identity();
-    let ud = Ud::from_covariance(&p).expect("positive definite");
-    let full = ud.covariance();
-    for i in 0..18 {
-        for j in 0..18 {
-            assert_eq!(ud.covariance_entry(i, j), Some(full[(i, j)]), "({i}, {j})");
-        }
-    }
-    assert_eq!(ud.covariance_entry(18, 0), None);
-    assert_eq!(ud.covariance_entry(0, 18), None);
-}
-
-#[test]
-fn predicted_attitude_rows_equal_the_time_update() {
-    let mut s = 29;
-    let a = SMatrix::<f64, 18, 18>::from_fn(|_, _| lcg(&mut s));
-    let p = a * a.transpose() + SMatrix::<f64, 18, 18>::identity();
-    let ud = Ud::from_covariance(&p).expect("positive definite");
-    let phi_att = SMatrix::<f64, 3, 18>::from_fn(|r, c| {
-        let v = 0.1 * lcg(&mut s);
-        if r == c {
-            1.0 + v
-        } else {
-            v
-        }
-    });
-    let b = SMatrix::<f64, 3, 3>::from_fn(|_, _| lcg(&mut s));
-    let q = AttitudeNoise::from_map(&b).expect("finite");
-    let mut propagated = ud;
-    propagated
-        .predict_attitude(&phi_att, &q)
-        .expect("positive definite");
-    let rows = ud
-        .predicted_attitude_rows(&phi_att, &q)
-        .expect("positive definite");
-    // The factor is not modified, and the rows are the propagated ones.
-    assert_eq!(ud, Ud::from_covariance(&p).expect("positive definite"));
-    for r in 0..3 {
-        for c in r..18 {
-            assert_eq!(rows[(r, c)], propagated.packed()[(r, c)], "({r}, {c})");
-        }
-    }
-    for i in 0..18 {
-        for j in 0..18 {
-            assert_eq!(
-                ud.covariance_entry_with_rows(&rows, i, j),
-                propagated.covariance_entry(i, j),
-                "({i}, {j})"
-            );
-        }
-    }
-    assert_eq!(ud.covariance_entry_with_rows(&rows, 18, 0), None);
-    assert_eq!(ud.variances_with_rows(&rows), propagated.variances());
 }

@@ -21,9 +21,9 @@ import sys
 # (area, pattern on the demangled name with impl/trait wrappers removed),
 # first match wins.
 AREAS = [
-    ("filter (ekf, factor)", r"^rollcal::(ekf|factor)::"),
+    ("filter (ekf, factor)", r"^rollcal::(ekf::(?!second_order::)|factor::)"),
     ("model (models, geometry, command, second_order, trig)",
-     r"^rollcal::(models|geometry|command|second_order|trig|instruments|precision)::"),
+     r"^rollcal::(models|geometry|command|ekf::second_order|second_order|trig|instruments|precision)::"),
     ("multi-pass estimator, calibrator", r"^rollcal::(estimator|calibrator)::"),
     ("wire protocol, session (incl. serde, postcard, heapless)",
      r"^(rollcal::(wire|session)|postcard|serde|serde_core|heapless)::"),

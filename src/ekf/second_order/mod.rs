@@ -21,11 +21,20 @@
 //! noise): with the Hessians restricted to those states, `3 m³`
 //! multiplications (`m` = 6, 9 or 12) instead of 24 Jacobian evaluations and
 //! `3 N³` of central differences.
+//!
+//! Files: `platform` (`q` and its derivatives for each attitude kind),
+//! `hessian` (the Hessian blocks and the traces); this one holds the
+//! public entry points on [`Layout`] and which states are involved.
+
+mod hessian;
+mod platform;
 
 use nalgebra::{Matrix3, RealField, SMatrix, Vector3};
 
-use crate::geometry::{d2_dcm_times, d_dcm_times, dcm, gimbal_dcm_partials, skew};
+use crate::geometry::d2_dcm_times;
 use crate::models::{AttitudeKind, Environment, InstallationMatrices, Layout, ATT};
+use hessian::Part;
+use platform::Platform;
 
 /// `½ tr(∇²h_a P)` (g) and `½ tr(∇²h_a P ∇²h_b P)` (g²) of the
 /// accelerometer output `h` of [`Layout::accel_output`] at the state whose
@@ -38,10 +47,6 @@ pub struct AccelSecondOrder<T: RealField + Copy> {
     /// `½ tr(∇²h_a P ∇²h_b P)` (g²), symmetric.
     pub cov: Matrix3<T>,
 }
-
-/// A 3×3 block of second derivatives of `h`: element `k` is the matrix
-/// whose column `l` is `∂²h/∂x_{i+k} ∂x_{j+l}`.
-type Block<T> = [Matrix3<T>; 3];
 
 /// Where [`Layout::accel_second_order_from`] reads the covariance of the
 /// at most 12 states the accelerometer output depends on.
@@ -59,297 +64,6 @@ pub struct Elements<F>(pub F);
 impl<T: RealField + Copy, F: Fn(usize, usize) -> Option<T>> AccelCovariance<T> for Elements<F> {
     fn fill<const R: usize>(&self, layout: &Layout, p_r: &mut SMatrix<T, R, R>) {
         layout.accel_covariance(&self.0, p_r);
-    }
-}
-
-/// The blocks of states `h` depends on: attitude, `θaC`, `θaT`, `λ`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Part {
-    Att,
-    Ac,
-    At,
-    Lam,
-}
-
-/// `q` and its derivatives with respect to the attitude and `λ`.
-struct Platform<T: RealField + Copy> {
-    q: Vector3<T>,
-    /// `∂q/∂att`, `∂q/∂λ`.
-    d_att: Matrix3<T>,
-    d_lam: Matrix3<T>,
-    /// Second derivatives (see [`Block`]).
-    att_att: Block<T>,
-    att_lam: Block<T>,
-    lam_lam: Block<T>,
-}
-
-fn zero_block<T: RealField + Copy>() -> Block<T> {
-    [Matrix3::zeros(); 3]
-}
-
-fn map_block<T: RealField + Copy>(b: &Block<T>, f: impl Fn(&Matrix3<T>) -> Matrix3<T>) -> Block<T> {
-    let [b0, b1, b2] = b;
-    [f(b0), f(b1), f(b2)]
-}
-
-/// Column `k` of `m` (the last one for `k > 2`).
-fn col<T: RealField + Copy>(m: &Matrix3<T>, k: usize) -> Vector3<T> {
-    let [c0, c1, c2] = m.data.0;
-    match k {
-        0 => c0.into(),
-        1 => c1.into(),
-        _ => c2.into(),
-    }
-}
-
-impl<T: RealField + Copy> Platform<T> {
-    /// `q` and its derivatives for `layout`'s attitude kind. Inlined, each
-    /// kind out of line: with the layout a constant (the filter's) only its
-    /// kind's code is linked, and the temporaries are not in the frame that
-    /// keeps the result under the Hessians (firmware stack).
-    #[inline(always)]
-    fn new(
-        layout: &Layout,
-        env: &Environment<T>,
-        m: &InstallationMatrices<T>,
-        att: &Vector3<T>,
-        c_cn: &Matrix3<T>,
-    ) -> Self {
-        match layout.attitude {
-            AttitudeKind::Misalignment => Self::misalignment(env, att, c_cn),
-            AttitudeKind::Attitude => Self::gimbals(env, m, att, None),
-            AttitudeKind::Gimbal => Self::gimbals(env, m, att, Some(layout.lam().is_some())),
-        }
-    }
-
-    /// M1: `q = R(ψ) C^c_n f^n`.
-    #[inline(never)]
-    fn misalignment(env: &Environment<T>, att: &Vector3<T>, c_cn: &Matrix3<T>) -> Self {
-        let w = c_cn * env.gravity_n;
-        Self {
-            q: dcm(att) * w,
-            d_att: d_dcm_times(att, &w),
-            d_lam: Matrix3::zeros(),
-            att_att: d2_dcm_times(att, &w),
-            att_lam: zero_block(),
-            lam_lam: zero_block(),
-        }
-    }
-
-    /// M2–M4: `q = C(θ) u`, `u = R(λ) f^n` when `gimbal` is `Some` (the
-    /// gimbal angles are the attitude; `Some(true)`: `λ` is a state), else
-    /// `u = f^n`.
-    #[inline(never)]
-    fn gimbals(
-        env: &Environment<T>,
-        m: &InstallationMatrices<T>,
-        att: &Vector3<T>,
-        gimbal: Option<bool>,
-    ) -> Self {
-        let g = env.gravity_n;
-        let e = gimbal_dcm_partials(att);
-        let (u, base) = match gimbal {
-            Some(lam) => (m.c_rn * g, lam),
-            None => (g, false),
-        };
-        let [d0, d1, d2] = e.d;
-        let [[a00, a01, a02], [_, a11, a12], [_, _, a22]] = e.d2;
-        let d_att = Matrix3::from_columns(&[d0 * u, d1 * u, d2 * u]);
-        let att_att = [
-            Matrix3::from_columns(&[a00 * u, a01 * u, a02 * u]),
-            Matrix3::from_columns(&[a01 * u, a11 * u, a12 * u]),
-            Matrix3::from_columns(&[a02 * u, a12 * u, a22 * u]),
-        ];
-        let (d_lam, att_lam, lam_lam) = if base {
-            let lam = &m.params.lambda;
-            let d1_lam = InstallationMatrices::d_rotation_times(&m.c_rn, &m.jr_lambda, &g);
-            (
-                e.c * d1_lam,
-                [d0 * d1_lam, d1 * d1_lam, d2 * d1_lam],
-                map_block(&d2_dcm_times(lam, &g), |b| e.c * b),
-            )
-        } else {
-            (Matrix3::zeros(), zero_block(), zero_block())
-        };
-        Self {
-            q: e.c * u,
-            d_att,
-            d_lam,
-            att_att,
-            att_lam,
-            lam_lam,
-        }
-    }
-}
-
-/// `a ← (a + aᵀ) / 2` in place (`half` = ½): the diagonal blocks of a
-/// Hessian are symmetric only up to rounding.
-fn symmetrise<T: RealField + Copy, const R: usize>(a: &mut SMatrix<T, R, R>, half: T) {
-    for c in 0..R {
-        for r in (c + 1)..R {
-            if let (Some(&x), Some(&y)) = (a.get((r, c)), a.get((c, r))) {
-                let v = (x + y) * half;
-                if let Some(e) = a.get_mut((r, c)) {
-                    *e = v;
-                }
-                if let Some(e) = a.get_mut((c, r)) {
-                    *e = v;
-                }
-            }
-        }
-    }
-}
-
-/// `a ← a b` for square `R×R` matrices with `b` symmetric, in place, one
-/// row of `a` at a time (each row of the product needs only the same row of
-/// `a`): one row of temporaries instead of an `R×R` product. The row is
-/// accumulated from the columns of `b`, which equal its rows (contiguous
-/// and vectorisable, where `b`'s rows are strided); every element is still
-/// `Σ_k a_ik b_kj` summed over ascending `k` from zero, as nalgebra's
-/// product would.
-fn mul_rows_by_symmetric_in_place<T: RealField + Copy, const R: usize>(
-    a: &mut SMatrix<T, R, R>,
-    b: &SMatrix<T, R, R>,
-) {
-    for r in 0..R {
-        let mut row = [T::zero(); R];
-        for (k, b_k) in b.data.0.iter().enumerate() {
-            let Some(&a_rk) = a.get((r, k)) else {
-                continue;
-            };
-            // b_k is column k of b, equal to its row k: b_kj for every j.
-            for (o, b_kj) in row.iter_mut().zip(b_k.iter()) {
-                *o += a_rk * *b_kj;
-            }
-        }
-        for (c, v) in row.iter().enumerate() {
-            if let Some(e) = a.get_mut((r, c)) {
-                *e = *v;
-            }
-        }
-    }
-}
-
-/// `E_k = ∂L(t)/∂t_k` times `m`.
-fn e_times<T: RealField + Copy>(k: usize, m: &Matrix3<T>) -> Matrix3<T> {
-    let mut e = Matrix3::zeros();
-    let (r, c) = match k {
-        0 => (1, 0),
-        1 => (2, 0),
-        _ => (2, 1),
-    };
-    if let Some(v) = e.get_mut((r, c)) {
-        *v = T::one();
-    }
-    e * m
-}
-
-/// The pieces every block is made of.
-struct Pieces<'a, T: RealField + Copy> {
-    /// `I + L(θaT)`.
-    unit_t: &'a Matrix3<T>,
-    /// `R(−θaC)`.
-    r_c: &'a Matrix3<T>,
-    /// `J_r(−θaC)`.
-    j_c: &'a Matrix3<T>,
-    platform: &'a Platform<T>,
-    /// `∂²(R(−θaC) q)/∂θaC²` ([`d2_dcm_times`] at `−θaC`), when `θaC` is
-    /// a state.
-    ac_ac: &'a Option<Block<T>>,
-}
-
-impl<T: RealField + Copy> Pieces<'_, T> {
-    /// `∂(R(−θaC) q)/∂part` (3×3).
-    fn f_jacobian(&self, part: Part) -> Matrix3<T> {
-        match part {
-            Part::Att => self.r_c * self.platform.d_att,
-            Part::Lam => self.r_c * self.platform.d_lam,
-            // ∂(R(−θ) q)/∂θ = −∂(R(φ) q)/∂φ at φ = −θ.
-            Part::Ac => -(skew(&(self.r_c * self.platform.q)) * *self.j_c),
-            Part::At => Matrix3::zeros(),
-        }
-    }
-
-    /// `∂q/∂part` for the attitude and `λ`.
-    fn q_jacobian(&self, part: Part) -> Matrix3<T> {
-        match part {
-            Part::Att => self.platform.d_att,
-            Part::Lam => self.platform.d_lam,
-            _ => Matrix3::zeros(),
-        }
-    }
-
-    /// Writes the block `∂²h/∂(part i)_k ∂(part j)_l` ([`Block`]) into the
-    /// three Hessians at local rows `li..li + 3`, columns `lj..lj + 3`, and
-    /// mirrored. A pair the formulas take in the other order is the
-    /// [`Pieces::canonical`] block `(j, i)` written at `(lj, li)` (and
-    /// mirrored): `∂²h/∂x_i∂x_j = ∂²h/∂x_j∂x_i`. Out of line: the block's
-    /// temporaries are not in the frame that holds the Hessians (firmware
-    /// stack).
-    #[inline(never)]
-    fn write_block<const R: usize>(
-        &self,
-        i: Part,
-        j: Part,
-        li: usize,
-        lj: usize,
-        hess: &mut [SMatrix<T, R, R>; 3],
-    ) {
-        let mirrored = matches!(
-            (i, j),
-            (Part::Att | Part::Lam, Part::Ac)
-                | (Part::Att | Part::Ac | Part::Lam, Part::At)
-                | (Part::Lam, Part::Att)
-        );
-        let (i, j, li, lj) = if mirrored {
-            (j, i, lj, li)
-        } else {
-            (i, j, li, lj)
-        };
-        for k in 0..3 {
-            let mk = self.canonical(i, j, k);
-            for (l, v) in mk.data.0.iter().enumerate() {
-                for (ha, va) in hess.iter_mut().zip(v.iter()) {
-                    if let Some(e) = ha.get_mut((li + k, lj + l)) {
-                        *e = *va;
-                    }
-                    if let Some(e) = ha.get_mut((lj + l, li + k)) {
-                        *e = *va;
-                    }
-                }
-            }
-        }
-    }
-
-    /// Element `k` of the block `∂²h/∂(part i)_k ∂(part j)_l` ([`Block`])
-    /// for the pairs in the order the formulas take them (see
-    /// [`Pieces::write_block`]). One matrix at a time, not the block: this
-    /// is the deepest frame of a pass-1 filter step (firmware stack).
-    fn canonical(&self, i: Part, j: Part, k: usize) -> Matrix3<T> {
-        let pl = &self.platform;
-        let of = |b: &Block<T>| match b {
-            [b0, _, _] if k == 0 => *b0,
-            [_, b1, _] if k == 1 => *b1,
-            [_, _, b2] => *b2,
-        };
-        match (i, j) {
-            (Part::Att, Part::Att) => self.unit_t * self.r_c * of(&pl.att_att),
-            (Part::Att, Part::Lam) => self.unit_t * self.r_c * of(&pl.att_lam),
-            (Part::Lam, Part::Lam) => self.unit_t * self.r_c * of(&pl.lam_lam),
-            (Part::Ac, Part::Ac) => match self.ac_ac {
-                Some(b) => self.unit_t * of(b),
-                // (Not reached: `ac_ac` is there when θaC is a state.)
-                None => Matrix3::zeros(),
-            },
-            (Part::Ac, y @ (Part::Att | Part::Lam)) => {
-                let ry = self.r_c * self.q_jacobian(y);
-                self.unit_t * skew(&col(self.j_c, k)) * ry
-            }
-            (Part::At, Part::At) => Matrix3::zeros(),
-            (Part::At, other) => e_times(k, &self.f_jacobian(other)),
-            // Mirrored pairs (see `write_block`).
-            _ => Matrix3::zeros(),
-        }
     }
 }
 
@@ -401,7 +115,7 @@ impl Layout {
     /// [`Layout::accel_second_order`] with the covariance given by its
     /// elements, `p(i, j) = P_ij` (rad²; `None` outside the state): only
     /// those of the at most 12 states the accelerometer output depends on
-    /// are read (e.g. from the U-D factor, [`crate::factor::Ud::covariance_entry`],
+    /// are read (e.g. from the filter's U-D factor, element by element,
     /// without forming `P`).
     pub fn accel_second_order_with<T: RealField + Copy>(
         &self,
@@ -492,67 +206,6 @@ impl Layout {
         let at = at.get(..count).unwrap_or(&[]);
         self.second_order_terms::<T, R>(m, &platform, &ac_ac, &p_r, at)
     }
-
-    /// [`Layout::accel_second_order`] with the Hessians on the `R` states of
-    /// `at` ([`Layout::accel_blocks`]), from the platform's `q` and its
-    /// derivatives, and the covariance `p_r` of those states. Out of line:
-    /// the three sizes' frames would otherwise add up in
-    /// [`Layout::accel_second_order_from`]'s.
-    #[inline(never)]
-    fn second_order_terms<T: RealField + Copy, const R: usize>(
-        &self,
-        m: &InstallationMatrices<T>,
-        platform: &Platform<T>,
-        ac_ac: &Option<Block<T>>,
-        p_r: &SMatrix<T, R, R>,
-        at: &[(Part, usize, usize)],
-    ) -> AccelSecondOrder<T> {
-        let half: T = nalgebra::convert(0.5);
-        let pieces = Pieces {
-            unit_t: &m.unit_a_t,
-            r_c: &m.r_a_c,
-            j_c: &m.jr_a_c,
-            platform,
-            ac_ac,
-        };
-        let mut hess = [SMatrix::<T, R, R>::zeros(); 3];
-        for (n, &(pi, li, _)) in at.iter().enumerate() {
-            for &(pj, lj, _) in at.iter().skip(n) {
-                pieces.write_block(pi, pj, li, lj, &mut hess);
-            }
-        }
-        // ∇²h_a P in place of each Hessian, row by row (one row of R
-        // temporaries: this frame is on the deepest path of a filter step).
-        let mut mean = Vector3::zeros();
-        for (ha, mu) in hess.iter_mut().zip(mean.iter_mut()) {
-            symmetrise(ha, half);
-            mul_rows_by_symmetric_in_place(ha, p_r);
-            *mu = ha.trace() * half;
-        }
-        let hp = &hess;
-        let mut cov = Matrix3::zeros();
-        for (a, ha) in hp.iter().enumerate() {
-            for (b, hb) in hp.iter().enumerate().skip(a) {
-                // tr(A B) = Σ_ij A_ij B_ji, column by column of A.
-                let mut t = T::zero();
-                for (c, ca) in ha.data.0.iter().enumerate() {
-                    for (r, x) in ca.iter().enumerate() {
-                        if let Some(y) = hb.data.0.get(r).and_then(|col| col.get(c)) {
-                            t += *x * *y;
-                        }
-                    }
-                }
-                t *= half;
-                if let Some(v) = cov.get_mut((a, b)) {
-                    *v = t;
-                }
-                if let Some(v) = cov.get_mut((b, a)) {
-                    *v = t;
-                }
-            }
-        }
-        AccelSecondOrder { mean, cov }
-    }
 }
 
 #[cfg(test)]
@@ -608,7 +261,7 @@ mod tests {
                 || (layout.at()..layout.at() + 3).contains(&j)
                 || layout.lam().is_some_and(|i| (i..i + 3).contains(&j))
         };
-        let (mean, cov) = crate::ekf::hessian_terms(&x, &p, relevant, |xp| {
+        let (mean, cov) = crate::ekf::predict::hessian_terms(&x, &p, relevant, |xp| {
             Some(layout.accel_jacobian(&env, &layout.matrices(xp), &layout.attitude(xp), &c_cn))
         })
         .ok_or("central differences of the Jacobian failed at the test point")?;

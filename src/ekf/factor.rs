@@ -126,7 +126,8 @@ impl<T: RealField + Copy> AttitudeNoise<T> {
         Some(Self { b, w })
     }
 
-    /// `Q = B diag(w) Bᵀ` (rad²).
+    /// `Q = B diag(w) Bᵀ` (rad²; the tests' reference).
+    #[cfg(test)]
     pub fn covariance(&self) -> Matrix3<T> {
         self.b * Matrix3::from_diagonal(&nalgebra::Vector3::from(self.w)) * self.b.transpose()
     }
@@ -224,24 +225,15 @@ fn attitude_block<T: RealField + Copy>(
 }
 
 impl<T: RealField + Copy, const N: usize> Ud<T, N> {
-    /// The factor of a diagonal covariance with these variances (rad²).
-    /// `None` unless every variance is finite and strictly positive.
-    pub fn from_variances(variances: &SVector<T, N>) -> Option<Self> {
-        if variances.iter().any(|v| !v.is_finite() || *v <= T::zero()) {
-            return None;
-        }
-        Some(Self::diagonal(variances))
-    }
-
-    /// [`Ud::from_variances`] of variances the caller has checked (finite,
-    /// strictly positive).
+    /// The factor of a diagonal covariance with these variances (rad²),
+    /// which the caller has checked (finite, strictly positive).
     pub(crate) fn diagonal(variances: &SVector<T, N>) -> Self {
         Self {
             m: SMatrix::from_diagonal(variances),
         }
     }
 
-    /// Makes this factor [`Ud::from_variances`]'s of `variances`, in
+    /// Makes this factor [`Ud::diagonal`]'s of `variances`, in
     /// place; `false` (and the factor unchanged) unless every variance is
     /// finite and strictly positive.
     pub fn set_diagonal(&mut self, variances: &SVector<T, N>) -> bool {
@@ -257,9 +249,9 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         true
     }
 
-    /// Makes this factor [`Ud::from_packed`]'s of the packed form given by
-    /// its `N·N` entries row by row in f64 (a checkpoint's layout), rounded
-    /// to `T`, in place; `false` (and the factor unchanged) unless there
+    /// Makes this factor the one whose packed form ([`Ud::packed`]; the
+    /// part below the diagonal ignored) is given by its `N·N` entries row
+    /// by row in f64 (a checkpoint's layout), rounded to `T`, in place; `false` (and the factor unchanged) unless there
     /// are `N·N` entries, all finite in `T`, and `D` is strictly positive.
     pub fn set_packed_rows(&mut self, rows: &[f64]) -> bool {
         let t = |v: f64| -> T { nalgebra::convert(v) };
@@ -278,23 +270,10 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         true
     }
 
-    /// A factor from its packed form ([`Ud::packed`]); the part below the
-    /// diagonal is ignored. `None` unless every entry is finite and `D` is
-    /// strictly positive.
-    pub fn from_packed(packed: &SMatrix<T, N, N>) -> Option<Self> {
-        if packed.iter().any(|v| !v.is_finite())
-            || packed.diagonal().iter().any(|v| *v <= T::zero())
-        {
-            return None;
-        }
-        Some(Self {
-            m: packed.upper_triangle(),
-        })
-    }
-
     /// The factor of a symmetric positive definite covariance (rad²), by the
     /// backward modified Cholesky decomposition; `None` if `p` is not
-    /// positive definite or not finite.
+    /// positive definite or not finite (the tests' reference).
+    #[cfg(test)]
     pub fn from_covariance(p: &SMatrix<T, N, N>) -> Option<Self> {
         backward_ud(p, None).map(|m| Self { m })
     }
@@ -748,5 +727,77 @@ mod tests {
         }
         let mut ud = before;
         assert!(ud.update(&ok, 1.0).is_some());
+    }
+
+    /// A deterministic sequence in (−1, 1).
+    fn lcg(state: &mut u64) -> f64 {
+        *state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        ((*state >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+    }
+
+    /// `Ud::covariance_entry` (one element of `P` from the factor, shared by
+    /// the second-order terms) gives `Ud::covariance`'s element bit for bit.
+    #[test]
+    fn covariance_entry_equals_the_covariance() {
+        let mut s = 13;
+        let a = SMatrix::<f64, 18, 18>::from_fn(|_, _| lcg(&mut s));
+        let p = a * a.transpose() + SMatrix::<f64, 18, 18>::identity();
+        let ud = Ud::from_covariance(&p).expect("positive definite");
+        let full = ud.covariance();
+        for i in 0..18 {
+            for j in 0..18 {
+                assert_eq!(ud.covariance_entry(i, j), Some(full[(i, j)]), "({i}, {j})");
+            }
+        }
+        assert_eq!(ud.covariance_entry(18, 0), None);
+        assert_eq!(ud.covariance_entry(0, 18), None);
+    }
+
+    /// `Ud::predicted_attitude_rows`, `Ud::covariance_entry_with_rows` and
+    /// `Ud::variances_with_rows` (`P` after the time update without forming
+    /// its factor) give `Ud::predict_attitude`'s on a copy, bit for bit.
+    #[test]
+    fn predicted_attitude_rows_equal_the_time_update() {
+        let mut s = 29;
+        let a = SMatrix::<f64, 18, 18>::from_fn(|_, _| lcg(&mut s));
+        let p = a * a.transpose() + SMatrix::<f64, 18, 18>::identity();
+        let ud = Ud::from_covariance(&p).expect("positive definite");
+        let phi_att = SMatrix::<f64, 3, 18>::from_fn(|r, c| {
+            let v = 0.1 * lcg(&mut s);
+            if r == c {
+                1.0 + v
+            } else {
+                v
+            }
+        });
+        let b = SMatrix::<f64, 3, 3>::from_fn(|_, _| lcg(&mut s));
+        let q = AttitudeNoise::from_map(&b).expect("finite");
+        let mut propagated = ud;
+        propagated
+            .predict_attitude(&phi_att, &q)
+            .expect("positive definite");
+        let rows = ud
+            .predicted_attitude_rows(&phi_att, &q)
+            .expect("positive definite");
+        // The factor is not modified, and the rows are the propagated ones.
+        assert_eq!(ud, Ud::from_covariance(&p).expect("positive definite"));
+        for r in 0..3 {
+            for c in r..18 {
+                assert_eq!(rows[(r, c)], propagated.packed()[(r, c)], "({r}, {c})");
+            }
+        }
+        for i in 0..18 {
+            for j in 0..18 {
+                assert_eq!(
+                    ud.covariance_entry_with_rows(&rows, i, j),
+                    propagated.covariance_entry(i, j),
+                    "({i}, {j})"
+                );
+            }
+        }
+        assert_eq!(ud.covariance_entry_with_rows(&rows, 18, 0), None);
+        assert_eq!(ud.variances_with_rows(&rows), propagated.variances());
     }
 }

@@ -1,0 +1,192 @@
+//! Making a filter: [`Filter::new`] from the configuration and the prior,
+//! and [`Filter::restart`] in place, with the checks of their inputs.
+
+use core::marker::PhantomData;
+
+use nalgebra::{RealField, SVector};
+
+use super::cache::MatricesCache;
+use super::factor::Ud;
+use super::pending::PendingSlot;
+use super::{all_finite, env_t, Error, Filter, FilterConfig};
+use crate::command::CommandFrame;
+use crate::models::Model;
+
+impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter<T, M, N, Z> {
+    /// A filter with initial estimate `x0` (rad) and prior standard
+    /// deviations `sigma0` (rad), the computed frame aligned with n.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// # use nalgebra::{SVector, Vector3};
+    /// # use rollcal::ekf::{FilterConfig, M1PaFilter, Observation, Options};
+    /// # use rollcal::geometry::{earth_rate_n, gravity_n, EARTH_RATE};
+    /// # use rollcal::models::Environment;
+    /// # let deg = core::f64::consts::PI / 180.0;
+    /// # let w_ie = earth_rate_n(EARTH_RATE, 34.25 * deg);
+    /// # let config = FilterConfig::<f64> {
+    /// #     env: Environment { earth_rate_n: w_ie, gravity_n: gravity_n() },
+    /// #     sigma_accel: 1e-6,
+    /// #     sigma_gyro: 0.1 * deg / 3600.0,
+    /// #     sigma_gimbal: 10.0 * deg / 3600.0,
+    /// #     options: Options::default(),
+    /// # };
+    /// # let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
+    /// # // Holding still with the computed frame on n: the commanded increment is
+    /// # // the Earth rate over the period, the accelerometers read gravity (g).
+    /// # let (dtheta_c, dt) = (w_ie * 1.0, 1.0);
+    /// # let obs = Observation { accel_mean: gravity_n::<f64>(), gimbal: None };
+    /// // An M1-pa filter from its configuration and prior: zero initial estimate,
+    /// // 1° on each of its 12 states.
+    /// let f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
+    /// assert_eq!(f.state().len(), 12);
+    /// assert_eq!(f.sigma(), SVector::<f64, 12>::repeat(deg));
+    /// assert_eq!(f.updates(), 0);
+    /// // A prior σ that is not strictly positive is refused.
+    /// assert_eq!(
+    ///     M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::zeros()).unwrap_err(),
+    ///     rollcal::Error::CovarianceNotPositiveDefinite
+    /// );
+    /// # Ok::<(), rollcal::Error>(())
+    /// ```
+    // Not inlined: a caller that holds its filter in its own frame (the
+    // firmware's synthetic run) then holds one `Result`, not the
+    // constructor's temporaries too.
+    #[inline(never)]
+    pub fn new(
+        config: FilterConfig<T>,
+        x0: SVector<f64, N>,
+        sigma0: SVector<T, N>,
+    ) -> Result<Self, Error> {
+        let variance = Self::prior_variance(&config, &x0, &sigma0)?;
+        Ok(Self::with_prior_variance(config, x0, &variance))
+    }
+
+    /// [`Filter::new`] from the prior variances `variance` that
+    /// [`Filter::prior_variance`] returned for `config`, `x0`: it cannot
+    /// fail, so a caller can build the filter straight into its place (the
+    /// session's calibrator slot) instead of out of a `Result`.
+    #[inline(always)]
+    pub(crate) fn with_prior_variance(
+        config: FilterConfig<T>,
+        x0: SVector<f64, N>,
+        variance: &SVector<T, N>,
+    ) -> Self {
+        Self {
+            x: x0,
+            ud: Ud::diagonal(variance),
+            command: CommandFrame::aligned(config.env.earth_rate_n),
+            config,
+            pending: PendingSlot::empty(),
+            reference: None,
+            updates: 0,
+            gated_run: 0,
+            gate_open: false,
+            matrices: MatricesCache::new(Self::LAYOUT.installation(&x0)),
+            env_t: env_t(&config.env),
+            _model: PhantomData,
+        }
+    }
+
+    /// Makes this filter equal to `Filter::new(config, x0, sigma0)`, in
+    /// place (no filter-sized temporary: the estimator's passes restart one
+    /// filter, [`crate::estimator::estimate_in`]). On error the filter is
+    /// unchanged.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// # use nalgebra::{SVector, Vector3};
+    /// # use rollcal::ekf::{FilterConfig, M1PaFilter, Observation, Options};
+    /// # use rollcal::geometry::{earth_rate_n, gravity_n, EARTH_RATE};
+    /// # use rollcal::models::Environment;
+    /// # let deg = core::f64::consts::PI / 180.0;
+    /// # let w_ie = earth_rate_n(EARTH_RATE, 34.25 * deg);
+    /// # let config = FilterConfig::<f64> {
+    /// #     env: Environment { earth_rate_n: w_ie, gravity_n: gravity_n() },
+    /// #     sigma_accel: 1e-6,
+    /// #     sigma_gyro: 0.1 * deg / 3600.0,
+    /// #     sigma_gimbal: 10.0 * deg / 3600.0,
+    /// #     options: Options::default(),
+    /// # };
+    /// # let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
+    /// # // Holding still with the computed frame on n: the commanded increment is
+    /// # // the Earth rate over the period, the accelerometers read gravity (g).
+    /// # let (dtheta_c, dt) = (w_ie * 1.0, 1.0);
+    /// # let obs = Observation { accel_mean: gravity_n::<f64>(), gimbal: None };
+    /// f.step(&dtheta_c, dt, &obs)?;
+    /// // Back to the prior, in place: the same filter as a new one.
+    /// f.restart(config, SVector::zeros(), SVector::repeat(deg))?;
+    /// assert_eq!(f, M1PaFilter::new(config, SVector::zeros(), SVector::repeat(deg))?);
+    /// # Ok::<(), rollcal::Error>(())
+    /// ```
+    // Not inlined: once per pass, and its code once per configuration.
+    #[inline(never)]
+    pub fn restart(
+        &mut self,
+        config: FilterConfig<T>,
+        x0: SVector<f64, N>,
+        sigma0: SVector<T, N>,
+    ) -> Result<(), Error> {
+        let variance = Self::prior_variance(&config, &x0, &sigma0)?;
+        if !self.ud.set_diagonal(&variance) {
+            return Err(Error::NonFiniteInput);
+        }
+        self.x = x0;
+        self.command = CommandFrame::aligned(config.env.earth_rate_n);
+        self.env_t = env_t(&config.env);
+        self.config = config;
+        self.pending.clear();
+        self.reference = None;
+        self.updates = 0;
+        self.gated_run = 0;
+        self.gate_open = false;
+        self.matrices.fill(Self::LAYOUT.installation(&x0));
+        Ok(())
+    }
+
+    /// The prior variances `σ0²` (rad²) of [`Filter::new`] after its
+    /// checks of the inputs.
+    pub(crate) fn prior_variance(
+        config: &FilterConfig<T>,
+        x0: &SVector<f64, N>,
+        sigma0: &SVector<T, N>,
+    ) -> Result<SVector<T, N>, Error> {
+        #[allow(clippy::let_unit_value)]
+        let () = Self::SIZES_AGREE;
+        let inputs = [config.sigma_accel, config.sigma_gyro, config.sigma_gimbal];
+        if !all_finite(sigma0.iter().copied().chain(inputs))
+            || !all_finite(x0.iter().copied())
+            || !all_finite(
+                config
+                    .env
+                    .earth_rate_n
+                    .iter()
+                    .chain(config.env.gravity_n.iter())
+                    .copied(),
+            )
+            || !config.options.nis_gate.is_finite()
+        {
+            return Err(Error::NonFiniteInput);
+        }
+        if !config.options.is_built() {
+            return Err(Error::UnsupportedOption);
+        }
+        if sigma0.iter().any(|s| *s <= T::zero()) || config.sigma_accel <= T::zero() {
+            return Err(Error::CovarianceNotPositiveDefinite);
+        }
+        // A finite prior σ whose variance overflows (σ > 1.3e154 in f64,
+        // 1.8e19 in f32) would give an infinite covariance, from which no
+        // checkpoint of the filter could be restored (`from_parts`).
+        let variance = sigma0.component_mul(sigma0);
+        // (Also one that underflows to zero: no factor has a zero variance.)
+        if !all_finite(variance.iter().copied()) || variance.iter().any(|v| *v <= T::zero()) {
+            return Err(Error::NonFiniteInput);
+        }
+        if Self::LAYOUT.gimbal_obs && config.sigma_gimbal <= T::zero() {
+            return Err(Error::CovarianceNotPositiveDefinite);
+        }
+        Ok(variance)
+    }
+}

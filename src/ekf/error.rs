@@ -1,0 +1,54 @@
+//! The filter's errors ([`Error`]): what a step, a construction or a
+//! restore refuses, and why.
+
+/// Errors of the estimator.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum Error {
+    /// An input (increment, period, measurement, option) is NaN or infinite.
+    NonFiniteInput,
+    /// The period is not strictly positive.
+    InvalidPeriod,
+    /// The configuration observes gimbal angles but none were given.
+    MissingGimbal,
+    /// The Euler-angle attitude reached gimbal lock (`β = ±90°`).
+    GimbalLock,
+    /// The innovation covariance `S` is not positive definite.
+    InnovationNotPositiveDefinite,
+    /// The state covariance `P` lost positive definiteness.
+    CovarianceNotPositiveDefinite,
+    /// The propagated or updated state is not finite.
+    NonFiniteState,
+    /// The innovation failed the NIS gate; the state was left untouched.
+    Gated,
+    /// `update` was called without a preceding `predict`.
+    NoPrediction,
+    /// The options ask for a branch this build leaves out: the second-order
+    /// dynamics or the iterated update without the cargo feature
+    /// `research-options` (a lean firmware image; [`Options::is_built`](super::Options::is_built)).
+    UnsupportedOption,
+}
+
+impl core::fmt::Display for Error {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Error::NonFiniteInput => "input is not finite",
+            Error::InvalidPeriod => "period is not strictly positive",
+            Error::MissingGimbal => "configuration observes gimbal angles but none were given",
+            Error::GimbalLock => "attitude reached gimbal lock (beta = +-90 deg)",
+            Error::InnovationNotPositiveDefinite => {
+                "innovation covariance is not positive definite"
+            }
+            Error::CovarianceNotPositiveDefinite => "state covariance is not positive definite",
+            Error::NonFiniteState => "state is not finite",
+            Error::Gated => "innovation rejected by the NIS gate",
+            Error::NoPrediction => "update without a preceding predict",
+            Error::UnsupportedOption => {
+                "option not in this build (second-order dynamics or iterated update: cargo feature research-options)"
+            }
+        })
+    }
+}
+
+impl core::error::Error for Error {}

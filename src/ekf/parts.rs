@@ -1,0 +1,193 @@
+//! The filter between two periods as a checkpoint saves it ([`Parts`]), and
+//! the filter rebuilt from them ([`Filter::from_parts`],
+//! [`Filter::set_parts`]), bit-identically.
+
+use nalgebra::{Matrix3, RealField, SMatrix, SVector};
+
+use super::{all_finite, env_t, Error, Filter, FilterConfig};
+use crate::command::CommandFrame;
+use crate::models::Model;
+use crate::precision::to_f64;
+
+/// The parts of a filter between two periods, as a checkpoint saves them
+/// ([`Filter::set_parts`], [`Filter::from_parts`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Parts<'a, const N: usize> {
+    /// State (rad; the configuration's state order).
+    pub x: &'a SVector<f64, N>,
+    /// The packed U-D factor of the covariance (rad², [`Filter::factor`]),
+    /// its `N·N` entries row by row in f64 (rounded to `T`); the part below
+    /// the diagonal is ignored.
+    pub factor: &'a [f64],
+    /// The computed frame `C^c_n` at the start of the next period.
+    pub c_cn: &'a Matrix3<f64>,
+    /// The nominal of the linearised mode (rad), `None` for the extended
+    /// filter.
+    pub nominal: Option<&'a SVector<f64, N>>,
+    /// Updates applied so far.
+    pub updates: u32,
+    /// The NIS gate's state ([`Filter::gate_state`]).
+    pub gate_state: (u32, bool),
+}
+
+impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter<T, M, N, Z> {
+    /// Rebuilds a filter between two periods from its parts, as saved by a
+    /// checkpoint ([`crate::calibrator::Calibrator::checkpoint`]): state `x`
+    /// (rad), the packed U-D factor of its covariance ([`Filter::factor`],
+    /// rad², used as given, so a restored filter continues
+    /// bit-identically), computed frame `c_cn` (`C^c_n`), nominal
+    /// of the linearised mode, the update counter and the state of the NIS
+    /// gate ([`Filter::gate_state`]). The Earth rate of the computed frame is
+    /// the one of `config`.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// # use nalgebra::{SVector, Vector3};
+    /// # use rollcal::ekf::{FilterConfig, M1PaFilter, Observation, Options};
+    /// # use rollcal::geometry::{earth_rate_n, gravity_n, EARTH_RATE};
+    /// # use rollcal::models::Environment;
+    /// # let deg = core::f64::consts::PI / 180.0;
+    /// # let w_ie = earth_rate_n(EARTH_RATE, 34.25 * deg);
+    /// # let config = FilterConfig::<f64> {
+    /// #     env: Environment { earth_rate_n: w_ie, gravity_n: gravity_n() },
+    /// #     sigma_accel: 1e-6,
+    /// #     sigma_gyro: 0.1 * deg / 3600.0,
+    /// #     sigma_gimbal: 10.0 * deg / 3600.0,
+    /// #     options: Options::default(),
+    /// # };
+    /// # let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
+    /// # // Holding still with the computed frame on n: the commanded increment is
+    /// # // the Earth rate over the period, the accelerometers read gravity (g).
+    /// # let (dtheta_c, dt) = (w_ie * 1.0, 1.0);
+    /// # let obs = Observation { accel_mean: gravity_n::<f64>(), gimbal: None };
+    /// for _ in 0..3 {
+    ///     f.step(&dtheta_c, dt, &obs)?;
+    /// }
+    /// // A checkpoint's parts, and the filter rebuilt from them.
+    /// let mut g = M1PaFilter::from_parts(
+    ///     *f.config(),
+    ///     *f.state(),
+    ///     *f.factor(),
+    ///     f.command_frame().c_cn,
+    ///     f.nominal().copied(),
+    ///     f.updates(),
+    ///     f.gate_state(),
+    /// )?;
+    /// assert_eq!(g, f);
+    /// // It continues bit-identically.
+    /// assert_eq!(g.step(&dtheta_c, dt, &obs)?, f.step(&dtheta_c, dt, &obs)?);
+    /// assert_eq!(g.state(), f.state());
+    /// # Ok::<(), rollcal::Error>(())
+    /// ```
+    pub fn from_parts(
+        config: FilterConfig<T>,
+        x: SVector<f64, N>,
+        factor: SMatrix<T, N, N>,
+        c_cn: Matrix3<f64>,
+        nominal: Option<SVector<f64, N>>,
+        updates: u32,
+        gate_state: (u32, bool),
+    ) -> Result<Self, Error> {
+        let mut f = Self::new(config, SVector::zeros(), SVector::repeat(T::one()))?;
+        // Exact: every T of the filter is an f64.
+        let rows: SMatrix<f64, N, N> = to_f64(&factor.transpose());
+        let parts = Parts {
+            x: &x,
+            factor: rows.as_slice(),
+            c_cn: &c_cn,
+            nominal: nominal.as_ref(),
+            updates,
+            gate_state,
+        };
+        f.set_parts(config, &parts)?;
+        Ok(f)
+    }
+
+    /// [`Filter::from_parts`] in place, with the factor as its `N·N`
+    /// entries in row-major order in f64 (a checkpoint's layout, read where
+    /// it is: no `N×N` temporary). Every part is checked before the filter
+    /// is touched: on error it is unchanged ([`Error::NonFiniteInput`] also
+    /// for a factor that has not `N·N` entries).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// # use nalgebra::{SVector, Vector3};
+    /// # use rollcal::ekf::{FilterConfig, M1PaFilter, Observation, Options};
+    /// # use rollcal::geometry::{earth_rate_n, gravity_n, EARTH_RATE};
+    /// # use rollcal::models::Environment;
+    /// # let deg = core::f64::consts::PI / 180.0;
+    /// # let w_ie = earth_rate_n(EARTH_RATE, 34.25 * deg);
+    /// # let config = FilterConfig::<f64> {
+    /// #     env: Environment { earth_rate_n: w_ie, gravity_n: gravity_n() },
+    /// #     sigma_accel: 1e-6,
+    /// #     sigma_gyro: 0.1 * deg / 3600.0,
+    /// #     sigma_gimbal: 10.0 * deg / 3600.0,
+    /// #     options: Options::default(),
+    /// # };
+    /// # let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
+    /// # // Holding still with the computed frame on n: the commanded increment is
+    /// # // the Earth rate over the period, the accelerometers read gravity (g).
+    /// # let (dtheta_c, dt) = (w_ie * 1.0, 1.0);
+    /// # let obs = Observation { accel_mean: gravity_n::<f64>(), gimbal: None };
+    /// f.step(&dtheta_c, dt, &obs)?;
+    /// // The factor in a checkpoint's layout: its entries row by row, in f64.
+    /// let rows: Vec<f64> = f.factor().transpose().iter().copied().collect();
+    /// let parts = rollcal::ekf::Parts {
+    ///     x: f.state(),
+    ///     factor: &rows,
+    ///     c_cn: &f.command_frame().c_cn,
+    ///     nominal: f.nominal(),
+    ///     updates: f.updates(),
+    ///     gate_state: f.gate_state(),
+    /// };
+    /// let mut g = M1PaFilter::new(config, SVector::zeros(), SVector::repeat(deg))?;
+    /// g.set_parts(config, &parts)?;
+    /// assert_eq!(g, f);
+    /// // A factor of the wrong size is refused, the filter left as it was.
+    /// let short = rollcal::ekf::Parts { factor: &rows[..10], ..parts };
+    /// assert_eq!(g.set_parts(config, &short), Err(rollcal::Error::NonFiniteInput));
+    /// assert_eq!(g, f);
+    /// # Ok::<(), rollcal::Error>(())
+    /// ```
+    pub fn set_parts(
+        &mut self,
+        config: FilterConfig<T>,
+        parts: &Parts<'_, N>,
+    ) -> Result<(), Error> {
+        Self::prior_variance(&config, &SVector::zeros(), &SVector::repeat(T::one()))?;
+        let nominal_values = parts.nominal.iter().flat_map(|v| v.iter().copied());
+        if !all_finite(
+            parts
+                .x
+                .iter()
+                .chain(parts.c_cn.iter())
+                .copied()
+                .chain(nominal_values),
+        ) || parts.factor.len() != N * N
+            // Finite in T, not only in f64 (an f32 overflow is non-finite).
+            || !parts
+                .factor
+                .iter()
+                .all(|v| nalgebra::convert::<f64, T>(*v).is_finite())
+        {
+            return Err(Error::NonFiniteInput);
+        }
+        if !self.ud.set_packed_rows(parts.factor) {
+            return Err(Error::CovarianceNotPositiveDefinite);
+        }
+        self.x = *parts.x;
+        self.command = CommandFrame::aligned(config.env.earth_rate_n);
+        self.command.c_cn = *parts.c_cn;
+        self.env_t = env_t(&config.env);
+        self.config = config;
+        self.pending.clear();
+        self.reference = parts.nominal.copied();
+        self.updates = parts.updates;
+        (self.gated_run, self.gate_open) = parts.gate_state;
+        self.matrices
+            .fill(Self::LAYOUT.installation(&SVector::<f64, N>::zeros()));
+        Ok(())
+    }
+}
