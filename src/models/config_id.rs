@@ -302,3 +302,42 @@ impl core::str::FromStr for ConfigId {
         Self::parse(s).ok_or_else(|| ParseConfigIdError::new(s))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use std::string::{String, ToString};
+
+    use super::*;
+
+    #[test]
+    fn from_str_is_parse() {
+        for id in ConfigId::ALL {
+            assert_eq!(id.as_str().parse::<ConfigId>(), Ok(id));
+            assert_eq!(id.as_str().to_ascii_lowercase().parse::<ConfigId>(), Ok(id));
+        }
+    }
+
+    #[test]
+    fn error_message_is_host_sims() {
+        let err = "M2-pa".parse::<ConfigId>().unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "unknown configuration 'M2-pa' (expected one of M1-pa, M1-ps, M2-ps, M3-pa, M3-ps, M4-pa, M4-ps)"
+        );
+        assert_eq!("".parse::<ConfigId>().unwrap_err().input(), "");
+    }
+
+    #[test]
+    fn long_input_is_cut_at_a_char_boundary() {
+        let fits: String = "é".repeat(INPUT_CAPACITY / 2);
+        assert_eq!(fits.parse::<ConfigId>().unwrap_err().input(), fits);
+        let long: String = "é".repeat(INPUT_CAPACITY);
+        let err = long.parse::<ConfigId>().unwrap_err();
+        let kept = err.input();
+        assert!(kept.len() <= INPUT_CAPACITY);
+        assert!(kept.ends_with('…'));
+        assert!(long.starts_with(kept.trim_end_matches('…')));
+        assert_eq!(kept.chars().count(), (INPUT_CAPACITY - 3) / 2 + 1);
+    }
+}
