@@ -77,5 +77,5 @@ pub struct WireDoctests;
 pub use calibrator::{Calibrator, M1PaCalibrator, M2PsCalibrator, M4PaCalibrator, RejectReason};
 pub use ekf::{Error, Filter, FilterConfig, Innovation, Observation, Options};
 pub use estimator::{EstimatorOptions, LogRecord, SampleLog, SliceLog};
-pub use models::{ConfigId, Environment, Group, Layout, Model, StateInfo};
-pub use wire::{CalibratorConfig, Checkpoint, Decoder, Estimate, Message, Sample};
+pub use models::{ConfigId, Environment, Group, Layout, Model, ParseConfigIdError, StateInfo};
+pub use wire::{CalibratorConfig, Checkpoint, Decoder, Estimate, FrameDecoder, Message, Sample};

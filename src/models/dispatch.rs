@@ -1,0 +1,180 @@
+//! The one `ConfigId` → configuration-type dispatch: [`with_config!`]
+//! (every configuration) and [`with_built_config!`] (those built into this
+//! crate by its cargo features `m1-pa` … `m4-ps`), with the hidden helper
+//! macros that pass or drop one configuration's arm by this crate's
+//! features. All are `#[macro_export]`: their paths are the crate root's
+//! (`rollcal::with_config!`).
+//!
+//! [`with_config!`]: crate::with_config
+//! [`with_built_config!`]: crate::with_built_config
+
+/// The one `ConfigId` → configuration-type dispatch: evaluates `body` with
+/// `M` the configuration's model type and `N`, `Z` its state and measurement
+/// dimensions as `const`s, for the configuration `id` names.
+///
+/// ```
+/// use rollcal::models::{ConfigId, Model};
+/// fn states<M: Model<N, Z>, const N: usize, const Z: usize>() -> usize {
+///     N
+/// }
+/// let n = rollcal::with_config!(ConfigId::M2Ps, |M, N, Z| states::<M, N, Z>());
+/// assert_eq!(n, 18);
+/// ```
+#[macro_export]
+macro_rules! with_config {
+    ($id:expr, |$m:ident, $n:ident, $z:ident| $body:expr) => {
+        match $id {
+            $crate::models::ConfigId::M1Pa => $crate::with_config!(@arm M1Pa, 12, 3, $m, $n, $z, $body),
+            $crate::models::ConfigId::M1Ps => $crate::with_config!(@arm M1Ps, 15, 3, $m, $n, $z, $body),
+            $crate::models::ConfigId::M2Ps => $crate::with_config!(@arm M2Ps, 18, 6, $m, $n, $z, $body),
+            $crate::models::ConfigId::M3Pa => $crate::with_config!(@arm M3Pa, 15, 3, $m, $n, $z, $body),
+            $crate::models::ConfigId::M3Ps => $crate::with_config!(@arm M3Ps, 18, 3, $m, $n, $z, $body),
+            $crate::models::ConfigId::M4Pa => $crate::with_config!(@arm M4Pa, 12, 3, $m, $n, $z, $body),
+            $crate::models::ConfigId::M4Ps => $crate::with_config!(@arm M4Ps, 15, 3, $m, $n, $z, $body),
+        }
+    };
+    (@arm $ty:ident, $nv:literal, $zv:literal, $m:ident, $n:ident, $z:ident, $body:expr) => {{
+        #[allow(non_camel_case_types, dead_code)]
+        type $m = $crate::models::$ty;
+        #[allow(non_upper_case_globals, dead_code)]
+        const $n: usize = $nv;
+        #[allow(non_upper_case_globals, dead_code)]
+        const $z: usize = $zv;
+        $body
+    }};
+}
+
+// One helper macro per configuration, defined by the cargo feature of *this*
+// crate (`#[cfg]` inside an exported macro would test the caller's
+// features): it passes its tokens through when the configuration is built,
+// and drops them otherwise.
+#[cfg(feature = "m1-pa")]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m1_pa {
+    ($($t:tt)*) => { $($t)* };
+}
+#[cfg(not(feature = "m1-pa"))]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m1_pa {
+    ($($t:tt)*) => {};
+}
+#[cfg(feature = "m1-ps")]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m1_ps {
+    ($($t:tt)*) => { $($t)* };
+}
+#[cfg(not(feature = "m1-ps"))]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m1_ps {
+    ($($t:tt)*) => {};
+}
+#[cfg(feature = "m2-ps")]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m2_ps {
+    ($($t:tt)*) => { $($t)* };
+}
+#[cfg(not(feature = "m2-ps"))]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m2_ps {
+    ($($t:tt)*) => {};
+}
+#[cfg(feature = "m3-pa")]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m3_pa {
+    ($($t:tt)*) => { $($t)* };
+}
+#[cfg(not(feature = "m3-pa"))]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m3_pa {
+    ($($t:tt)*) => {};
+}
+#[cfg(feature = "m3-ps")]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m3_ps {
+    ($($t:tt)*) => { $($t)* };
+}
+#[cfg(not(feature = "m3-ps"))]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m3_ps {
+    ($($t:tt)*) => {};
+}
+#[cfg(feature = "m4-pa")]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m4_pa {
+    ($($t:tt)*) => { $($t)* };
+}
+#[cfg(not(feature = "m4-pa"))]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m4_pa {
+    ($($t:tt)*) => {};
+}
+#[cfg(feature = "m4-ps")]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m4_ps {
+    ($($t:tt)*) => { $($t)* };
+}
+#[cfg(not(feature = "m4-ps"))]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_m4_ps {
+    ($($t:tt)*) => {};
+}
+
+#[cfg(not(any(
+    feature = "m1-pa",
+    feature = "m1-ps",
+    feature = "m2-ps",
+    feature = "m3-pa",
+    feature = "m3-ps",
+    feature = "m4-pa",
+    feature = "m4-ps"
+)))]
+compile_error!("rollcal: enable at least one configuration feature (m1-pa, m1-ps, m2-ps, m3-pa, m3-ps, m4-pa, m4-ps; the default `all-configs` enables the seven)");
+
+/// [`with_config!`] over the configurations built into this crate (cargo
+/// features `m1-pa` … `m4-ps`; the default `all-configs` has the seven):
+/// only their arms are instantiated, and `fallback` is evaluated, with
+/// `other` the [`ConfigId`](crate::models::ConfigId), for a configuration left out. A firmware image
+/// built with one configuration feature then holds one configuration's code.
+///
+/// ```
+/// use rollcal::models::{ConfigId, Model};
+/// fn states<M: Model<N, Z>, const N: usize, const Z: usize>() -> Option<usize> {
+///     Some(N)
+/// }
+/// let n = rollcal::with_built_config!(ConfigId::M1Pa, |M, N, Z| states::<M, N, Z>(), else |_other| None);
+/// assert_eq!(n, Some(12));
+/// ```
+#[macro_export]
+macro_rules! with_built_config {
+    ($id:expr, |$m:ident, $n:ident, $z:ident| $body:expr, else |$other:ident| $fallback:expr) => {{
+        let id: $crate::models::ConfigId = $id;
+        'dispatch: {
+            $crate::__rollcal_if_m1_pa! { if id == $crate::models::ConfigId::M1Pa { break 'dispatch $crate::with_config!(@arm M1Pa, 12, 3, $m, $n, $z, $body); } }
+            $crate::__rollcal_if_m1_ps! { if id == $crate::models::ConfigId::M1Ps { break 'dispatch $crate::with_config!(@arm M1Ps, 15, 3, $m, $n, $z, $body); } }
+            $crate::__rollcal_if_m2_ps! { if id == $crate::models::ConfigId::M2Ps { break 'dispatch $crate::with_config!(@arm M2Ps, 18, 6, $m, $n, $z, $body); } }
+            $crate::__rollcal_if_m3_pa! { if id == $crate::models::ConfigId::M3Pa { break 'dispatch $crate::with_config!(@arm M3Pa, 15, 3, $m, $n, $z, $body); } }
+            $crate::__rollcal_if_m3_ps! { if id == $crate::models::ConfigId::M3Ps { break 'dispatch $crate::with_config!(@arm M3Ps, 18, 3, $m, $n, $z, $body); } }
+            $crate::__rollcal_if_m4_pa! { if id == $crate::models::ConfigId::M4Pa { break 'dispatch $crate::with_config!(@arm M4Pa, 12, 3, $m, $n, $z, $body); } }
+            $crate::__rollcal_if_m4_ps! { if id == $crate::models::ConfigId::M4Ps { break 'dispatch $crate::with_config!(@arm M4Ps, 15, 3, $m, $n, $z, $body); } }
+            #[allow(unreachable_code)]
+            {
+                let $other = id;
+                $fallback
+            }
+        }
+    }};
+}

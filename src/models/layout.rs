@@ -1,0 +1,161 @@
+//! The composition of a configuration and where its states sit in the
+//! state vector (docs/model.md §Configurations, paper §1.3): the attitude
+//! model ([`AttitudeKind`]), the platform frame ([`PlatformFrame`]), the
+//! [`Layout`] that combines them with the base and the observation set, the
+//! fixed indices [`ATT`], [`GC`], [`GT`], and the unpacking of a state
+//! vector into its attitude and installation parameters.
+//!
+//! The state vector is
+//! `[attitude(3), θgC or θgC^pa (3), θgT (3), θaC (3, ps only), θaT (3), λ (3, M2/M3)]`.
+
+use nalgebra::{RealField, SVector, Vector3};
+
+use super::blocks::{block3, put3};
+use super::installation::{Installation, InstallationMatrices};
+use crate::geometry::wrap_angles;
+
+/// How the attitude block of the state describes the platform attitude.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum AttitudeKind {
+    /// Misalignment `ψ` (rad) of the platform frame p with respect to the
+    /// computed frame c: `C^p_c = R(ψ)` (M1, paper eq. 11).
+    Misalignment,
+    /// Gimbal angles `θA = (α, β, γ)` (rad): `C^p_r = R3(γ)R2(β)R1(α)`,
+    /// `C^p_n = C^p_r R(λ)` (M2, M3).
+    Gimbal,
+    /// Attitude angles `θp = (α, β, γ)` (rad) of p with respect to n in the
+    /// gimbal sequence: `C^p_n = R3(γ)R2(β)R1(α)` (M4).
+    Attitude,
+}
+
+/// Which platform frame the filter estimates in (docs/model.md §Frames).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum PlatformFrame {
+    /// Frame defined by the platform cube; all 12 instrument angles.
+    Ps,
+    /// Frame defined by the accelerometer axes; `θaC ≡ 0`, 9 angles.
+    Pa,
+}
+
+/// The composition of a configuration.
+///
+/// # Examples
+///
+/// Where the states of M1-pa sit, and a state vector unpacked:
+///
+/// ```
+/// use nalgebra::{SVector, Vector3};
+/// use rollcal::models::{ATT, GC, GT};
+/// use rollcal::ConfigId;
+///
+/// let layout = ConfigId::M1Pa.layout();
+/// assert_eq!((ATT, GC, GT, layout.at()), (0, 3, 6, 9));
+/// assert_eq!((layout.ac(), layout.lam()), (None, None)); // pa frame, no base
+///
+/// let mut x = SVector::<f64, 12>::zeros();
+/// x[layout.at()] = 1e-3; // θaT_1 (rad)
+/// let p = layout.installation(&x);
+/// assert_eq!(p.theta_a_t, Vector3::new(1e-3, 0.0, 0.0));
+/// assert_eq!(p.theta_a_c, Vector3::zeros()); // θaC ≡ 0 in pa
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Layout {
+    /// Attitude model.
+    pub attitude: AttitudeKind,
+    /// Platform frame.
+    pub frame: PlatformFrame,
+    /// Whether the base mounting angles `λ` are states.
+    pub base: bool,
+    /// Whether the gimbal angles are observed (M2).
+    pub gimbal_obs: bool,
+}
+
+/// Index of the first attitude state.
+pub const ATT: usize = 0;
+/// Index of the first gyro misalignment state (`θgC` or `θgC^pa`).
+pub const GC: usize = 3;
+/// Index of the first gyro non-orthogonality state `θgT`.
+pub const GT: usize = 6;
+
+impl Layout {
+    /// Index of the first `θaC` state (ps frame only).
+    pub const fn ac(&self) -> Option<usize> {
+        match self.frame {
+            PlatformFrame::Ps => Some(9),
+            PlatformFrame::Pa => None,
+        }
+    }
+    /// Index of the first `θaT` state.
+    pub const fn at(&self) -> usize {
+        match self.frame {
+            PlatformFrame::Ps => 12,
+            PlatformFrame::Pa => 9,
+        }
+    }
+    /// Index of the first `λ` state (M2, M3 only).
+    pub const fn lam(&self) -> Option<usize> {
+        if self.base {
+            Some(self.at() + 3)
+        } else {
+            None
+        }
+    }
+    /// Number of states.
+    pub const fn n(&self) -> usize {
+        self.at() + 3 + if self.base { 3 } else { 0 }
+    }
+    /// Number of measurement components per period.
+    pub const fn z(&self) -> usize {
+        if self.gimbal_obs {
+            6
+        } else {
+            3
+        }
+    }
+}
+
+impl Layout {
+    /// `x − y` with the Euler attitude angles (θA, θp) wrapped into (−π, π].
+    pub fn difference<T: RealField + Copy, const N: usize>(
+        &self,
+        x: &SVector<T, N>,
+        y: &SVector<T, N>,
+    ) -> SVector<T, N> {
+        let mut d = x - y;
+        if self.attitude != AttitudeKind::Misalignment {
+            let wrapped = wrap_angles(&block3(&d, ATT));
+            put3(&mut d, ATT, &wrapped);
+        }
+        d
+    }
+
+    /// Unpacks the installation parameters of a state vector.
+    pub fn installation<T: RealField + Copy, const N: usize>(
+        &self,
+        x: &SVector<T, N>,
+    ) -> Installation<T> {
+        Installation {
+            theta_g_c: block3(x, GC),
+            theta_g_t: block3(x, GT),
+            theta_a_c: self.ac().map_or_else(Vector3::zeros, |i| block3(x, i)),
+            theta_a_t: block3(x, self.at()),
+            lambda: self.lam().map_or_else(Vector3::zeros, |i| block3(x, i)),
+        }
+    }
+
+    /// The attitude block of a state vector.
+    pub fn attitude<T: RealField + Copy, const N: usize>(&self, x: &SVector<T, N>) -> Vector3<T> {
+        block3(x, ATT)
+    }
+
+    /// The installation matrices of a state vector.
+    pub fn matrices<T: RealField + Copy, const N: usize>(
+        &self,
+        x: &SVector<T, N>,
+    ) -> InstallationMatrices<T> {
+        InstallationMatrices::new(self.installation(x))
+    }
+}

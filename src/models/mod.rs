@@ -1,0 +1,147 @@
+//! The seven system configurations of docs/model.md §Configurations (paper §1.3).
+//!
+//! A configuration is composed of four parts:
+//! - the **attitude model** ([`AttitudeKind`]): the misalignment `ψ` of the
+//!   platform with respect to the computed frame (M1, `C^p_c = R(ψ)`), or the
+//!   Euler angles of the platform with respect to the base (`θA`, M2/M3) or
+//!   to the navigation frame (`θp`, M4), in the gimbal sequence
+//!   `R3(γ) R2(β) R1(α)`;
+//! - the **platform frame** ([`PlatformFrame`]): `ps` (cube) or `pa`
+//!   (accelerometer axes, where `θaC ≡ 0` and the gyro misalignment is
+//!   `θgC^pa`);
+//! - the **base** `λ` (M2, M3): `C^r_n = R(λ)`;
+//! - the **observation set**: the accelerometer mean over the period, and in
+//!   M2 also the gimbal angles at the end of the period.
+//!
+//! [`Layout`] holds these choices; one generic implementation evaluates the
+//! dynamics, the measurement and their Jacobians for any layout, and each
+//! configuration is a zero-sized type implementing [`Model`] with its state
+//! and measurement dimensions fixed at compile time.
+//!
+//! All states are radians. The state vector is
+//! `[attitude(3), θgC or θgC^pa (3), θgT (3), θaC (3, ps only), θaT (3), λ (3, M2/M3)]`.
+//!
+//! The module by concern:
+//! - `config_id`: [`ConfigId`], the seven by name, and [`ParseConfigIdError`];
+//! - `dispatch`: [`with_config!`](crate::with_config) and
+//!   [`with_built_config!`](crate::with_built_config), `ConfigId` → type;
+//! - `layout`: [`Layout`], [`AttitudeKind`], [`PlatformFrame`], the state
+//!   indices and the unpacking of a state vector;
+//! - `states`: the state names ([`StateInfo`], [`Group`]);
+//! - `installation`: [`Installation`], [`InstallationMatrices`];
+//! - `dynamics`: the attitude rate and its Jacobian;
+//! - `measurement`: the accelerometer output at one instant and its Jacobian;
+//! - `propagation`: one period's propagation ([`PeriodPropagation`]);
+//! - `period_mean`: the mean accelerometer output over a period;
+//! - `transition`: the transition rows `Φ` ([`transition_rows`],
+//!   [`apply_transition`]).
+//!
+//! # Examples
+//!
+//! The state and measurement dimensions of a configuration, as a type and
+//! as a value:
+//!
+//! ```
+//! use rollcal::models::{M1Pa, M2Ps, Model};
+//! use rollcal::ConfigId;
+//!
+//! fn dimensions<M: Model<N, Z>, const N: usize, const Z: usize>() -> (usize, usize) {
+//!     (N, Z)
+//! }
+//! assert_eq!(dimensions::<M2Ps, 18, 6>(), (18, 6));
+//! assert_eq!(dimensions::<M1Pa, 12, 3>(), (12, 3));
+//! assert_eq!(<M2Ps as Model<18, 6>>::ID, ConfigId::M2Ps);
+//! let layout = <M2Ps as Model<18, 6>>::LAYOUT;
+//! assert_eq!((layout.n(), layout.z()), (18, 6));
+//! ```
+
+use nalgebra::{RealField, Vector3};
+
+mod blocks;
+mod config_id;
+mod dispatch;
+mod dynamics;
+mod installation;
+mod layout;
+mod measurement;
+mod period_mean;
+mod propagation;
+mod states;
+mod transition;
+
+pub(crate) use blocks::{attitude_columns, attitude_rows};
+pub use config_id::{ConfigId, ParseConfigIdError};
+pub use installation::{Installation, InstallationMatrices};
+pub use layout::{AttitudeKind, Layout, PlatformFrame, ATT, GC, GT};
+pub use propagation::PeriodPropagation;
+pub use states::{Group, StateInfo};
+pub use transition::{
+    apply_transition, apply_transition_of, transition_rows, transition_rows_into,
+};
+
+/// A configuration as a type, with `N` states and `Z` measurement
+/// components per period fixed at compile time.
+///
+/// # Examples
+///
+/// Code generic over the configuration reads its identifier and
+/// composition from the type:
+///
+/// ```
+/// use rollcal::models::{M3Pa, Model};
+///
+/// fn describe<M: Model<N, Z>, const N: usize, const Z: usize>() -> (&'static str, usize) {
+///     assert_eq!(M::ID.states().len(), N);
+///     assert_eq!(M::LAYOUT, M::ID.layout());
+///     (M::ID.as_str(), Z)
+/// }
+/// assert_eq!(describe::<M3Pa, 15, 3>(), ("M3-pa", 3));
+/// ```
+pub trait Model<const N: usize, const Z: usize> {
+    /// Which configuration this is.
+    const ID: ConfigId;
+    /// Its composition (must agree with `ID.layout()`).
+    const LAYOUT: Layout = Self::ID.layout();
+}
+
+macro_rules! config_type {
+    ($(#[$doc:meta])* $ty:ident, $id:ident, $n:literal, $z:literal) => {
+        $(#[$doc])*
+        #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+        pub struct $ty;
+        impl Model<$n, $z> for $ty {
+            const ID: ConfigId = ConfigId::$id;
+        }
+    };
+}
+
+config_type!(
+    /// M1-pa: `ψ, θgC^pa, θgT, θaT` (12 states); accelerometer observations.
+    M1Pa, M1Pa, 12, 3);
+config_type!(
+    /// M1-ps: `ψ, θgC, θgT, θaC, θaT` (15 states); accelerometer observations.
+    M1Ps, M1Ps, 15, 3);
+config_type!(
+    /// M2-ps: `θA, θgC, θgT, θaC, θaT, λ` (18 states); gimbal + accelerometer observations.
+    M2Ps, M2Ps, 18, 6);
+config_type!(
+    /// M3-pa: `θA, θgC^pa, θgT, θaT, λ` (15 states); accelerometer observations.
+    M3Pa, M3Pa, 15, 3);
+config_type!(
+    /// M3-ps: `θA, θgC, θgT, θaC, θaT, λ` (18 states); accelerometer observations.
+    M3Ps, M3Ps, 18, 3);
+config_type!(
+    /// M4-pa: `θp, θgC^pa, θgT, θaT` (12 states); accelerometer observations.
+    M4Pa, M4Pa, 12, 3);
+config_type!(
+    /// M4-ps: `θp, θgC, θgT, θaC, θaT` (15 states); accelerometer observations.
+    M4Ps, M4Ps, 15, 3);
+
+/// The environment every model needs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Environment<T: RealField + Copy> {
+    /// Earth rate in the navigation frame, `ω^n_ie` (rad/s).
+    pub earth_rate_n: Vector3<T>,
+    /// Specific force at rest in the navigation frame, `f^n` (g).
+    pub gravity_n: Vector3<T>,
+}

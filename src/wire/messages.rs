@@ -1,0 +1,445 @@
+//! The schema of the protocol (docs/wire.md): every [`Message`] and what it
+//! carries: a [`Sample`] per period (platform → calibrator), the
+//! [`CalibratorConfig`] that starts a run, the running [`Estimate`] and the
+//! [`Checkpoint`] (calibrator → host), with the calibrator's bookkeeping
+//! ([`Progress`], [`RejectCounts`]). The postcard encoding follows the
+//! declaration order of fields and variants: nothing here may be reordered.
+
+use heapless::Vec;
+use serde::{Deserialize, Serialize};
+
+use crate::ekf::Options;
+use crate::models::ConfigId;
+
+/// Largest state dimension of any configuration (M2-ps, M3-ps).
+pub const MAX_STATES: usize = 18;
+
+/// Capacity of a row-major covariance of [`MAX_STATES`] states.
+pub const MAX_COVARIANCE: usize = MAX_STATES * MAX_STATES;
+
+/// One filter period as measured by the platform (docs/wire.md). `f32` fields:
+/// f32 spacing is 1.2e-7 g at 1 g (the accelerometer noise is 1e-6 g) and
+/// 0.05″ at π rad (the gimbal noise is 10″).
+///
+/// # Examples
+///
+/// A sample of a platform at rest, level, and its round trip through a
+/// frame:
+///
+/// ```
+/// use rollcal::wire::{decode_frame, encode, Message, Sample, MAX_FRAME_LEN};
+///
+/// let sample = Sample {
+///     seq: 42,
+///     t_us: 42_000_000,
+///     dt: 1.0,
+///     dtheta_cmd: [0.0; 3],
+///     c_cn_quat: [1.0, 0.0, 0.0, 0.0], // C^c_n = I
+///     accel_mean: [0.0, 1.0, 0.0],     // 1 g up (North–Up–East)
+///     gimbal: None,                    // M2-ps only
+/// };
+/// let mut buf = [0u8; MAX_FRAME_LEN];
+/// let n = encode(&Message::Sample(sample), &mut buf).unwrap();
+/// assert_eq!(decode_frame(&mut buf[..n - 1]), Ok(Message::Sample(sample)));
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Sample {
+    /// Sequence number, +1 per period (the first sample may start anywhere).
+    pub seq: u32,
+    /// Time at the end of the period (µs, any fixed origin). An integer:
+    /// f32 seconds would resolve only 0.5 ms after 1.5 h.
+    pub t_us: u64,
+    /// Period length `T` (s).
+    pub dt: f32,
+    /// Commanded angle increment `Δθc = ∫ωc dt` over the period (rad, c
+    /// frame). `f64`: its rounding is not noise but a bias that lasts a
+    /// whole path segment (the Earth rate's share of an increment is
+    /// ~4e-8 rad and changes slowly): in `f32` it moved the M1-pa answer by
+    /// 0.11σ.
+    pub dtheta_cmd: [f64; 3],
+    /// The computed frame at the end of the period, `C^c_n(t_k)`, as the unit
+    /// quaternion `[w, x, y, z]` of its rotation vector θ (`C^c_n = R(θ)`,
+    /// [`crate::geometry::quaternion_from_dcm`]). It makes the commanded
+    /// motion across lost samples known (see [`crate::calibrator`], "Lost
+    /// data"); f32 resolves it to 6e-8 rad (0.012″).
+    pub c_cn_quat: [f32; 4],
+    /// Mean accelerometer output over the period (g, instrument axes).
+    pub accel_mean: [f32; 3],
+    /// Gimbal angles `(α, β, γ)` at the end of the period (rad); required by
+    /// M2-ps, ignored by the other configurations.
+    pub gimbal: Option<[f32; 3]>,
+}
+
+/// Validation limits of the calibrator (see [`crate::calibrator`]).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Limits {
+    /// Expected period `T` (s).
+    pub period_s: f64,
+    /// Accepted deviation of `dt` from `period_s`, and of the timestamp
+    /// difference from `dt` per elapsed period (s).
+    pub period_tolerance_s: f64,
+    /// Largest accepted |component| of the mean specific force (g).
+    pub max_accel_g: f64,
+    /// Largest accepted |component| of the commanded increment (rad).
+    pub max_increment_rad: f64,
+    /// Largest accepted |gimbal angle| (rad).
+    pub max_gimbal_rad: f64,
+    /// Longest gap (missing periods) across which the calibrator searches
+    /// for the commanded motion (the last path rate, then one switch to the
+    /// new sample's path rate at any period boundary of the gap). A longer
+    /// gap, or one whose motion is not found, re-acquires the attitude.
+    pub max_bridge: u32,
+    /// The motion across a gap is accepted as found when it carries the
+    /// computed frame to the sample's reported `C^c_n` within this angle
+    /// (rad); also the accepted norm error of the reported quaternion.
+    pub frame_tolerance_rad: f64,
+}
+
+impl Default for Limits {
+    /// 1 s period ± 1 ms, |f| ≤ 2 g, |Δθc| ≤ 0.1 rad, |θA| ≤ 2π, the motion
+    /// across gaps of up to 7200 periods searched, frame tolerance 1e-5 rad
+    /// (2″).
+    fn default() -> Self {
+        Self {
+            period_s: 1.0,
+            period_tolerance_s: 1e-3,
+            max_accel_g: 2.0,
+            max_increment_rad: 0.1,
+            max_gimbal_rad: 2.0 * core::f64::consts::PI,
+            max_bridge: 7200,
+            frame_tolerance_rad: 1e-5,
+        }
+    }
+}
+
+/// Everything a calibrator needs to start: configuration, noise levels,
+/// environment, prior, validation limits and estimate cadence. Sent as the
+/// `Configure` control message; all scalars `f64` so one message serves the
+/// f32 and f64 builds.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CalibratorConfig {
+    /// Which estimator to run.
+    pub config: ConfigId,
+    /// Accelerometer noise of the period mean, 1σ per axis (g).
+    pub sigma_accel_g: f64,
+    /// Gyro white rate noise, 1σ per axis (rad/s).
+    pub sigma_gyro_rad_s: f64,
+    /// Gimbal-angle noise, 1σ per angle (rad).
+    pub sigma_gimbal_rad: f64,
+    /// Earth rate `ω^n_ie` (rad/s, North–Up–East).
+    pub earth_rate_n: [f64; 3],
+    /// Specific force at rest `f^n` (g, North–Up–East), normally `[0, 1, 0]`.
+    pub gravity_n: [f64; 3],
+    /// Prior σ of every state (rad); the initial estimate is zero.
+    pub prior_sigma_rad: f64,
+    /// Filter options (cold-start remedy, gate).
+    pub options: Options,
+    /// Validation limits.
+    pub limits: Limits,
+    /// Emit an [`Estimate`] every this many accepted samples (0 = never;
+    /// [`crate::calibrator::Calibrator::estimate`] is always available).
+    pub estimate_every: u32,
+}
+
+impl CalibratorConfig {
+    /// The paper's settings (docs/model.md §The paper's scenario) for configuration `config`: noise
+    /// 1e-6 g, 0.1°/h, 10″; latitude 34.25° with Earth rate; prior 1°;
+    /// default options and limits; an estimate every 60 samples.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use rollcal::wire::{CalibratorConfig, Limits};
+    /// use rollcal::ConfigId;
+    ///
+    /// let config = CalibratorConfig {
+    ///     sigma_accel_g: 2e-6,
+    ///     limits: Limits { period_s: 0.5, ..Limits::default() },
+    ///     ..CalibratorConfig::paper(ConfigId::M2Ps)
+    /// };
+    /// assert_eq!(config.config, ConfigId::M2Ps);
+    /// assert_eq!(config.gravity_n, [0.0, 1.0, 0.0]);
+    /// assert_eq!(config.prior_sigma_rad, std::f64::consts::PI / 180.0); // 1°
+    /// assert_eq!(config.estimate_every, 60);
+    /// ```
+    pub fn paper(config: ConfigId) -> Self {
+        let deg = core::f64::consts::PI / 180.0;
+        let e = crate::geometry::earth_rate_n(crate::geometry::EARTH_RATE, 34.25 * deg);
+        Self {
+            config,
+            sigma_accel_g: 1e-6,
+            sigma_gyro_rad_s: 0.1 * deg / 3600.0,
+            sigma_gimbal_rad: 10.0 * deg / 3600.0,
+            earth_rate_n: [e.x, e.y, e.z],
+            gravity_n: [0.0, 1.0, 0.0],
+            prior_sigma_rad: deg,
+            options: Options::default(),
+            limits: Limits::default(),
+            estimate_every: 60,
+        }
+    }
+}
+
+/// Counts of rejected samples by reason (see
+/// [`crate::calibrator::RejectReason`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RejectCounts {
+    /// A field is NaN or infinite.
+    pub non_finite: u32,
+    /// `dt` outside the expected period ± tolerance.
+    pub period: u32,
+    /// |specific force| component above the limit.
+    pub accel_range: u32,
+    /// |commanded increment| component above the limit.
+    pub increment_range: u32,
+    /// |gimbal angle| above the limit.
+    pub gimbal_range: u32,
+    /// No gimbal angles for a configuration that observes them.
+    pub missing_gimbal: u32,
+    /// Same sequence number as the last accepted sample.
+    pub duplicate: u32,
+    /// Sequence number below the last accepted one.
+    pub out_of_order: u32,
+    /// Timestamp not after the last accepted one.
+    pub time_backwards: u32,
+    /// Timestamp difference disagrees with `dt` × elapsed periods (a clock
+    /// step is re-anchored once the next sample confirms it).
+    pub time_mismatch: u32,
+    /// The computed-frame quaternion is not a unit quaternion.
+    pub frame_attitude: u32,
+    /// The filter refused the period (state left untouched).
+    pub filter: u32,
+}
+
+impl RejectCounts {
+    /// Total of all reasons.
+    pub fn total(&self) -> u32 {
+        [
+            self.non_finite,
+            self.period,
+            self.accel_range,
+            self.increment_range,
+            self.gimbal_range,
+            self.missing_gimbal,
+            self.duplicate,
+            self.out_of_order,
+            self.time_backwards,
+            self.time_mismatch,
+            self.frame_attitude,
+            self.filter,
+        ]
+        .iter()
+        .fold(0u32, |a, b| a.saturating_add(*b))
+    }
+}
+
+/// Calibrator bookkeeping (part of [`Checkpoint`] and [`Estimate`]).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Progress {
+    /// Sequence number of the last accepted sample.
+    pub last_seq: Option<u32>,
+    /// Timestamp of the last accepted sample (µs).
+    pub last_t_us: Option<u64>,
+    /// Commanded increment of the last accepted sample (rad, c frame), for
+    /// finding the motion across a gap.
+    pub last_increment: [f64; 3],
+    /// A sample whose timestamp disagreed with the last accepted one:
+    /// `(seq, t_us)`. If the next sample's timestamp agrees with it, the
+    /// clock stepped and the time is re-anchored there.
+    pub clock_candidate: Option<(u32, u64)>,
+    /// NIS of the last update (NaN before the first).
+    pub last_nis: f64,
+    /// Samples accepted.
+    pub accepted: u32,
+    /// Missing periods bridged by prediction without measurement, along the
+    /// commanded motion found across the gap.
+    pub bridged: u32,
+    /// Gaps across which the motion was not found: the computed frame was
+    /// set from the reported `C^c_n` and the attitude states re-acquired
+    /// (their covariance re-opened to the prior, the parameters' kept).
+    pub reacquired: u32,
+    /// Missing periods of those gaps (predicted along the shortest rotation).
+    pub reacquired_periods: u32,
+    /// Clock steps re-anchored.
+    pub clock_steps: u32,
+    /// Records appended to the sample log (measured samples and bridged
+    /// periods), for the final passes.
+    pub logged: u32,
+    /// Why the log no longer holds the whole run (then [`Message::Finish`]
+    /// can only answer with pass 1); `None` while it does.
+    pub log_incomplete: Option<SinglePassReason>,
+    /// Accepted samples whose update failed the NIS gate (predicted only).
+    pub gated: u32,
+    /// Accepted samples since the last emitted estimate.
+    pub since_estimate: u32,
+    /// Rejected samples by reason.
+    pub rejects: RejectCounts,
+}
+
+impl Default for Progress {
+    fn default() -> Self {
+        Self {
+            last_seq: None,
+            last_t_us: None,
+            last_increment: [0.0; 3],
+            clock_candidate: None,
+            last_nis: f64::NAN,
+            accepted: 0,
+            bridged: 0,
+            reacquired: 0,
+            reacquired_periods: 0,
+            clock_steps: 0,
+            logged: 0,
+            log_incomplete: None,
+            gated: 0,
+            since_estimate: 0,
+            rejects: RejectCounts::default(),
+        }
+    }
+}
+
+/// Why a final answer is pass 1 only, not the estimator of record over the
+/// whole run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum SinglePassReason {
+    /// The calibrator was fed without a sample log.
+    NoLog,
+    /// The sample log filled up.
+    LogFull,
+    /// The sample log's storage failed.
+    LogStorage,
+    /// The log holds a different number of records than the calibrator
+    /// appended (e.g. after a restore without the matching log).
+    LogMismatch,
+    /// A gap's motion was not found and the attitude was re-acquired: the
+    /// later passes cannot yet linearise across it.
+    Reacquired,
+    /// A period whose gap had been bridged was then refused by the filter.
+    FilterFailed,
+    /// The multi-pass estimator refused the log (an empty log, or the
+    /// back-propagation hit gimbal lock).
+    Estimator,
+    /// The sample log could not encode a record (e.g. a
+    /// [`crate::estimator::PackedLog`] whose command table is full).
+    LogUnrepresentable,
+}
+
+impl core::fmt::Display for SinglePassReason {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            SinglePassReason::NoLog => "no sample log",
+            SinglePassReason::LogFull => "the sample log is full",
+            SinglePassReason::LogStorage => "the sample log's storage failed",
+            SinglePassReason::LogMismatch => "the sample log does not match the calibrator",
+            SinglePassReason::Reacquired => "the attitude was re-acquired after a gap",
+            SinglePassReason::FilterFailed => "the filter refused a period after a bridged gap",
+            SinglePassReason::Estimator => "the multi-pass estimator refused the log",
+            SinglePassReason::LogUnrepresentable => "the sample log could not encode a record",
+        })
+    }
+}
+
+/// What an [`Estimate`] is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum EstimateKind {
+    /// The running estimate of pass 1, while samples arrive.
+    Running,
+    /// The answer of record: the multi-pass estimator over the whole logged
+    /// run, after `passes` passes (`converged`: the last moved < 0.1σ).
+    Final {
+        /// Passes run.
+        passes: u8,
+        /// The last pass moved no state by more than the tolerance.
+        converged: bool,
+    },
+    /// The final answer, but pass 1 only (the running estimate at the end of
+    /// the stream), because of `reason`; `logged` records were in the log.
+    SinglePass {
+        /// Why the later passes could not run.
+        reason: SinglePassReason,
+        /// Records in the log.
+        logged: u32,
+    },
+}
+
+/// The running estimate (docs/wire.md). `f64` even from an f32 build (exact), so
+/// that an f64 firmware build can be compared with the host to 1e-9 rad.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Estimate {
+    /// The configuration; the states are in its order ([`ConfigId::states`]).
+    pub config: ConfigId,
+    /// Sequence number of the last accepted sample (0 before any).
+    pub seq: u32,
+    /// Filter updates processed.
+    pub updates: u32,
+    /// Estimated states (rad).
+    pub state: Vec<f64, MAX_STATES>,
+    /// Their σ, `√P_ii` (rad).
+    pub sigma: Vec<f64, MAX_STATES>,
+    /// Calibrator bookkeeping: last NIS, accepted, bridged, re-acquired,
+    /// rejected by reason.
+    pub progress: Progress,
+    /// Frames the receiver's decoder rejected so far (as told to the
+    /// calibrator by [`crate::calibrator::Calibrator::set_frame_errors`]).
+    pub frame_errors: u32,
+    /// A running estimate, or the final answer (and how it was reached).
+    pub kind: EstimateKind,
+}
+
+/// Everything a calibrator needs to continue bit-identically after a reset.
+/// Scalars are `f64` (an f32 value round-trips exactly).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Checkpoint {
+    /// The configuration.
+    pub config: ConfigId,
+    /// State `x` (rad).
+    pub state: Vec<f64, MAX_STATES>,
+    /// The packed U-D factor of the covariance `P = U D Uᵀ` (rad²),
+    /// row-major N×N: `D` on the diagonal, the unit upper triangular `U`'s
+    /// strict upper triangle above it, zeros below
+    /// ([`crate::ekf::Filter::factor`]).
+    pub factor: Vec<f64, MAX_COVARIANCE>,
+    /// Nominal state of a linearised filter (rad), if any.
+    pub nominal: Option<Vec<f64, MAX_STATES>>,
+    /// `C^c_n` of the computed frame, row-major.
+    pub c_cn: [f64; 9],
+    /// Filter updates processed.
+    pub updates: u32,
+    /// Consecutive updates refused by the NIS gate just before the
+    /// checkpoint ([`crate::ekf::Filter::gate_state`]).
+    pub gated_run: u32,
+    /// The NIS gate is held open (the last accepted update was above it).
+    pub gate_open: bool,
+    /// Calibrator bookkeeping.
+    pub progress: Progress,
+}
+
+/// Every message of the protocol. The postcard tag is the variant's index
+/// (a varint): `Sample` 0, `Estimate` 1, `Checkpoint` 2, `Configure` 3,
+/// `Reset` 4, `CheckpointRequest` 5, `EstimateRequest` 6, `Finish` 7. New variants are
+/// only ever appended.
+// A large variant is the price of no heap (a Checkpoint is ~3 KB).
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Message {
+    /// Platform → calibrator: one period's measurement.
+    Sample(Sample),
+    /// Calibrator → host: the running estimate.
+    Estimate(Estimate),
+    /// Calibrator → host: a checkpoint; host → calibrator: restore from it.
+    Checkpoint(Checkpoint),
+    /// Host → calibrator: (re)configure and restart from the prior.
+    Configure(CalibratorConfig),
+    /// Host → calibrator: restart from the prior with the current settings.
+    Reset,
+    /// Host → calibrator: reply with a `Checkpoint`.
+    CheckpointRequest,
+    /// Host → calibrator: reply with an `Estimate` now.
+    EstimateRequest,
+    /// Host → calibrator: the run is over; run the final passes over the
+    /// sample log and reply with the final `Estimate`.
+    Finish,
+}
