@@ -89,6 +89,53 @@ fn vec3_f32<T: RealField + Copy>(a: &[f32; 3]) -> Vector3<T> {
 /// Validates samples and runs configuration `M`'s filter over them (see the
 /// module docs). `T` is the filter's scalar (`f64`, or `f32` for FPUs
 /// without double precision).
+///
+/// # Examples
+///
+/// An M1-pa calibrator fed 30 one-second samples of a platform at rest,
+/// each logged for the final passes; a running estimate every 10 samples,
+/// then the final answer of the estimator of record.
+///
+/// ```
+/// use nalgebra::Vector3;
+/// use rollcal::calibrator::M1PaCalibrator;
+/// use rollcal::estimator::{EstimatorOptions, LogRecord, SliceLog};
+/// use rollcal::models::ConfigId;
+/// use rollcal::wire::{CalibratorConfig, EstimateKind, Sample};
+///
+/// let settings = CalibratorConfig {
+///     estimate_every: 10,
+///     ..CalibratorConfig::paper(ConfigId::M1Pa)
+/// };
+/// let mut cal = M1PaCalibrator::<f64>::new(settings)?;
+/// let mut records = [LogRecord::predicted(0.0, Vector3::zeros()); 30];
+/// let mut log = SliceLog::new(&mut records);
+/// let mut running = Vec::new();
+/// for seq in 0..30 {
+///     // At rest in the navigation frame: the computed frame stays at
+///     // C^c_n = I, the commanded increment is the Earth rate's, the
+///     // accelerometers read 1 g up.
+///     let sample = Sample {
+///         seq,
+///         t_us: (u64::from(seq) + 1) * 1_000_000,
+///         dt: 1.0,
+///         dtheta_cmd: settings.earth_rate_n,
+///         c_cn_quat: [1.0, 0.0, 0.0, 0.0],
+///         accel_mean: [0.0, 1.0, 0.0],
+///         gimbal: None,
+///     };
+///     if let Some(estimate) = cal.push_logged(&sample, &mut log)? {
+///         running.push(estimate.seq);
+///     }
+/// }
+/// assert_eq!(running, [9, 19, 29]);
+/// assert_eq!(cal.progress().accepted, 30);
+/// let (answer, final_filter) = cal.finish(&mut log, &EstimatorOptions::default(), |_| {});
+/// assert!(matches!(answer.kind, EstimateKind::Final { .. }));
+/// assert_eq!(answer.state.len(), 12);
+/// assert!(final_filter.is_some());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 #[derive(Clone, Debug, PartialEq)]
 pub struct Calibrator<T: RealField + Copy, M, const N: usize, const Z: usize> {
     filter: Filter<T, M, N, Z>,

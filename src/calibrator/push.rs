@@ -22,6 +22,35 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     /// Without a sample log the final answer ([`Calibrator::finish`]) can
     /// only be pass 1: use [`Calibrator::push_logged`] for the estimator of
     /// record.
+    ///
+    /// # Examples
+    ///
+    /// A sample repeated is rejected, counted, and leaves the filter as it
+    /// was:
+    ///
+    /// ```
+    /// use rollcal::calibrator::{M4PaCalibrator, RejectReason};
+    /// use rollcal::models::ConfigId;
+    /// use rollcal::wire::{CalibratorConfig, Sample};
+    ///
+    /// let settings = CalibratorConfig::paper(ConfigId::M4Pa);
+    /// let mut cal = M4PaCalibrator::<f64>::new(settings)?;
+    /// let sample = Sample {
+    ///     seq: 7,
+    ///     t_us: 8_000_000,
+    ///     dt: 1.0,
+    ///     dtheta_cmd: settings.earth_rate_n,
+    ///     c_cn_quat: [1.0, 0.0, 0.0, 0.0],
+    ///     accel_mean: [0.0, 1.0, 0.0],
+    ///     gimbal: None,
+    /// };
+    /// assert_eq!(cal.push(&sample), Ok(None));
+    /// let filter = cal.filter().clone();
+    /// assert_eq!(cal.push(&sample), Err(RejectReason::Duplicate));
+    /// assert_eq!(cal.filter(), &filter);
+    /// assert_eq!(cal.progress().rejects.duplicate, 1);
+    /// # Ok::<(), rollcal::calibrator::Error>(())
+    /// ```
     pub fn push(&mut self, s: &Sample) -> Result<Option<Estimate>, RejectReason> {
         self.push_inner(s, None)
     }

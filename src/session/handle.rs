@@ -9,6 +9,48 @@ use crate::wire::{Estimate, Message};
 
 impl<T: RealField + Copy> Session<T> {
     /// Acts on one message; `log` is the sample log of the run.
+    ///
+    /// # Examples
+    ///
+    /// A run as a device receives it: `Configure`, the samples, `Finish`.
+    ///
+    /// ```
+    /// use nalgebra::Vector3;
+    /// use rollcal::estimator::{EstimatorOptions, LogRecord, SliceLog};
+    /// use rollcal::models::ConfigId;
+    /// use rollcal::session::{Reply, Session};
+    /// use rollcal::wire::{CalibratorConfig, EstimateKind, Message, Sample};
+    ///
+    /// let mut session = Session::<f64>::new(None, EstimatorOptions::default());
+    /// let mut records = [LogRecord::predicted(0.0, Vector3::zeros()); 20];
+    /// let mut log = SliceLog::new(&mut records);
+    /// let settings = CalibratorConfig {
+    ///     estimate_every: 0, // no running estimates
+    ///     ..CalibratorConfig::paper(ConfigId::M4Pa)
+    /// };
+    /// let configure = Message::Configure(settings);
+    /// assert_eq!(session.handle(&configure, &mut log), Reply::Nothing);
+    /// for seq in 0..20 {
+    ///     let sample = Message::Sample(Sample {
+    ///         seq,
+    ///         t_us: (u64::from(seq) + 1) * 1_000_000,
+    ///         dt: 1.0,
+    ///         dtheta_cmd: settings.earth_rate_n, // at rest
+    ///         c_cn_quat: [1.0, 0.0, 0.0, 0.0],
+    ///         accel_mean: [0.0, 1.0, 0.0],
+    ///         gimbal: None,
+    ///     });
+    ///     assert_eq!(session.handle(&sample, &mut log), Reply::Nothing);
+    /// }
+    /// match session.handle(&Message::Finish, &mut log) {
+    ///     Reply::Send(Message::Estimate(e)) => {
+    ///         assert!(matches!(e.kind, EstimateKind::Final { .. }));
+    ///         assert_eq!((e.config, e.seq, e.state.len()), (ConfigId::M4Pa, 19, 12));
+    ///     }
+    ///     other => panic!("{other:?}"),
+    /// }
+    /// assert_eq!(session.stats().errors, 0);
+    /// ```
     pub fn handle(&mut self, msg: &Message, log: &mut (dyn SampleLog<T> + '_)) -> Reply {
         let mut reply = Reply::Nothing;
         self.handle_into(msg, log, &mut reply);

@@ -44,6 +44,7 @@ macro_rules! each {
 }
 
 mod any;
+mod covariance;
 mod finish;
 mod handle;
 
@@ -55,6 +56,7 @@ use crate::models::ConfigId;
 use crate::wire::{CalibratorConfig, Message};
 
 pub use any::{AnyCalibrator, AnyFilter};
+pub use covariance::{Covariance, PassObserver};
 
 /// A message without payload ([`Session::request`]): the same answer as
 /// [`Session::handle`] of the message it names ([`Request::message`]).
