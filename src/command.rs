@@ -23,6 +23,9 @@ use crate::geometry::{
 };
 use crate::precision::{to_f64, to_t};
 
+mod gap;
+pub use gap::{Gap, GapMotion};
+
 /// The commanded motion over one period, at the three nodes `t_k`,
 /// `t_k + T/2`, `t_k + T` used by the RK4 step and by Simpson's rule.
 #[derive(Clone, Copy, Debug, PartialEq)]

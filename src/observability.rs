@@ -55,7 +55,7 @@ use nalgebra::{RealField, SMatrix, SVector};
 
 use crate::ekf::{Error, Filter, FilterConfig, Options};
 use crate::estimator::LogRecord;
-use crate::models::{Layout, Model, PeriodPropagation};
+use crate::models::{ConfigId, Group, Layout, Model, PeriodPropagation, StateInfo};
 
 /// Default relative tolerance of the numerical rank: an eigenvalue of the
 /// prior-scaled information matrix counts when it exceeds `1e-12 · λ_max`.
@@ -207,6 +207,59 @@ impl<T: RealField + Copy, const N: usize> Spectrum<T, N> {
     }
 }
 
+/// Whether the paper expects state `name` of group `group` to converge in
+/// configuration `id` (docs/model.md §Configurations): the
+/// non-orthogonalities `θgT`, `θaT` in every configuration; the axis
+/// rotations `θgC`, `θaC` in M1-pa, M2-ps, M3-pa and M4-pa; of the mounting
+/// angles `λ`, `lam_x` and `lam_z` in M2-ps; never the attitude. The one
+/// home of this fact: host-sim's verdicts and summaries read it.
+///
+/// # Examples
+///
+/// ```
+/// use rollcal::models::{ConfigId, Group};
+/// use rollcal::observability::expected_observable;
+///
+/// assert!(expected_observable(ConfigId::M1Ps, "thgT_1", Group::ThetaGT));
+/// assert!(!expected_observable(ConfigId::M1Ps, "thgC_x", Group::ThetaGC));
+/// assert!(expected_observable(ConfigId::M2Ps, "lam_z", Group::Lambda));
+/// assert!(!expected_observable(ConfigId::M2Ps, "lam_y", Group::Lambda));
+/// // Over a configuration's state table:
+/// let expected = ConfigId::M2Ps
+///     .states()
+///     .iter()
+///     .filter(|s| expected_observable(ConfigId::M2Ps, s.name, s.group))
+///     .count();
+/// assert_eq!(expected, 14);
+/// ```
+pub fn expected_observable(id: ConfigId, name: &str, group: Group) -> bool {
+    use ConfigId::*;
+    match group {
+        Group::ThetaGT | Group::ThetaAT => true,
+        Group::ThetaGC | Group::ThetaAC => matches!(id, M1Pa | M2Ps | M3Pa | M4Pa),
+        Group::Lambda => id == M2Ps && (name == "lam_x" || name == "lam_z"),
+        Group::Attitude => false,
+    }
+}
+
+/// [`expected_observable`] of a state of `id`'s table
+/// ([`ConfigId::states`]).
+///
+/// # Examples
+///
+/// ```
+/// use rollcal::models::ConfigId;
+/// use rollcal::observability::expected_observable_state;
+///
+/// let states = ConfigId::M1Pa.states();
+/// // M1-pa: attitude (3) not expected; θgC^pa, θgT, θaT (9) expected.
+/// let n = states.iter().filter(|s| expected_observable_state(ConfigId::M1Pa, s)).count();
+/// assert_eq!((states.len(), n), (12, 9));
+/// ```
+pub fn expected_observable_state(id: ConfigId, state: &StateInfo) -> bool {
+    expected_observable(id, state.name, state.group)
+}
+
 /// Information matrix and posterior Cramér–Rao bound of configuration `M`
 /// along the true trajectory, accumulated one filter period at a time.
 ///
@@ -217,6 +270,47 @@ impl<T: RealField + Copy, const N: usize> Spectrum<T, N> {
 /// so [`Observability::transition`], [`Observability::information`] and
 /// [`Observability::analyse`] exist only for `FULL = true`. It is what a
 /// search over candidate paths that only needs `σ_CRLB` runs.
+///
+/// # Examples
+///
+/// M1-pa along a short path: 90° about the x axis, then 90° about z, at
+/// 1°/s (the commanded increments from the computed frame, as the platform
+/// computer forms them).
+///
+/// ```
+/// use nalgebra::{SVector, Vector3};
+/// use rollcal::command::CommandFrame;
+/// use rollcal::ekf::FilterConfig;
+/// use rollcal::models::{ConfigId, M1Pa};
+/// use rollcal::observability::{Observability, RANK_TOLERANCE};
+/// use rollcal::wire::CalibratorConfig;
+///
+/// let settings = CalibratorConfig::paper(ConfigId::M1Pa);
+/// let config = FilterConfig::<f64>::from(&settings);
+/// let sigma_prior = SVector::<f64, 12>::repeat(settings.prior_sigma_rad);
+/// let mut obs = Observability::<f64, M1Pa, 12, 3>::new(config, SVector::zeros(), sigma_prior)?;
+/// let mut frame = CommandFrame::aligned(config.env.earth_rate_n);
+/// let rate = 1f64.to_radians();
+/// for axis in [Vector3::x(), Vector3::z()] {
+///     let u = axis * rate;
+///     for _ in 0..90 {
+///         obs.step(&frame.increment(&u, 1.0), 1.0)?;
+///         frame.c_cn = frame.after(&u, 1.0, 1);
+///     }
+/// }
+/// assert_eq!(obs.periods(), 180);
+/// // The information matrix J of the initial state and its spectrum.
+/// let spectrum = obs.analyse(RANK_TOLERANCE)?;
+/// assert_eq!(spectrum.rank + spectrum.nullity(), 12);
+/// assert!(obs.information()[(0, 0)] >= 0.0);
+/// // σ_CRLB: no state is known worse than its prior.
+/// let ratio = obs.ratio();
+/// assert!(ratio.iter().all(|r| *r <= 1.0 + 1e-12));
+/// for (state, r) in ConfigId::M1Pa.states().iter().zip(ratio.iter()) {
+///     println!("{:8} σ_CRLB/σ_prior = {r:.2e}", state.name);
+/// }
+/// # Ok::<(), rollcal::ekf::Error>(())
+/// ```
 #[derive(Clone, Debug)]
 pub struct Observability<
     T: RealField + Copy,
@@ -580,4 +674,48 @@ pub fn jacobi_eigen<T: RealField + Copy, const N: usize>(
         }
     }
     None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The states each configuration is expected to converge
+    /// (docs/model.md §Configurations): the non-orthogonalities always;
+    /// the axis rotations in M1-pa, M2-ps, M3-pa, M4-pa; `lam_x`, `lam_z`
+    /// in M2-ps; never the attitude.
+    #[test]
+    fn expected_observable_matches_the_configurations_table() {
+        use ConfigId::*;
+        let rotations = |id| matches!(id, M1Pa | M2Ps | M3Pa | M4Pa);
+        for id in ConfigId::ALL {
+            let (mut n, mut expected) = (0, 0);
+            for s in id.states() {
+                let want = match s.group {
+                    Group::Attitude => false,
+                    Group::ThetaGT | Group::ThetaAT => true,
+                    Group::ThetaGC | Group::ThetaAC => rotations(id),
+                    Group::Lambda => id == M2Ps && s.name != "lam_y",
+                };
+                assert_eq!(
+                    expected_observable_state(id, s),
+                    want,
+                    "{} {}",
+                    id.as_str(),
+                    s.name
+                );
+                n += 1;
+                expected += usize::from(want);
+            }
+            let count = match id {
+                M1Pa | M3Pa | M4Pa => 9,
+                M2Ps => 14,
+                M1Ps | M3Ps | M4Ps => 6,
+            };
+            assert_eq!((n, expected), (id.layout().n(), count), "{}", id.as_str());
+        }
+        // M3-ps shares M2-ps's states but observes no mounting angle.
+        assert!(expected_observable(M2Ps, "lam_z", Group::Lambda));
+        assert!(!expected_observable(M3Ps, "lam_z", Group::Lambda));
+    }
 }

@@ -280,6 +280,25 @@ pub trait SampleLog<T: RealField + Copy> {
 
 /// A [`SampleLog`] over a caller's slice of records in RAM: fills the slice
 /// in order, then [`SampleLog::append`] returns [`LogError::Full`].
+///
+/// # Examples
+///
+/// ```
+/// use nalgebra::Vector3;
+/// use rollcal::estimator::{LogError, LogRecord, SampleLog, SliceLog};
+///
+/// let mut records = [LogRecord::<f64>::predicted(0.0, Vector3::zeros()); 2];
+/// let mut log = SliceLog::new(&mut records);
+/// let period = LogRecord::predicted(1.0, Vector3::new(0.0, 1e-3, 0.0));
+/// log.append(&period)?;
+/// log.append(&period)?;
+/// assert_eq!(log.append(&period), Err(LogError::Full));
+/// assert_eq!((log.len(), log.capacity()), (2, 2));
+/// assert_eq!(log.get(1), Some(period));
+/// log.truncate(1); // a restore from a checkpoint that counted one record
+/// assert_eq!(log.records().len(), 1);
+/// # Ok::<(), LogError>(())
+/// ```
 #[derive(Debug)]
 pub struct SliceLog<'a, T: RealField + Copy> {
     buf: &'a mut [LogRecord<T>],

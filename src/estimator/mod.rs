@@ -80,6 +80,19 @@ pub const DEFAULT_TOLERANCE: f64 = 0.1;
 
 /// How many passes the estimator runs.
 ///
+/// # Examples
+///
+/// ```
+/// use rollcal::estimator::{EstimatorOptions, DEFAULT_MAX_PASSES};
+///
+/// // The default: up to 4 passes, stopping once no state moves by 0.1 σ.
+/// let default = EstimatorOptions::default();
+/// assert_eq!((default.max_passes, default.tolerance), (DEFAULT_MAX_PASSES, 0.1));
+/// // Pass 1 alone: the extended filter, as the calibrator runs it live.
+/// let pass_1 = EstimatorOptions { max_passes: 1, ..default };
+/// assert_eq!(pass_1.max_passes, 1);
+/// ```
+///
 /// The filter options of pass 1 (the cold-start remedy and the NIS gate)
 /// are [`FilterConfig::options`] of the configuration given to
 /// [`estimate`]; every pass uses that same configuration (in the
@@ -249,6 +262,56 @@ impl Tally {
 /// [`Filter::new`] rejects, a record the log cannot return, or a failed
 /// back-propagation. Never panics. [`estimate_in`] is the same without a
 /// filter returned by value (for a small stack).
+///
+/// # Examples
+///
+/// The estimator of record of M1-pa over a recorded run of 30 periods of
+/// a platform at rest, kept in RAM:
+///
+/// ```
+/// use nalgebra::{SVector, Vector3};
+/// use rollcal::ekf::{FilterConfig, Observation};
+/// use rollcal::estimator::{estimate, EstimatorOptions, LogRecord, SliceLog};
+/// use rollcal::models::{ConfigId, M1Pa};
+/// use rollcal::wire::CalibratorConfig;
+///
+/// let settings = CalibratorConfig::paper(ConfigId::M1Pa);
+/// let config = FilterConfig::<f64>::from(&settings);
+/// // At rest in the navigation frame: the commanded increment is the Earth
+/// // rate's, the accelerometers read 1 g up.
+/// let at_rest = LogRecord::measured(
+///     1.0,
+///     Vector3::from(settings.earth_rate_n),
+///     Observation { accel_mean: Vector3::new(0.0, 1.0, 0.0), gimbal: None },
+/// );
+/// let mut records = [at_rest; 30];
+/// let mut log = SliceLog::from_records(&mut records);
+/// let x0 = SVector::<f64, 12>::zeros();
+/// let sigma0 = SVector::<f64, 12>::repeat(settings.prior_sigma_rad);
+/// // (pass, updates in that pass), kept by the observer.
+/// let mut last_pass = (0, 0);
+/// let outcome = estimate::<f64, M1Pa, 12, 3, _, _>(
+///     &config,
+///     &x0,
+///     &sigma0,
+///     &mut log,
+///     &EstimatorOptions::default(),
+///     |e| {
+///         if e.pass != last_pass.0 {
+///             last_pass = (e.pass, 0);
+///         }
+///         if let Ok(Some(_innovation)) = &e.result {
+///             last_pass.1 += 1;
+///         }
+///     },
+/// )?;
+/// assert_eq!(outcome.report.records, 30);
+/// assert!(outcome.report.passes >= 2);
+/// assert_eq!(last_pass, (outcome.report.passes, 30));
+/// // The run excites little: σ of every state is at most the prior's.
+/// assert!(outcome.filter.sigma().iter().all(|s| *s <= settings.prior_sigma_rad));
+/// # Ok::<(), rollcal::estimator::EstimatorError>(())
+/// ```
 pub fn estimate<T, M, const N: usize, const Z: usize, L, F>(
     config: &FilterConfig<T>,
     x0: &SVector<f64, N>,

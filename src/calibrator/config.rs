@@ -1,0 +1,70 @@
+//! The filter's settings from the calibrator's ([`FilterConfig`] from
+//! [`CalibratorConfig`]) and the prior every start is made from.
+
+use nalgebra::{RealField, SVector, Vector3};
+
+use super::{to_t, Calibrator, Error};
+use crate::ekf::FilterConfig;
+use crate::models::{ConfigId, Environment, Model};
+use crate::wire::CalibratorConfig;
+
+/// The filter settings of a calibrator's settings: the environment as it
+/// is (f64), the noise levels in the filter's scalar `T`, the options as
+/// they are. What every calibrator runs its filter with.
+///
+/// # Examples
+///
+/// ```
+/// use rollcal::ekf::FilterConfig;
+/// use rollcal::models::ConfigId;
+/// use rollcal::wire::CalibratorConfig;
+///
+/// let settings = CalibratorConfig::paper(ConfigId::M1Pa);
+/// let f64_filter = FilterConfig::<f64>::from(&settings);
+/// assert_eq!(f64_filter.sigma_accel, 1e-6);
+/// assert_eq!(f64_filter.env.gravity_n.y, 1.0);
+/// // For an FPU without double precision: the noise levels in f32.
+/// let f32_filter = FilterConfig::<f32>::from(&settings);
+/// assert_eq!(f32_filter.sigma_accel, 1e-6_f32);
+/// ```
+impl<T: RealField + Copy> From<&CalibratorConfig> for FilterConfig<T> {
+    fn from(s: &CalibratorConfig) -> Self {
+        FilterConfig {
+            env: Environment {
+                earth_rate_n: Vector3::from(s.earth_rate_n),
+                gravity_n: Vector3::from(s.gravity_n),
+            },
+            sigma_accel: to_t(s.sigma_accel_g),
+            sigma_gyro: to_t(s.sigma_gyro_rad_s),
+            sigma_gimbal: to_t(s.sigma_gimbal_rad),
+            options: s.options,
+        }
+    }
+}
+
+impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize>
+    Calibrator<T, M, N, Z>
+{
+    /// `Ok` when `found` is this calibrator type's configuration.
+    pub(super) fn check_config(found: ConfigId) -> Result<(), Error> {
+        if found == M::ID {
+            Ok(())
+        } else {
+            Err(Error::ConfigMismatch {
+                expected: M::ID,
+                found,
+            })
+        }
+    }
+
+    /// The filter's start of `s`: its settings, the zero estimate and the
+    /// prior σ (`prior_sigma_rad`) of every state: what a new calibrator, a
+    /// reset and every pass of the estimator of record start from.
+    pub(super) fn prior(s: &CalibratorConfig) -> (FilterConfig<T>, SVector<f64, N>, SVector<T, N>) {
+        (
+            FilterConfig::from(s),
+            SVector::zeros(),
+            SVector::repeat(to_t(s.prior_sigma_rad)),
+        )
+    }
+}

@@ -1,0 +1,45 @@
+//! Errors of building or restoring a calibrator ([`Error`]).
+
+use crate::ekf;
+use crate::models::ConfigId;
+
+/// Errors of building or restoring a calibrator.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum Error {
+    /// The settings or checkpoint name another configuration than the type's.
+    ConfigMismatch {
+        /// The calibrator type's configuration.
+        expected: ConfigId,
+        /// The configuration found.
+        found: ConfigId,
+    },
+    /// A checkpoint vector has the wrong length for the configuration.
+    CheckpointDimension,
+    /// The filter refused the settings or the checkpoint's values.
+    Filter(ekf::Error),
+}
+
+impl core::fmt::Display for Error {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Error::ConfigMismatch { expected, found } => write!(
+                f,
+                "configuration {} given to a {} calibrator",
+                found.as_str(),
+                expected.as_str()
+            ),
+            Error::CheckpointDimension => f.write_str("checkpoint dimensions do not match"),
+            Error::Filter(e) => write!(f, "filter: {e}"),
+        }
+    }
+}
+
+impl core::error::Error for Error {}
+
+impl From<ekf::Error> for Error {
+    fn from(e: ekf::Error) -> Self {
+        Error::Filter(e)
+    }
+}

@@ -1,0 +1,196 @@
+//! [`AnyCalibrator`] and [`AnyFilter`]: a calibrator and a filter of any of
+//! the seven configurations, each call dispatched to the configuration's
+//! own out-of-line function (one configuration's frame on a firmware's
+//! stack, not seven).
+
+use nalgebra::RealField;
+
+use crate::calibrator::{self, Calibrator, RejectReason};
+use crate::ekf::Filter;
+use crate::estimator::SampleLog;
+#[allow(unused_imports)] // the configurations left out of a build (cargo features)
+use crate::models::{ConfigId, M1Pa, M1Ps, M2Ps, M3Pa, M3Ps, M4Pa, M4Ps, Model};
+use crate::wire::{CalibratorConfig, Checkpoint, Estimate, Progress};
+
+/// A calibrator of any of the seven configurations (the value-level side of
+/// [`crate::with_config!`]).
+// The variants differ in size by their covariance; no heap to box them.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug, PartialEq)]
+pub enum AnyCalibrator<T: RealField + Copy> {
+    /// M1-pa.
+    #[cfg(feature = "m1-pa")]
+    M1Pa(Calibrator<T, M1Pa, 12, 3>),
+    /// M1-ps.
+    #[cfg(feature = "m1-ps")]
+    M1Ps(Calibrator<T, M1Ps, 15, 3>),
+    /// M2-ps.
+    #[cfg(feature = "m2-ps")]
+    M2Ps(Calibrator<T, M2Ps, 18, 6>),
+    /// M3-pa.
+    #[cfg(feature = "m3-pa")]
+    M3Pa(Calibrator<T, M3Pa, 15, 3>),
+    /// M3-ps.
+    #[cfg(feature = "m3-ps")]
+    M3Ps(Calibrator<T, M3Ps, 18, 3>),
+    /// M4-pa.
+    #[cfg(feature = "m4-pa")]
+    M4Pa(Calibrator<T, M4Pa, 12, 3>),
+    /// M4-ps.
+    #[cfg(feature = "m4-ps")]
+    M4Ps(Calibrator<T, M4Ps, 15, 3>),
+}
+
+/// A filter of any of the seven configurations: the one in which a
+/// session runs `Finish`'s passes ([`AnyCalibrator::finish`]). The session
+/// keeps it, so a firmware that holds its session in static memory has no
+/// filter on its stack under the passes (the M7's 5.8 KB f64 M2-ps filter).
+// The variants differ in size by their covariance; no heap to box them.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug, PartialEq)]
+pub enum AnyFilter<T: RealField + Copy> {
+    /// M1-pa.
+    #[cfg(feature = "m1-pa")]
+    M1Pa(Filter<T, M1Pa, 12, 3>),
+    /// M1-ps.
+    #[cfg(feature = "m1-ps")]
+    M1Ps(Filter<T, M1Ps, 15, 3>),
+    /// M2-ps.
+    #[cfg(feature = "m2-ps")]
+    M2Ps(Filter<T, M2Ps, 18, 6>),
+    /// M3-pa.
+    #[cfg(feature = "m3-pa")]
+    M3Pa(Filter<T, M3Pa, 15, 3>),
+    /// M3-ps.
+    #[cfg(feature = "m3-ps")]
+    M3Ps(Filter<T, M3Ps, 18, 3>),
+    /// M4-pa.
+    #[cfg(feature = "m4-pa")]
+    M4Pa(Filter<T, M4Pa, 12, 3>),
+    /// M4-ps.
+    #[cfg(feature = "m4-ps")]
+    M4Ps(Filter<T, M4Ps, 15, 3>),
+}
+
+impl<T: RealField + Copy> AnyCalibrator<T> {
+    /// A calibrator of `settings.config` at the prior.
+    pub fn new(settings: CalibratorConfig) -> Result<Self, calibrator::Error> {
+        let mut slot = None;
+        Self::build_into(&mut slot, settings)?;
+        slot.ok_or(calibrator::Error::ConfigMismatch {
+            expected: ConfigId::first_built(),
+            found: settings.config,
+        })
+    }
+
+    /// Puts a calibrator of `settings.config` at the prior into `slot`
+    /// (whatever it held; untouched on error). Each configuration is built
+    /// by its own out-of-line function, so a firmware's stack holds one
+    /// configuration's temporaries, not seven (37 KB of frame on the M7
+    /// before); the prior is checked first and the calibrator then built
+    /// straight into `slot`, with no `Result` holding it (12.3 KB of frame
+    /// on the M7 before, 2.0 KB now).
+    pub fn build_into(
+        slot: &mut Option<Self>,
+        settings: CalibratorConfig,
+    ) -> Result<(), calibrator::Error> {
+        match settings.config {
+            #[cfg(feature = "m1-pa")]
+            ConfigId::M1Pa => Self::build_one(slot, settings, Self::M1Pa),
+            #[cfg(feature = "m1-ps")]
+            ConfigId::M1Ps => Self::build_one(slot, settings, Self::M1Ps),
+            #[cfg(feature = "m2-ps")]
+            ConfigId::M2Ps => Self::build_one(slot, settings, Self::M2Ps),
+            #[cfg(feature = "m3-pa")]
+            ConfigId::M3Pa => Self::build_one(slot, settings, Self::M3Pa),
+            #[cfg(feature = "m3-ps")]
+            ConfigId::M3Ps => Self::build_one(slot, settings, Self::M3Ps),
+            #[cfg(feature = "m4-pa")]
+            ConfigId::M4Pa => Self::build_one(slot, settings, Self::M4Pa),
+            #[cfg(feature = "m4-ps")]
+            ConfigId::M4Ps => Self::build_one(slot, settings, Self::M4Ps),
+            // A configuration left out of this build (cargo features).
+            #[allow(unreachable_patterns)]
+            found => Err(calibrator::Error::ConfigMismatch {
+                expected: ConfigId::first_built(),
+                found,
+            }),
+        }
+    }
+
+    /// [`AnyCalibrator::build_into`] for one configuration.
+    #[inline(never)]
+    fn build_one<M: Model<N, Z> + Clone, const N: usize, const Z: usize>(
+        slot: &mut Option<Self>,
+        settings: CalibratorConfig,
+        variant: impl FnOnce(Calibrator<T, M, N, Z>) -> Self,
+    ) -> Result<(), calibrator::Error> {
+        let variance = Calibrator::<T, M, N, Z>::prior_variance(&settings)?;
+        *slot = Some(variant(Calibrator::with_prior_variance(
+            settings, &variance,
+        )));
+        Ok(())
+    }
+
+    /// The calibrator's settings.
+    pub fn settings(&self) -> &CalibratorConfig {
+        each!(self, c => c.settings())
+    }
+
+    /// Its bookkeeping.
+    pub fn progress(&self) -> &Progress {
+        each!(self, c => c.progress())
+    }
+
+    /// [`Calibrator::push_logged`].
+    pub fn push_logged(
+        &mut self,
+        s: &crate::wire::Sample,
+        log: &mut (dyn SampleLog<T> + '_),
+    ) -> Result<Option<Estimate>, RejectReason> {
+        each!(self, c => c.push_logged(s, log))
+    }
+
+    /// [`Calibrator::estimate`] (running).
+    pub fn estimate(&self) -> Estimate {
+        each!(self, c => c.estimate())
+    }
+
+    /// [`Calibrator::checkpoint`].
+    pub fn checkpoint(&self) -> Checkpoint {
+        each!(self, c => c.checkpoint())
+    }
+
+    /// [`Calibrator::reset`].
+    pub fn reset(&mut self) -> Result<(), calibrator::Error> {
+        each!(self, c => c.reset())
+    }
+
+    /// Restores from `cp` with the current settings; on error the calibrator
+    /// is unchanged.
+    pub fn restore(&mut self, cp: &Checkpoint) -> Result<(), calibrator::Error> {
+        let settings = *self.settings();
+        each!(self, c => restore_into(c, settings, cp))
+    }
+
+    /// [`Calibrator::set_frame_errors`].
+    pub fn set_frame_errors(&mut self, n: u32) {
+        each!(self, c => c.set_frame_errors(n))
+    }
+}
+
+/// [`Calibrator::restore_in_place`], in a frame of its own (one
+/// configuration's temporaries on the stack, not seven).
+#[inline(never)]
+fn restore_into<
+    T: RealField + Copy,
+    M: crate::models::Model<N, Z> + Clone,
+    const N: usize,
+    const Z: usize,
+>(
+    c: &mut Calibrator<T, M, N, Z>,
+    settings: CalibratorConfig,
+    cp: &Checkpoint,
+) -> Result<(), calibrator::Error> {
+    c.restore_in_place(settings, cp)
+}

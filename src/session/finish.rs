@@ -1,0 +1,106 @@
+//! `Finish` for a calibrator of any configuration: the estimator of record
+//! run in the session's filter ([`AnyCalibrator::finish`]).
+
+use nalgebra::RealField;
+
+use super::{AnyCalibrator, AnyFilter};
+use crate::calibrator::Calibrator;
+use crate::ekf::Filter;
+use crate::estimator::{EstimatorOptions, SampleLog};
+use crate::models::Model;
+use crate::wire::{Estimate, SinglePassReason};
+
+impl<T: RealField + Copy> AnyCalibrator<T> {
+    /// [`Calibrator::finish_in`] (the final answer) in the filter held by
+    /// `scratch`: one of this configuration when it holds one (what it
+    /// held does not matter otherwise), else a copy of the running filter
+    /// put there first. `on_update(pass, nis)` is called for every update
+    /// of every pass (`nis` `None` for a period without measurement, or a
+    /// refused update).
+    pub fn finish(
+        &self,
+        scratch: &mut Option<AnyFilter<T>>,
+        log: &mut (dyn SampleLog<T> + '_),
+        passes: &EstimatorOptions,
+        on_update: &mut dyn FnMut(u8, Option<T>),
+    ) -> Estimate {
+        // `$v`: the configuration's variant of both enums.
+        macro_rules! finish_as {
+            ($c:ident, $v:ident) => {
+                finish_one(
+                    $c,
+                    scratch,
+                    |any| match any {
+                        AnyFilter::$v(f) => Some(f),
+                        #[allow(unreachable_patterns)] // a build of one configuration
+                        _ => None,
+                    },
+                    AnyFilter::$v,
+                    log,
+                    passes,
+                    on_update,
+                )
+            };
+        }
+        match self {
+            #[cfg(feature = "m1-pa")]
+            AnyCalibrator::M1Pa(c) => finish_as!(c, M1Pa),
+            #[cfg(feature = "m1-ps")]
+            AnyCalibrator::M1Ps(c) => finish_as!(c, M1Ps),
+            #[cfg(feature = "m2-ps")]
+            AnyCalibrator::M2Ps(c) => finish_as!(c, M2Ps),
+            #[cfg(feature = "m3-pa")]
+            AnyCalibrator::M3Pa(c) => finish_as!(c, M3Pa),
+            #[cfg(feature = "m3-ps")]
+            AnyCalibrator::M3Ps(c) => finish_as!(c, M3Ps),
+            #[cfg(feature = "m4-pa")]
+            AnyCalibrator::M4Pa(c) => finish_as!(c, M4Pa),
+            #[cfg(feature = "m4-ps")]
+            AnyCalibrator::M4Ps(c) => finish_as!(c, M4Ps),
+        }
+    }
+}
+
+/// [`AnyCalibrator::finish`] for one configuration: `of` is its variant of
+/// [`AnyFilter`] (`None` for another), `wrap` makes one.
+#[inline(never)]
+fn finish_one<
+    T: RealField + Copy,
+    M: crate::models::Model<N, Z> + Clone,
+    const N: usize,
+    const Z: usize,
+>(
+    c: &Calibrator<T, M, N, Z>,
+    scratch: &mut Option<AnyFilter<T>>,
+    of: fn(&mut AnyFilter<T>) -> Option<&mut Filter<T, M, N, Z>>,
+    wrap: fn(Filter<T, M, N, Z>) -> AnyFilter<T>,
+    log: &mut (dyn SampleLog<T> + '_),
+    passes: &EstimatorOptions,
+    on_update: &mut dyn FnMut(u8, Option<T>),
+) -> Estimate {
+    if scratch.as_mut().and_then(of).is_none() {
+        fill_scratch(scratch, c.filter(), wrap);
+    }
+    match scratch.as_mut().and_then(of) {
+        Some(filter) => c.finish_in(filter, log, passes, |e| {
+            on_update(
+                e.pass,
+                e.result.as_ref().ok().and_then(|r| r.map(|i| i.nis)),
+            );
+        }),
+        // Not reached: `fill_scratch` has just put this variant there.
+        None => c.single_pass(SinglePassReason::Estimator),
+    }
+}
+
+/// `*scratch = Some(wrap(running.clone()))`, in a frame of its own: the
+/// copy passes through this frame, which has returned before the passes
+/// run.
+#[inline(never)]
+fn fill_scratch<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize>(
+    scratch: &mut Option<AnyFilter<T>>,
+    running: &Filter<T, M, N, Z>,
+    wrap: fn(Filter<T, M, N, Z>) -> AnyFilter<T>,
+) {
+    *scratch = Some(wrap(running.clone()));
+}

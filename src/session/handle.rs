@@ -1,0 +1,219 @@
+//! [`Session::handle`]: each message acted on by its own out-of-line
+//! function, the reply written into the caller's slot.
+
+use nalgebra::RealField;
+
+use super::{AnyCalibrator, AnyFilter, Reply, Request, Session, SessionError};
+use crate::estimator::{EstimatorOptions, SampleLog};
+use crate::wire::{Estimate, Message};
+
+impl<T: RealField + Copy> Session<T> {
+    /// Acts on one message; `log` is the sample log of the run.
+    ///
+    /// # Examples
+    ///
+    /// A run as a device receives it: `Configure`, the samples, `Finish`.
+    ///
+    /// ```
+    /// use nalgebra::Vector3;
+    /// use rollcal::estimator::{EstimatorOptions, LogRecord, SliceLog};
+    /// use rollcal::models::ConfigId;
+    /// use rollcal::session::{Reply, Session};
+    /// use rollcal::wire::{CalibratorConfig, EstimateKind, Message, Sample};
+    ///
+    /// let mut session = Session::<f64>::new(None, EstimatorOptions::default());
+    /// let mut records = [LogRecord::predicted(0.0, Vector3::zeros()); 20];
+    /// let mut log = SliceLog::new(&mut records);
+    /// let settings = CalibratorConfig {
+    ///     estimate_every: 0, // no running estimates
+    ///     ..CalibratorConfig::paper(ConfigId::M4Pa)
+    /// };
+    /// let configure = Message::Configure(settings);
+    /// assert_eq!(session.handle(&configure, &mut log), Reply::Nothing);
+    /// for seq in 0..20 {
+    ///     let sample = Message::Sample(Sample {
+    ///         seq,
+    ///         t_us: (u64::from(seq) + 1) * 1_000_000,
+    ///         dt: 1.0,
+    ///         dtheta_cmd: settings.earth_rate_n, // at rest
+    ///         c_cn_quat: [1.0, 0.0, 0.0, 0.0],
+    ///         accel_mean: [0.0, 1.0, 0.0],
+    ///         gimbal: None,
+    ///     });
+    ///     assert_eq!(session.handle(&sample, &mut log), Reply::Nothing);
+    /// }
+    /// match session.handle(&Message::Finish, &mut log) {
+    ///     Reply::Send(Message::Estimate(e)) => {
+    ///         assert!(matches!(e.kind, EstimateKind::Final { .. }));
+    ///         assert_eq!((e.config, e.seq, e.state.len()), (ConfigId::M4Pa, 19, 12));
+    ///     }
+    ///     other => panic!("{other:?}"),
+    /// }
+    /// assert_eq!(session.stats().errors, 0);
+    /// ```
+    pub fn handle(&mut self, msg: &Message, log: &mut (dyn SampleLog<T> + '_)) -> Reply {
+        let mut reply = Reply::Nothing;
+        self.handle_into(msg, log, &mut reply);
+        reply
+    }
+
+    /// [`Session::handle`] with the reply written into `reply` (what it
+    /// held is replaced). A reply is message-sized (≈ 3 KB, a checkpoint's
+    /// size, whatever it holds): a firmware that keeps the slot in static
+    /// memory has none on its stack. Every reply is written straight into
+    /// the slot, and no frame below which the estimator runs holds a
+    /// message.
+    pub fn handle_into(
+        &mut self,
+        msg: &Message,
+        log: &mut (dyn SampleLog<T> + '_),
+        reply: &mut Reply,
+    ) {
+        self.act(msg, log, reply);
+        self.count(reply);
+    }
+
+    /// [`Session::handle`] of a message without payload, given as a
+    /// [`Request`]: a firmware that sends itself `&Message::Finish` holds a
+    /// message-sized constant (3 KB of flash each, the size of the largest
+    /// message) for a one-byte request.
+    pub fn request(&mut self, request: Request, log: &mut (dyn SampleLog<T> + '_)) -> Reply {
+        let mut reply = Reply::Nothing;
+        self.request_into(request, log, &mut reply);
+        reply
+    }
+
+    /// [`Session::request`] with the reply written into `reply`, as
+    /// [`Session::handle_into`].
+    pub fn request_into(
+        &mut self,
+        request: Request,
+        log: &mut (dyn SampleLog<T> + '_),
+        reply: &mut Reply,
+    ) {
+        self.act_request(request, log, reply);
+        self.count(reply);
+    }
+
+    // By reference: a reply passed through by value is one more copy of a
+    // message-sized value in the caller's frame (3 KB on a firmware stack).
+    fn count(&mut self, reply: &Reply) {
+        if matches!(reply, Reply::Error(_)) {
+            self.stats.errors = self.stats.errors.saturating_add(1);
+        }
+    }
+
+    // Each message has its own function, none inlined: a firmware's stack
+    // holds the frame of one handler at a time, not of all of them (and
+    // not of the seven configurations' calibrators at once). Every reply
+    // is written into `reply`; a message is built only in the frames of
+    // `send_estimate` and `checkpoint`, never in one below which the
+    // estimator runs.
+    fn act(&mut self, msg: &Message, log: &mut (dyn SampleLog<T> + '_), reply: &mut Reply) {
+        match msg {
+            Message::Configure(settings) => {
+                *reply = match self.configure(*settings) {
+                    Ok(()) => Reply::Nothing,
+                    Err(e) => Reply::Error(e),
+                }
+            }
+            Message::Estimate(_) => {
+                self.stats.ignored = self.stats.ignored.saturating_add(1);
+                *reply = Reply::Nothing;
+            }
+            Message::Sample(s) => match self.cal.as_mut() {
+                Some(cal) => Self::sample(cal, s, log, reply),
+                None => {
+                    self.stats.unconfigured = self.stats.unconfigured.saturating_add(1);
+                    *reply = Reply::Error(SessionError::NotConfigured);
+                }
+            },
+            Message::EstimateRequest => self.act_request(Request::Estimate, log, reply),
+            Message::Finish => self.act_request(Request::Finish, log, reply),
+            Message::CheckpointRequest => self.act_request(Request::Checkpoint, log, reply),
+            Message::Reset => self.act_request(Request::Reset, log, reply),
+            // The log follows the calibrator's count of what it logged
+            // (Calibrator::push_logged): kept across a restore when it
+            // still holds those records, emptied after a reset.
+            Message::Checkpoint(cp) => {
+                *reply = match self.cal.as_mut() {
+                    Some(cal) => match cal.restore(cp) {
+                        Ok(()) => Reply::Nothing,
+                        Err(e) => Reply::Error(SessionError::Calibrator(e)),
+                    },
+                    None => Reply::Error(SessionError::NotConfigured),
+                }
+            }
+        }
+    }
+
+    fn act_request(
+        &mut self,
+        request: Request,
+        log: &mut (dyn SampleLog<T> + '_),
+        reply: &mut Reply,
+    ) {
+        let Some(cal) = self.cal.as_mut() else {
+            *reply = Reply::Error(SessionError::NotConfigured);
+            return;
+        };
+        match request {
+            Request::Estimate => Self::estimate(cal, reply),
+            Request::Finish => Self::finish(cal, &mut self.scratch, log, &self.passes, reply),
+            Request::Checkpoint => Self::checkpoint(cal, reply),
+            Request::Reset => {
+                *reply = match cal.reset() {
+                    Ok(()) => {
+                        self.stats.restarts = self.stats.restarts.saturating_add(1);
+                        Reply::Nothing
+                    }
+                    Err(e) => Reply::Error(SessionError::Calibrator(e)),
+                }
+            }
+        }
+    }
+
+    #[inline(never)]
+    fn sample(
+        cal: &mut AnyCalibrator<T>,
+        s: &crate::wire::Sample,
+        log: &mut (dyn SampleLog<T> + '_),
+        reply: &mut Reply,
+    ) {
+        match cal.push_logged(s, log) {
+            Ok(Some(e)) => Self::send_estimate(e, reply),
+            Ok(None) => *reply = Reply::Nothing,
+            Err(r) => *reply = Reply::Rejected(r),
+        }
+    }
+
+    #[inline(never)]
+    fn finish(
+        cal: &AnyCalibrator<T>,
+        scratch: &mut Option<AnyFilter<T>>,
+        log: &mut (dyn SampleLog<T> + '_),
+        passes: &EstimatorOptions,
+        reply: &mut Reply,
+    ) {
+        Self::send_estimate(cal.finish(scratch, log, passes, &mut |_, _| {}), reply);
+    }
+
+    // Out of line: the estimate (≈ 0.5 KB) is not in `act_request`'s frame,
+    // below which `Finish` runs the estimator.
+    #[inline(never)]
+    fn estimate(cal: &AnyCalibrator<T>, reply: &mut Reply) {
+        Self::send_estimate(cal.estimate(), reply);
+    }
+
+    /// `reply` becomes the message of `estimate`. Out of line: the message
+    /// it builds is in this frame only, after the estimate is computed.
+    #[inline(never)]
+    fn send_estimate(estimate: Estimate, reply: &mut Reply) {
+        *reply = Reply::Send(Message::Estimate(estimate));
+    }
+
+    #[inline(never)]
+    fn checkpoint(cal: &AnyCalibrator<T>, reply: &mut Reply) {
+        *reply = Reply::Send(Message::Checkpoint(cal.checkpoint()));
+    }
+}
