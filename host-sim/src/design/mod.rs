@@ -6,7 +6,7 @@
 //! **The bound.** Every candidate is scored by the one computation of the
 //! bound, [`rollcal::observability::Observability`], fed the commanded
 //! increments of the candidate path. The increments come from the library's
-//! own [`CommandFrame`] (`Δθc = uT + T J_r(uT) C^c_n ω^n_ie` at the constant
+//! own [`CommandFrame`](rollcal::command::CommandFrame) (`Δθc = uT + T J_r(uT) C^c_n ω^n_ie` at the constant
 //! path rate `u`), not from the truth simulator: the bound depends on the
 //! commanded motion only, and the truth simulator's RK4 integral of the same
 //! motion agrees to rounding (tested). The designed path is finally checked

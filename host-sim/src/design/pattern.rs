@@ -79,6 +79,25 @@ pub struct Piece<'a> {
 }
 
 /// A candidate: a pattern of rotations repeated until the path ends.
+///
+/// # Examples
+///
+/// ```
+/// use host_sim::design::{NamedAxis, Pattern, Rotation};
+///
+/// let p = Pattern {
+///     rotations: vec![
+///         Rotation::new(NamedAxis::named("south")?, 180.0, 1.0),
+///         Rotation::new(NamedAxis::named("east")?, 90.0, 1.0),
+///     ],
+///     repeat: true,
+/// };
+/// assert_eq!(p.describe(), "(south 180° @1°/s, east 90° @1°/s) repeated");
+/// // 270 one-second periods per cycle; the first 200 cut within the second.
+/// assert_eq!(p.cycle_periods(1.0), Some(270));
+/// assert_eq!(p.segments(200, 1.0).len(), 2);
+/// # Ok::<(), host_sim::design::DesignError>(())
+/// ```
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Pattern {
     /// The rotations of one cycle.

@@ -19,6 +19,18 @@ pub struct TargetArg {
 }
 
 /// Parses `NAME=ARCSEC`.
+///
+/// # Examples
+///
+/// ```
+/// use host_sim::design::parse_target;
+///
+/// let t = parse_target("thgC=1.5")?;
+/// assert_eq!((t.name.as_str(), t.arcsec), ("thgC", 1.5));
+/// let e = parse_target("thgC").unwrap_err();
+/// assert_eq!(e.to_string(), "target 'thgC': expected NAME=ARCSEC, e.g. thgC=1.5");
+/// # Ok::<(), host_sim::design::DesignError>(())
+/// ```
 pub fn parse_target(s: &str) -> Result<TargetArg, DesignError> {
     let (name, v) = s.split_once('=').ok_or_else(|| {
         DesignError::Target(format!("target '{s}': expected NAME=ARCSEC, e.g. thgC=1.5"))

@@ -43,6 +43,14 @@ const COMPONENT_COLOURS: [RGBColor; 6] = [
 
 /// The moving average of `v` over the last `window` values (fewer at the
 /// start).
+///
+/// # Examples
+///
+/// ```
+/// use host_sim::output::plots::moving_average;
+///
+/// assert_eq!(moving_average(&[2.0, 4.0, 6.0, 8.0], 2), [2.0, 3.0, 5.0, 7.0]);
+/// ```
 pub fn moving_average(v: &[f64], window: usize) -> Vec<f64> {
     let w = window.max(1);
     let mut out = Vec::with_capacity(v.len());

@@ -32,6 +32,25 @@ const SIGMA_ROW_HEIGHT: u32 = 210;
 /// Writes one PNG comparing σ(t) of every curve along two paths: one
 /// log-scale panel per parameter (three per row), path A solid, path B
 /// dashed, the target dotted; the time axis is shared.
+///
+/// # Examples
+///
+/// ```
+/// use host_sim::output::plots::{plot_sigma_comparison, SigmaCurve};
+///
+/// let dir = std::env::temp_dir().join("host-sim-doc-sigma");
+/// std::fs::create_dir_all(&dir)?;
+/// let curve = SigmaCurve {
+///     label: "thgC_x",
+///     target: 1.0,
+///     a: vec![(0.0, 3600.0), (600.0, 0.9)],
+///     b: vec![(0.0, 3600.0), (1200.0, 0.9)],
+/// };
+/// let png = dir.join("sigma.png");
+/// plot_sigma_comparison(&png, "σ_CRLB(t)", "designed", "reference", &[curve])?;
+/// assert!(std::fs::metadata(&png)?.len() > 0);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn plot_sigma_comparison(
     path: &Path,
     title: &str,
