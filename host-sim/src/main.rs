@@ -48,7 +48,7 @@ enum Command {
     /// reaches every target (default: the reference path's final σ), or the
     /// best within --budget-s; writes it as a scenario file and a σ(t)
     /// figure.
-    Design(Box<host_sim::design::DesignArgs>),
+    Design(Box<host_sim::cli::design::DesignArgs>),
     /// Simulate a scenario and write it as a stream of wire frames
     /// (docs/wire.md) or, with --format csv, as a CSV log (docs/csv.md).
     Record(host_sim::stream::RecordArgs),
@@ -264,7 +264,7 @@ fn main() -> ExitCode {
         Some(Command::Observability(args)) => cmd_observability(&args),
         Some(Command::Montecarlo(args)) => cmd_montecarlo(&args),
         Some(Command::Paper(args)) => cmd_paper(&args),
-        Some(Command::Design(args)) => host_sim::design::command(&args),
+        Some(Command::Design(args)) => host_sim::cli::design::command(&args),
         Some(Command::Record(args)) => host_sim::stream::record(&args),
         Some(Command::Calibrate(args)) => match host_sim::stream::calibrate_judged(&args) {
             // A data-model warning: its own exit status (README "Judging a

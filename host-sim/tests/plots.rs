@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use host_sim::plots::{
+use host_sim::output::plots::{
     convergence_size, figure_size, moving_average, plot_convergence, plot_group, plot_group_marked,
     plot_innovations, Curve, Innovations, SigmaSeries, HEADER_HEIGHT, INNOVATIONS_SIZE, MAX_PANELS,
     WIDTH,
@@ -377,7 +377,7 @@ fn convergence_and_innovation_figures_have_their_size_and_content() {
         white: &white,
         dof: 3,
         window: 100,
-        band: host_sim::html::nis_band(100, 3),
+        band: host_sim::output::html::nis_band(100, 3),
     };
     plot_innovations(&path, "innovations", &u, &[500.0, 1500.0]).unwrap();
     let img = decode(&path);

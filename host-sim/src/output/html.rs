@@ -7,7 +7,7 @@
 //! |error|/σ only when a truth exists — without one those columns are
 //! absent), the σ(t) convergence figures per parameter group (log scale,
 //! filter σ over the σ_CRLB dashes), the error figures when a truth exists
-//! ([`crate::plots::plot_group_marked`]), the NIS and whitened innovations
+//! ([`crate::output::plots::plot_group_marked`]), the NIS and whitened innovations
 //! over time, every figure with the path's segment switches marked, and the
 //! consistency checks with the warnings.
 //!
@@ -22,8 +22,8 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use crate::checks::{Check, Judgement};
-use crate::plots::{self, Curve, Innovations, SigmaSeries};
-use crate::runner::RunResult;
+use crate::output::plots::{self, Curve, Innovations, SigmaSeries};
+use crate::runner::{RunResult, Verdict};
 use crate::scenario::ARCSEC;
 use crate::segments::switch_times;
 
@@ -49,6 +49,9 @@ pub struct Report<'a> {
     pub checks: &'a [Check],
     /// The verdict on the data (`consistent` or `warning: …`).
     pub verdict: &'a str,
+    /// The verdict on every state against the truth (one per state of
+    /// `result` when `has_truth`; [`state_verdicts`]).
+    pub state_verdicts: Vec<Verdict>,
     /// Warnings (failed updates, notes of the run).
     pub warnings: Vec<String>,
 }
@@ -146,27 +149,50 @@ struct Figure {
 /// convergence, errors, innovations).
 fn write_figures(dir: &Path, rep: &Report<'_>) -> Result<[Vec<Figure>; 3], String> {
     let r = rep.result;
-    let id = r.config;
     let switches = switch_times(&r.segments);
     let mut out: [Vec<Figure>; 3] = Default::default();
     if r.history.is_empty() {
         return Ok(out);
     }
     let t: Vec<f64> = r.history.iter().map(|h| h.0).collect();
-    let sigma_col = |i: usize| -> Vec<f64> {
-        r.history
-            .iter()
-            .map(|h| h.2.get(i).copied().unwrap_or(f64::NAN) / ARCSEC)
-            .collect()
-    };
     let crlb_hist = rep.crlb_history.filter(|c| c.len() == r.history.len());
-    let crlb_col = |i: usize| -> Option<Vec<f64>> {
-        crlb_hist.map(|c| {
-            c.iter()
-                .map(|v| v.get(i).copied().unwrap_or(f64::NAN) / ARCSEC)
-                .collect()
-        })
-    };
+    out[0] = convergence_figures(dir, r, &t, crlb_hist, &switches)?;
+    if rep.has_truth {
+        out[1] = error_figures(dir, rep, &t, crlb_hist, &switches)?;
+    }
+    out[2] = innovations_figure(dir, r, &switches)?;
+    Ok(out)
+}
+
+/// Filter σ of state `i` per record of the history (″).
+fn sigma_col(r: &RunResult, i: usize) -> Vec<f64> {
+    r.history
+        .iter()
+        .map(|h| h.2.get(i).copied().unwrap_or(f64::NAN) / ARCSEC)
+        .collect()
+}
+
+/// σ_CRLB of state `i` per record of the history (″), when known.
+fn crlb_col(crlb_hist: Option<&[Vec<f64>]>, i: usize) -> Option<Vec<f64>> {
+    crlb_hist.map(|c| {
+        c.iter()
+            .map(|v| v.get(i).copied().unwrap_or(f64::NAN) / ARCSEC)
+            .collect()
+    })
+}
+
+/// The σ(t) figure of every group.
+fn convergence_figures(
+    dir: &Path,
+    r: &RunResult,
+    t: &[f64],
+    crlb_hist: Option<&[Vec<f64>]>,
+    switches: &[f64],
+) -> Result<Vec<Figure>, String> {
+    let id = r.config;
+    let mut out = Vec::new();
+    let sigma_col = |i: usize| sigma_col(r, i);
+    let crlb_col = |i: usize| crlb_col(crlb_hist, i);
     for (g, idx) in groups(r) {
         let sig: Vec<Vec<f64>> = idx.iter().map(|&i| sigma_col(i)).collect();
         let cr: Vec<Option<Vec<f64>>> = idx.iter().map(|&i| crlb_col(i)).collect();
@@ -184,11 +210,11 @@ fn write_figures(dir: &Path, rep: &Report<'_>) -> Result<[Vec<Figure>; 3], Strin
         plots::plot_convergence(
             &dir.join(&file),
             &format!("{id}: {} — σ(t)", group_title(g)),
-            &t,
+            t,
             &series,
-            &switches,
+            switches,
         )?;
-        out[0].push(Figure {
+        out.push(Figure {
             file,
             caption: format!(
                 "σ(t) of {} ({}): filter σ{}, log scale over the whole run; vertical lines: path segment switches.",
@@ -198,68 +224,90 @@ fn write_figures(dir: &Path, rep: &Report<'_>) -> Result<[Vec<Figure>; 3], Strin
             ),
         });
     }
-    if rep.has_truth {
-        for (g, idx) in groups(r) {
-            let attitude = g == "attitude";
-            if attitude && rep.truth_history.is_none() {
-                continue;
-            }
-            let th = rep.truth_history.filter(|h| h.len() == r.history.len());
-            if attitude && th.is_none() {
-                continue;
-            }
-            let err: Vec<Vec<f64>> = idx
-                .iter()
-                .map(|&i| {
-                    r.history
-                        .iter()
-                        .enumerate()
-                        .map(|(k, h)| {
-                            let truth = th
-                                .and_then(|th| th.get(k))
-                                .and_then(|v| v.get(i).copied())
-                                .unwrap_or(r.states[i].truth_rad);
-                            rollcal::geometry::wrap_angle(
-                                h.1.get(i).copied().unwrap_or(f64::NAN) - truth,
-                            ) / ARCSEC
-                        })
-                        .collect()
-                })
-                .collect();
-            let sig: Vec<Vec<f64>> = idx.iter().map(|&i| sigma_col(i)).collect();
-            let nan = vec![f64::NAN; t.len()];
-            let cr: Vec<Vec<f64>> = idx
-                .iter()
-                .map(|&i| crlb_col(i).unwrap_or_else(|| nan.clone()))
-                .collect();
-            let curves: Vec<Curve<'_>> = idx
-                .iter()
-                .enumerate()
-                .map(|(j, &i)| Curve {
-                    label: r.states[i].name,
-                    error: &err[j],
-                    sigma: &sig[j],
-                    crlb: &cr[j],
-                })
-                .collect();
-            let file = format!("error-{g}.png");
-            plots::plot_group_marked(
-                &dir.join(&file),
-                &format!("{id}: {} — error, ±3σ filter, ±3σ_CRLB", group_title(g)),
-                &t,
-                &curves,
-                &switches,
-            )?;
-            out[1].push(Figure {
-                file,
-                caption: format!(
-                    "Estimation error of {} against the truth: left |error| and 3σ on a log scale over the whole run, right the signed error in the shaded ±3σ band over the converged part; the ±3σ_CRLB dashes lie under the filter's line{}.",
-                    group_title(g),
-                    if crlb_hist.is_some() { "" } else { " (not known for this input: absent)" }
-                ),
-            });
+    Ok(out)
+}
+
+/// The error figure of every group against the truth (the attitude only
+/// with a truth history).
+fn error_figures(
+    dir: &Path,
+    rep: &Report<'_>,
+    t: &[f64],
+    crlb_hist: Option<&[Vec<f64>]>,
+    switches: &[f64],
+) -> Result<Vec<Figure>, String> {
+    let r = rep.result;
+    let id = r.config;
+    let mut out = Vec::new();
+    let sigma_col = |i: usize| sigma_col(r, i);
+    let crlb_col = |i: usize| crlb_col(crlb_hist, i);
+    for (g, idx) in groups(r) {
+        let attitude = g == "attitude";
+        if attitude && rep.truth_history.is_none() {
+            continue;
         }
+        let th = rep.truth_history.filter(|h| h.len() == r.history.len());
+        if attitude && th.is_none() {
+            continue;
+        }
+        let err: Vec<Vec<f64>> = idx
+            .iter()
+            .map(|&i| {
+                r.history
+                    .iter()
+                    .enumerate()
+                    .map(|(k, h)| {
+                        let truth = th
+                            .and_then(|th| th.get(k))
+                            .and_then(|v| v.get(i).copied())
+                            .unwrap_or(r.states[i].truth_rad);
+                        rollcal::geometry::wrap_angle(
+                            h.1.get(i).copied().unwrap_or(f64::NAN) - truth,
+                        ) / ARCSEC
+                    })
+                    .collect()
+            })
+            .collect();
+        let sig: Vec<Vec<f64>> = idx.iter().map(|&i| sigma_col(i)).collect();
+        let nan = vec![f64::NAN; t.len()];
+        let cr: Vec<Vec<f64>> = idx
+            .iter()
+            .map(|&i| crlb_col(i).unwrap_or_else(|| nan.clone()))
+            .collect();
+        let curves: Vec<Curve<'_>> = idx
+            .iter()
+            .enumerate()
+            .map(|(j, &i)| Curve {
+                label: r.states[i].name,
+                error: &err[j],
+                sigma: &sig[j],
+                crlb: &cr[j],
+            })
+            .collect();
+        let file = format!("error-{g}.png");
+        plots::plot_group_marked(
+            &dir.join(&file),
+            &format!("{id}: {} — error, ±3σ filter, ±3σ_CRLB", group_title(g)),
+            t,
+            &curves,
+            switches,
+        )?;
+        out.push(Figure {
+            file,
+            caption: format!(
+                "Estimation error of {} against the truth: left |error| and 3σ on a log scale over the whole run, right the signed error in the shaded ±3σ band over the converged part; the ±3σ_CRLB dashes lie under the filter's line{}.",
+                group_title(g),
+                if crlb_hist.is_some() { "" } else { " (not known for this input: absent)" }
+            ),
+        });
     }
+    Ok(out)
+}
+
+/// The NIS and innovations figure, when there are updates.
+fn innovations_figure(dir: &Path, r: &RunResult, switches: &[f64]) -> Result<Vec<Figure>, String> {
+    let id = r.config;
+    let mut out = Vec::new();
     let u = &r.updates;
     let dof = update_dof(id);
     if !u.is_empty() && dof > 0 {
@@ -279,9 +327,9 @@ fn write_figures(dir: &Path, rep: &Report<'_>) -> Result<[Vec<Figure>; 3], Strin
                 window,
                 band: nis_band(window, dof),
             },
-            &switches,
+            switches,
         )?;
-        out[2].push(Figure {
+        out.push(Figure {
             file,
             caption: format!(
                 "Top: moving mean of the NIS over {window} updates with its 99 % χ² band (shaded) and the expected value {dof} (dotted). Bottom: the {dof} whitened innovation components (unit variance when the model holds) with ±3 dashed. Vertical lines: path segment switches."
@@ -345,6 +393,18 @@ pub fn write_report(dir: &Path, rep: &Report<'_>) -> Result<PathBuf, String> {
             let _ = writeln!(h, "<div class=\"warn\">{}</div>", esc(w));
         }
     }
+    parameter_table(&mut h, rep, crlb);
+    figure_sections(&mut h, r, &figures);
+    checks_table(&mut h, rep.checks);
+    h.push_str("<p><small>Written by host-sim; self-contained (the figures are the PNG files beside this page).</small></p>\n</body></html>\n");
+    let page = dir.join("index.html");
+    std::fs::write(&page, h).map_err(|e| format!("cannot write {}: {e}", page.display()))?;
+    Ok(page)
+}
+
+/// The parameter table (`crlb`: the σ_CRLB column, when known).
+fn parameter_table(h: &mut String, rep: &Report<'_>, crlb: Option<&[f64]>) {
+    let r = rep.result;
     // Parameter table.
     h.push_str("<h2 id=\"parameters\">Parameters</h2>\n<p>Final estimate (arcseconds; the attitude states at the final time).</p>\n<table><tr><th class=\"l\">state</th><th class=\"l\">group</th><th>estimate ″</th><th>σ ″</th>");
     if crlb.is_some() {
@@ -375,13 +435,12 @@ pub fn write_report(dir: &Path, rep: &Report<'_>) -> Result<PathBuf, String> {
             );
         }
         if rep.has_truth {
-            let v = crate::runner::verdict(
-                r.config,
-                s,
-                crate::report::group_of(s.group),
-                r.prior_sigma_rad,
-            );
-            let class = if matches!(v, crate::runner::Verdict::Failed) {
+            let v = rep
+                .state_verdicts
+                .get(i)
+                .copied()
+                .unwrap_or(Verdict::Failed);
+            let class = if matches!(v, Verdict::Failed) {
                 " fail"
             } else {
                 ""
@@ -408,13 +467,17 @@ pub fn write_report(dir: &Path, rep: &Report<'_>) -> Result<PathBuf, String> {
         r.updates.len(),
         r.failures.len()
     );
+}
+
+/// The figure sections.
+fn figure_sections(h: &mut String, r: &RunResult, figures: &[Vec<Figure>; 3]) {
     // Figures.
     let sections = [
         ("convergence", "Convergence σ(t)"),
         ("errors", "Estimation error against the truth"),
         ("innovations", "NIS and innovations over time"),
     ];
-    for ((id, title), figs) in sections.iter().zip(&figures) {
+    for ((id, title), figs) in sections.iter().zip(figures) {
         if figs.is_empty() {
             if *id == "convergence" && r.history.is_empty() {
                 let _ = writeln!(
@@ -435,13 +498,17 @@ pub fn write_report(dir: &Path, rep: &Report<'_>) -> Result<PathBuf, String> {
             );
         }
     }
+}
+
+/// The table of the consistency checks.
+fn checks_table(h: &mut String, checks: &[Check]) {
     // Consistency checks.
     h.push_str("<h2 id=\"checks\">Consistency checks</h2>\n");
-    if rep.checks.is_empty() {
+    if checks.is_empty() {
         h.push_str("<p>No check could be computed (no accepted update kept).</p>\n");
     } else {
         h.push_str("<table><tr><th class=\"l\">check</th><th class=\"l\">scope</th><th>statistic</th><th>band</th><th class=\"l\">result</th><th class=\"l\">detail</th></tr>\n");
-        for c in rep.checks {
+        for c in checks {
             let _ = writeln!(
                 h,
                 "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td><td>[{}, {}]</td><td class=\"l {}\">{}</td><td class=\"l\">{}</td></tr>",
@@ -457,10 +524,6 @@ pub fn write_report(dir: &Path, rep: &Report<'_>) -> Result<PathBuf, String> {
         }
         h.push_str("</table>\n");
     }
-    h.push_str("<p><small>Written by host-sim; self-contained (the figures are the PNG files beside this page).</small></p>\n</body></html>\n");
-    let page = dir.join("index.html");
-    std::fs::write(&page, h).map_err(|e| format!("cannot write {}: {e}", page.display()))?;
-    Ok(page)
 }
 
 /// The report of `host-sim run`: truth and σ_CRLB(t) along the simulated
@@ -499,9 +562,26 @@ pub fn report_of_run(
             truth_history: Some(&truth_history),
             checks: &judgement.checks,
             verdict: &verdict,
+            state_verdicts: state_verdicts(r),
             warnings: failure_warnings(r),
         },
     )
+}
+
+/// The verdict on every state of `r` against its truth, as the tables
+/// print it ([`crate::runner::verdict`]).
+pub fn state_verdicts(r: &RunResult) -> Vec<Verdict> {
+    r.states
+        .iter()
+        .map(|s| {
+            crate::runner::verdict(
+                r.config,
+                s,
+                crate::output::report::group_of(s.group),
+                r.prior_sigma_rad,
+            )
+        })
+        .collect()
 }
 
 /// A warning for failed updates, if any.
@@ -543,6 +623,11 @@ pub fn report_of_calibration(
             truth_history: None,
             checks: &judgement.checks,
             verdict: &verdict,
+            state_verdicts: if has_truth {
+                state_verdicts(r)
+            } else {
+                Vec::new()
+            },
             warnings,
         },
     )

@@ -1,0 +1,528 @@
+//! The search: candidates scored in parallel with branch and bound
+//! ([`score_all`]), stage 1 exhaustive over the coarse grammar, the hill
+//! climbing of stages 2 and 2b, the period-by-period finalists and the
+//! polish ([`search`]), and its result types ([`Scored`], [`StageStats`],
+//! [`Design`]).
+
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+
+use rayon::prelude::*;
+
+use super::{
+    coarse_patterns, neighbours, polish_neighbours, DesignError, Goal, Outcome, Pattern, Problem,
+    Space, FINAL_CHECKS,
+};
+
+/// One evaluated candidate.
+#[derive(Clone, Debug)]
+pub struct Scored {
+    /// The pattern.
+    pub pattern: Pattern,
+    /// Its coarse outcome.
+    pub outcome: Outcome,
+    /// Its score (lower is better).
+    pub score: f64,
+}
+
+/// Statistics of one search stage.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct StageStats {
+    /// Stage name.
+    pub name: String,
+    /// Candidates evaluated.
+    pub candidates: usize,
+    /// Of which pruned by the bound on the best reach time so far.
+    pub pruned: usize,
+    /// Of which infeasible (gimbal limit).
+    pub infeasible: usize,
+    /// Periods propagated (all candidates).
+    pub periods: u64,
+    /// Wall time (s).
+    pub wall_s: f64,
+    /// Best score after the stage.
+    pub best_score: f64,
+}
+
+impl StageStats {
+    /// Candidates per minute.
+    pub fn per_minute(&self) -> f64 {
+        self.candidates as f64 / self.wall_s.max(1e-9) * 60.0
+    }
+}
+
+/// Scores `patterns` in parallel (rayon). For `Goal::Reach` the candidates
+/// share the best reach time found so far and stop there (branch and
+/// bound: a candidate still short of its targets at that time cannot win).
+/// Ties go to the earlier candidate, so the result does not depend on the
+/// scheduling. `progress(done)` is called after every candidate.
+pub fn score_all(
+    problem: &Problem,
+    patterns: Vec<Pattern>,
+    goal: Goal,
+    incumbent: &AtomicU64,
+    name: &str,
+    progress: &(dyn Fn(usize) + Sync),
+) -> (Vec<Scored>, StageStats) {
+    let t0 = std::time::Instant::now();
+    let done = AtomicUsize::new(0);
+    let periods = AtomicU64::new(0);
+    let scored: Vec<Scored> = patterns
+        .into_par_iter()
+        .map(|pattern| {
+            let g = match goal {
+                Goal::Reach { .. } => Goal::Reach {
+                    cutoff: incumbent.load(Ordering::Relaxed),
+                },
+                b => b,
+            };
+            let outcome = problem.evaluate(&pattern, g, false, false);
+            if let Some(r) = outcome.reach {
+                incumbent.fetch_min(r, Ordering::Relaxed);
+            }
+            periods.fetch_add(outcome.periods, Ordering::Relaxed);
+            progress(done.fetch_add(1, Ordering::Relaxed) + 1);
+            let score = outcome.score(goal);
+            Scored {
+                pattern,
+                outcome,
+                score,
+            }
+        })
+        .collect();
+    let infeasible = scored
+        .iter()
+        .filter(|s| s.outcome.gimbal_lock.is_some() && !s.outcome.feasible(goal))
+        .count();
+    let pruned = scored
+        .iter()
+        .filter(|s| {
+            matches!(goal, Goal::Reach { .. })
+                && s.outcome.reach.is_none()
+                && s.outcome.gimbal_lock.is_none()
+        })
+        .count();
+    let best = scored.iter().map(|s| s.score).fold(f64::INFINITY, f64::min);
+    let stats = StageStats {
+        name: name.to_string(),
+        candidates: scored.len(),
+        pruned,
+        infeasible,
+        periods: periods.load(Ordering::Relaxed),
+        wall_s: t0.elapsed().as_secs_f64(),
+        best_score: best,
+    };
+    (scored, stats)
+}
+
+/// The best of `scored` (lowest score, then earliest).
+pub fn best_of(scored: &[Scored]) -> Option<&Scored> {
+    scored
+        .iter()
+        .filter(|s| s.score.is_finite())
+        .min_by(|a, b| a.score.total_cmp(&b.score))
+}
+
+/// The result of a search.
+#[derive(Clone, Debug)]
+pub struct Design {
+    /// The best pattern.
+    pub best: Scored,
+    /// Per stage.
+    pub stages: Vec<StageStats>,
+    /// Reach: the best pattern's outcome period by period.
+    pub fine: Option<Outcome>,
+    /// The best pattern before the polish (on the coarse grammar's step)
+    /// and its coarse outcome.
+    pub searched: Scored,
+}
+
+/// Searches `space` towards `goal`: stage 1 exhaustive over the coarse
+/// grammar with branch and bound, stage 2 hill climbing from the best
+/// `refine_starts` stage-1 patterns, stage 2b (with `space.dwell_steps`)
+/// hill climbing with the dwell moves too from the stage-2 optima; the best
+/// without and the best with dwells are polished and the better wins.
+/// `progress(stage, done, total)`.
+pub fn search(
+    problem: &Problem,
+    space: &Space,
+    goal: Goal,
+    progress: &(dyn Fn(&str, usize, usize) + Sync),
+) -> Result<Design, DesignError> {
+    let cutoff = match goal {
+        Goal::Reach { cutoff } => cutoff,
+        Goal::Budget { periods } => periods,
+    };
+    let incumbent = AtomicU64::new(cutoff);
+    let (starts, pool, s1) = stage_one(problem, space, goal, &incumbent, progress);
+    let mut stages = vec![s1];
+    let climbed = climb_stages(
+        problem,
+        space,
+        goal,
+        &incumbent,
+        starts,
+        pool,
+        &mut stages,
+        progress,
+    );
+    // The candidates to polish, without and with dwells. Reach: the coarse
+    // reach times are within the coarse steps' slack, so the best few of
+    // each are re-evaluated period by period and the exact fastest wins
+    // (ties: the better coarse score, then the earlier candidate).
+    let mut finalists: Vec<(Scored, Option<Outcome>)> = Vec::new();
+    if let Goal::Reach { .. } = goal {
+        let (f, st) = reach_finalists(problem, cutoff, [climbed.pool, climbed.pool_b]);
+        finalists = f;
+        stages.push(st);
+    } else {
+        for b in [climbed.best_a, climbed.best_b].into_iter().flatten() {
+            if !finalists.iter().any(|f| f.0.pattern == b.pattern) {
+                finalists.push((b, None));
+            }
+        }
+    }
+    let chosen = polish_finalists(problem, goal, cutoff, finalists, &mut stages, progress);
+    let (best, searched, outcome) = chosen.ok_or(match goal {
+        Goal::Reach { .. } => DesignError::NoPathReaches {
+            within_s: cutoff as f64 * problem.period_s,
+        },
+        Goal::Budget { .. } => DesignError::GimbalLimitEverywhere,
+    })?;
+    let fine = matches!(goal, Goal::Reach { .. }).then_some(outcome);
+    Ok(Design {
+        best,
+        stages,
+        fine,
+        searched,
+    })
+}
+
+/// Stage 1: every pattern of the coarse grammar scored with branch and
+/// bound. Returns the hill-climbing starts (the best distinct `refine_starts`
+/// patterns), the pool of the best [`FINAL_CHECKS`] and the stage's
+/// statistics.
+fn stage_one(
+    problem: &Problem,
+    space: &Space,
+    goal: Goal,
+    incumbent: &AtomicU64,
+    progress: &(dyn Fn(&str, usize, usize) + Sync),
+) -> (Vec<Scored>, Vec<Scored>, StageStats) {
+    let patterns = coarse_patterns(space, problem.period_s);
+    let total = patterns.len();
+    let (mut scored, s1) = score_all(
+        problem,
+        patterns,
+        goal,
+        incumbent,
+        "stage 1: exhaustive over the coarse grammar",
+        &|n| progress("stage 1", n, total),
+    );
+    // Hill-climbing starts: the best distinct stage-1 patterns.
+    scored.retain(|s| s.score.is_finite());
+    scored.sort_by(|a, b| a.score.total_cmp(&b.score));
+    let starts: Vec<Scored> = scored.iter().take(space.refine_starts).cloned().collect();
+    let pool: Vec<Scored> = scored.into_iter().take(FINAL_CHECKS).collect();
+    (starts, pool, s1)
+}
+
+/// What the hill climbing of stages 2 and 2b leaves: the finite candidates
+/// of each (`pool`: stage 1 and 2, `pool_b`: stage 2b) and the best of each.
+struct Climbed {
+    pool: Vec<Scored>,
+    pool_b: Vec<Scored>,
+    best_a: Option<Scored>,
+    best_b: Option<Scored>,
+}
+
+/// Stage 2 (without dwells) from the stage-1 `starts`, then, with dwell
+/// steps, stage 2b from the starts and the stage-2 optima; their
+/// statistics are appended to `stages`.
+#[allow(clippy::too_many_arguments)]
+fn climb_stages(
+    problem: &Problem,
+    space: &Space,
+    goal: Goal,
+    incumbent: &AtomicU64,
+    starts: Vec<Scored>,
+    mut pool: Vec<Scored>,
+    stages: &mut Vec<StageStats>,
+    progress: &(dyn Fn(&str, usize, usize) + Sync),
+) -> Climbed {
+    let mut seen: Vec<Pattern> = starts.iter().map(|s| s.pattern.clone()).collect();
+    // Stage 2 without dwells, then (stage 2b) the dwell moves from its
+    // optima: the search with dwells finds everything the search without
+    // them finds, and its result is never worse.
+    let no_dwells = Space {
+        dwell_steps: Vec::new(),
+        ..space.clone()
+    };
+    let (optima, best_a, st) = climb(
+        problem,
+        &no_dwells,
+        goal,
+        incumbent,
+        starts.clone(),
+        &mut seen,
+        &mut pool,
+        "stage 2: hill climbing (angles, rates, tilted axes)",
+        &|d, t| progress("stage 2", d, t),
+    );
+    stages.push(st);
+    let mut pool_b: Vec<Scored> = Vec::new();
+    let mut best_b = None;
+    if !space.dwell_steps.is_empty() {
+        // From the stage-1 starts (every move at once, which can lead to
+        // another optimum than stage 2's) and from the stage-2 optima (the
+        // dwell moves on top of them); its own list of seen patterns.
+        let mut from = starts;
+        for o in optima {
+            if !from.iter().any(|s| s.pattern == o.pattern) {
+                from.push(o);
+            }
+        }
+        let mut seen_b: Vec<Pattern> = from.iter().map(|s| s.pattern.clone()).collect();
+        let (_, b, st) = climb(
+            problem,
+            space,
+            goal,
+            incumbent,
+            from,
+            &mut seen_b,
+            &mut pool_b,
+            "stage 2b: hill climbing with dwells (from the stage-1 starts and the stage-2 optima)",
+            &|d, t| progress("stage 2b", d, t),
+        );
+        stages.push(st);
+        best_b = b;
+    }
+    Climbed {
+        pool,
+        pool_b,
+        best_a,
+        best_b,
+    }
+}
+
+/// Reach: the best [`FINAL_CHECKS`] of each pool re-evaluated period by
+/// period; the exact fastest of each is a finalist. Returns the finalists
+/// and the stage's statistics.
+fn reach_finalists(
+    problem: &Problem,
+    cutoff: u64,
+    pools: [Vec<Scored>; 2],
+) -> (Vec<(Scored, Option<Outcome>)>, StageStats) {
+    let mut finalists: Vec<(Scored, Option<Outcome>)> = Vec::new();
+    let t0 = std::time::Instant::now();
+    let mut n = 0;
+    for mut p in pools {
+        p.sort_by(|a, b| a.score.total_cmp(&b.score));
+        p.dedup_by(|a, b| a.pattern == b.pattern);
+        p.truncate(FINAL_CHECKS);
+        let checked: Vec<(Scored, Outcome)> = p
+            .into_par_iter()
+            .map(|s| {
+                let o = problem.evaluate(&s.pattern, Goal::Reach { cutoff }, true, false);
+                (s, o)
+            })
+            .collect();
+        n += checked.len();
+        if let Some((s, o)) = checked
+            .into_iter()
+            .filter(|(_, o)| o.reach.is_some())
+            .min_by_key(|(_, o)| o.reach)
+        {
+            if !finalists.iter().any(|f| f.0.pattern == s.pattern) {
+                finalists.push((s, Some(o)));
+            }
+        }
+    }
+    let best_reach = finalists
+        .iter()
+        .filter_map(|f| f.1.as_ref().and_then(|o| o.reach))
+        .min();
+    let st = StageStats {
+        name: "final: the best candidates period by period".into(),
+        candidates: n,
+        pruned: 0,
+        infeasible: 0,
+        periods: 0,
+        wall_s: t0.elapsed().as_secs_f64(),
+        best_score: best_reach.map_or(f64::INFINITY, |r| r as f64),
+    };
+    (finalists, st)
+}
+
+/// Polish: finer angles around each finalist, every candidate period by
+/// period (exact: no coarse-step error), hill climbing; the best wins
+/// (ties: the one without dwells). Returns (the polished best with its
+/// search outcome, the finalist it came from, its period-by-period
+/// outcome); the polish's statistics are appended to `stages`.
+fn polish_finalists(
+    problem: &Problem,
+    goal: Goal,
+    cutoff: u64,
+    finalists: Vec<(Scored, Option<Outcome>)>,
+    stages: &mut Vec<StageStats>,
+    progress: &(dyn Fn(&str, usize, usize) + Sync),
+) -> Option<(Scored, Scored, Outcome)> {
+    let mut st = StageStats {
+        name: "polish: ±15°, ±5° angles, period by period".into(),
+        candidates: 0,
+        pruned: 0,
+        infeasible: 0,
+        periods: 0,
+        wall_s: 0.0,
+        best_score: f64::INFINITY,
+    };
+    let t0 = std::time::Instant::now();
+    let mut chosen: Option<(Scored, Scored, Outcome)> = None;
+    for (searched, fine0) in finalists {
+        let (pattern, outcome) = polish(problem, goal, cutoff, &searched, fine0, &mut st, progress);
+        let score = outcome.score(goal);
+        if chosen.as_ref().is_none_or(|c| score < c.2.score(goal)) {
+            let best = Scored {
+                pattern,
+                outcome: searched.outcome.clone(),
+                score: searched.score,
+            };
+            chosen = Some((best, searched, outcome));
+        }
+    }
+    st.wall_s = t0.elapsed().as_secs_f64();
+    st.best_score = chosen.as_ref().map_or(f64::INFINITY, |c| c.2.score(goal));
+    if chosen.is_some() {
+        stages.push(st);
+    }
+    chosen
+}
+
+/// Hill climbing from each of `starts` over the neighbours in `space`
+/// (best neighbour first, at most 20 rounds), skipping `seen` patterns; the
+/// finite candidates go to `pool`. Returns each start's local optimum, the
+/// best of them, and the stage's statistics.
+#[allow(clippy::too_many_arguments)]
+fn climb(
+    problem: &Problem,
+    space: &Space,
+    goal: Goal,
+    incumbent: &AtomicU64,
+    starts: Vec<Scored>,
+    seen: &mut Vec<Pattern>,
+    pool: &mut Vec<Scored>,
+    name: &str,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> (Vec<Scored>, Option<Scored>, StageStats) {
+    let mut best: Option<Scored> = starts.first().cloned();
+    let mut stats = StageStats {
+        name: name.into(),
+        candidates: 0,
+        pruned: 0,
+        infeasible: 0,
+        periods: 0,
+        wall_s: 0.0,
+        best_score: best.as_ref().map_or(f64::INFINITY, |b| b.score),
+    };
+    let t0 = std::time::Instant::now();
+    let mut optima = Vec::new();
+    for start in starts {
+        let mut current = start;
+        for _round in 0..20 {
+            let cands: Vec<Pattern> = neighbours(&current.pattern, space, problem.period_s)
+                .into_iter()
+                .filter(|q| !seen.contains(q))
+                .collect();
+            if cands.is_empty() {
+                break;
+            }
+            seen.extend(cands.iter().cloned());
+            let n = cands.len();
+            let done0 = stats.candidates;
+            let (sc, st) = score_all(problem, cands, goal, incumbent, "", &|i| {
+                progress(done0 + i, done0 + n)
+            });
+            stats.candidates += st.candidates;
+            stats.pruned += st.pruned;
+            stats.infeasible += st.infeasible;
+            stats.periods += st.periods;
+            pool.extend(sc.iter().filter(|s| s.score.is_finite()).cloned());
+            match best_of(&sc) {
+                Some(b) if b.score < current.score => current = b.clone(),
+                _ => break,
+            }
+        }
+        if best.as_ref().is_none_or(|b| current.score < b.score) {
+            best = Some(current.clone());
+        }
+        if !optima.iter().any(|o: &Scored| o.pattern == current.pattern) {
+            optima.push(current);
+        }
+    }
+    stats.wall_s = t0.elapsed().as_secs_f64();
+    stats.best_score = best.as_ref().map_or(f64::INFINITY, |b| b.score);
+    (optima, best, stats)
+}
+
+/// The polish of one finalist: ±15°, ±5° angle moves, every candidate
+/// period by period, hill climbing (at most 12 rounds). `fine0`: the
+/// finalist's period-by-period outcome, if known.
+fn polish(
+    problem: &Problem,
+    goal: Goal,
+    cutoff: u64,
+    start: &Scored,
+    fine0: Option<Outcome>,
+    st: &mut StageStats,
+    progress: &(dyn Fn(&str, usize, usize) + Sync),
+) -> (Pattern, Outcome) {
+    let mut pattern = start.pattern.clone();
+    let mut current = fine0.unwrap_or_else(|| problem.evaluate(&pattern, goal, true, false));
+    let mut cur_score = current.score(goal);
+    let mut seen = vec![pattern.clone()];
+    for _round in 0..12 {
+        let cands: Vec<Pattern> = polish_neighbours(&pattern, problem.period_s)
+            .into_iter()
+            .filter(|q| !seen.contains(q))
+            .collect();
+        if cands.is_empty() {
+            break;
+        }
+        seen.extend(cands.iter().cloned());
+        let g = match goal {
+            Goal::Reach { .. } => Goal::Reach {
+                cutoff: current.reach.unwrap_or(cutoff),
+            },
+            other => other,
+        };
+        let n0 = st.candidates;
+        let total = n0 + cands.len();
+        let done = AtomicUsize::new(0);
+        let res: Vec<(Pattern, Outcome)> = cands
+            .into_par_iter()
+            .map(|q| {
+                let o = problem.evaluate(&q, g, true, false);
+                progress(
+                    "polish",
+                    n0 + done.fetch_add(1, Ordering::Relaxed) + 1,
+                    total,
+                );
+                (q, o)
+            })
+            .collect();
+        st.candidates = total;
+        st.periods += res.iter().map(|r| r.1.periods).sum::<u64>();
+        let winner = res
+            .into_iter()
+            .filter(|r| r.1.score(goal).is_finite())
+            .min_by(|a, b| a.1.score(goal).total_cmp(&b.1.score(goal)));
+        match winner {
+            Some((q, o)) if o.score(goal) < cur_score => {
+                cur_score = o.score(goal);
+                pattern = q;
+                current = o;
+            }
+            _ => break,
+        }
+    }
+    (pattern, current)
+}
