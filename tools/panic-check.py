@@ -45,7 +45,9 @@ import sys
 
 DEFAULT_ENTRIES = [
     r"^rollcal::calibrator::Calibrator<.*>::(new|push|push_logged|finish|checkpoint|restore|reset|estimate)$",
-    r"^rollcal::ekf::Filter<.*>::(step|predict|update|new|from_parts|reacquire_attitude)$",
+    # (An inherent impl in a submodule demangles as `rollcal::ekf::step::<impl
+    # rollcal::ekf::Filter<T,M,_,_>>::step`.)
+    r"^rollcal::ekf::(\w+::)*(<impl rollcal::ekf::)?Filter<.*>::(step|predict|update|new|from_parts|reacquire_attitude)$",
     r"^rollcal::session::Session<.*>::(handle|act|sample|finish|checkpoint|configure)$",
     r"^rollcal::session::AnyCalibrator<.*>::",
     r"^rollcal::session::restore_into$",
