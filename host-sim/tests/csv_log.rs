@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 use std::process::Output;
 use support::{assert_success, host_sim, json_file, stderr};
 
-use host_sim::csvlog;
-use host_sim::scenario::Platform;
+use host_sim::io::csvlog;
+use host_sim::sim::scenario::Platform;
 use rollcal::wire::{FrameDecoder, Message, Sample};
 
 fn repo(path: &str) -> PathBuf {

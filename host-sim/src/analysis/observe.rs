@@ -8,9 +8,9 @@ use rollcal::observability::{
     Observability, Spectrum, COEF_THRESHOLD, PRACTICAL_RATIO, RANK_TOLERANCE,
 };
 
-use crate::runner::filter_config;
-use crate::scenario::{Scenario, DEG};
-use crate::truth::{truth_state, Simulation};
+use crate::analysis::runner::filter_config;
+use crate::sim::scenario::{Scenario, DEG};
+use crate::sim::truth::{truth_state, Simulation};
 
 /// One term of an unobservable combination.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -21,7 +21,7 @@ pub struct Term {
     pub coef: f64,
 }
 
-pub use crate::verdict::Verdict;
+pub use crate::analysis::verdict::Verdict;
 
 /// One state of the analysis.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -189,6 +189,23 @@ pub fn analyse(
     ))
 }
 
+/// [`analyse`] of all seven configurations along the noise-free run of
+/// `scenario` (seed 0), without the σ_CRLB history.
+pub fn analyse_all(scenario: &Scenario, earth_rate: bool) -> Result<Vec<ConfigObs>, String> {
+    let sim = crate::sim::truth::simulate(
+        scenario,
+        crate::sim::truth::SimOptions {
+            seed: 0,
+            noise: false,
+            earth_rate,
+        },
+    );
+    ConfigId::ALL
+        .iter()
+        .map(|&id| analyse(id, scenario, &sim, earth_rate, false).map_err(|e| format!("{id}: {e}")))
+        .collect()
+}
+
 /// The JSON document of `host-sim observability` (an interface: keep the
 /// keys stable).
 pub fn report_json(earth_rate: bool, configs: &[ConfigObs]) -> serde_json::Value {
@@ -200,41 +217,6 @@ pub fn report_json(earth_rate: bool, configs: &[ConfigObs]) -> serde_json::Value
         "structure_linearised_at": "zero state (the paper's first-order analysis); sigma_crlb along the true trajectory",
         "configs": configs,
     })
-}
-
-/// Prints the analysis of every configuration as text tables.
-pub fn print_report(configs: &[ConfigObs], earth_rate: bool) {
-    println!(
-        "Observability along the path, Earth rate {} (rank: eigenvalues of the prior-scaled \
-         information matrix above {RANK_TOLERANCE:e}·λmax; null-space coefficients below \
-         {COEF_THRESHOLD:e} dropped; observable in practice: σ_CRLB/σ_prior < {PRACTICAL_RATIO})",
-        if earth_rate { "on" } else { "off" }
-    );
-    for c in configs {
-        println!(
-            "\n{}: {} states, rank {}, null space {}",
-            c.config,
-            c.n,
-            c.rank,
-            c.nullity()
-        );
-        for (i, comb) in c.null_space.iter().enumerate() {
-            println!("  unobservable #{}: {}", i + 1, format_combination(comb));
-        }
-        println!(
-            "  {:<10} {:>12} {:>10}  verdict",
-            "state", "σ_CRLB ″", "σ/σ_prior"
-        );
-        for s in &c.states {
-            println!(
-                "  {:<10} {:>12.4} {:>10.2e}  {}",
-                s.name,
-                s.sigma_crlb_rad / crate::scenario::ARCSEC,
-                s.ratio,
-                s.verdict
-            );
-        }
-    }
 }
 
 /// The verdict matrix as a Markdown table: one row per configuration, one
@@ -290,8 +272,8 @@ pub fn changes(off: &[ConfigObs], on: &[ConfigObs]) -> Vec<String> {
                     sa.name,
                     sa.verdict,
                     sb.verdict,
-                    sa.sigma_crlb_rad / crate::scenario::ARCSEC,
-                    sb.sigma_crlb_rad / crate::scenario::ARCSEC,
+                    sa.sigma_crlb_rad / crate::sim::scenario::ARCSEC,
+                    sb.sigma_crlb_rad / crate::sim::scenario::ARCSEC,
                     sa.ratio,
                     sb.ratio
                 ));

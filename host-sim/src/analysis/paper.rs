@@ -8,12 +8,12 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 use rollcal::models::{ConfigId, Group};
 
-use crate::observe::{self, ConfigObs};
+use crate::analysis::observe::{self, ConfigObs};
+use crate::analysis::runner::{expected_observable, run_filter, Estimator, RunResult};
+use crate::analysis::verdict::Verdict;
 use crate::plots::{plot_group_marked, Curve};
-use crate::runner::{expected_observable, run_filter, Estimator, RunResult};
-use crate::scenario::{Scenario, ARCSEC};
-use crate::truth::{simulate, truth_state, SimOptions, Simulation};
-use crate::verdict::Verdict;
+use crate::sim::scenario::{Scenario, ARCSEC};
+use crate::sim::truth::{simulate, truth_state, SimOptions, Simulation};
 
 /// One state of the summary.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -157,7 +157,7 @@ fn figures(
             &figure_title(id, g),
             &t,
             &curves,
-            &crate::segments::switch_times(&run.segments),
+            &crate::sim::segments::switch_times(&run.segments),
         )?;
         names.push(file);
     }

@@ -19,7 +19,7 @@ use rollcal::geometry::{
 };
 use rollcal::models::{AttitudeKind, ConfigId, PlatformFrame};
 
-use crate::scenario::{Scenario, ARCSEC, DEG};
+use crate::sim::scenario::{Scenario, ARCSEC, DEG};
 
 /// True parameters in radians, ps frame, plus the exactly derived pa values.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -12,9 +12,9 @@ use rollcal::geometry::{wrap_angle, EARTH_RATE};
 use rollcal::models::{ConfigId, Environment, Group, Model};
 use rollcal::observability::Observability;
 
-use crate::scenario::{Scenario, ARCSEC, DEG};
-use crate::segments::{command_segments, CommandSegment};
-use crate::truth::{truth_state, PeriodSample, Simulation};
+use crate::sim::scenario::{Scenario, ARCSEC, DEG};
+use crate::sim::segments::{command_segments, CommandSegment};
+use crate::sim::truth::{truth_state, PeriodSample, Simulation};
 
 /// Object-safe view of a filter of any configuration and precision
 /// (values reported in f64).
@@ -107,8 +107,8 @@ pub fn filter_config(s: &Scenario, earth_rate: bool, options: Options) -> Filter
 /// [`filter_config`] of a site and noise levels (a scenario's or a
 /// platform file's).
 pub fn filter_config_of(
-    site: &crate::scenario::Site,
-    noise: &crate::scenario::Noise,
+    site: &crate::sim::scenario::Site,
+    noise: &crate::sim::scenario::Noise,
     earth_rate: bool,
     options: Options,
 ) -> FilterConfig<f64> {
@@ -216,7 +216,7 @@ pub struct RunResult {
     /// The accepted updates of the last pass (NIS and whitened innovation).
     pub updates: Vec<Update>,
     /// The path's constant-command segments, from the commanded increments
-    /// ([`crate::segments::command_segments`]).
+    /// ([`crate::sim::segments::command_segments`]).
     pub segments: Vec<CommandSegment>,
     /// Prior σ of every state (rad).
     pub prior_sigma_rad: f64,
@@ -498,16 +498,16 @@ pub fn crlb_sigma(
     bound(id, cfg, &truth0, scenario.prior.sigma_deg * DEG, &records)
 }
 
-pub use crate::verdict::Verdict;
+pub use crate::analysis::verdict::Verdict;
 
 /// The verdict on state `s` of configuration `id` with prior σ `prior` (rad):
 /// for a state the configuration observes, `FAILED` beyond 4σ of the truth,
-/// `converged` within 4σ once σ is below [`crate::verdict::PRACTICAL_RATIO`]
+/// `converged` within 4σ once σ is below [`crate::analysis::verdict::PRACTICAL_RATIO`]
 /// of the prior, and `not observable` while it is not (a path that does not
 /// excite it: the estimate is still the prior's); for the others,
 /// `observable in practice` or `not observable` by the same ratio.
 pub fn verdict(id: ConfigId, s: &StateResult, group: Group, prior: f64) -> Verdict {
-    let practical = s.sigma_rad < crate::verdict::PRACTICAL_RATIO * prior;
+    let practical = s.sigma_rad < crate::analysis::verdict::PRACTICAL_RATIO * prior;
     if expected_observable(id, s.name, group) {
         if s.ratio() > 4.0 {
             Verdict::Failed

@@ -7,10 +7,10 @@ use rayon::prelude::*;
 use rollcal::ekf;
 use rollcal::models::{ConfigId, Group};
 
-use crate::observe;
-use crate::runner::{run_filter, Estimator};
-use crate::scenario::Scenario;
-use crate::truth::{simulate, SimOptions};
+use crate::analysis::observe;
+use crate::analysis::runner::{run_filter, Estimator};
+use crate::sim::scenario::Scenario;
+use crate::sim::truth::{simulate, SimOptions};
 
 /// Statistics of one state over the runs.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -62,7 +62,7 @@ pub struct MonteCarlo {
     #[serde(serialize_with = "ser_config")]
     pub config: ConfigId,
     /// Precision of the filter's covariance arithmetic.
-    pub precision: crate::runner::Precision,
+    pub precision: crate::analysis::runner::Precision,
     /// Runs that completed.
     pub runs: usize,
     /// Seeds used (1..=runs).
@@ -85,8 +85,8 @@ fn ser_config<S: serde::Serializer>(c: &ConfigId, s: S) -> Result<S::Ok, S::Erro
     s.serialize_str(c.as_str())
 }
 
-// The χ² and normal quantiles: one implementation, in `checks`.
-pub use crate::checks::{chi2_quantile, normal_quantile};
+// The χ² and normal quantiles: one implementation, in `statistics`.
+pub use crate::analysis::statistics::{chi2_quantile, normal_quantile};
 
 /// The 95 % band of the average of `samples` independent χ²(`dof`) values.
 pub fn band(mean: f64, dof: usize, samples: usize) -> Consistency {
@@ -105,7 +105,7 @@ pub fn band(mean: f64, dof: usize, samples: usize) -> Consistency {
 /// the installation errors and base angles the configuration observes
 /// (docs/model.md §Configurations).
 pub fn in_parameter_block(id: ConfigId, name: &str, group: Group) -> bool {
-    group != Group::Attitude && crate::runner::expected_observable(id, name, group)
+    group != Group::Attitude && crate::analysis::runner::expected_observable(id, name, group)
 }
 
 /// Runs `runs` seeded Monte Carlo runs (seeds 1..=runs) of configuration
@@ -129,12 +129,12 @@ pub fn monte_carlo(
             earth_rate,
         },
     );
-    crate::truth::check_gimbal_lock(id, &clean)?;
+    crate::sim::truth::check_gimbal_lock(id, &clean)?;
     let obs = observe::analyse(id, scenario, &clean, earth_rate, false)
         .map_err(|e| format!("{id}: observability: {e}"))?;
     let done = std::sync::atomic::AtomicUsize::new(0);
     let seeds: Vec<u64> = (1..=runs as u64).collect();
-    let results: Vec<Result<crate::runner::RunResult, (u64, ekf::Error)>> = seeds
+    let results: Vec<Result<crate::analysis::runner::RunResult, (u64, ekf::Error)>> = seeds
         .par_iter()
         .map(|&seed| {
             let sim = simulate(
@@ -228,50 +228,4 @@ pub fn monte_carlo(
         worst,
         wall_s: t0.elapsed().as_secs_f64(),
     })
-}
-
-/// Prints the Monte Carlo table.
-pub fn print_monte_carlo(mc: &MonteCarlo) {
-    use crate::scenario::ARCSEC;
-    println!(
-        "{} Monte Carlo ({}): {} runs (seeds 1..={}), {:.1} s wall",
-        mc.config,
-        mc.precision.as_str(),
-        mc.runs,
-        mc.runs,
-        mc.wall_s
-    );
-    println!(
-        "{:<10} {:>11} {:>11} {:>11} {:>11} {:>9}  block",
-        "state", "RMS err ″", "mean err ″", "mean σ ″", "σ_CRLB ″", "RMS/CRLB"
-    );
-    for s in &mc.states {
-        println!(
-            "{:<10} {:>11.4} {:>11.4} {:>11.4} {:>11.4} {:>9.3}  {}",
-            s.name,
-            s.rms_error_rad / ARCSEC,
-            s.mean_error_rad / ARCSEC,
-            s.mean_sigma_rad / ARCSEC,
-            s.sigma_crlb_rad / ARCSEC,
-            s.rms_over_crlb,
-            if s.in_parameter_block { "yes" } else { "" }
-        );
-    }
-    let show = |name: &str, c: &Consistency| {
-        println!(
-            "{name}: average {:.3} (dof {} × {} samples), 95 % band [{:.3}, {:.3}]: {}",
-            c.mean,
-            c.dof,
-            c.samples,
-            c.lower,
-            c.upper,
-            if c.inside() { "inside" } else { "OUTSIDE" }
-        );
-    };
-    show("parameter-block NEES", &mc.nees);
-    show("NIS (final pass)", &mc.nis);
-    println!(
-        "worst |error|/σ over the parameter block: {:.2} ({} of seed {}, {} passes)",
-        mc.max_normalised_error, mc.worst.1, mc.worst.0, mc.worst.2
-    );
 }

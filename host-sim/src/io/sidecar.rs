@@ -1,0 +1,80 @@
+//! The truth sidecar of a recorded stream (`record --truth PATH`, read by
+//! `calibrate --truth PATH`): the true final and initial states and the
+//! Cramér–Rao σ of the recorded configuration, as JSON.
+
+use std::path::Path;
+
+use rollcal::models::ConfigId;
+
+use crate::analysis::runner;
+use crate::sim::scenario::Scenario;
+use crate::sim::truth::{truth_state, Simulation};
+
+/// The sidecar of configuration `id` on the simulated run `sim` of
+/// `sc` (seed `seed`, Earth rate `earth_rate`).
+pub fn truth_json(
+    id: ConfigId,
+    sc: &Scenario,
+    sim: &Simulation,
+    seed: u64,
+    earth_rate: bool,
+) -> Result<serde_json::Value, String> {
+    let last = sim.samples.last().map_or(sim.initial, |s| s.truth);
+    let truth = truth_state(id, &sim.params, &last);
+    let truth0 = truth_state(id, &sim.params, &sim.initial);
+    let crlb = runner::crlb_sigma(id, sc, sim, earth_rate)
+        .map_err(|e| format!("Cramér–Rao bound: {e}"))?;
+    Ok(serde_json::json!({
+        "config": id.as_str(),
+        "scenario": sc.name,
+        "seed": seed,
+        "earth_rate": earth_rate,
+        "duration_s": sc.timing.duration_s,
+        "names": id.states().iter().map(|s| s.name).collect::<Vec<_>>(),
+        "truth_rad": truth,
+        "truth0_rad": truth0,
+        "crlb_sigma_rad": crlb,
+    }))
+}
+
+/// The truth sidecar written by `record --truth`.
+pub struct Sidecar {
+    /// True final state (rad).
+    pub truth: Vec<f64>,
+    /// True initial state (rad), for the bound of the samples received.
+    pub truth0: Option<Vec<f64>>,
+    /// σ_CRLB of the full run (rad).
+    pub crlb: Vec<f64>,
+    /// Seed of the recorded run.
+    pub seed: Option<u64>,
+    /// Duration of the recorded run (s).
+    pub duration_s: Option<f64>,
+}
+
+/// Reads the sidecar at `path`, which must hold the truth of `id`.
+pub fn read_sidecar(path: &Path, id: ConfigId) -> Result<Sidecar, String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let v: serde_json::Value = serde_json::from_str(&text)
+        .map_err(|e| format!("{} is not a truth sidecar: {e}", path.display()))?;
+    if v["config"].as_str() != Some(id.as_str()) {
+        return Err(format!(
+            "{} holds the truth of {}, not {id}",
+            path.display(),
+            v["config"]
+        ));
+    }
+    let floats = |key: &str| -> Result<Vec<f64>, String> {
+        v[key]
+            .as_array()
+            .map(|a| a.iter().map(|x| x.as_f64().unwrap_or(f64::NAN)).collect())
+            .ok_or_else(|| format!("{}: no '{key}' array", path.display()))
+    };
+    Ok(Sidecar {
+        truth: floats("truth_rad")?,
+        truth0: floats("truth0_rad").ok(),
+        crlb: floats("crlb_sigma_rad")?,
+        seed: v["seed"].as_u64(),
+        duration_s: v["duration_s"].as_f64(),
+    })
+}

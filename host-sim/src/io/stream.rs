@@ -1,0 +1,153 @@
+//! `record` and `calibrate`: a scenario as a stream of wire frames
+//! (`docs/wire.md`), and the calibrator run on such a stream from a file,
+//! stdin or a serial port.
+//!
+//! `record` writes a `Configure` message (the scenario's noise levels,
+//! Earth rate, prior) and then one `Sample` per period, with f32 fields as
+//! the firmware would send them. The stream carries no truth; `--truth PATH`
+//! writes it to a JSON sidecar (true final states and Cramér–Rao σ of the
+//! recorded configuration) that `calibrate --truth PATH` reads to fill the
+//! truth and σ_CRLB columns. Without it, `calibrate` prints the estimate,
+//! σ and the bound at the estimate with its observability verdict, and
+//! judges the data against the model ([`crate::analysis::checks`]).
+//!
+//! `record --format csv` writes the same samples as a CSV log
+//! ([`crate::io::csvlog`], docs/csv.md), without the `Configure`; `calibrate`
+//! reads such a log with the settings of a platform file (`--platform`),
+//! sending the calibrator the `Configure` of those settings and then the
+//! samples, as a frame stream would.
+//!
+//! `calibrate` decodes the stream, validates and processes every sample
+//! with the no_std [`rollcal::calibrator::Calibrator`] (f64) — pass 1,
+//! exactly what the firmware computes — and then, like `run`, runs the
+//! further linearised passes over the accepted samples (`--passes 1` gives
+//! the firmware's answer). The table and JSON are those of `run`, plus a
+//! `stream` object (frame and sample counters) and `pass1` (the
+//! calibrator's final estimate and σ, full f64 precision).
+
+use std::io::Read;
+use std::time::{Duration, Instant as Clock};
+
+use nalgebra::Vector3;
+use rollcal::wire::{encode, DecoderStats, Message, Sample, MAX_FRAME_LEN};
+
+use crate::sim::truth::PeriodSample;
+
+/// Format of a recorded log.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Format {
+    /// Binary wire frames (docs/wire.md).
+    Frames,
+    /// CSV, one line per period (docs/csv.md).
+    Csv,
+}
+
+/// A simulated period as the platform would send it (f32 fields but the
+/// commanded increment, f64; the timestamp is the end of the period in µs).
+pub fn to_sample(s: &PeriodSample) -> Sample {
+    let f = |v: &Vector3<f64>| [v.x as f32, v.y as f32, v.z as f32];
+    Sample {
+        seq: s.k,
+        t_us: (s.truth.t * 1e6).round() as u64,
+        dt: s.dt as f32,
+        dtheta_cmd: s.dtheta_cmd.into(),
+        accel_mean: f(&s.accel_mean),
+        gimbal: Some(f(&s.gimbal)),
+        c_cn_quat: rollcal::geometry::quaternion_from_dcm(&s.truth.c_c_n).map(|v| v as f32),
+    }
+}
+
+/// `record` writes binary frames: to stdout (`out` = `-`) only when stdout
+/// is not a terminal (`stdout_is_terminal`).
+pub fn refuse_terminal(out: &str, stdout_is_terminal: bool) -> Result<(), String> {
+    if out == "-" && stdout_is_terminal {
+        return Err(
+            "record writes binary frames: give --out FILE, or redirect or pipe stdout (e.g. | host-sim calibrate --input -)"
+                .into(),
+        );
+    }
+    Ok(())
+}
+
+/// Appends the frame of `m` to `out`.
+pub fn push_frame(out: &mut Vec<u8>, m: &Message) -> Result<(), String> {
+    let mut buf = [0u8; MAX_FRAME_LEN];
+    let n = encode(m, &mut buf).map_err(|e| e.to_string())?;
+    out.extend_from_slice(buf.get(..n).unwrap_or_default());
+    Ok(())
+}
+
+/// Reads an input until its end (or, for a serial port, until it has been
+/// idle for `idle`: then `Some(idle)`), feeding `on_bytes`.
+pub fn read_input(
+    input: &str,
+    baud: u32,
+    idle: Duration,
+    mut on_bytes: impl FnMut(&[u8]) -> Result<(), String>,
+) -> Result<Option<Duration>, String> {
+    let mut buf = vec![0u8; 4096];
+    let mut drain = |r: &mut dyn Read, serial: bool| -> Result<Option<Duration>, String> {
+        let mut last = Clock::now();
+        loop {
+            match r.read(&mut buf) {
+                Ok(0) if !serial => return Ok(None),
+                Ok(n) => {
+                    if n > 0 {
+                        last = Clock::now();
+                    }
+                    on_bytes(buf.get(..n).unwrap_or_default())?;
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) if serial && e.kind() == std::io::ErrorKind::TimedOut => {}
+                Err(e) => return Err(format!("cannot read {input}: {e}")),
+            }
+            if serial && last.elapsed() > idle {
+                return Ok(Some(idle));
+            }
+        }
+    };
+    if input == "-" {
+        return drain(&mut std::io::stdin().lock(), false);
+    }
+    let meta = std::fs::metadata(input).map_err(|e| format!("cannot open {input}: {e}"))?;
+    #[cfg(unix)]
+    let is_device = {
+        use std::os::unix::fs::FileTypeExt;
+        meta.file_type().is_char_device()
+    };
+    #[cfg(not(unix))]
+    let is_device = !meta.is_file();
+    if is_device {
+        let mut port = serialport::new(input, baud)
+            .timeout(Duration::from_millis(100))
+            .open()
+            .map_err(|e| format!("cannot open serial device {input} at {baud} Bd: {e}"))?;
+        drain(&mut port, true)
+    } else {
+        let mut f = std::fs::File::open(input).map_err(|e| format!("cannot open {input}: {e}"))?;
+        drain(&mut f, false)
+    }
+}
+
+/// The whole of a text input (a file or `-` for stdin).
+pub fn read_text(input: &str) -> Result<String, String> {
+    if input == "-" {
+        let mut text = String::new();
+        std::io::stdin()
+            .lock()
+            .read_to_string(&mut text)
+            .map_err(|e| format!("cannot read stdin: {e}"))?;
+        return Ok(text);
+    }
+    std::fs::read_to_string(input).map_err(|e| format!("cannot open {input}: {e}"))
+}
+
+/// The reject counters as JSON.
+pub fn reject_json(c: &rollcal::wire::RejectCounts) -> serde_json::Value {
+    serde_json::to_value(c).unwrap_or_default()
+}
+
+/// The decoder's frame counters as JSON.
+pub fn frames_json(s: &DecoderStats) -> serde_json::Value {
+    serde_json::to_value(s).unwrap_or_default()
+}
