@@ -261,9 +261,41 @@ pub fn judge_updates(
         };
     }
     let names = component_names(z);
+    let groups = groups(&ups, segments);
+    // m checks: NIS per group, whiteness per component overall, bias per
+    // component per segment group.
+    let segs = groups.len() - 1;
+    let m = groups.len() + z + z * segs;
+    let alpha = FALSE_ALARM / m as f64;
+    let zq = normal_quantile(1.0 - alpha / 2.0);
+    let mut checks = Vec::with_capacity(m);
+    nis_checks(&groups, z, alpha, &mut checks);
+    whiteness_checks(&groups[0].updates, &names, zq, &mut checks);
+    bias_checks(&groups, &names, zq, &mut checks);
+    let mut failed: Vec<Check> = checks.iter().filter(|c| !c.passed).cloned().collect();
+    failed.sort_by(|a, b| excess(b).total_cmp(&excess(a)));
+    let verdict = if failed.is_empty() {
+        DataVerdict::Consistent
+    } else {
+        DataVerdict::Warning { failed }
+    };
+    Judgement {
+        checks,
+        path: None,
+        verdict,
+        alpha_each: alpha,
+    }
+}
+
+/// The overall group of the updates `ups`, then one per path segment of at
+/// least [`MIN_SEGMENT_UPDATES`] updates (when the path has several).
+fn groups<'a>(
+    ups: &[&'a Update],
+    segments: &[crate::sim::segments::CommandSegment],
+) -> Vec<Group<'a>> {
     let mut groups = vec![Group {
         scope: "overall".into(),
-        updates: ups.clone(),
+        updates: ups.to_vec(),
     }];
     if segments.len() > 1 {
         for (i, s) in segments.iter().enumerate() {
@@ -280,14 +312,12 @@ pub fn judge_updates(
             }
         }
     }
-    // m checks: NIS per group, whiteness per component overall, bias per
-    // component per segment group.
-    let segs = groups.len() - 1;
-    let m = groups.len() + z + z * segs;
-    let alpha = FALSE_ALARM / m as f64;
-    let zq = normal_quantile(1.0 - alpha / 2.0);
-    let mut checks = Vec::with_capacity(m);
-    for g in &groups {
+    groups
+}
+
+/// The mean-NIS check of every group, at significance `alpha`.
+fn nis_checks(groups: &[Group<'_>], z: usize, alpha: f64, checks: &mut Vec<Check>) {
+    for g in groups {
         let n = g.updates.len() as f64;
         let dof = n * z as f64;
         let mean = g.updates.iter().map(|u| u.nis).sum::<f64>() / n;
@@ -306,7 +336,11 @@ pub fn judge_updates(
             ),
         ));
     }
-    let overall = &groups[0].updates;
+}
+
+/// The lag-1 autocorrelation check of every whitened component over the
+/// whole log (`overall`), at the two-sided quantile `zq`.
+fn whiteness_checks(overall: &[&Update], names: &[String], zq: f64, checks: &mut Vec<Check>) {
     for (c, name) in names.iter().enumerate() {
         let w: Vec<f64> = overall.iter().map(|u| u.white[c]).collect();
         let num: f64 = w.windows(2).map(|p| p[0] * p[1]).sum();
@@ -321,6 +355,11 @@ pub fn judge_updates(
             format!("lag-1 autocorrelation of {} updates, ≈ N(0, 1/n)", w.len()),
         ));
     }
+}
+
+/// The mean of every whitened component per segment group, at the
+/// two-sided quantile `zq`.
+fn bias_checks(groups: &[Group<'_>], names: &[String], zq: f64, checks: &mut Vec<Check>) {
     for g in groups.iter().skip(1) {
         let n = g.updates.len() as f64;
         for (c, name) in names.iter().enumerate() {
@@ -337,19 +376,6 @@ pub fn judge_updates(
                 ),
             ));
         }
-    }
-    let mut failed: Vec<Check> = checks.iter().filter(|c| !c.passed).cloned().collect();
-    failed.sort_by(|a, b| excess(b).total_cmp(&excess(a)));
-    let verdict = if failed.is_empty() {
-        DataVerdict::Consistent
-    } else {
-        DataVerdict::Warning { failed }
-    };
-    Judgement {
-        checks,
-        path: None,
-        verdict,
-        alpha_each: alpha,
     }
 }
 

@@ -8,7 +8,7 @@ use rollcal::ekf;
 use rollcal::models::{ConfigId, Group};
 
 use crate::analysis::observe;
-use crate::analysis::runner::{run_filter, Estimator};
+use crate::analysis::runner::{run_filter, Estimator, RunResult};
 use crate::sim::scenario::Scenario;
 use crate::sim::truth::{simulate, SimOptions};
 
@@ -134,7 +134,7 @@ pub fn monte_carlo(
         .map_err(|e| format!("{id}: observability: {e}"))?;
     let done = std::sync::atomic::AtomicUsize::new(0);
     let seeds: Vec<u64> = (1..=runs as u64).collect();
-    let results: Vec<Result<crate::analysis::runner::RunResult, (u64, ekf::Error)>> = seeds
+    let results: Vec<Result<RunResult, (u64, ekf::Error)>> = seeds
         .par_iter()
         .map(|&seed| {
             let sim = simulate(
@@ -159,15 +159,49 @@ pub fn monte_carlo(
             Err((seed, e)) => return Err(format!("{id}: seed {seed}: {e}")),
         }
     }
-    let names = id.states();
-    let block: Vec<usize> = names
+    let block = parameter_block(id);
+    let n_runs = ok.len().max(1) as f64;
+    let states = state_stats(id, &ok, &obs, &block);
+    let (nees_sum, max_ratio, worst) = nees_and_worst(id, &ok, &seeds, &block)?;
+    let nees = band(nees_sum / n_runs, block.len(), ok.len());
+    let z = id.layout().z();
+    let nis_count: usize = ok.iter().map(|r| r.nis.len()).sum();
+    let nis_mean = ok.iter().flat_map(|r| r.nis.iter()).sum::<f64>() / nis_count.max(1) as f64;
+    let nis = band(nis_mean, z, nis_count);
+    Ok(MonteCarlo {
+        config: id,
+        precision: estimator.precision,
+        runs: ok.len(),
+        seeds,
+        states,
+        nees,
+        nis,
+        max_normalised_error: max_ratio,
+        worst,
+        wall_s: t0.elapsed().as_secs_f64(),
+    })
+}
+
+/// The indices of the parameter block of `id` ([`in_parameter_block`]).
+fn parameter_block(id: ConfigId) -> Vec<usize> {
+    id.states()
         .iter()
         .enumerate()
         .filter(|(_, s)| in_parameter_block(id, s.name, s.group))
         .map(|(i, _)| i)
-        .collect();
+        .collect()
+}
+
+/// The statistics of every state over the runs `ok`, against the bound of
+/// the analysis `obs`.
+fn state_stats(
+    id: ConfigId,
+    ok: &[RunResult],
+    obs: &observe::ConfigObs,
+    block: &[usize],
+) -> Vec<StateStats> {
     let n_runs = ok.len().max(1) as f64;
-    let states = names
+    id.states()
         .iter()
         .enumerate()
         .map(|(i, info)| {
@@ -186,13 +220,24 @@ pub fn monte_carlo(
                 in_parameter_block: block.contains(&i),
             }
         })
-        .collect();
-    // NEES of the parameter block: e_pᵀ P_pp⁻¹ e_p per run.
-    let n = names.len();
+        .collect()
+}
+
+/// The sum over the runs of the parameter block's NEES `e_pᵀ P_pp⁻¹ e_p`,
+/// and the worst |error|/σ of the block with where it occurred (seed,
+/// state, passes).
+#[allow(clippy::type_complexity)]
+fn nees_and_worst(
+    id: ConfigId,
+    ok: &[RunResult],
+    seeds: &[u64],
+    block: &[usize],
+) -> Result<(f64, f64, (u64, &'static str, u8)), String> {
+    let n = id.states().len();
     let mut nees_sum = 0.0;
     let mut max_ratio: f64 = 0.0;
     let mut worst = (0, "", 0);
-    for (r, &seed) in ok.iter().zip(&seeds) {
+    for (r, &seed) in ok.iter().zip(seeds) {
         let e = nalgebra::DVector::from_iterator(
             block.len(),
             block.iter().map(|&i| r.states[i].error()),
@@ -204,28 +249,12 @@ pub fn monte_carlo(
             .cholesky()
             .ok_or_else(|| format!("{id}: final covariance not positive definite"))?;
         nees_sum += e.dot(&chol.solve(&e));
-        for &i in &block {
+        for &i in block {
             if r.states[i].ratio() > max_ratio {
                 max_ratio = r.states[i].ratio();
                 worst = (seed, r.states[i].name, r.passes);
             }
         }
     }
-    let nees = band(nees_sum / n_runs, block.len(), ok.len());
-    let z = id.layout().z();
-    let nis_count: usize = ok.iter().map(|r| r.nis.len()).sum();
-    let nis_mean = ok.iter().flat_map(|r| r.nis.iter()).sum::<f64>() / nis_count.max(1) as f64;
-    let nis = band(nis_mean, z, nis_count);
-    Ok(MonteCarlo {
-        config: id,
-        precision: estimator.precision,
-        runs: ok.len(),
-        seeds,
-        states,
-        nees,
-        nis,
-        max_normalised_error: max_ratio,
-        worst,
-        wall_s: t0.elapsed().as_secs_f64(),
-    })
+    Ok((nees_sum, max_ratio, worst))
 }

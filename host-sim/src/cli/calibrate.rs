@@ -398,25 +398,7 @@ fn answer<T: RealField + Copy>(
     }
     let sigma0 = settings.prior_sigma_rad;
     let nan = vec![f64::NAN; id.layout().n()];
-    // The bound of the samples actually received: the bound over the same
-    // log (the bridged periods predicted only);
-    // the full run's bound when the log is not the whole run.
-    let received_bound = match (
-        sidecar.as_ref().and_then(|s| s.truth0.as_ref()),
-        p.log_incomplete,
-    ) {
-        (Some(t0), None) => Some(
-            runner::bound(
-                settings.config,
-                filter_config(&settings),
-                t0,
-                sigma0,
-                &host.log.records_f64(),
-            )
-            .map_err(|e| format!("Cramér–Rao bound of the received samples: {e}"))?,
-        ),
-        _ => None,
-    };
+    let received_bound = received_bound(&settings, sidecar.as_ref(), &est, host)?;
     let crlb = received_bound
         .as_ref()
         .or(sidecar.as_ref().map(|s| &s.crlb))
@@ -461,6 +443,37 @@ fn answer<T: RealField + Copy>(
         restarts: host.session.stats().restarts,
         ignored: host.session.stats().ignored,
     })
+}
+
+/// The bound of the samples actually received: the bound over the same
+/// log (the bridged periods predicted only), from the sidecar's true
+/// initial state; `None` without one or when the log is not the whole run
+/// (then the full run's bound of the sidecar is the one shown).
+fn received_bound<T: RealField + Copy>(
+    settings: &CalibratorConfig,
+    sidecar: Option<&Sidecar>,
+    est: &Estimate,
+    host: &Host<T>,
+) -> Result<Option<Vec<f64>>, String> {
+    let sigma0 = settings.prior_sigma_rad;
+    Ok(
+        match (
+            sidecar.and_then(|s| s.truth0.as_ref()),
+            est.progress.log_incomplete,
+        ) {
+            (Some(t0), None) => Some(
+                runner::bound(
+                    settings.config,
+                    filter_config(settings),
+                    t0,
+                    sigma0,
+                    &host.log.records_f64(),
+                )
+                .map_err(|e| format!("Cramér–Rao bound of the received samples: {e}"))?,
+            ),
+            _ => None,
+        },
+    )
 }
 
 /// The answer as a run's result: the final passes' estimate, σ,

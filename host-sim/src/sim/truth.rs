@@ -221,6 +221,63 @@ pub fn check_gimbal_lock(id: ConfigId, sim: &Simulation) -> Result<(), String> {
     Ok(())
 }
 
+/// What drives the platform over a period: the path, the Earth rate
+/// `ω^n_ie`, the true gyro and accelerometer matrices `G`, `A`, the
+/// specific force `f^n` and the period's gyro noise rate.
+struct Dynamics<'a> {
+    path: &'a Path,
+    w_ie: Vector3<f64>,
+    g: Matrix3<f64>,
+    a: Matrix3<f64>,
+    f_n: Vector3<f64>,
+    w_gyro: Vector3<f64>,
+}
+
+/// Integrates one period `[t0, t0 + nsub·h]` by RK4 in `nsub` substeps of
+/// `h`, advancing `st`; returns the Simpson sum of the noise-free
+/// accelerometer output over the substep nodes (weights 1, 4, 2, …, 4, 1).
+fn integrate_period(
+    st: &mut State,
+    d: &Dynamics<'_>,
+    t0: f64,
+    h: f64,
+    nsub: usize,
+) -> Vector3<f64> {
+    // Composite Simpson over the substep nodes for the mean accelerometer output.
+    let mut acc_sum = d.a * st.c_ps_n * d.f_n;
+    for j in 0..nsub {
+        let ts = t0 + j as f64 * h;
+        let w_path = d.path.rate(ts);
+        let deriv = |x: &State| {
+            let w_c = x.c_c_n * (d.w_ie + w_path);
+            let w_ps_np = d.g * w_c + d.w_gyro - x.c_ps_n * d.w_ie;
+            Deriv {
+                c_ps_n: -skew(&w_ps_np) * x.c_ps_n,
+                c_c_n: -skew(&(x.c_c_n * w_path)) * x.c_c_n,
+                dtheta: w_c,
+            }
+        };
+        let k1 = deriv(&*st);
+        let k2 = deriv(&axpy(st, &k1, h / 2.0));
+        let k3 = deriv(&axpy(st, &k2, h / 2.0));
+        let k4 = deriv(&axpy(st, &k3, h));
+        *st = State {
+            c_ps_n: st.c_ps_n + (k1.c_ps_n + (k2.c_ps_n + k3.c_ps_n) * 2.0 + k4.c_ps_n) * (h / 6.0),
+            c_c_n: st.c_c_n + (k1.c_c_n + (k2.c_c_n + k3.c_c_n) * 2.0 + k4.c_c_n) * (h / 6.0),
+            dtheta: st.dtheta + (k1.dtheta + (k2.dtheta + k3.dtheta) * 2.0 + k4.dtheta) * (h / 6.0),
+        };
+        let weight = if j + 1 == nsub {
+            1.0
+        } else if j % 2 == 0 {
+            4.0
+        } else {
+            2.0
+        };
+        acc_sum += d.a * st.c_ps_n * d.f_n * weight;
+    }
+    acc_sum
+}
+
 /// Runs the truth simulator over a scenario.
 pub fn simulate(s: &Scenario, opts: SimOptions) -> Simulation {
     let params = TruthParams::from_scenario(s);
@@ -276,40 +333,20 @@ pub fn simulate(s: &Scenario, opts: SimOptions) -> Simulation {
         let t0 = (k - 1) as f64 * dt;
         let w_gyro = gauss3(sigma_gyro);
         st.dtheta = Vector3::zeros();
-        // Composite Simpson over the substep nodes for the mean accelerometer output.
-        let mut acc_sum = a * st.c_ps_n * f_n;
-        for j in 0..nsub {
-            let ts = t0 + j as f64 * h;
-            let w_path = path.rate(ts);
-            let deriv = |x: &State| {
-                let w_c = x.c_c_n * (w_ie + w_path);
-                let w_ps_np = g * w_c + w_gyro - x.c_ps_n * w_ie;
-                Deriv {
-                    c_ps_n: -skew(&w_ps_np) * x.c_ps_n,
-                    c_c_n: -skew(&(x.c_c_n * w_path)) * x.c_c_n,
-                    dtheta: w_c,
-                }
-            };
-            let k1 = deriv(&st);
-            let k2 = deriv(&axpy(&st, &k1, h / 2.0));
-            let k3 = deriv(&axpy(&st, &k2, h / 2.0));
-            let k4 = deriv(&axpy(&st, &k3, h));
-            st = State {
-                c_ps_n: st.c_ps_n
-                    + (k1.c_ps_n + (k2.c_ps_n + k3.c_ps_n) * 2.0 + k4.c_ps_n) * (h / 6.0),
-                c_c_n: st.c_c_n + (k1.c_c_n + (k2.c_c_n + k3.c_c_n) * 2.0 + k4.c_c_n) * (h / 6.0),
-                dtheta: st.dtheta
-                    + (k1.dtheta + (k2.dtheta + k3.dtheta) * 2.0 + k4.dtheta) * (h / 6.0),
-            };
-            let weight = if j + 1 == nsub {
-                1.0
-            } else if j % 2 == 0 {
-                4.0
-            } else {
-                2.0
-            };
-            acc_sum += a * st.c_ps_n * f_n * weight;
-        }
+        let acc_sum = integrate_period(
+            &mut st,
+            &Dynamics {
+                path: &path,
+                w_ie,
+                g,
+                a,
+                f_n,
+                w_gyro,
+            },
+            t0,
+            h,
+            nsub,
+        );
         let accel_mean_clean = acc_sum / (3.0 * nsub as f64);
         let truth = instant(k as f64 * dt, &st);
         samples.push(PeriodSample {
