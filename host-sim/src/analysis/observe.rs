@@ -8,9 +8,9 @@ use rollcal::observability::{
     Observability, Spectrum, COEF_THRESHOLD, PRACTICAL_RATIO, RANK_TOLERANCE,
 };
 
-use crate::analysis::runner::filter_config;
-use crate::sim::scenario::{Scenario, DEG};
-use crate::sim::truth::{truth_state, Simulation};
+use crate::analysis::runner::SimulatedRun;
+use crate::sim::scenario::Scenario;
+use crate::sim::truth::Simulation;
 
 /// One term of an unobservable combination.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -97,10 +97,11 @@ fn analyse_typed<M: Model<N, Z>, const N: usize, const Z: usize>(
     earth_rate: bool,
     keep_history: bool,
 ) -> Result<ConfigObs, ekf::Error> {
-    let cfg = filter_config(scenario, earth_rate, ekf::Options::plain());
-    let truth0 = truth_state(id, &sim.params, &sim.initial);
+    let run = SimulatedRun::new(id, scenario, sim, earth_rate);
+    let cfg = run.filter_config(ekf::Options::plain());
+    let truth0 = run.truth_at_start();
     let x0 = SVector::<f64, N>::from_iterator(truth0.iter().copied());
-    let prior = SVector::<f64, N>::repeat(scenario.prior.sigma_deg * DEG);
+    let prior = SVector::<f64, N>::repeat(run.sigma0());
     // The bound, along the true trajectory.
     let mut obs = Observability::<f64, M, N, Z>::new(cfg, x0, prior)?;
     // The structure, along the path linearised at zero state (the paper's

@@ -9,11 +9,13 @@ use rayon::prelude::*;
 use rollcal::models::{ConfigId, Group};
 
 use crate::analysis::observe::{self, ConfigObs};
-use crate::analysis::runner::{expected_observable, run_filter, Estimator, RunResult};
+use crate::analysis::runner::{
+    expected_observable, run_filter, Estimator, RunResult, SimulatedRun,
+};
 use crate::analysis::verdict::Verdict;
 use crate::plots::{plot_group_marked, Curve};
 use crate::sim::scenario::{Scenario, ARCSEC};
-use crate::sim::truth::{simulate, truth_state, SimOptions, Simulation};
+use crate::sim::truth::{simulate, SimOptions, Simulation};
 
 /// One state of the summary.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -302,11 +304,7 @@ pub fn paper(
         .par_iter()
         .zip(obs_on.par_iter().zip(obs_off.par_iter()))
         .map(|(run, (on, off))| {
-            let truth: Vec<Vec<f64>> = sim
-                .samples
-                .iter()
-                .map(|s| truth_state(run.config, &sim.params, &s.truth))
-                .collect();
+            let truth = SimulatedRun::new(run.config, scenario, &sim, earth_rate).truth_history();
             let figs = figures(out, run, on, &truth)?;
             progress(&format!("figures of {}", run.config));
             Ok(summarise(run, off, on, earth_rate, figs))

@@ -7,7 +7,7 @@ use std::time::Instant;
 use rollcal::models::ConfigId;
 
 use super::args::{load_scenario, parse_config, CommonArgs};
-use crate::analysis::runner::{crlb_sigma, run_filter};
+use crate::analysis::runner::SimulatedRun;
 use crate::report::{print_table, run_json, write_csv, write_json};
 use crate::sim::truth::{simulate, SimOptions};
 
@@ -59,18 +59,15 @@ pub fn command(args: &RunArgs) -> Result<(), String> {
     );
     crate::sim::truth::check_gimbal_lock(args.config, &sim)?;
     eprintln!("running {} estimator…", args.config);
-    let r = run_filter(
-        args.config,
-        &scenario,
-        &sim,
-        earth_rate,
-        c.estimator(),
-        None,
-        args.csv.is_some() || args.report.is_some(),
-    )
-    .map_err(|e| format!("cannot start the filter: {e}"))?;
-    let crlb = crlb_sigma(args.config, &scenario, &sim, earth_rate)
-        .map_err(|e| format!("Cramér–Rao bound: {e}"))?;
+    let run = SimulatedRun::new(args.config, &scenario, &sim, earth_rate);
+    let r = run
+        .run(
+            c.estimator(),
+            None,
+            args.csv.is_some() || args.report.is_some(),
+        )
+        .map_err(|e| format!("cannot start the filter: {e}"))?;
+    let crlb = run.crlb().map_err(|e| format!("Cramér–Rao bound: {e}"))?;
     print_table(&r, &crlb);
     eprintln!("done in {:.2} s", t0.elapsed().as_secs_f64());
     if let Some(path) = &args.json {

@@ -6,9 +6,9 @@ use std::path::Path;
 
 use rollcal::models::ConfigId;
 
-use crate::analysis::runner;
+use crate::analysis::runner::SimulatedRun;
 use crate::sim::scenario::Scenario;
-use crate::sim::truth::{truth_state, Simulation};
+use crate::sim::truth::Simulation;
 
 /// The sidecar of configuration `id` on the simulated run `sim` of
 /// `sc` (seed `seed`, Earth rate `earth_rate`).
@@ -19,11 +19,10 @@ pub fn truth_json(
     seed: u64,
     earth_rate: bool,
 ) -> Result<serde_json::Value, String> {
-    let last = sim.samples.last().map_or(sim.initial, |s| s.truth);
-    let truth = truth_state(id, &sim.params, &last);
-    let truth0 = truth_state(id, &sim.params, &sim.initial);
-    let crlb = runner::crlb_sigma(id, sc, sim, earth_rate)
-        .map_err(|e| format!("Cramér–Rao bound: {e}"))?;
+    let run = SimulatedRun::new(id, sc, sim, earth_rate);
+    let truth = run.truth_at_end();
+    let truth0 = run.truth_at_start();
+    let crlb = run.crlb().map_err(|e| format!("Cramér–Rao bound: {e}"))?;
     Ok(serde_json::json!({
         "config": id.as_str(),
         "scenario": sc.name,
