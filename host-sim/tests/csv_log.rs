@@ -258,7 +258,7 @@ fn a_malformed_csv_line_is_a_one_line_error_with_its_number() {
         ("seq,t_s,bogus\n".to_string(), "line 1", "bogus"),
     ];
     for (text, line, word) in &cases {
-        let e = csvlog::parse(text).unwrap_err();
+        let e = csvlog::parse(text).unwrap_err().to_string();
         assert!(e.contains(line) && e.contains(word), "{e}");
         assert!(!e.contains('\n'), "{e}");
     }

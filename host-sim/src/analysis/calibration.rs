@@ -16,6 +16,7 @@ use rollcal::wire::{CalibratorConfig, Estimate, Message};
 
 use crate::analysis::runner;
 use crate::analysis::verdict::Verdict;
+use crate::analysis::Error;
 use crate::sim::scenario::{Platform, Scenario, DEG};
 use crate::sim::truth::PeriodSample;
 
@@ -317,7 +318,7 @@ pub fn bound_at_estimate(
     x_start: &[f64],
     sigma0: f64,
     records: &[LogRecord<f64>],
-) -> Result<(Vec<f64>, Vec<Verdict>), String> {
+) -> Result<(Vec<f64>, Vec<Verdict>), Error> {
     fn typed<M: Model<N, Z>, const N: usize, const Z: usize>(
         id: ConfigId,
         cfg: FilterConfig<f64>,
@@ -325,7 +326,7 @@ pub fn bound_at_estimate(
         x_start: &[f64],
         sigma0: f64,
         records: &[LogRecord<f64>],
-    ) -> Result<(Vec<f64>, Vec<Verdict>), String> {
+    ) -> Result<(Vec<f64>, Vec<Verdict>), Error> {
         use rollcal::observability::{COEF_THRESHOLD, RANK_TOLERANCE};
         let vector = |v: &[f64]| {
             nalgebra::SVector::<f64, N>::from_iterator(
@@ -349,12 +350,15 @@ pub fn bound_at_estimate(
                     &frame,
                     &mut log,
                 )
-                .map_err(|e| format!("the start of the log: {e}"))?
+                .map_err(|source| Error::Estimator {
+                    context: "the start of the log".into(),
+                    source,
+                })?
                 .0
             }
         };
         let prior = nalgebra::SVector::<f64, N>::repeat(sigma0);
-        let e = |e: ekf::Error| format!("the bound at the estimate: {e}");
+        let e = |e: ekf::Error| Error::filter("the bound at the estimate", e);
         let mut at = Observability::<f64, M, N, Z>::new(cfg, x0, prior).map_err(e)?;
         let mut zero = Observability::<f64, M, N, Z>::new(cfg, nalgebra::SVector::zeros(), prior)
             .map_err(e)?;

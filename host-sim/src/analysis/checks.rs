@@ -470,7 +470,7 @@ pub fn judge_simulated(
     scenario: &crate::sim::scenario::Scenario,
     seed: u64,
     defect: &crate::sim::impair::AccelDefects,
-) -> Result<Judgement, String> {
+) -> Result<Judgement, crate::analysis::Error> {
     use crate::sim::truth::{simulate, SimOptions};
     let earth_rate = scenario.site.earth_rate;
     let mut sim = simulate(
@@ -496,7 +496,7 @@ pub fn judge_simulated(
         None,
         false,
     )
-    .map_err(|e| format!("{id} seed {seed}: {e}"))?;
+    .map_err(|e| crate::analysis::Error::filter(format_args!("{id} seed {seed}"), e))?;
     Ok(judge(&r))
 }
 

@@ -12,12 +12,14 @@
 //!   raw outputs (`--matrices`);
 //! - [`statistics`]: the normal and χ² quantiles;
 //! - [`verdict`]: the verdict words of every table;
+//! - [`Error`]: why an analysis failed;
 //! - [`paper`]: the whole paper regenerated (tables, runs, figures, summary);
 //! - [`remedies`]: the cold-start remedies and their study.
 
 pub mod calibration;
 pub mod checks;
 pub mod compensation;
+mod error;
 pub mod montecarlo;
 pub mod observe;
 pub mod paper;
@@ -25,3 +27,5 @@ pub mod remedies;
 pub mod runner;
 pub mod statistics;
 pub mod verdict;
+
+pub use error::Error;

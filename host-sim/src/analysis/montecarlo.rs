@@ -9,6 +9,7 @@ use rollcal::models::{ConfigId, Group};
 
 use crate::analysis::observe;
 use crate::analysis::runner::{run_filter, Estimator, RunResult};
+use crate::analysis::Error;
 use crate::sim::scenario::Scenario;
 use crate::sim::truth::{simulate, SimOptions};
 
@@ -117,7 +118,7 @@ pub fn monte_carlo(
     runs: usize,
     estimator: Estimator,
     progress: &(dyn Fn(usize) + Sync),
-) -> Result<MonteCarlo, String> {
+) -> Result<MonteCarlo, Error> {
     let t0 = std::time::Instant::now();
     let earth_rate = scenario.site.earth_rate;
     // The bound does not depend on the noise: one noise-free trajectory.
@@ -131,7 +132,7 @@ pub fn monte_carlo(
     );
     crate::sim::truth::check_gimbal_lock(id, &clean)?;
     let obs = observe::analyse(id, scenario, &clean, earth_rate, false)
-        .map_err(|e| format!("{id}: observability: {e}"))?;
+        .map_err(|e| Error::filter(format_args!("{id}: observability"), e))?;
     let done = std::sync::atomic::AtomicUsize::new(0);
     let seeds: Vec<u64> = (1..=runs as u64).collect();
     let results: Vec<Result<RunResult, (u64, ekf::Error)>> = seeds
@@ -156,7 +157,7 @@ pub fn monte_carlo(
     for r in results {
         match r {
             Ok(r) => ok.push(r),
-            Err((seed, e)) => return Err(format!("{id}: seed {seed}: {e}")),
+            Err((seed, e)) => return Err(Error::filter(format_args!("{id}: seed {seed}"), e)),
         }
     }
     let block = parameter_block(id);
@@ -232,7 +233,7 @@ fn nees_and_worst(
     ok: &[RunResult],
     seeds: &[u64],
     block: &[usize],
-) -> Result<(f64, f64, (u64, &'static str, u8)), String> {
+) -> Result<(f64, f64, (u64, &'static str, u8)), Error> {
     let n = id.states().len();
     let mut nees_sum = 0.0;
     let mut max_ratio: f64 = 0.0;
@@ -247,7 +248,7 @@ fn nees_and_worst(
         });
         let chol = p
             .cholesky()
-            .ok_or_else(|| format!("{id}: final covariance not positive definite"))?;
+            .ok_or(Error::NotPositiveDefinite { config: id })?;
         nees_sum += e.dot(&chol.solve(&e));
         for &i in block {
             if r.states[i].ratio() > max_ratio {

@@ -9,6 +9,7 @@ use rollcal::observability::{
 };
 
 use crate::analysis::runner::SimulatedRun;
+use crate::analysis::Error;
 use crate::sim::scenario::Scenario;
 use crate::sim::truth::Simulation;
 
@@ -192,7 +193,7 @@ pub fn analyse(
 
 /// [`analyse`] of all seven configurations along the noise-free run of
 /// `scenario` (seed 0), without the σ_CRLB history.
-pub fn analyse_all(scenario: &Scenario, earth_rate: bool) -> Result<Vec<ConfigObs>, String> {
+pub fn analyse_all(scenario: &Scenario, earth_rate: bool) -> Result<Vec<ConfigObs>, Error> {
     let sim = crate::sim::truth::simulate(
         scenario,
         crate::sim::truth::SimOptions {
@@ -203,7 +204,7 @@ pub fn analyse_all(scenario: &Scenario, earth_rate: bool) -> Result<Vec<ConfigOb
     );
     ConfigId::ALL
         .iter()
-        .map(|&id| analyse(id, scenario, &sim, earth_rate, false).map_err(|e| format!("{id}: {e}")))
+        .map(|&id| analyse(id, scenario, &sim, earth_rate, false).map_err(|e| Error::filter(id, e)))
         .collect()
 }
 

@@ -13,6 +13,7 @@ use crate::analysis::runner::{
     expected_observable, run_filter, Estimator, RunResult, SimulatedRun,
 };
 use crate::analysis::verdict::Verdict;
+use crate::analysis::Error;
 use crate::plots::{plot_group_marked, Curve};
 use crate::sim::scenario::{Scenario, ARCSEC};
 use crate::sim::truth::{simulate, SimOptions, Simulation};
@@ -114,7 +115,7 @@ fn figures(
     run: &RunResult,
     obs: &ConfigObs,
     truth: &[Vec<f64>],
-) -> Result<Vec<String>, String> {
+) -> Result<Vec<String>, Error> {
     let id = run.config;
     let t: Vec<f64> = run.history.iter().map(|h| h.0).collect();
     let mut names = Vec::new();
@@ -160,7 +161,8 @@ fn figures(
             &t,
             &curves,
             &crate::sim::segments::switch_times(&run.segments),
-        )?;
+        )
+        .map_err(Error::Figure)?;
         names.push(file);
     }
     Ok(names)
@@ -241,9 +243,12 @@ pub fn paper(
     seed: u64,
     out: &Path,
     progress: &(dyn Fn(&str) + Sync),
-) -> Result<Paper, String> {
+) -> Result<Paper, Error> {
     let t0 = std::time::Instant::now();
-    std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+    std::fs::create_dir_all(out).map_err(|source| Error::Create {
+        path: out.display().to_string(),
+        source,
+    })?;
     let earth_rate = scenario.site.earth_rate;
     let sim_for = |seed: u64, noise: bool, er: bool| {
         simulate(
@@ -265,12 +270,12 @@ pub fn paper(
         },
     );
     progress("simulated the truth");
-    let analyse = |sim: &Simulation, er: bool, hist: bool| -> Result<Vec<ConfigObs>, String> {
+    let analyse = |sim: &Simulation, er: bool, hist: bool| -> Result<Vec<ConfigObs>, Error> {
         ConfigId::ALL
             .par_iter()
             .map(|&id| {
                 let r =
-                    observe::analyse(id, scenario, sim, er, hist).map_err(|e| format!("{id}: {e}"));
+                    observe::analyse(id, scenario, sim, er, hist).map_err(|e| Error::filter(id, e));
                 progress(&format!(
                     "observability of {id} (Earth rate {})",
                     if er { "on" } else { "off" }
@@ -294,7 +299,7 @@ pub fn paper(
                 None,
                 true,
             )
-            .map_err(|e| format!("{id}: {e}"));
+            .map_err(|e| Error::filter(id, e));
             progress(&format!("estimator run of {id}"));
             r
         })
@@ -309,7 +314,7 @@ pub fn paper(
             progress(&format!("figures of {}", run.config));
             Ok(summarise(run, off, on, earth_rate, figs))
         })
-        .collect::<Result<_, String>>()?;
+        .collect::<Result<_, Error>>()?;
     let paper = Paper {
         scenario: scenario.name.clone(),
         command: reproduce_command(scenario_path, seed, out),
@@ -328,10 +333,13 @@ pub fn paper(
 /// Number of progress steps [`paper`] reports.
 pub const PROGRESS_STEPS: u64 = 1 + 7 + 7 + 7 + 7;
 
-fn write_outputs(out: &Path, p: &Paper) -> Result<(), String> {
-    let write = |name: &str, text: String| -> Result<PathBuf, String> {
+fn write_outputs(out: &Path, p: &Paper) -> Result<(), Error> {
+    let write = |name: &str, text: String| -> Result<PathBuf, Error> {
         let path = out.join(name);
-        std::fs::write(&path, text).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        std::fs::write(&path, text).map_err(|source| Error::Write {
+            path: path.display().to_string(),
+            source,
+        })?;
         Ok(path)
     };
     let json = serde_json::json!({
@@ -343,7 +351,7 @@ fn write_outputs(out: &Path, p: &Paper) -> Result<(), String> {
     });
     write(
         "summary.json",
-        serde_json::to_string_pretty(&json).map_err(|e| e.to_string())? + "\n",
+        serde_json::to_string_pretty(&json).map_err(Error::Json)? + "\n",
     )?;
     for (name, obs, er) in [
         ("observability-earth-off.json", &p.obs_off, false),
@@ -352,7 +360,7 @@ fn write_outputs(out: &Path, p: &Paper) -> Result<(), String> {
         let v = observe::report_json(er, obs);
         write(
             name,
-            serde_json::to_string_pretty(&v).map_err(|e| e.to_string())? + "\n",
+            serde_json::to_string_pretty(&v).map_err(Error::Json)? + "\n",
         )?;
     }
     write("summary.md", summary_markdown(p))?;

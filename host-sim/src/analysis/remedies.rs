@@ -9,6 +9,7 @@ use rollcal::ekf::Options;
 use rollcal::models::ConfigId;
 
 use crate::analysis::runner::{expected_observable, run_filter, Estimator, Precision};
+use crate::analysis::Error;
 use crate::report::group_of;
 use crate::sim::scenario::Scenario;
 use crate::sim::truth::{simulate, SimOptions};
@@ -117,7 +118,7 @@ pub fn study(
     seeds: u64,
     remedies: &[(&'static str, Estimator)],
     progress: &(dyn Fn(u64) + Sync),
-) -> Result<Vec<Outcome>, String> {
+) -> Result<Vec<Outcome>, Error> {
     let jobs: Vec<(usize, u64)> = (0..scenarios.len())
         .flat_map(|i| (1..=seeds).map(move |s| (i, s)))
         .collect();
@@ -171,7 +172,9 @@ pub fn study(
             });
         }
     });
-    results.into_inner().map_err(|e| e.to_string())
+    results
+        .into_inner()
+        .map_err(|e| Error::Poisoned(e.to_string()))
 }
 
 /// The tally of one estimator on one configuration.

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use rollcal::models::ConfigId;
 
+use super::Error;
 use crate::analysis::remedies::Remedy;
 use crate::analysis::runner::{Estimator, Precision};
 use crate::sim::scenario::Scenario;
@@ -15,10 +16,9 @@ pub fn parse_config(s: &str) -> Result<ConfigId, String> {
     crate::sim::scenario::parse_config(s)
 }
 
-/// The scenario of a `--scenario` option (default: the paper's), its error
-/// as the one-line message.
-pub fn load_scenario(path: Option<&Path>) -> Result<Scenario, String> {
-    Scenario::load(path).map_err(|e| e.to_string())
+/// The scenario of a `--scenario` option (default: the paper's).
+pub fn load_scenario(path: Option<&Path>) -> Result<Scenario, Error> {
+    Ok(Scenario::load(path)?)
 }
 
 /// The options of `run` and `summary`.

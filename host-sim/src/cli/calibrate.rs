@@ -4,11 +4,34 @@
 //! checks, the stream counters, and the JSON, matrices and report asked
 //! for.
 //!
+//! `record` writes a `Configure` message (the scenario's noise levels,
+//! Earth rate, prior) and then one `Sample` per period, with f32 fields as
+//! the firmware would send them. The stream carries no truth; `--truth PATH`
+//! writes it to a JSON sidecar (true final states and Cramér–Rao σ of the
+//! recorded configuration) that `calibrate --truth PATH` reads to fill the
+//! truth and σ_CRLB columns. Without it, `calibrate` prints the estimate,
+//! σ and the bound at the estimate with its observability verdict, and
+//! judges the data against the model ([`crate::analysis::checks`]).
+//!
+//! `record --format csv` writes the same samples as a CSV log
+//! ([`crate::io::csvlog`], docs/csv.md), without the `Configure`; `calibrate`
+//! reads such a log with the settings of a platform file (`--platform`),
+//! sending the calibrator the `Configure` of those settings and then the
+//! samples, as a frame stream would.
+//!
+//! `calibrate` decodes the stream, validates and processes every sample
+//! with the no_std [`rollcal::calibrator::Calibrator`] (f64) — pass 1,
+//! exactly what the firmware computes — and then, like `run`, runs the
+//! further linearised passes over the accepted samples (`--passes 1` gives
+//! the firmware's answer). The table and JSON are those of `run`, plus a
+//! `stream` object (frame and sample counters) and `pass1` (the
+//! calibrator's final estimate and σ, full f64 precision).
+//!
 //! The driver goes in steps, each a function: the settings of the input
-//! ([`input`]), the stream read into the session ([`feed`]), the answer
-//! of the session ([`answer`]: a [`Calibration`], everything the outputs
-//! need), the printed results ([`print_results`]), the JSON
-//! ([`json_of`]) and the HTML report ([`report`]).
+//! (`input`), the stream read into the session (`feed`), the answer of
+//! the session (`answer`: a `Calibration`, everything the outputs need),
+//! the printed results (`print_results`), the JSON (`json_of`) and the
+//! HTML report (`report`).
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant as Clock};
@@ -22,6 +45,7 @@ use rollcal::wire::{
 
 use super::args::{load_scenario, parse_config};
 use super::checks::print_judgement;
+use super::Error;
 use crate::analysis::calibration::{
     bound_at_estimate, filter_config, platform_config, CalibratorView, Final, Host,
 };
@@ -92,7 +116,7 @@ pub struct CalibrateArgs {
 /// `host-sim calibrate`, returning the verdict of the data checks
 /// ([`crate::analysis::checks::judge`]; [`super::main`] exits with
 /// [`crate::analysis::checks::WARNING_EXIT`] on a warning).
-pub fn command(args: &CalibrateArgs) -> Result<DataVerdict, String> {
+pub fn command(args: &CalibrateArgs) -> Result<DataVerdict, Error> {
     match args.precision {
         Precision::F64 => calibrate_in::<f64>(args),
         Precision::F32 => calibrate_in::<f32>(args),
@@ -100,7 +124,7 @@ pub fn command(args: &CalibrateArgs) -> Result<DataVerdict, String> {
 }
 
 /// `host-sim calibrate` with the calibrator's covariance arithmetic in `T`.
-fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<DataVerdict, String> {
+fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<DataVerdict, Error> {
     let t0 = Clock::now();
     if let Some(dir) = &args.report {
         crate::html::prepare_dir(dir)?;
@@ -158,7 +182,7 @@ struct Input {
 
 /// The format of the input and the settings without a Configure message:
 /// the platform file's, else the scenario's (default: the paper's).
-fn input(args: &CalibrateArgs) -> Result<Input, String> {
+fn input(args: &CalibrateArgs) -> Result<Input, Error> {
     let format = args
         .format
         .unwrap_or(if args.input.to_ascii_lowercase().ends_with(".csv") {
@@ -182,9 +206,9 @@ fn input(args: &CalibrateArgs) -> Result<Input, String> {
     };
     let expected = match (args.config, platform.config_id()) {
         (Some(a), Some(b)) if a != b => {
-            return Err(format!(
-                "--config {a} contradicts the configuration {b} of {source}"
-            ))
+            return Err(
+                format!("--config {a} contradicts the configuration {b} of {source}").into(),
+            )
         }
         (a, b) => a.or(b),
     };
@@ -202,12 +226,12 @@ fn read_csv(
     args: &CalibrateArgs,
     input: &Input,
     fallback: Option<CalibratorConfig>,
-) -> Result<(Vec<Sample>, CalibratorConfig), String> {
+) -> Result<(Vec<Sample>, CalibratorConfig), Error> {
     let source = &input.source;
     let Some(id) = input.expected else {
         return Err(format!(
             "a CSV log has no Configure message: give --config, or --platform FILE with config = \"…\" ({source} names none)"
-        ));
+        ).into());
     };
     let text = read_text(&args.input)?;
     let mut log = crate::io::csvlog::parse(&text).map_err(|e| format!("{}: {e}", args.input))?;
@@ -252,7 +276,7 @@ fn feed<T: RealField + Copy>(
     decoder: &mut FrameDecoder,
     csv: Option<(Vec<Sample>, CalibratorConfig)>,
     total: u64,
-) -> Result<(), String> {
+) -> Result<(), Error> {
     let progress = Progress::stderr("calibrate", total, "samples accepted");
     let idle = Duration::from_secs_f64(args.idle_timeout.max(0.1));
     let csv_read = csv.is_some();
@@ -287,7 +311,8 @@ fn feed<T: RealField + Copy>(
             if let Some(idle) = idle {
                 eprintln!("\nno data for {:.1} s: end of stream", idle.as_secs_f64());
             }
-        }),
+        })
+        .map_err(|e| e.to_string()),
     };
     let (accepted, text) = detail(host, decoder);
     // The summary line unless the input never gave a frame (e.g. a file
@@ -307,6 +332,7 @@ fn feed<T: RealField + Copy>(
         } else {
             e
         }
+        .into()
     })
 }
 
@@ -352,14 +378,15 @@ fn answer<T: RealField + Copy>(
     input: &Input,
     host: &mut Host<T>,
     decoder: &FrameDecoder,
-) -> Result<Calibration, String> {
+) -> Result<Calibration, Error> {
     let stats = *decoder.stats();
     let Some(id) = host.session.calibrator().map(|c| c.settings().config) else {
         return Err(format!(
             "no samples in the stream ({} frames decoded, {} rejected)",
             stats.ok,
             stats.errors()
-        ));
+        )
+        .into());
     };
     // Read after the stream: `record --truth T | calibrate --truth T` works.
     let sidecar = args
@@ -378,7 +405,8 @@ fn answer<T: RealField + Copy>(
             "no samples in the stream ({} frames decoded, {} rejected)",
             stats.ok,
             stats.errors()
-        ));
+        )
+        .into());
     };
     cal.set_frame_errors(stats.errors());
     let settings = *cal.settings();
@@ -394,7 +422,8 @@ fn answer<T: RealField + Copy>(
             "no sample accepted ({} rejected, {} bad frames)",
             p.rejects.total(),
             stats.errors()
-        ));
+        )
+        .into());
     }
     let sigma0 = settings.prior_sigma_rad;
     let nan = vec![f64::NAN; id.layout().n()];
@@ -454,7 +483,7 @@ fn received_bound<T: RealField + Copy>(
     sidecar: Option<&Sidecar>,
     est: &Estimate,
     host: &Host<T>,
-) -> Result<Option<Vec<f64>>, String> {
+) -> Result<Option<Vec<f64>>, Error> {
     let sigma0 = settings.prior_sigma_rad;
     Ok(
         match (
@@ -548,7 +577,7 @@ fn result<T: RealField + Copy>(
 /// judgement and, without a truth, the bound at the estimate and its
 /// verdicts.
 #[allow(clippy::type_complexity)]
-fn print_results(c: &Calibration) -> Result<(Judgement, Option<(Vec<f64>, Vec<Verdict>)>), String> {
+fn print_results(c: &Calibration) -> Result<(Judgement, Option<(Vec<f64>, Vec<Verdict>)>), Error> {
     let (id, r, p) = (c.id, &c.r, &c.est.progress);
     let at_estimate = if c.sidecar.is_none() {
         let records = &c.records;
@@ -694,7 +723,7 @@ fn report(
     c: &Calibration,
     judgement: &Judgement,
     dir: &std::path::Path,
-) -> Result<(), String> {
+) -> Result<(), Error> {
     let (id, r, p) = (c.id, &c.r, &c.est.progress);
     // σ_CRLB(t): the bound of the received samples, when computed.
     let crlb_history = match c.sidecar.as_ref().and_then(|s| s.truth0.as_ref()) {

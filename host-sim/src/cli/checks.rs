@@ -7,6 +7,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use rollcal::models::ConfigId;
 
 use super::args::{load_scenario, parse_config};
+use super::Error;
 use crate::analysis::checks::{cases, rates, Case, Judgement, FALSE_ALARM};
 use crate::progress::Progress;
 use crate::report::write_json;
@@ -52,9 +53,10 @@ fn parse_bias(s: &str) -> Result<[f64; 3], String> {
     }
 }
 
-/// `host-sim checks`: false-alarm and detection rates of [`judge`] over
+/// `host-sim checks`: false-alarm and detection rates of
+/// [`crate::analysis::checks::judge`] over
 /// seeds, in process (simulate, defect, estimate, judge; no files).
-pub fn command(args: &ChecksArgs) -> Result<(), String> {
+pub fn command(args: &ChecksArgs) -> Result<(), Error> {
     let scenario = load_scenario(args.scenario.as_deref())?;
     let keys = ["clean", "noise", "bias"];
     let cases: Vec<Case> = cases(args.bias_ug)

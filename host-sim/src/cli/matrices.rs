@@ -4,6 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
+use super::Error;
 use crate::analysis::compensation::{of_run, Compensation};
 use crate::analysis::runner::RunResult;
 use crate::report::write_json;
@@ -16,13 +17,13 @@ pub fn write_outputs(
     prior_sigma: f64,
     json: Option<&Path>,
     txt: Option<&Path>,
-) -> Result<(), String> {
+) -> Result<(), Error> {
     if let Some(path) = json {
         write_json(path, &c.to_json())?;
     }
     match (json, txt) {
         (_, Some(path)) => std::fs::write(path, c.text(prior_sigma))
-            .map_err(|e| format!("cannot write {}: {e}", path.display())),
+            .map_err(|e| format!("cannot write {}: {e}", path.display()).into()),
         (Some(_), None) => {
             print!("{}", c.text(prior_sigma));
             Ok(())
@@ -47,7 +48,7 @@ pub struct MatricesArgs {
 
 impl MatricesArgs {
     /// Writes what was asked for of the final result `r`.
-    pub fn write(&self, r: &RunResult) -> Result<(), String> {
+    pub fn write(&self, r: &RunResult) -> Result<(), Error> {
         if self.matrices.is_none() && self.matrices_txt.is_none() {
             return Ok(());
         }

@@ -24,6 +24,10 @@ pub mod remedies;
 pub mod run;
 pub mod summary;
 
+/// The error of a subcommand: any error of the library's layers (or a
+/// message), printed by [`main`] as one line, `host-sim: error: …`.
+pub type Error = Box<dyn std::error::Error>;
+
 #[derive(Parser)]
 #[command(
     name = "host-sim",
@@ -98,7 +102,7 @@ pub fn main() -> ExitCode {
         Some(Command::Observability(args)) => observability::command(&args),
         Some(Command::Montecarlo(args)) => montecarlo::command(&args),
         Some(Command::Paper(args)) => paper::command(&args),
-        Some(Command::Design(args)) => crate::design::command(&args),
+        Some(Command::Design(args)) => crate::design::command(&args).map_err(Error::from),
         Some(Command::Record(args)) => record::command(&args),
         Some(Command::Calibrate(args)) => match calibrate::command(&args) {
             // A data-model warning: its own exit status (README "Judging a

@@ -7,6 +7,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use rollcal::models::ConfigId;
 
 use super::args::{load_scenario, parse_config};
+use super::Error;
 use crate::analysis::montecarlo::{monte_carlo, Consistency, MonteCarlo};
 use crate::analysis::runner::{Estimator, Precision};
 use crate::progress::Progress;
@@ -35,7 +36,7 @@ pub struct MonteCarloArgs {
 }
 
 /// `host-sim montecarlo`.
-pub fn command(args: &MonteCarloArgs) -> Result<(), String> {
+pub fn command(args: &MonteCarloArgs) -> Result<(), Error> {
     let scenario = load_scenario(args.scenario.as_deref())?;
     let runs = usize::try_from(args.runs).map_err(|e| e.to_string())?;
     eprintln!(

@@ -8,6 +8,7 @@ use std::time::Instant;
 use rollcal::observability::{COEF_THRESHOLD, PRACTICAL_RATIO, RANK_TOLERANCE};
 
 use super::args::load_scenario;
+use super::Error;
 use crate::analysis::observe::{
     analyse_all, changes, format_combination, report_json, verdict_matrix_markdown, ConfigObs,
 };
@@ -29,7 +30,7 @@ pub struct ObservabilityArgs {
 }
 
 /// `host-sim observability`.
-pub fn command(args: &ObservabilityArgs) -> Result<(), String> {
+pub fn command(args: &ObservabilityArgs) -> Result<(), Error> {
     let scenario = load_scenario(args.scenario.as_deref())?;
     let earth_rate = !args.no_earth_rate && scenario.site.earth_rate;
     let t0 = Instant::now();

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use super::args::load_scenario;
+use super::Error;
 use crate::analysis::observe::verdict_matrix_markdown;
 use crate::analysis::paper::{all_good, overview_markdown, paper, PROGRESS_STEPS};
 use crate::progress::Progress;
@@ -24,7 +25,7 @@ pub struct PaperArgs {
 }
 
 /// `host-sim paper`.
-pub fn command(args: &PaperArgs) -> Result<(), String> {
+pub fn command(args: &PaperArgs) -> Result<(), Error> {
     let scenario = load_scenario(args.scenario.as_deref())?;
     eprintln!(
         "regenerating the paper on '{}' (seed {}) into {}/ with {} threads…",
@@ -77,6 +78,6 @@ pub fn command(args: &PaperArgs) -> Result<(), String> {
         );
         Ok(())
     } else {
-        Err("some states failed or disagree with the paper: see summary.md".to_string())
+        Err("some states failed or disagree with the paper: see summary.md".into())
     }
 }

@@ -9,6 +9,7 @@ use rollcal::models::ConfigId;
 use rollcal::wire::{Message, Sample};
 
 use super::args::{load_scenario, parse_config};
+use super::Error;
 use crate::analysis::calibration::calibrator_config;
 use crate::io::csvlog;
 use crate::io::sidecar::truth_json;
@@ -53,7 +54,7 @@ pub struct RecordArgs {
 }
 
 /// `host-sim record`.
-pub fn command(args: &RecordArgs) -> Result<(), String> {
+pub fn command(args: &RecordArgs) -> Result<(), Error> {
     let csv = args.format == Format::Csv;
     if csv && args.impair.bit_flips > 0.0 {
         return Err("--bit-flips impairs the frame bytes: not with --format csv".into());

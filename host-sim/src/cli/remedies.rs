@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 
+use super::Error;
 use crate::analysis::remedies::{estimators, study, tally, CONFIGS};
 use crate::progress::Progress;
 use crate::sim::scenario::Scenario;
@@ -23,7 +24,7 @@ pub struct RemediesArgs {
 }
 
 /// `host-sim remedies`.
-pub fn command(args: &RemediesArgs) -> Result<(), String> {
+pub fn command(args: &RemediesArgs) -> Result<(), Error> {
     if args.seeds == 0 {
         return Err("--seeds must be at least 1 (no seed, no run to report)".into());
     }

@@ -7,6 +7,7 @@ use std::time::Instant;
 use rollcal::models::ConfigId;
 
 use super::args::{load_scenario, parse_config, CommonArgs};
+use super::Error;
 use crate::analysis::runner::SimulatedRun;
 use crate::report::{print_table, run_json, write_csv, write_json};
 use crate::sim::truth::{simulate, SimOptions};
@@ -35,7 +36,7 @@ pub struct RunArgs {
 }
 
 /// `host-sim run`.
-pub fn command(args: &RunArgs) -> Result<(), String> {
+pub fn command(args: &RunArgs) -> Result<(), Error> {
     let c = &args.common;
     let scenario = load_scenario(c.scenario.as_deref())?;
     let earth_rate = !c.no_earth_rate && scenario.site.earth_rate;

@@ -6,12 +6,13 @@ use std::time::Instant;
 use rollcal::models::ConfigId;
 
 use super::args::{load_scenario, CommonArgs};
+use super::Error;
 use crate::analysis::runner::{expected_observable, run_filter};
 use crate::report::group_of;
 use crate::sim::truth::{simulate, SimOptions};
 
 /// `host-sim summary`.
-pub fn command(c: &CommonArgs) -> Result<(), String> {
+pub fn command(c: &CommonArgs) -> Result<(), Error> {
     let scenario = load_scenario(c.scenario.as_deref())?;
     let earth_rate = !c.no_earth_rate && scenario.site.earth_rate;
     println!(

@@ -11,6 +11,8 @@ use nalgebra::Vector3;
 use rollcal::command::CommandFrame;
 use rollcal::wire::Sample;
 
+use super::Error;
+
 /// Column names, in the order `record --format csv` writes them.
 pub const COLUMNS: [&str; 16] = [
     "seq",
@@ -84,19 +86,19 @@ pub struct Log {
 /// Parses a log. Blank lines and lines starting with `#` are skipped; the
 /// first other line is the header. Errors are one line and name the line
 /// number (1-based) and the column.
-pub fn parse(text: &str) -> Result<Log, String> {
+pub fn parse(text: &str) -> Result<Log, Error> {
     let mut lines = text
         .lines()
         .enumerate()
         .map(|(i, l)| (i + 1, l.trim_end_matches('\r')))
         .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
     let Some((hline, head)) = lines.next() else {
-        return Err("the CSV log is empty (no header line)".into());
+        return Err(Error::Csv("the CSV log is empty (no header line)".into()));
     };
-    let h = parse_header(hline, head)?;
+    let h = parse_header(hline, head).map_err(Error::Csv)?;
     let mut samples = Vec::new();
     for (n, l) in lines {
-        samples.push(parse_line(&h, n, l)?);
+        samples.push(parse_line(&h, n, l).map_err(Error::Csv)?);
     }
     let has_frames = h.has_frames;
     Ok(Log {
@@ -228,16 +230,16 @@ fn parse_line(h: &Header, n: usize, l: &str) -> Result<Sample, String> {
 /// integrating its commanded increments from `C^c_n(0) = I` (docs/model.md
 /// §Measurement timing), as the filter does. Such a log must have no
 /// missing sequence numbers: across a gap the motion is unknown.
-pub fn fill_frames(samples: &mut [Sample], earth_rate_n: [f64; 3]) -> Result<(), String> {
+pub fn fill_frames(samples: &mut [Sample], earth_rate_n: [f64; 3]) -> Result<(), Error> {
     let mut frame = CommandFrame::aligned(Vector3::from(earth_rate_n));
     let mut last: Option<u32> = None;
     for s in samples.iter_mut() {
         if let Some(prev) = last {
             if s.seq != prev.wrapping_add(1) {
-                return Err(format!(
+                return Err(Error::Csv(format!(
                     "sequence {prev} is followed by {}: a log without the ccn_q* columns must have no gaps (the commanded motion across them is unknown)",
                     s.seq
-                ));
+                )));
             }
         }
         last = Some(s.seq);

@@ -6,6 +6,7 @@ use std::path::Path;
 
 use rollcal::models::ConfigId;
 
+use super::Error;
 use crate::analysis::runner::SimulatedRun;
 use crate::sim::scenario::Scenario;
 use crate::sim::truth::Simulation;
@@ -18,11 +19,11 @@ pub fn truth_json(
     sim: &Simulation,
     seed: u64,
     earth_rate: bool,
-) -> Result<serde_json::Value, String> {
+) -> Result<serde_json::Value, Error> {
     let run = SimulatedRun::new(id, sc, sim, earth_rate);
     let truth = run.truth_at_end();
     let truth0 = run.truth_at_start();
-    let crlb = run.crlb().map_err(|e| format!("Cramér–Rao bound: {e}"))?;
+    let crlb = run.crlb().map_err(Error::Bound)?;
     Ok(serde_json::json!({
         "config": id.as_str(),
         "scenario": sc.name,
@@ -51,23 +52,31 @@ pub struct Sidecar {
 }
 
 /// Reads the sidecar at `path`, which must hold the truth of `id`.
-pub fn read_sidecar(path: &Path, id: ConfigId) -> Result<Sidecar, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    let v: serde_json::Value = serde_json::from_str(&text)
-        .map_err(|e| format!("{} is not a truth sidecar: {e}", path.display()))?;
+pub fn read_sidecar(path: &Path, id: ConfigId) -> Result<Sidecar, Error> {
+    let name = || path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|source| Error::Read {
+        path: name(),
+        source,
+    })?;
+    let v: serde_json::Value = serde_json::from_str(&text).map_err(|source| Error::NotSidecar {
+        path: name(),
+        source,
+    })?;
     if v["config"].as_str() != Some(id.as_str()) {
-        return Err(format!(
-            "{} holds the truth of {}, not {id}",
-            path.display(),
-            v["config"]
-        ));
+        return Err(Error::SidecarConfig {
+            path: name(),
+            found: v["config"].clone(),
+            expected: id,
+        });
     }
-    let floats = |key: &str| -> Result<Vec<f64>, String> {
+    let floats = |key: &str| -> Result<Vec<f64>, Error> {
         v[key]
             .as_array()
             .map(|a| a.iter().map(|x| x.as_f64().unwrap_or(f64::NAN)).collect())
-            .ok_or_else(|| format!("{}: no '{key}' array", path.display()))
+            .ok_or_else(|| Error::SidecarArray {
+                path: name(),
+                key: key.into(),
+            })
     };
     Ok(Sidecar {
         truth: floats("truth_rad")?,

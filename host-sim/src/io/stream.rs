@@ -1,29 +1,7 @@
-//! `record` and `calibrate`: a scenario as a stream of wire frames
-//! (`docs/wire.md`), and the calibrator run on such a stream from a file,
-//! stdin or a serial port.
-//!
-//! `record` writes a `Configure` message (the scenario's noise levels,
-//! Earth rate, prior) and then one `Sample` per period, with f32 fields as
-//! the firmware would send them. The stream carries no truth; `--truth PATH`
-//! writes it to a JSON sidecar (true final states and Cramér–Rao σ of the
-//! recorded configuration) that `calibrate --truth PATH` reads to fill the
-//! truth and σ_CRLB columns. Without it, `calibrate` prints the estimate,
-//! σ and the bound at the estimate with its observability verdict, and
-//! judges the data against the model ([`crate::analysis::checks`]).
-//!
-//! `record --format csv` writes the same samples as a CSV log
-//! ([`crate::io::csvlog`], docs/csv.md), without the `Configure`; `calibrate`
-//! reads such a log with the settings of a platform file (`--platform`),
-//! sending the calibrator the `Configure` of those settings and then the
-//! samples, as a frame stream would.
-//!
-//! `calibrate` decodes the stream, validates and processes every sample
-//! with the no_std [`rollcal::calibrator::Calibrator`] (f64) — pass 1,
-//! exactly what the firmware computes — and then, like `run`, runs the
-//! further linearised passes over the accepted samples (`--passes 1` gives
-//! the firmware's answer). The table and JSON are those of `run`, plus a
-//! `stream` object (frame and sample counters) and `pass1` (the
-//! calibrator's final estimate and σ, full f64 precision).
+//! Wire frames of a recorded run (docs/wire.md): a simulated period as
+//! the platform would send it, frames appended to a byte stream, and the
+//! reading of a file, stdin or a serial port until its end (or until it is
+//! idle); the frame and reject counters as JSON.
 
 use std::io::Read;
 use std::time::{Duration, Instant as Clock};
@@ -31,6 +9,7 @@ use std::time::{Duration, Instant as Clock};
 use nalgebra::Vector3;
 use rollcal::wire::{encode, DecoderStats, Message, Sample, MAX_FRAME_LEN};
 
+use super::Error;
 use crate::sim::truth::PeriodSample;
 
 /// Format of a recorded log.
@@ -70,9 +49,9 @@ pub fn refuse_terminal(out: &str, stdout_is_terminal: bool) -> Result<(), String
 }
 
 /// Appends the frame of `m` to `out`.
-pub fn push_frame(out: &mut Vec<u8>, m: &Message) -> Result<(), String> {
+pub fn push_frame(out: &mut Vec<u8>, m: &Message) -> Result<(), Error> {
     let mut buf = [0u8; MAX_FRAME_LEN];
-    let n = encode(m, &mut buf).map_err(|e| e.to_string())?;
+    let n = encode(m, &mut buf).map_err(Error::Encode)?;
     out.extend_from_slice(buf.get(..n).unwrap_or_default());
     Ok(())
 }
@@ -84,9 +63,9 @@ pub fn read_input(
     baud: u32,
     idle: Duration,
     mut on_bytes: impl FnMut(&[u8]) -> Result<(), String>,
-) -> Result<Option<Duration>, String> {
+) -> Result<Option<Duration>, Error> {
     let mut buf = vec![0u8; 4096];
-    let mut drain = |r: &mut dyn Read, serial: bool| -> Result<Option<Duration>, String> {
+    let mut drain = |r: &mut dyn Read, serial: bool| -> Result<Option<Duration>, Error> {
         let mut last = Clock::now();
         loop {
             match r.read(&mut buf) {
@@ -95,11 +74,16 @@ pub fn read_input(
                     if n > 0 {
                         last = Clock::now();
                     }
-                    on_bytes(buf.get(..n).unwrap_or_default())?;
+                    on_bytes(buf.get(..n).unwrap_or_default()).map_err(Error::Stopped)?;
                 }
                 Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
                 Err(e) if serial && e.kind() == std::io::ErrorKind::TimedOut => {}
-                Err(e) => return Err(format!("cannot read {input}: {e}")),
+                Err(source) => {
+                    return Err(Error::Read {
+                        path: input.into(),
+                        source,
+                    })
+                }
             }
             if serial && last.elapsed() > idle {
                 return Ok(Some(idle));
@@ -109,7 +93,11 @@ pub fn read_input(
     if input == "-" {
         return drain(&mut std::io::stdin().lock(), false);
     }
-    let meta = std::fs::metadata(input).map_err(|e| format!("cannot open {input}: {e}"))?;
+    let open = |source| Error::Open {
+        path: input.into(),
+        source,
+    };
+    let meta = std::fs::metadata(input).map_err(open)?;
     #[cfg(unix)]
     let is_device = {
         use std::os::unix::fs::FileTypeExt;
@@ -121,25 +109,35 @@ pub fn read_input(
         let mut port = serialport::new(input, baud)
             .timeout(Duration::from_millis(100))
             .open()
-            .map_err(|e| format!("cannot open serial device {input} at {baud} Bd: {e}"))?;
+            .map_err(|source| Error::OpenSerial {
+                path: input.into(),
+                baud,
+                source,
+            })?;
         drain(&mut port, true)
     } else {
-        let mut f = std::fs::File::open(input).map_err(|e| format!("cannot open {input}: {e}"))?;
+        let mut f = std::fs::File::open(input).map_err(open)?;
         drain(&mut f, false)
     }
 }
 
 /// The whole of a text input (a file or `-` for stdin).
-pub fn read_text(input: &str) -> Result<String, String> {
+pub fn read_text(input: &str) -> Result<String, Error> {
     if input == "-" {
         let mut text = String::new();
         std::io::stdin()
             .lock()
             .read_to_string(&mut text)
-            .map_err(|e| format!("cannot read stdin: {e}"))?;
+            .map_err(|source| Error::Read {
+                path: "stdin".into(),
+                source,
+            })?;
         return Ok(text);
     }
-    std::fs::read_to_string(input).map_err(|e| format!("cannot open {input}: {e}"))
+    std::fs::read_to_string(input).map_err(|source| Error::Open {
+        path: input.into(),
+        source,
+    })
 }
 
 /// The reject counters as JSON.

@@ -198,10 +198,38 @@ impl Path {
 /// (`host-sim design` keeps to 60° by default, `--max-beta-deg`.)
 pub const MAX_GIMBAL_BETA_DEG: f64 = 85.0;
 
+/// A simulated path that comes closer to gimbal lock than
+/// [`MAX_GIMBAL_BETA_DEG`] for a configuration that measures the gimbal
+/// angles ([`check_gimbal_lock`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GimbalLockError {
+    /// The configuration.
+    pub config: ConfigId,
+    /// The largest |β| of the path (rad).
+    pub beta_rad: f64,
+    /// When it is reached (s).
+    pub t_s: f64,
+}
+
+impl std::fmt::Display for GimbalLockError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let id = self.config;
+        write!(
+            f,
+            "the path comes within {:.1}° of gimbal lock (|β| = {:.1}° at t = {:.0} s): {id} measures the gimbal angles, which are singular there; keep |β| ≤ {MAX_GIMBAL_BETA_DEG}° (host-sim design keeps it ≤ 60° by default)",
+            90.0 - self.beta_rad / DEG,
+            self.beta_rad / DEG,
+            self.t_s
+        )
+    }
+}
+
+impl std::error::Error for GimbalLockError {}
+
 /// Refuses a simulated path that comes closer to gimbal lock than
 /// [`MAX_GIMBAL_BETA_DEG`] when configuration `id` measures the gimbal
 /// angles; any path for the others (they do not use the gimbal angles).
-pub fn check_gimbal_lock(id: ConfigId, sim: &Simulation) -> Result<(), String> {
+pub fn check_gimbal_lock(id: ConfigId, sim: &Simulation) -> Result<(), GimbalLockError> {
     if id.layout().z() != 6 {
         return Ok(());
     }
@@ -211,12 +239,11 @@ pub fn check_gimbal_lock(id: ConfigId, sim: &Simulation) -> Result<(), String> {
         .map(|s| (s.truth.gimbal.y.abs(), s.truth.t))
         .fold((0.0, 0.0), |a, b| if b.0 > a.0 { b } else { a });
     if worst.0 > MAX_GIMBAL_BETA_DEG * DEG {
-        return Err(format!(
-            "the path comes within {:.1}° of gimbal lock (|β| = {:.1}° at t = {:.0} s): {id} measures the gimbal angles, which are singular there; keep |β| ≤ {MAX_GIMBAL_BETA_DEG}° (host-sim design keeps it ≤ 60° by default)",
-            90.0 - worst.0 / DEG,
-            worst.0 / DEG,
-            worst.1
-        ));
+        return Err(GimbalLockError {
+            config: id,
+            beta_rad: worst.0,
+            t_s: worst.1,
+        });
     }
     Ok(())
 }
