@@ -2,7 +2,7 @@
 //!
 //! The estimator itself (the multi-pass filter) is the library's
 //! [`rollcal::estimator::estimate`]; this module only puts a run's samples
-//! into a [`SliceLog`], dispatches on the configuration and collects the
+//! into a [`rollcal::estimator::SliceLog`], dispatches on the configuration and collects the
 //! time history, NIS and failures of the last pass for the reports.
 //!
 //! - `filter`: the object-safe view of a filter ([`DynFilter`]) and the
