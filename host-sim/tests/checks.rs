@@ -7,8 +7,8 @@ use std::path::PathBuf;
 use std::process::Output;
 use support::{assert_success, host_sim, json_file};
 
-use host_sim::checks::{cases, judge_simulated, DataVerdict, WARNING_EXIT};
-use host_sim::scenario::Scenario;
+use host_sim::analysis::checks::{cases, judge_simulated, DataVerdict, WARNING_EXIT};
+use host_sim::sim::scenario::Scenario;
 use rollcal::models::ConfigId;
 
 fn dir(tag: &str) -> PathBuf {
@@ -140,7 +140,7 @@ fn unmodelled_accel_bias_is_flagged_by_segment_bias() {
 /// angles reach 89.65°: exit 0).
 #[test]
 fn a_log_near_gimbal_lock_is_flagged() {
-    use host_sim::truth::{simulate, SimOptions};
+    use host_sim::sim::truth::{simulate, SimOptions};
     let d = dir("lock");
     let scenario = support::paper_with_path(&d, "lock", &[("up", 87.0, 1.0)], "87.0");
     let sc = Scenario::from_file(&scenario).unwrap();
@@ -155,10 +155,10 @@ fn a_log_near_gimbal_lock_is_flagged() {
     let samples: Vec<_> = sim
         .samples
         .iter()
-        .map(host_sim::stream::to_sample)
+        .map(host_sim::io::stream::to_sample)
         .collect();
     let (csv, json) = (d.join("run.csv"), d.join("cal.json"));
-    std::fs::write(&csv, host_sim::csvlog::write(&samples)).unwrap();
+    std::fs::write(&csv, host_sim::io::csvlog::write(&samples)).unwrap();
     // The largest angle from upright, from the samples as sent.
     let (k, worst) = samples
         .iter()

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use support::{host_sim, paper_with_path, scratch, stderr};
 
-use host_sim::verdict::Verdict;
+use host_sim::analysis::verdict::Verdict;
 
 /// The paper's scenario with a short path (45° about South, then 45° about
 /// East, at 0.5 °/s) and `duration_s`.
@@ -106,7 +106,7 @@ fn montecarlo_and_paper_show_progress_in_a_log() {
     assert!(!err.contains("panicked"), "{err}");
     let lines = progress_lines(&err, "paper");
     assert!(lines.len() >= 5, "{err}");
-    let steps = host_sim::paper::PROGRESS_STEPS;
+    let steps = host_sim::analysis::paper::PROGRESS_STEPS;
     assert!(
         lines
             .last()
@@ -169,7 +169,7 @@ fn a_duration_shorter_than_the_path_is_an_error() {
 
 #[test]
 fn record_refuses_to_write_binary_into_a_terminal() {
-    use host_sim::stream::refuse_terminal;
+    use host_sim::io::stream::refuse_terminal;
     assert!(refuse_terminal("-", true).is_err());
     assert!(refuse_terminal("-", false).is_ok());
     assert!(refuse_terminal("run.bin", true).is_ok());

@@ -5,10 +5,10 @@
 //! the true parameters the compensation of the raw outputs is exact.
 
 mod support;
-use host_sim::compensation::{of_run, Compensation};
-use host_sim::runner::{run_filter, Estimator};
-use host_sim::scenario::Scenario;
-use host_sim::truth::{simulate, truth_state, SimOptions, Simulation, TruthParams};
+use host_sim::analysis::compensation::{of_run, Compensation};
+use host_sim::analysis::runner::{run_filter, Estimator};
+use host_sim::sim::scenario::Scenario;
+use host_sim::sim::truth::{simulate, truth_state, SimOptions, Simulation, TruthParams};
 use nalgebra::{Matrix3, Vector3};
 use rollcal::geometry::{dcm, right_jacobian};
 use rollcal::models::{ConfigId, Group, PlatformFrame};
@@ -75,8 +75,8 @@ fn worst_ratio(id: ConfigId, sc: &Scenario, sim: &Simulation) -> f64 {
         println!(
             "{id} {:<9} residual {:>+10.4}″  σ {:>8.4}″  ratio {ratio:.2}",
             s.name,
-            res[i] / host_sim::scenario::ARCSEC,
-            sigma / host_sim::scenario::ARCSEC
+            res[i] / host_sim::sim::scenario::ARCSEC,
+            sigma / host_sim::sim::scenario::ARCSEC
         );
         assert!(
             ratio <= 4.0,

@@ -3,9 +3,9 @@
 //! truth simulator's noise-free trajectory and measurements over the whole
 //! paper scenario (state residual < 1e-8 rad, accelerometer < 1e-9 g).
 
-use host_sim::runner::filter_config;
-use host_sim::scenario::Scenario;
-use host_sim::truth::{simulate, truth_state, SimOptions};
+use host_sim::analysis::runner::filter_config;
+use host_sim::sim::scenario::Scenario;
+use host_sim::sim::truth::{simulate, truth_state, SimOptions};
 use nalgebra::SVector;
 use rollcal::ekf::{Filter, Options};
 use rollcal::geometry::wrap_angle;

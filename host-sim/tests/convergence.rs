@@ -4,9 +4,9 @@
 //! The σ bounds are about 2× the information limit (issue 2); a filter far
 //! above them, or with larger errors, has a wrong model or a wrong filter.
 
-use host_sim::runner::{expected_observable, run_filter, Estimator, RunResult};
-use host_sim::scenario::{Scenario, ARCSEC, DEG};
-use host_sim::truth::{simulate, SimOptions};
+use host_sim::analysis::runner::{expected_observable, run_filter, Estimator, RunResult};
+use host_sim::sim::scenario::{Scenario, ARCSEC, DEG};
+use host_sim::sim::truth::{simulate, SimOptions};
 use rollcal::models::{ConfigId, Group};
 
 fn run(id: ConfigId, scenario: &Scenario, seed: u64) -> RunResult {
@@ -210,7 +210,7 @@ fn filter_sigma_is_at_the_cramer_rao_bound() {
             },
         );
         let r = run_filter(id, &scenario, &sim, true, Estimator::default(), None, false).unwrap();
-        let crlb = host_sim::runner::crlb_sigma(id, &scenario, &sim, true).unwrap();
+        let crlb = host_sim::analysis::runner::crlb_sigma(id, &scenario, &sim, true).unwrap();
         for (s, c) in r.states.iter().zip(&crlb) {
             if expected_observable(id, s.name, group(s.group)) {
                 let ratio = s.sigma_rad / c;

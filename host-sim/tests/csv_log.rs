@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 use std::process::Output;
 use support::{assert_success, host_sim, json_file, stderr};
 
-use host_sim::csvlog;
-use host_sim::scenario::Platform;
+use host_sim::io::csvlog;
+use host_sim::sim::scenario::Platform;
 use rollcal::wire::{FrameDecoder, Message, Sample};
 
 fn repo(path: &str) -> PathBuf {
@@ -258,7 +258,7 @@ fn a_malformed_csv_line_is_a_one_line_error_with_its_number() {
         ("seq,t_s,bogus\n".to_string(), "line 1", "bogus"),
     ];
     for (text, line, word) in &cases {
-        let e = csvlog::parse(text).unwrap_err();
+        let e = csvlog::parse(text).unwrap_err().to_string();
         assert!(e.contains(line) && e.contains(word), "{e}");
         assert!(!e.contains('\n'), "{e}");
     }

@@ -7,8 +7,8 @@ mod support;
 use std::path::{Path, PathBuf};
 use support::host_sim;
 
-use host_sim::scenario::{Scenario, PAPER_TOML};
-use host_sim::truth::{simulate, SimOptions};
+use host_sim::sim::scenario::{Scenario, PAPER_TOML};
+use host_sim::sim::truth::{simulate, SimOptions};
 use rollcal::command::CommandFrame;
 
 /// The paper's scenario with `extra` lines after its first segment's rate

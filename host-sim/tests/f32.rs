@@ -7,10 +7,10 @@
 
 use std::path::Path;
 
-use host_sim::montecarlo::monte_carlo;
-use host_sim::runner::{run_filter, Estimator, Precision, RunResult};
-use host_sim::scenario::Scenario;
-use host_sim::truth::{simulate, SimOptions};
+use host_sim::analysis::montecarlo::monte_carlo;
+use host_sim::analysis::runner::{run_filter, Estimator, Precision, RunResult};
+use host_sim::sim::scenario::Scenario;
+use host_sim::sim::truth::{simulate, SimOptions};
 use rollcal::models::ConfigId;
 
 fn scenario(name: &str) -> Scenario {

@@ -2,8 +2,8 @@
 //! implementation of docs/model.md (the root crate's `tests/data/paper_scenario_clean.csv`, see
 //! `tests/data/GOLDEN-README.md`) to 1e-10.
 
-use host_sim::scenario::Scenario;
-use host_sim::truth::{simulate, SimOptions};
+use host_sim::sim::scenario::Scenario;
+use host_sim::sim::truth::{simulate, SimOptions};
 
 struct Row(Vec<f64>);
 

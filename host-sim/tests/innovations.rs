@@ -3,9 +3,9 @@
 //! independent unit-variance components, and the path's four segments are
 //! recovered from the commanded increments alone.
 
-use host_sim::runner::{run_filter, Estimator};
-use host_sim::scenario::Scenario;
-use host_sim::truth::{simulate, SimOptions};
+use host_sim::analysis::runner::{run_filter, Estimator};
+use host_sim::sim::scenario::Scenario;
+use host_sim::sim::truth::{simulate, SimOptions};
 use rollcal::models::ConfigId;
 
 #[test]

@@ -5,12 +5,12 @@
 
 use std::sync::OnceLock;
 
-use host_sim::montecarlo::monte_carlo;
-use host_sim::observe::{analyse, ConfigObs};
-use host_sim::runner::{expected_observable, run_filter, Estimator};
-use host_sim::scenario::{Scenario, DEG};
-use host_sim::truth::{simulate, SimOptions, Simulation};
-use host_sim::verdict::Verdict;
+use host_sim::analysis::montecarlo::monte_carlo;
+use host_sim::analysis::observe::{analyse, ConfigObs};
+use host_sim::analysis::runner::{expected_observable, run_filter, Estimator};
+use host_sim::sim::scenario::{Scenario, DEG};
+use host_sim::sim::truth::{simulate, SimOptions, Simulation};
+use host_sim::analysis::verdict::Verdict;
 use nalgebra::SVector;
 use rollcal::models::{ConfigId, Group, M1Ps};
 use rollcal::observability::{Observability, RANK_TOLERANCE};
@@ -93,9 +93,9 @@ fn earth_rate_resolves_the_azimuth_but_not_the_ps_gauge() {
 fn m1ps_information(earth_rate: bool, at_truth: bool) -> (nalgebra::SMatrix<f64, 15, 15>, f64) {
     let scenario = Scenario::paper();
     let sim = clean(earth_rate);
-    let cfg = host_sim::runner::filter_config(&scenario, earth_rate, rollcal::Options::plain());
+    let cfg = host_sim::analysis::runner::filter_config(&scenario, earth_rate, rollcal::Options::plain());
     let x0 = if at_truth {
-        let t = host_sim::truth::truth_state(ConfigId::M1Ps, &sim.params, &sim.initial);
+        let t = host_sim::sim::truth::truth_state(ConfigId::M1Ps, &sim.params, &sim.initial);
         SVector::<f64, 15>::from_iterator(t)
     } else {
         SVector::zeros()
@@ -205,7 +205,7 @@ fn monte_carlo_of_m2ps_is_at_the_bound_and_consistent() {
 
 #[test]
 fn chi2_quantiles_are_accurate() {
-    use host_sim::montecarlo::{chi2_quantile, normal_quantile};
+    use host_sim::analysis::montecarlo::{chi2_quantile, normal_quantile};
     assert!((normal_quantile(0.975) - 1.959963985).abs() < 1e-8);
     assert!((normal_quantile(0.025) + 1.959963985).abs() < 1e-8);
     // Tabulated χ² quantiles of dof 100: 74.2219 and 129.5612.

@@ -12,9 +12,9 @@
 
 use std::path::Path;
 
-use host_sim::runner::{filter_config, log_record};
-use host_sim::scenario::Scenario;
-use host_sim::truth::{simulate, SimOptions};
+use host_sim::analysis::runner::{filter_config, log_record};
+use host_sim::sim::scenario::Scenario;
+use host_sim::sim::truth::{simulate, SimOptions};
 use nalgebra::SVector;
 use rollcal::estimator::{
     estimate, EstimatorOptions, LogRecord, PackedLayout, PackedLog, SampleLog, SliceLog,

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use std::process::Command;
 use support::host_sim;
 
-use host_sim::runner::expected_observable;
+use host_sim::analysis::runner::expected_observable;
 use rollcal::models::{ConfigId, Group};
 
 fn temp_dir(tag: &str) -> PathBuf {

@@ -3,7 +3,7 @@
 //! The estimator's last pass (a filter linearised about the previous pass's
 //! estimate, [`rollcal::estimator`]) produces, for every accepted update, the
 //! normalised innovation squared (NIS) and the whitened innovation `L⁻¹ν`
-//! ([`crate::runner::Update`]). When the model (the platform file's noise
+//! ([`crate::analysis::runner::Update`]). When the model (the platform file's noise
 //! levels, the configuration's instrument model) holds, the whitened
 //! components are independent, zero-mean and of unit variance. [`judge`]
 //! tests that:
@@ -26,7 +26,7 @@
 
 use std::fmt;
 
-use crate::runner::{RunResult, Update};
+use crate::analysis::runner::{RunResult, Update};
 
 /// The false-alarm probability of the whole judgement (all checks
 /// together) on data that fit the model.
@@ -172,7 +172,7 @@ impl Judgement {
 /// middle gimbal from upright, `acos |cos β|` (°; `|β|` for `|β| ≤ 90°`),
 /// over the gimbal angles of `records` (M2 measures them at the end of each
 /// period; `calibrate` passes the calibrator's log, the whole run unless
-/// the log is incomplete, without the periods predicted only), against [`crate::truth::MAX_GIMBAL_BETA_DEG`], the limit the
+/// the log is incomplete, without the periods predicted only), against [`crate::sim::truth::MAX_GIMBAL_BETA_DEG`], the limit the
 /// simulator holds its paths to. Near lock the outer and inner angles'
 /// sensitivity to the attitude grows as `1/cos β` and the linearised model
 /// breaks down (README "Fast rolls"). `None` for a configuration `id` that
@@ -185,7 +185,7 @@ pub fn gimbal_lock_check(
     if !id.layout().gimbal_obs {
         return None;
     }
-    let limit = crate::truth::MAX_GIMBAL_BETA_DEG;
+    let limit = crate::sim::truth::MAX_GIMBAL_BETA_DEG;
     let (worst, at) = records
         .iter()
         .enumerate()
@@ -209,66 +209,8 @@ pub fn gimbal_lock_check(
     ))
 }
 
-/// Standard normal quantile `Φ⁻¹(p)`, `0 < p < 1` (Acklam's rational
-/// approximation, relative error below 1.2e-9; NaN outside (0, 1)).
-pub fn normal_quantile(p: f64) -> f64 {
-    if !(p > 0.0 && p < 1.0) {
-        return f64::NAN;
-    }
-    const A: [f64; 6] = [
-        -3.969683028665376e1,
-        2.209460984245205e2,
-        -2.759285104469687e2,
-        1.383_577_518_672_69e2,
-        -3.066479806614716e1,
-        2.506628277459239,
-    ];
-    const B: [f64; 5] = [
-        -5.447609879822406e1,
-        1.615858368580409e2,
-        -1.556989798598866e2,
-        6.680131188771972e1,
-        -1.328068155288572e1,
-    ];
-    const C: [f64; 6] = [
-        -7.784894002430293e-3,
-        -3.223964580411365e-1,
-        -2.400758277161838,
-        -2.549732539343734,
-        4.374664141464968,
-        2.938163982698783,
-    ];
-    const D: [f64; 4] = [
-        7.784695709041462e-3,
-        3.224671290700398e-1,
-        2.445134137142996,
-        3.754408661907416,
-    ];
-    let tail = |q: f64| {
-        (((((C[0] * q + C[1]) * q + C[2]) * q + C[3]) * q + C[4]) * q + C[5])
-            / ((((D[0] * q + D[1]) * q + D[2]) * q + D[3]) * q + 1.0)
-    };
-    if p < 0.02425 {
-        tail((-2.0 * p.ln()).sqrt())
-    } else if p > 1.0 - 0.02425 {
-        -tail((-2.0 * (1.0 - p).ln()).sqrt())
-    } else {
-        let q = p - 0.5;
-        let r = q * q;
-        (((((A[0] * r + A[1]) * r + A[2]) * r + A[3]) * r + A[4]) * r + A[5]) * q
-            / (((((B[0] * r + B[1]) * r + B[2]) * r + B[3]) * r + B[4]) * r + 1.0)
-    }
-}
-
-/// The `p` quantile of χ²(k) by the Wilson–Hilferty approximation
-/// `k (1 − 2/(9k) + z_p √(2/(9k)))³` (relative error below 1 % for k ≥ 10
-/// in the tails used here, far smaller for the thousands of degrees of
-/// freedom of a log).
-pub fn chi2_quantile(p: f64, k: f64) -> f64 {
-    let a = 2.0 / (9.0 * k);
-    let c = 1.0 - a + normal_quantile(p) * a.sqrt();
-    k * c.max(0.0).powi(3)
-}
+// The χ² and normal quantiles: one implementation, in `statistics`.
+pub use crate::analysis::statistics::{chi2_quantile, normal_quantile};
 
 /// The names of the whitened components of a measurement of `z`
 /// components (M2: gimbal α, β, γ then accelerometer x, y, z).
@@ -304,7 +246,7 @@ pub fn judge(r: &RunResult) -> Judgement {
 /// [`judge`] of updates and segments.
 pub fn judge_updates(
     updates: &[Update],
-    segments: &[crate::segments::CommandSegment],
+    segments: &[crate::sim::segments::CommandSegment],
 ) -> Judgement {
     let z = updates.iter().map(|u| u.white.len()).max().unwrap_or(0);
     let ups: Vec<&Update> = updates.iter().filter(|u| u.white.len() == z).collect();
@@ -319,9 +261,41 @@ pub fn judge_updates(
         };
     }
     let names = component_names(z);
+    let groups = groups(&ups, segments);
+    // m checks: NIS per group, whiteness per component overall, bias per
+    // component per segment group.
+    let segs = groups.len() - 1;
+    let m = groups.len() + z + z * segs;
+    let alpha = FALSE_ALARM / m as f64;
+    let zq = normal_quantile(1.0 - alpha / 2.0);
+    let mut checks = Vec::with_capacity(m);
+    nis_checks(&groups, z, alpha, &mut checks);
+    whiteness_checks(&groups[0].updates, &names, zq, &mut checks);
+    bias_checks(&groups, &names, zq, &mut checks);
+    let mut failed: Vec<Check> = checks.iter().filter(|c| !c.passed).cloned().collect();
+    failed.sort_by(|a, b| excess(b).total_cmp(&excess(a)));
+    let verdict = if failed.is_empty() {
+        DataVerdict::Consistent
+    } else {
+        DataVerdict::Warning { failed }
+    };
+    Judgement {
+        checks,
+        path: None,
+        verdict,
+        alpha_each: alpha,
+    }
+}
+
+/// The overall group of the updates `ups`, then one per path segment of at
+/// least [`MIN_SEGMENT_UPDATES`] updates (when the path has several).
+fn groups<'a>(
+    ups: &[&'a Update],
+    segments: &[crate::sim::segments::CommandSegment],
+) -> Vec<Group<'a>> {
     let mut groups = vec![Group {
         scope: "overall".into(),
-        updates: ups.clone(),
+        updates: ups.to_vec(),
     }];
     if segments.len() > 1 {
         for (i, s) in segments.iter().enumerate() {
@@ -338,14 +312,12 @@ pub fn judge_updates(
             }
         }
     }
-    // m checks: NIS per group, whiteness per component overall, bias per
-    // component per segment group.
-    let segs = groups.len() - 1;
-    let m = groups.len() + z + z * segs;
-    let alpha = FALSE_ALARM / m as f64;
-    let zq = normal_quantile(1.0 - alpha / 2.0);
-    let mut checks = Vec::with_capacity(m);
-    for g in &groups {
+    groups
+}
+
+/// The mean-NIS check of every group, at significance `alpha`.
+fn nis_checks(groups: &[Group<'_>], z: usize, alpha: f64, checks: &mut Vec<Check>) {
+    for g in groups {
         let n = g.updates.len() as f64;
         let dof = n * z as f64;
         let mean = g.updates.iter().map(|u| u.nis).sum::<f64>() / n;
@@ -364,7 +336,11 @@ pub fn judge_updates(
             ),
         ));
     }
-    let overall = &groups[0].updates;
+}
+
+/// The lag-1 autocorrelation check of every whitened component over the
+/// whole log (`overall`), at the two-sided quantile `zq`.
+fn whiteness_checks(overall: &[&Update], names: &[String], zq: f64, checks: &mut Vec<Check>) {
     for (c, name) in names.iter().enumerate() {
         let w: Vec<f64> = overall.iter().map(|u| u.white[c]).collect();
         let num: f64 = w.windows(2).map(|p| p[0] * p[1]).sum();
@@ -379,6 +355,11 @@ pub fn judge_updates(
             format!("lag-1 autocorrelation of {} updates, ≈ N(0, 1/n)", w.len()),
         ));
     }
+}
+
+/// The mean of every whitened component per segment group, at the
+/// two-sided quantile `zq`.
+fn bias_checks(groups: &[Group<'_>], names: &[String], zq: f64, checks: &mut Vec<Check>) {
     for g in groups.iter().skip(1) {
         let n = g.updates.len() as f64;
         for (c, name) in names.iter().enumerate() {
@@ -395,19 +376,6 @@ pub fn judge_updates(
                 ),
             ));
         }
-    }
-    let mut failed: Vec<Check> = checks.iter().filter(|c| !c.passed).cloned().collect();
-    failed.sort_by(|a, b| excess(b).total_cmp(&excess(a)));
-    let verdict = if failed.is_empty() {
-        DataVerdict::Consistent
-    } else {
-        DataVerdict::Warning { failed }
-    };
-    Judgement {
-        checks,
-        path: None,
-        verdict,
-        alpha_each: alpha,
     }
 }
 
@@ -441,52 +409,6 @@ fn check(
     }
 }
 
-/// Prints the checks as a compact table (the failed ones marked) and the
-/// verdict line.
-pub fn print(j: &Judgement) {
-    if !j.checks.is_empty() {
-        println!(
-            "data against the model ({} checks, each at α = {:.1e}: a clean log is flagged with probability ≤ {}):",
-            j.checks.len(),
-            j.alpha_each,
-            FALSE_ALARM
-        );
-        println!(
-            "  {:<10} {:<42} {:>10} {:>22}  result",
-            "check", "scope", "statistic", "band"
-        );
-        // Every NIS and whiteness check, and the failed bias checks; the
-        // passed bias checks as one line.
-        let mut passed_bias = 0;
-        for c in &j.checks {
-            if c.name == "bias" && c.passed {
-                passed_bias += 1;
-                continue;
-            }
-            println!(
-                "  {:<10} {:<42} {:>10.4} {:>22}  {}",
-                c.name,
-                c.scope,
-                c.statistic,
-                format!("[{:.4}, {:.4}]", c.band.0, c.band.1),
-                if c.passed { "pass" } else { "FAIL" }
-            );
-        }
-        if passed_bias > 0 {
-            println!("  bias       {passed_bias} segment × component checks passed");
-        }
-    }
-    if let Some(c) = &j.path {
-        println!(
-            "path: {} ({}): {}",
-            c.name,
-            c.detail,
-            if c.passed { "pass" } else { "FAIL" }
-        );
-    }
-    println!("data verdict: {}", j.verdict);
-}
-
 /// The cases of [`rates`]: a clean stream and the two defects of issue 11.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct Case {
@@ -494,13 +416,13 @@ pub struct Case {
     pub label: &'static str,
     /// The defect applied to the simulated accelerometer means.
     #[serde(skip)]
-    pub defect: crate::impair::AccelDefects,
+    pub defect: crate::sim::impair::AccelDefects,
 }
 
 /// The three cases: clean, accelerometer noise 3× the platform's, an
 /// unmodelled constant bias of `bias_ug` (µg per axis, instrument frame).
 pub fn cases(bias_ug: [f64; 3]) -> [Case; 3] {
-    use crate::impair::AccelDefects;
+    use crate::sim::impair::AccelDefects;
     [
         Case {
             label: "clean",
@@ -545,11 +467,11 @@ pub struct Rate {
 /// on its accelerometer means, the estimator told the scenario's noise.
 pub fn judge_simulated(
     id: rollcal::models::ConfigId,
-    scenario: &crate::scenario::Scenario,
+    scenario: &crate::sim::scenario::Scenario,
     seed: u64,
-    defect: &crate::impair::AccelDefects,
-) -> Result<Judgement, String> {
-    use crate::truth::{simulate, SimOptions};
+    defect: &crate::sim::impair::AccelDefects,
+) -> Result<Judgement, crate::analysis::Error> {
+    use crate::sim::truth::{simulate, SimOptions};
     let earth_rate = scenario.site.earth_rate;
     let mut sim = simulate(
         scenario,
@@ -565,16 +487,16 @@ pub fn judge_simulated(
             *a += d;
         }
     }
-    let r = crate::runner::run_filter(
+    let r = crate::analysis::runner::run_filter(
         id,
         scenario,
         &sim,
         earth_rate,
-        crate::runner::Estimator::default(),
+        crate::analysis::runner::Estimator::default(),
         None,
         false,
     )
-    .map_err(|e| format!("{id} seed {seed}: {e}"))?;
+    .map_err(|e| crate::analysis::Error::filter(format_args!("{id} seed {seed}"), e))?;
     Ok(judge(&r))
 }
 
@@ -582,7 +504,7 @@ pub fn judge_simulated(
 /// parallel (rayon), `progress` called after every run.
 pub fn rates(
     id: rollcal::models::ConfigId,
-    scenario: &crate::scenario::Scenario,
+    scenario: &crate::sim::scenario::Scenario,
     seeds: u64,
     cases: &[Case],
     progress: &(dyn Fn() + Sync),
@@ -653,136 +575,10 @@ pub fn rates(
         .collect()
 }
 
-/// Arguments of `host-sim checks`.
-#[derive(clap::Args, Clone, Debug)]
-pub struct ChecksArgs {
-    /// Configuration: M1-pa, M1-ps, M2-ps, M3-pa, M3-ps, M4-pa, M4-ps.
-    #[arg(long, value_parser = |s: &str| rollcal::models::ConfigId::parse(s).ok_or_else(|| format!("unknown configuration '{s}'")))]
-    pub config: rollcal::models::ConfigId,
-    /// Seeds 1..=N of every case.
-    #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u64).range(1..=100_000))]
-    pub seeds: u64,
-    /// Scenario file (TOML); default: the paper's scenario.
-    #[arg(long, value_name = "FILE")]
-    pub scenario: Option<std::path::PathBuf>,
-    /// The unmodelled bias of the bias case (µg per axis, instrument frame).
-    #[arg(long, value_name = "X,Y,Z", default_value = "10,10,10", value_parser = parse_bias, allow_hyphen_values = true)]
-    pub bias_ug: [f64; 3],
-    /// Only these cases (repeatable): clean, noise, bias (default: all three).
-    #[arg(long = "case", value_name = "CASE", value_parser = ["clean", "noise", "bias"])]
-    pub cases: Vec<String>,
-    /// Also write the rates as JSON to PATH.
-    #[arg(long, value_name = "PATH")]
-    pub json: Option<std::path::PathBuf>,
-}
-
-fn parse_bias(s: &str) -> Result<[f64; 3], String> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|p| p.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| format!("'{s}' is not X,Y,Z"))?;
-    match v.as_slice() {
-        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok([*x, *y, *z]),
-        _ => Err(format!("'{s}' is not X,Y,Z (three finite numbers)")),
-    }
-}
-
-/// `host-sim checks`: false-alarm and detection rates of [`judge`] over
-/// seeds, in process (simulate, defect, estimate, judge; no files).
-pub fn command(args: &ChecksArgs) -> Result<(), String> {
-    let scenario = match &args.scenario {
-        Some(p) => crate::scenario::Scenario::from_file(p).map_err(|e| e.to_string())?,
-        None => crate::scenario::Scenario::paper(),
-    };
-    let keys = ["clean", "noise", "bias"];
-    let cases: Vec<Case> = cases(args.bias_ug)
-        .into_iter()
-        .zip(keys)
-        .filter(|(_, k)| args.cases.is_empty() || args.cases.iter().any(|c| c == k))
-        .map(|(c, _)| c)
-        .collect();
-    let total = args.seeds * cases.len() as u64;
-    eprintln!(
-        "{} runs of {} on '{}' ({} cases × {} seeds) with {} threads…",
-        total,
-        args.config,
-        scenario.name,
-        cases.len(),
-        args.seeds,
-        rayon::current_num_threads()
-    );
-    let progress = crate::progress::Progress::stderr("checks", total, "runs");
-    let done = std::sync::atomic::AtomicU64::new(0);
-    let out = rates(args.config, &scenario, args.seeds, &cases, &|| {
-        let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-        progress.update(n, "");
-    });
-    progress.finish(done.load(std::sync::atomic::Ordering::Relaxed), "");
-    let b = args.bias_ug;
-    println!(
-        "{} on '{}', seeds 1..={}; the estimator told the scenario's noise; judgement at a stated false-alarm rate of {FALSE_ALARM}",
-        args.config, scenario.name, args.seeds
-    );
-    println!(
-        "{:<28} {:>8} {:>14}   {:>5} {:>9} {:>5}  errors",
-        "case", "seeds", "flagged", "nis", "whiteness", "bias"
-    );
-    for r in &out {
-        let label = if r.case == "accel bias" {
-            format!("accel bias ({}, {}, {}) µg", b[0], b[1], b[2])
-        } else {
-            r.case.clone()
-        };
-        let by = |n: &str| {
-            r.by_check
-                .iter()
-                .find(|(k, _)| *k == n)
-                .map_or(0, |(_, v)| *v)
-        };
-        println!(
-            "{:<28} {:>8} {:>14}   {:>5} {:>9} {:>5}  {}",
-            label,
-            r.seeds,
-            format!(
-                "{}/{} {:.1} %",
-                r.flagged,
-                r.seeds,
-                100.0 * r.flagged as f64 / r.seeds.max(1) as f64
-            ),
-            by("nis"),
-            by("whiteness"),
-            by("bias"),
-            r.errors
-        );
-    }
-    println!("(nis, whiteness, bias: in how many seeds that check failed)");
-    if let Some(clean) = out.iter().find(|r| r.case == "clean") {
-        for (seed, what) in &clean.flagged_seeds {
-            println!("clean seed {seed} flagged: {what}");
-        }
-    }
-    if let Some(path) = &args.json {
-        let v = serde_json::json!({
-            "config": args.config.as_str(),
-            "scenario": scenario.name,
-            "seeds": args.seeds,
-            "false_alarm": FALSE_ALARM,
-            "bias_ug": args.bias_ug,
-            "rates": out,
-        });
-        crate::report::write_json(path, &v)?;
-    }
-    if out.iter().any(|r| r.errors > 0) {
-        return Err("some runs failed (see the errors column)".into());
-    }
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::segments::CommandSegment;
+    use crate::sim::segments::CommandSegment;
     use rand::SeedableRng;
     use rand_distr::{Distribution, StandardNormal};
 

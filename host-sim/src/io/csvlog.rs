@@ -11,6 +11,8 @@ use nalgebra::Vector3;
 use rollcal::command::CommandFrame;
 use rollcal::wire::Sample;
 
+use super::Error;
+
 /// Column names, in the order `record --format csv` writes them.
 pub const COLUMNS: [&str; 16] = [
     "seq",
@@ -84,15 +86,41 @@ pub struct Log {
 /// Parses a log. Blank lines and lines starting with `#` are skipped; the
 /// first other line is the header. Errors are one line and name the line
 /// number (1-based) and the column.
-pub fn parse(text: &str) -> Result<Log, String> {
+pub fn parse(text: &str) -> Result<Log, Error> {
     let mut lines = text
         .lines()
         .enumerate()
         .map(|(i, l)| (i + 1, l.trim_end_matches('\r')))
         .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
     let Some((hline, head)) = lines.next() else {
-        return Err("the CSV log is empty (no header line)".into());
+        return Err(Error::Csv("the CSV log is empty (no header line)".into()));
     };
+    let h = parse_header(hline, head).map_err(Error::Csv)?;
+    let mut samples = Vec::new();
+    for (n, l) in lines {
+        samples.push(parse_line(&h, n, l).map_err(Error::Csv)?);
+    }
+    let has_frames = h.has_frames;
+    Ok(Log {
+        samples,
+        has_frames,
+    })
+}
+
+/// The columns of a log's header line.
+struct Header {
+    /// Column index in the file of each of [`COLUMNS`].
+    index: [Option<usize>; COLUMNS.len()],
+    /// Number of columns of the header.
+    columns: usize,
+    /// Whether the gimbal columns are present.
+    has_gimbal: bool,
+    /// Whether the quaternion columns are present.
+    has_frames: bool,
+}
+
+/// Parses the header line `head` (line `hline`).
+fn parse_header(hline: usize, head: &str) -> Result<Header, String> {
     // Column index of each named column in the file.
     let mut index = [None::<usize>; COLUMNS.len()];
     let names: Vec<&str> = head.split(',').map(str::trim).collect();
@@ -126,68 +154,75 @@ pub fn parse(text: &str) -> Result<Log, String> {
     };
     let has_gimbal = group(GIMBAL, 3, "the gimbal")?;
     let has_frames = group(QUAT, 4, "the quaternion")?;
-    let mut samples = Vec::new();
-    for (n, l) in lines {
-        let fields: Vec<&str> = l.split(',').map(str::trim).collect();
-        if fields.len() != names.len() {
-            return Err(format!(
-                "line {n}: {} columns, the header has {}",
-                fields.len(),
-                names.len()
-            ));
-        }
-        let field = |k: usize| index[k].and_then(|i| fields.get(i).copied()).unwrap_or("");
-        let bad = |k: usize| {
-            format!(
-                "line {n}: column {}: '{}' is not a number",
-                COLUMNS[k],
-                field(k)
-            )
-        };
-        let f32_at = |k: usize| field(k).parse::<f32>().map_err(|_| bad(k));
-        let f64_at = |k: usize| field(k).parse::<f64>().map_err(|_| bad(k));
-        let seq = field(0).parse::<u32>().map_err(|_| {
-            format!(
-                "line {n}: column seq: '{}' is not a sequence number (0 to {})",
-                field(0),
-                u32::MAX
-            )
-        })?;
-        let t = f64_at(1)?;
-        let t_us = t * 1e6;
-        if !(0.0..1.8e19).contains(&t_us) {
-            return Err(format!(
-                "line {n}: column t_s: {t} is not a time ≥ 0 s (microseconds must fit in 64 bits)"
-            ));
-        }
-        let gimbal = if has_gimbal && (GIMBAL..GIMBAL + 3).any(|k| !field(k).is_empty()) {
-            Some([f32_at(GIMBAL)?, f32_at(GIMBAL + 1)?, f32_at(GIMBAL + 2)?])
-        } else {
-            None
-        };
-        let c_cn_quat = if has_frames {
-            [
-                f32_at(QUAT)?,
-                f32_at(QUAT + 1)?,
-                f32_at(QUAT + 2)?,
-                f32_at(QUAT + 3)?,
-            ]
-        } else {
-            [0.0; 4]
-        };
-        samples.push(Sample {
-            seq,
-            t_us: t_us.round() as u64,
-            dt: f32_at(2)?,
-            dtheta_cmd: [f64_at(3)?, f64_at(4)?, f64_at(5)?],
-            accel_mean: [f32_at(6)?, f32_at(7)?, f32_at(8)?],
-            gimbal,
-            c_cn_quat,
-        });
-    }
-    Ok(Log {
-        samples,
+    Ok(Header {
+        index,
+        columns: names.len(),
+        has_gimbal,
         has_frames,
+    })
+}
+
+/// Parses line `n`, `l`, of a log with header `h`.
+fn parse_line(h: &Header, n: usize, l: &str) -> Result<Sample, String> {
+    let fields: Vec<&str> = l.split(',').map(str::trim).collect();
+    if fields.len() != h.columns {
+        return Err(format!(
+            "line {n}: {} columns, the header has {}",
+            fields.len(),
+            h.columns
+        ));
+    }
+    let field = |k: usize| {
+        h.index[k]
+            .and_then(|i| fields.get(i).copied())
+            .unwrap_or("")
+    };
+    let bad = |k: usize| {
+        format!(
+            "line {n}: column {}: '{}' is not a number",
+            COLUMNS[k],
+            field(k)
+        )
+    };
+    let f32_at = |k: usize| field(k).parse::<f32>().map_err(|_| bad(k));
+    let f64_at = |k: usize| field(k).parse::<f64>().map_err(|_| bad(k));
+    let seq = field(0).parse::<u32>().map_err(|_| {
+        format!(
+            "line {n}: column seq: '{}' is not a sequence number (0 to {})",
+            field(0),
+            u32::MAX
+        )
+    })?;
+    let t = f64_at(1)?;
+    let t_us = t * 1e6;
+    if !(0.0..1.8e19).contains(&t_us) {
+        return Err(format!(
+            "line {n}: column t_s: {t} is not a time ≥ 0 s (microseconds must fit in 64 bits)"
+        ));
+    }
+    let gimbal = if h.has_gimbal && (GIMBAL..GIMBAL + 3).any(|k| !field(k).is_empty()) {
+        Some([f32_at(GIMBAL)?, f32_at(GIMBAL + 1)?, f32_at(GIMBAL + 2)?])
+    } else {
+        None
+    };
+    let c_cn_quat = if h.has_frames {
+        [
+            f32_at(QUAT)?,
+            f32_at(QUAT + 1)?,
+            f32_at(QUAT + 2)?,
+            f32_at(QUAT + 3)?,
+        ]
+    } else {
+        [0.0; 4]
+    };
+    Ok(Sample {
+        seq,
+        t_us: t_us.round() as u64,
+        dt: f32_at(2)?,
+        dtheta_cmd: [f64_at(3)?, f64_at(4)?, f64_at(5)?],
+        accel_mean: [f32_at(6)?, f32_at(7)?, f32_at(8)?],
+        gimbal,
+        c_cn_quat,
     })
 }
 
@@ -195,16 +230,16 @@ pub fn parse(text: &str) -> Result<Log, String> {
 /// integrating its commanded increments from `C^c_n(0) = I` (docs/model.md
 /// §Measurement timing), as the filter does. Such a log must have no
 /// missing sequence numbers: across a gap the motion is unknown.
-pub fn fill_frames(samples: &mut [Sample], earth_rate_n: [f64; 3]) -> Result<(), String> {
+pub fn fill_frames(samples: &mut [Sample], earth_rate_n: [f64; 3]) -> Result<(), Error> {
     let mut frame = CommandFrame::aligned(Vector3::from(earth_rate_n));
     let mut last: Option<u32> = None;
     for s in samples.iter_mut() {
         if let Some(prev) = last {
             if s.seq != prev.wrapping_add(1) {
-                return Err(format!(
+                return Err(Error::Csv(format!(
                     "sequence {prev} is followed by {}: a log without the ccn_q* columns must have no gaps (the commanded motion across them is unknown)",
                     s.seq
-                ));
+                )));
             }
         }
         last = Some(s.seq);

@@ -7,10 +7,11 @@ use rayon::prelude::*;
 use rollcal::ekf;
 use rollcal::models::{ConfigId, Group};
 
-use crate::observe;
-use crate::runner::{run_filter, Estimator};
-use crate::scenario::Scenario;
-use crate::truth::{simulate, SimOptions};
+use crate::analysis::observe;
+use crate::analysis::runner::{run_filter, Estimator, RunResult};
+use crate::analysis::Error;
+use crate::sim::scenario::Scenario;
+use crate::sim::truth::{simulate, SimOptions};
 
 /// Statistics of one state over the runs.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -62,7 +63,7 @@ pub struct MonteCarlo {
     #[serde(serialize_with = "ser_config")]
     pub config: ConfigId,
     /// Precision of the filter's covariance arithmetic.
-    pub precision: crate::runner::Precision,
+    pub precision: crate::analysis::runner::Precision,
     /// Runs that completed.
     pub runs: usize,
     /// Seeds used (1..=runs).
@@ -85,8 +86,8 @@ fn ser_config<S: serde::Serializer>(c: &ConfigId, s: S) -> Result<S::Ok, S::Erro
     s.serialize_str(c.as_str())
 }
 
-// The χ² and normal quantiles: one implementation, in `checks`.
-pub use crate::checks::{chi2_quantile, normal_quantile};
+// The χ² and normal quantiles: one implementation, in `statistics`.
+pub use crate::analysis::statistics::{chi2_quantile, normal_quantile};
 
 /// The 95 % band of the average of `samples` independent χ²(`dof`) values.
 pub fn band(mean: f64, dof: usize, samples: usize) -> Consistency {
@@ -105,7 +106,7 @@ pub fn band(mean: f64, dof: usize, samples: usize) -> Consistency {
 /// the installation errors and base angles the configuration observes
 /// (docs/model.md §Configurations).
 pub fn in_parameter_block(id: ConfigId, name: &str, group: Group) -> bool {
-    group != Group::Attitude && crate::runner::expected_observable(id, name, group)
+    group != Group::Attitude && crate::analysis::runner::expected_observable(id, name, group)
 }
 
 /// Runs `runs` seeded Monte Carlo runs (seeds 1..=runs) of configuration
@@ -117,7 +118,7 @@ pub fn monte_carlo(
     runs: usize,
     estimator: Estimator,
     progress: &(dyn Fn(usize) + Sync),
-) -> Result<MonteCarlo, String> {
+) -> Result<MonteCarlo, Error> {
     let t0 = std::time::Instant::now();
     let earth_rate = scenario.site.earth_rate;
     // The bound does not depend on the noise: one noise-free trajectory.
@@ -129,12 +130,12 @@ pub fn monte_carlo(
             earth_rate,
         },
     );
-    crate::truth::check_gimbal_lock(id, &clean)?;
+    crate::sim::truth::check_gimbal_lock(id, &clean)?;
     let obs = observe::analyse(id, scenario, &clean, earth_rate, false)
-        .map_err(|e| format!("{id}: observability: {e}"))?;
+        .map_err(|e| Error::filter(format_args!("{id}: observability"), e))?;
     let done = std::sync::atomic::AtomicUsize::new(0);
     let seeds: Vec<u64> = (1..=runs as u64).collect();
-    let results: Vec<Result<crate::runner::RunResult, (u64, ekf::Error)>> = seeds
+    let results: Vec<Result<RunResult, (u64, ekf::Error)>> = seeds
         .par_iter()
         .map(|&seed| {
             let sim = simulate(
@@ -156,61 +157,13 @@ pub fn monte_carlo(
     for r in results {
         match r {
             Ok(r) => ok.push(r),
-            Err((seed, e)) => return Err(format!("{id}: seed {seed}: {e}")),
+            Err((seed, e)) => return Err(Error::filter(format_args!("{id}: seed {seed}"), e)),
         }
     }
-    let names = id.states();
-    let block: Vec<usize> = names
-        .iter()
-        .enumerate()
-        .filter(|(_, s)| in_parameter_block(id, s.name, s.group))
-        .map(|(i, _)| i)
-        .collect();
+    let block = parameter_block(id);
     let n_runs = ok.len().max(1) as f64;
-    let states = names
-        .iter()
-        .enumerate()
-        .map(|(i, info)| {
-            let errs: Vec<f64> = ok.iter().map(|r| r.states[i].error()).collect();
-            let rms = (errs.iter().map(|e| e * e).sum::<f64>() / n_runs).sqrt();
-            let mean = errs.iter().sum::<f64>() / n_runs;
-            let sig = ok.iter().map(|r| r.states[i].sigma_rad).sum::<f64>() / n_runs;
-            let crlb = obs.states[i].sigma_crlb_rad;
-            StateStats {
-                name: info.name,
-                rms_error_rad: rms,
-                mean_error_rad: mean,
-                mean_sigma_rad: sig,
-                sigma_crlb_rad: crlb,
-                rms_over_crlb: rms / crlb,
-                in_parameter_block: block.contains(&i),
-            }
-        })
-        .collect();
-    // NEES of the parameter block: e_pᵀ P_pp⁻¹ e_p per run.
-    let n = names.len();
-    let mut nees_sum = 0.0;
-    let mut max_ratio: f64 = 0.0;
-    let mut worst = (0, "", 0);
-    for (r, &seed) in ok.iter().zip(&seeds) {
-        let e = nalgebra::DVector::from_iterator(
-            block.len(),
-            block.iter().map(|&i| r.states[i].error()),
-        );
-        let p = nalgebra::DMatrix::from_fn(block.len(), block.len(), |a, b| {
-            r.covariance[block[a] * n + block[b]]
-        });
-        let chol = p
-            .cholesky()
-            .ok_or_else(|| format!("{id}: final covariance not positive definite"))?;
-        nees_sum += e.dot(&chol.solve(&e));
-        for &i in &block {
-            if r.states[i].ratio() > max_ratio {
-                max_ratio = r.states[i].ratio();
-                worst = (seed, r.states[i].name, r.passes);
-            }
-        }
-    }
+    let states = state_stats(id, &ok, &obs, &block);
+    let (nees_sum, max_ratio, worst) = nees_and_worst(id, &ok, &seeds, &block)?;
     let nees = band(nees_sum / n_runs, block.len(), ok.len());
     let z = id.layout().z();
     let nis_count: usize = ok.iter().map(|r| r.nis.len()).sum();
@@ -230,48 +183,79 @@ pub fn monte_carlo(
     })
 }
 
-/// Prints the Monte Carlo table.
-pub fn print_monte_carlo(mc: &MonteCarlo) {
-    use crate::scenario::ARCSEC;
-    println!(
-        "{} Monte Carlo ({}): {} runs (seeds 1..={}), {:.1} s wall",
-        mc.config,
-        mc.precision.as_str(),
-        mc.runs,
-        mc.runs,
-        mc.wall_s
-    );
-    println!(
-        "{:<10} {:>11} {:>11} {:>11} {:>11} {:>9}  block",
-        "state", "RMS err ″", "mean err ″", "mean σ ″", "σ_CRLB ″", "RMS/CRLB"
-    );
-    for s in &mc.states {
-        println!(
-            "{:<10} {:>11.4} {:>11.4} {:>11.4} {:>11.4} {:>9.3}  {}",
-            s.name,
-            s.rms_error_rad / ARCSEC,
-            s.mean_error_rad / ARCSEC,
-            s.mean_sigma_rad / ARCSEC,
-            s.sigma_crlb_rad / ARCSEC,
-            s.rms_over_crlb,
-            if s.in_parameter_block { "yes" } else { "" }
+/// The indices of the parameter block of `id` ([`in_parameter_block`]).
+fn parameter_block(id: ConfigId) -> Vec<usize> {
+    id.states()
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| in_parameter_block(id, s.name, s.group))
+        .map(|(i, _)| i)
+        .collect()
+}
+
+/// The statistics of every state over the runs `ok`, against the bound of
+/// the analysis `obs`.
+fn state_stats(
+    id: ConfigId,
+    ok: &[RunResult],
+    obs: &observe::ConfigObs,
+    block: &[usize],
+) -> Vec<StateStats> {
+    let n_runs = ok.len().max(1) as f64;
+    id.states()
+        .iter()
+        .enumerate()
+        .map(|(i, info)| {
+            let errs: Vec<f64> = ok.iter().map(|r| r.states[i].error()).collect();
+            let rms = (errs.iter().map(|e| e * e).sum::<f64>() / n_runs).sqrt();
+            let mean = errs.iter().sum::<f64>() / n_runs;
+            let sig = ok.iter().map(|r| r.states[i].sigma_rad).sum::<f64>() / n_runs;
+            let crlb = obs.states[i].sigma_crlb_rad;
+            StateStats {
+                name: info.name,
+                rms_error_rad: rms,
+                mean_error_rad: mean,
+                mean_sigma_rad: sig,
+                sigma_crlb_rad: crlb,
+                rms_over_crlb: rms / crlb,
+                in_parameter_block: block.contains(&i),
+            }
+        })
+        .collect()
+}
+
+/// The sum over the runs of the parameter block's NEES `e_pᵀ P_pp⁻¹ e_p`,
+/// and the worst |error|/σ of the block with where it occurred (seed,
+/// state, passes).
+#[allow(clippy::type_complexity)]
+fn nees_and_worst(
+    id: ConfigId,
+    ok: &[RunResult],
+    seeds: &[u64],
+    block: &[usize],
+) -> Result<(f64, f64, (u64, &'static str, u8)), Error> {
+    let n = id.states().len();
+    let mut nees_sum = 0.0;
+    let mut max_ratio: f64 = 0.0;
+    let mut worst = (0, "", 0);
+    for (r, &seed) in ok.iter().zip(seeds) {
+        let e = nalgebra::DVector::from_iterator(
+            block.len(),
+            block.iter().map(|&i| r.states[i].error()),
         );
+        let p = nalgebra::DMatrix::from_fn(block.len(), block.len(), |a, b| {
+            r.covariance[block[a] * n + block[b]]
+        });
+        let chol = p
+            .cholesky()
+            .ok_or(Error::NotPositiveDefinite { config: id })?;
+        nees_sum += e.dot(&chol.solve(&e));
+        for &i in block {
+            if r.states[i].ratio() > max_ratio {
+                max_ratio = r.states[i].ratio();
+                worst = (seed, r.states[i].name, r.passes);
+            }
+        }
     }
-    let show = |name: &str, c: &Consistency| {
-        println!(
-            "{name}: average {:.3} (dof {} × {} samples), 95 % band [{:.3}, {:.3}]: {}",
-            c.mean,
-            c.dof,
-            c.samples,
-            c.lower,
-            c.upper,
-            if c.inside() { "inside" } else { "OUTSIDE" }
-        );
-    };
-    show("parameter-block NEES", &mc.nees);
-    show("NIS (final pass)", &mc.nis);
-    println!(
-        "worst |error|/σ over the parameter block: {:.2} ({} of seed {}, {} passes)",
-        mc.max_normalised_error, mc.worst.1, mc.worst.0, mc.worst.2
-    );
+    Ok((nees_sum, max_ratio, worst))
 }

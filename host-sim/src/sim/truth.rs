@@ -19,7 +19,7 @@ use rollcal::geometry::{
 };
 use rollcal::models::{AttitudeKind, ConfigId, PlatformFrame};
 
-use crate::scenario::{Scenario, ARCSEC, DEG};
+use crate::sim::scenario::{Scenario, ARCSEC, DEG};
 
 /// True parameters in radians, ps frame, plus the exactly derived pa values.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -198,10 +198,38 @@ impl Path {
 /// (`host-sim design` keeps to 60° by default, `--max-beta-deg`.)
 pub const MAX_GIMBAL_BETA_DEG: f64 = 85.0;
 
+/// A simulated path that comes closer to gimbal lock than
+/// [`MAX_GIMBAL_BETA_DEG`] for a configuration that measures the gimbal
+/// angles ([`check_gimbal_lock`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GimbalLockError {
+    /// The configuration.
+    pub config: ConfigId,
+    /// The largest |β| of the path (rad).
+    pub beta_rad: f64,
+    /// When it is reached (s).
+    pub t_s: f64,
+}
+
+impl std::fmt::Display for GimbalLockError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let id = self.config;
+        write!(
+            f,
+            "the path comes within {:.1}° of gimbal lock (|β| = {:.1}° at t = {:.0} s): {id} measures the gimbal angles, which are singular there; keep |β| ≤ {MAX_GIMBAL_BETA_DEG}° (host-sim design keeps it ≤ 60° by default)",
+            90.0 - self.beta_rad / DEG,
+            self.beta_rad / DEG,
+            self.t_s
+        )
+    }
+}
+
+impl std::error::Error for GimbalLockError {}
+
 /// Refuses a simulated path that comes closer to gimbal lock than
 /// [`MAX_GIMBAL_BETA_DEG`] when configuration `id` measures the gimbal
 /// angles; any path for the others (they do not use the gimbal angles).
-pub fn check_gimbal_lock(id: ConfigId, sim: &Simulation) -> Result<(), String> {
+pub fn check_gimbal_lock(id: ConfigId, sim: &Simulation) -> Result<(), GimbalLockError> {
     if id.layout().z() != 6 {
         return Ok(());
     }
@@ -211,14 +239,70 @@ pub fn check_gimbal_lock(id: ConfigId, sim: &Simulation) -> Result<(), String> {
         .map(|s| (s.truth.gimbal.y.abs(), s.truth.t))
         .fold((0.0, 0.0), |a, b| if b.0 > a.0 { b } else { a });
     if worst.0 > MAX_GIMBAL_BETA_DEG * DEG {
-        return Err(format!(
-            "the path comes within {:.1}° of gimbal lock (|β| = {:.1}° at t = {:.0} s): {id} measures the gimbal angles, which are singular there; keep |β| ≤ {MAX_GIMBAL_BETA_DEG}° (host-sim design keeps it ≤ 60° by default)",
-            90.0 - worst.0 / DEG,
-            worst.0 / DEG,
-            worst.1
-        ));
+        return Err(GimbalLockError {
+            config: id,
+            beta_rad: worst.0,
+            t_s: worst.1,
+        });
     }
     Ok(())
+}
+
+/// What drives the platform over a period: the path, the Earth rate
+/// `ω^n_ie`, the true gyro and accelerometer matrices `G`, `A`, the
+/// specific force `f^n` and the period's gyro noise rate.
+struct Dynamics<'a> {
+    path: &'a Path,
+    w_ie: Vector3<f64>,
+    g: Matrix3<f64>,
+    a: Matrix3<f64>,
+    f_n: Vector3<f64>,
+    w_gyro: Vector3<f64>,
+}
+
+/// Integrates one period `[t0, t0 + nsub·h]` by RK4 in `nsub` substeps of
+/// `h`, advancing `st`; returns the Simpson sum of the noise-free
+/// accelerometer output over the substep nodes (weights 1, 4, 2, …, 4, 1).
+fn integrate_period(
+    st: &mut State,
+    d: &Dynamics<'_>,
+    t0: f64,
+    h: f64,
+    nsub: usize,
+) -> Vector3<f64> {
+    // Composite Simpson over the substep nodes for the mean accelerometer output.
+    let mut acc_sum = d.a * st.c_ps_n * d.f_n;
+    for j in 0..nsub {
+        let ts = t0 + j as f64 * h;
+        let w_path = d.path.rate(ts);
+        let deriv = |x: &State| {
+            let w_c = x.c_c_n * (d.w_ie + w_path);
+            let w_ps_np = d.g * w_c + d.w_gyro - x.c_ps_n * d.w_ie;
+            Deriv {
+                c_ps_n: -skew(&w_ps_np) * x.c_ps_n,
+                c_c_n: -skew(&(x.c_c_n * w_path)) * x.c_c_n,
+                dtheta: w_c,
+            }
+        };
+        let k1 = deriv(&*st);
+        let k2 = deriv(&axpy(st, &k1, h / 2.0));
+        let k3 = deriv(&axpy(st, &k2, h / 2.0));
+        let k4 = deriv(&axpy(st, &k3, h));
+        *st = State {
+            c_ps_n: st.c_ps_n + (k1.c_ps_n + (k2.c_ps_n + k3.c_ps_n) * 2.0 + k4.c_ps_n) * (h / 6.0),
+            c_c_n: st.c_c_n + (k1.c_c_n + (k2.c_c_n + k3.c_c_n) * 2.0 + k4.c_c_n) * (h / 6.0),
+            dtheta: st.dtheta + (k1.dtheta + (k2.dtheta + k3.dtheta) * 2.0 + k4.dtheta) * (h / 6.0),
+        };
+        let weight = if j + 1 == nsub {
+            1.0
+        } else if j % 2 == 0 {
+            4.0
+        } else {
+            2.0
+        };
+        acc_sum += d.a * st.c_ps_n * d.f_n * weight;
+    }
+    acc_sum
 }
 
 /// Runs the truth simulator over a scenario.
@@ -276,40 +360,20 @@ pub fn simulate(s: &Scenario, opts: SimOptions) -> Simulation {
         let t0 = (k - 1) as f64 * dt;
         let w_gyro = gauss3(sigma_gyro);
         st.dtheta = Vector3::zeros();
-        // Composite Simpson over the substep nodes for the mean accelerometer output.
-        let mut acc_sum = a * st.c_ps_n * f_n;
-        for j in 0..nsub {
-            let ts = t0 + j as f64 * h;
-            let w_path = path.rate(ts);
-            let deriv = |x: &State| {
-                let w_c = x.c_c_n * (w_ie + w_path);
-                let w_ps_np = g * w_c + w_gyro - x.c_ps_n * w_ie;
-                Deriv {
-                    c_ps_n: -skew(&w_ps_np) * x.c_ps_n,
-                    c_c_n: -skew(&(x.c_c_n * w_path)) * x.c_c_n,
-                    dtheta: w_c,
-                }
-            };
-            let k1 = deriv(&st);
-            let k2 = deriv(&axpy(&st, &k1, h / 2.0));
-            let k3 = deriv(&axpy(&st, &k2, h / 2.0));
-            let k4 = deriv(&axpy(&st, &k3, h));
-            st = State {
-                c_ps_n: st.c_ps_n
-                    + (k1.c_ps_n + (k2.c_ps_n + k3.c_ps_n) * 2.0 + k4.c_ps_n) * (h / 6.0),
-                c_c_n: st.c_c_n + (k1.c_c_n + (k2.c_c_n + k3.c_c_n) * 2.0 + k4.c_c_n) * (h / 6.0),
-                dtheta: st.dtheta
-                    + (k1.dtheta + (k2.dtheta + k3.dtheta) * 2.0 + k4.dtheta) * (h / 6.0),
-            };
-            let weight = if j + 1 == nsub {
-                1.0
-            } else if j % 2 == 0 {
-                4.0
-            } else {
-                2.0
-            };
-            acc_sum += a * st.c_ps_n * f_n * weight;
-        }
+        let acc_sum = integrate_period(
+            &mut st,
+            &Dynamics {
+                path: &path,
+                w_ie,
+                g,
+                a,
+                f_n,
+                w_gyro,
+            },
+            t0,
+            h,
+            nsub,
+        );
         let accel_mean_clean = acc_sum / (3.0 * nsub as f64);
         let truth = instant(k as f64 * dt, &st);
         samples.push(PeriodSample {

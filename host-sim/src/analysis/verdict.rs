@@ -4,6 +4,10 @@
 
 use std::fmt;
 
+use rollcal::models::{ConfigId, Group};
+
+use crate::analysis::runner::StateResult;
+
 pub use rollcal::observability::PRACTICAL_RATIO;
 
 /// What a run or an analysis says of one state.
@@ -92,5 +96,42 @@ impl Verdict {
 impl fmt::Display for Verdict {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.as_str())
+    }
+}
+
+/// The verdict on state `s` of configuration `id` with prior σ `prior` (rad):
+/// for a state the configuration observes, `FAILED` beyond 4σ of the truth,
+/// `converged` within 4σ once σ is below [`crate::analysis::verdict::PRACTICAL_RATIO`]
+/// of the prior, and `not observable` while it is not (a path that does not
+/// excite it: the estimate is still the prior's); for the others,
+/// `observable in practice` or `not observable` by the same ratio.
+pub fn verdict(id: ConfigId, s: &StateResult, group: Group, prior: f64) -> Verdict {
+    let practical = s.sigma_rad < crate::analysis::verdict::PRACTICAL_RATIO * prior;
+    if expected_observable(id, s.name, group) {
+        if s.ratio() > 4.0 {
+            Verdict::Failed
+        } else if practical {
+            Verdict::Converged
+        } else {
+            Verdict::NotObservable
+        }
+    } else if practical {
+        Verdict::Observable
+    } else {
+        Verdict::NotObservable
+    }
+}
+
+// merge: use core `observability::expected_observable` (the one home of
+// which states a configuration observes).
+/// Whether a state is expected to converge in configuration `id` (docs/model.md
+/// §Configurations), used for summaries.
+pub fn expected_observable(id: ConfigId, name: &str, group: Group) -> bool {
+    use ConfigId::*;
+    match group {
+        Group::ThetaGT | Group::ThetaAT => true,
+        Group::ThetaGC | Group::ThetaAC => matches!(id, M1Pa | M2Ps | M3Pa | M4Pa),
+        Group::Lambda => id == M2Ps && (name == "lam_x" || name == "lam_z"),
+        Group::Attitude => false,
     }
 }

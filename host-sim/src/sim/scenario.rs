@@ -5,10 +5,11 @@
 use std::fmt;
 use std::path::Path;
 
+use rollcal::models::ConfigId;
 use serde::{Deserialize, Serialize};
 
 /// The paper's scenario, as shipped in `scenarios/paper.toml`.
-pub const PAPER_TOML: &str = include_str!("../../scenarios/paper.toml");
+pub const PAPER_TOML: &str = include_str!("../../../scenarios/paper.toml");
 
 /// Degrees → radians.
 pub const DEG: f64 = std::f64::consts::PI / 180.0;
@@ -214,6 +215,15 @@ impl Scenario {
         Self::from_toml(&text).map_err(|e| ScenarioError(format!("{}: {}", path.display(), e.0)))
     }
 
+    /// The scenario of a `--scenario FILE` option: the file's, else the
+    /// paper's (the one loader of every subcommand).
+    pub fn load(path: Option<&Path>) -> Result<Self, ScenarioError> {
+        match path {
+            Some(p) => Self::from_file(p),
+            None => Ok(Self::paper()),
+        }
+    }
+
     /// Number of filter periods.
     pub fn periods(&self) -> usize {
         (self.timing.duration_s / self.timing.period_s).round() as usize
@@ -379,6 +389,20 @@ fn check_prior(p: &Prior) -> Result<(), ScenarioError> {
     Ok(())
 }
 
+/// A configuration named on the command line or in a platform file:
+/// M1-pa, M1-ps, M2-ps, M3-pa, M3-ps, M4-pa, M4-ps (case-insensitive); the
+/// error names the seven. The one parser of host-sim.
+// merge: use core `impl FromStr for ConfigId` (same message).
+pub fn parse_config(s: &str) -> Result<ConfigId, String> {
+    ConfigId::parse(s).ok_or_else(|| {
+        let ids: Vec<&str> = ConfigId::ALL.iter().map(|c| c.as_str()).collect();
+        format!(
+            "unknown configuration '{s}' (expected one of {})",
+            ids.join(", ")
+        )
+    })
+}
+
 /// A platform file (TOML): what the calibrator needs to know of a real
 /// platform — configuration, site, noise levels, period, prior and
 /// optionally the nominal rolling path (for reporting) — and no truth.
@@ -474,16 +498,7 @@ impl Platform {
     /// Checks every field; errors say which and why.
     pub fn validate(&self) -> Result<(), ScenarioError> {
         if let Some(c) = &self.config {
-            if rollcal::models::ConfigId::parse(c).is_none() {
-                let ids: Vec<&str> = rollcal::models::ConfigId::ALL
-                    .iter()
-                    .map(|c| c.as_str())
-                    .collect();
-                return Err(ScenarioError(format!(
-                    "config: unknown configuration '{c}' (expected one of {})",
-                    ids.join(", ")
-                )));
-            }
+            parse_config(c).map_err(|e| ScenarioError(format!("config: {e}")))?;
         }
         check_site(&self.site)?;
         let tm = &self.timing;

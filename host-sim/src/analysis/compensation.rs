@@ -360,63 +360,10 @@ impl Compensation {
 }
 
 /// The compensation of a run's final estimate and covariance.
-pub fn of_run(r: &crate::runner::RunResult) -> Result<Compensation, Error> {
+pub fn of_run(r: &crate::analysis::runner::RunResult) -> Result<Compensation, Error> {
     let est: Vec<f64> = r.states.iter().map(|s| s.estimate_rad).collect();
     let sig: Vec<f64> = r.states.iter().map(|s| s.sigma_rad).collect();
     Compensation::new(r.config, &est, &sig, &r.covariance)
-}
-
-/// `--matrices PATH` and `--matrices-txt PATH` of `run` and `calibrate`:
-/// writes the JSON to `json` and the text report to `txt`, or to stdout
-/// when only `json` is given. Nothing when neither is.
-pub fn write_outputs(
-    c: &Compensation,
-    prior_sigma: f64,
-    json: Option<&std::path::Path>,
-    txt: Option<&std::path::Path>,
-) -> Result<(), String> {
-    if let Some(path) = json {
-        crate::report::write_json(path, &c.to_json())?;
-    }
-    match (json, txt) {
-        (_, Some(path)) => std::fs::write(path, c.text(prior_sigma))
-            .map_err(|e| format!("cannot write {}: {e}", path.display())),
-        (Some(_), None) => {
-            print!("{}", c.text(prior_sigma));
-            Ok(())
-        }
-        (None, None) => Ok(()),
-    }
-}
-
-/// The `--matrices` options of `run` and `calibrate`.
-#[derive(clap::Args, Clone, Debug, Default)]
-pub struct MatricesArgs {
-    /// Write the calibrated matrices G and A, the compensation of the raw
-    /// gyro and accelerometer outputs, R(λ), the estimates, σ and the
-    /// correlation matrix as JSON to PATH, and print them as text (see
-    /// README, "Applying the result").
-    #[arg(long, value_name = "PATH")]
-    pub matrices: Option<std::path::PathBuf>,
-    /// Write the text report of the matrices to PATH instead of stdout.
-    #[arg(long, value_name = "PATH")]
-    pub matrices_txt: Option<std::path::PathBuf>,
-}
-
-impl MatricesArgs {
-    /// Writes what was asked for of the final result `r`.
-    pub fn write(&self, r: &crate::runner::RunResult) -> Result<(), String> {
-        if self.matrices.is_none() && self.matrices_txt.is_none() {
-            return Ok(());
-        }
-        let c = of_run(r).map_err(|e| format!("--matrices: {e}"))?;
-        write_outputs(
-            &c,
-            r.prior_sigma_rad,
-            self.matrices.as_deref(),
-            self.matrices_txt.as_deref(),
-        )
-    }
 }
 
 /// Which triad's model a residual matrix follows.

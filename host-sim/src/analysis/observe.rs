@@ -8,9 +8,10 @@ use rollcal::observability::{
     Observability, Spectrum, COEF_THRESHOLD, PRACTICAL_RATIO, RANK_TOLERANCE,
 };
 
-use crate::runner::filter_config;
-use crate::scenario::{Scenario, DEG};
-use crate::truth::{truth_state, Simulation};
+use crate::analysis::runner::SimulatedRun;
+use crate::analysis::Error;
+use crate::sim::scenario::Scenario;
+use crate::sim::truth::Simulation;
 
 /// One term of an unobservable combination.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -21,7 +22,7 @@ pub struct Term {
     pub coef: f64,
 }
 
-pub use crate::verdict::Verdict;
+pub use crate::analysis::verdict::Verdict;
 
 /// One state of the analysis.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -97,10 +98,11 @@ fn analyse_typed<M: Model<N, Z>, const N: usize, const Z: usize>(
     earth_rate: bool,
     keep_history: bool,
 ) -> Result<ConfigObs, ekf::Error> {
-    let cfg = filter_config(scenario, earth_rate, ekf::Options::plain());
-    let truth0 = truth_state(id, &sim.params, &sim.initial);
+    let run = SimulatedRun::new(id, scenario, sim, earth_rate);
+    let cfg = run.filter_config(ekf::Options::plain());
+    let truth0 = run.truth_at_start();
     let x0 = SVector::<f64, N>::from_iterator(truth0.iter().copied());
-    let prior = SVector::<f64, N>::repeat(scenario.prior.sigma_deg * DEG);
+    let prior = SVector::<f64, N>::repeat(run.sigma0());
     // The bound, along the true trajectory.
     let mut obs = Observability::<f64, M, N, Z>::new(cfg, x0, prior)?;
     // The structure, along the path linearised at zero state (the paper's
@@ -189,6 +191,23 @@ pub fn analyse(
     ))
 }
 
+/// [`analyse`] of all seven configurations along the noise-free run of
+/// `scenario` (seed 0), without the σ_CRLB history.
+pub fn analyse_all(scenario: &Scenario, earth_rate: bool) -> Result<Vec<ConfigObs>, Error> {
+    let sim = crate::sim::truth::simulate(
+        scenario,
+        crate::sim::truth::SimOptions {
+            seed: 0,
+            noise: false,
+            earth_rate,
+        },
+    );
+    ConfigId::ALL
+        .iter()
+        .map(|&id| analyse(id, scenario, &sim, earth_rate, false).map_err(|e| Error::filter(id, e)))
+        .collect()
+}
+
 /// The JSON document of `host-sim observability` (an interface: keep the
 /// keys stable).
 pub fn report_json(earth_rate: bool, configs: &[ConfigObs]) -> serde_json::Value {
@@ -200,41 +219,6 @@ pub fn report_json(earth_rate: bool, configs: &[ConfigObs]) -> serde_json::Value
         "structure_linearised_at": "zero state (the paper's first-order analysis); sigma_crlb along the true trajectory",
         "configs": configs,
     })
-}
-
-/// Prints the analysis of every configuration as text tables.
-pub fn print_report(configs: &[ConfigObs], earth_rate: bool) {
-    println!(
-        "Observability along the path, Earth rate {} (rank: eigenvalues of the prior-scaled \
-         information matrix above {RANK_TOLERANCE:e}·λmax; null-space coefficients below \
-         {COEF_THRESHOLD:e} dropped; observable in practice: σ_CRLB/σ_prior < {PRACTICAL_RATIO})",
-        if earth_rate { "on" } else { "off" }
-    );
-    for c in configs {
-        println!(
-            "\n{}: {} states, rank {}, null space {}",
-            c.config,
-            c.n,
-            c.rank,
-            c.nullity()
-        );
-        for (i, comb) in c.null_space.iter().enumerate() {
-            println!("  unobservable #{}: {}", i + 1, format_combination(comb));
-        }
-        println!(
-            "  {:<10} {:>12} {:>10}  verdict",
-            "state", "σ_CRLB ″", "σ/σ_prior"
-        );
-        for s in &c.states {
-            println!(
-                "  {:<10} {:>12.4} {:>10.2e}  {}",
-                s.name,
-                s.sigma_crlb_rad / crate::scenario::ARCSEC,
-                s.ratio,
-                s.verdict
-            );
-        }
-    }
 }
 
 /// The verdict matrix as a Markdown table: one row per configuration, one
@@ -290,8 +274,8 @@ pub fn changes(off: &[ConfigObs], on: &[ConfigObs]) -> Vec<String> {
                     sa.name,
                     sa.verdict,
                     sb.verdict,
-                    sa.sigma_crlb_rad / crate::scenario::ARCSEC,
-                    sb.sigma_crlb_rad / crate::scenario::ARCSEC,
+                    sa.sigma_crlb_rad / crate::sim::scenario::ARCSEC,
+                    sb.sigma_crlb_rad / crate::sim::scenario::ARCSEC,
                     sa.ratio,
                     sb.ratio
                 ));

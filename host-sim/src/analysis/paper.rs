@@ -8,12 +8,15 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 use rollcal::models::{ConfigId, Group};
 
-use crate::observe::{self, ConfigObs};
+use crate::analysis::observe::{self, ConfigObs};
+use crate::analysis::runner::{
+    expected_observable, run_filter, Estimator, RunResult, SimulatedRun,
+};
+use crate::analysis::verdict::Verdict;
+use crate::analysis::Error;
 use crate::plots::{plot_group_marked, Curve};
-use crate::runner::{expected_observable, run_filter, Estimator, RunResult};
-use crate::scenario::{Scenario, ARCSEC};
-use crate::truth::{simulate, truth_state, SimOptions, Simulation};
-use crate::verdict::Verdict;
+use crate::sim::scenario::{Scenario, ARCSEC};
+use crate::sim::truth::{simulate, SimOptions, Simulation};
 
 /// One state of the summary.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -112,7 +115,7 @@ fn figures(
     run: &RunResult,
     obs: &ConfigObs,
     truth: &[Vec<f64>],
-) -> Result<Vec<String>, String> {
+) -> Result<Vec<String>, Error> {
     let id = run.config;
     let t: Vec<f64> = run.history.iter().map(|h| h.0).collect();
     let mut names = Vec::new();
@@ -157,8 +160,9 @@ fn figures(
             &figure_title(id, g),
             &t,
             &curves,
-            &crate::segments::switch_times(&run.segments),
-        )?;
+            &crate::sim::segments::switch_times(&run.segments),
+        )
+        .map_err(Error::Figure)?;
         names.push(file);
     }
     Ok(names)
@@ -239,9 +243,12 @@ pub fn paper(
     seed: u64,
     out: &Path,
     progress: &(dyn Fn(&str) + Sync),
-) -> Result<Paper, String> {
+) -> Result<Paper, Error> {
     let t0 = std::time::Instant::now();
-    std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+    std::fs::create_dir_all(out).map_err(|source| Error::Create {
+        path: out.display().to_string(),
+        source,
+    })?;
     let earth_rate = scenario.site.earth_rate;
     let sim_for = |seed: u64, noise: bool, er: bool| {
         simulate(
@@ -263,12 +270,12 @@ pub fn paper(
         },
     );
     progress("simulated the truth");
-    let analyse = |sim: &Simulation, er: bool, hist: bool| -> Result<Vec<ConfigObs>, String> {
+    let analyse = |sim: &Simulation, er: bool, hist: bool| -> Result<Vec<ConfigObs>, Error> {
         ConfigId::ALL
             .par_iter()
             .map(|&id| {
                 let r =
-                    observe::analyse(id, scenario, sim, er, hist).map_err(|e| format!("{id}: {e}"));
+                    observe::analyse(id, scenario, sim, er, hist).map_err(|e| Error::filter(id, e));
                 progress(&format!(
                     "observability of {id} (Earth rate {})",
                     if er { "on" } else { "off" }
@@ -292,7 +299,7 @@ pub fn paper(
                 None,
                 true,
             )
-            .map_err(|e| format!("{id}: {e}"));
+            .map_err(|e| Error::filter(id, e));
             progress(&format!("estimator run of {id}"));
             r
         })
@@ -302,16 +309,12 @@ pub fn paper(
         .par_iter()
         .zip(obs_on.par_iter().zip(obs_off.par_iter()))
         .map(|(run, (on, off))| {
-            let truth: Vec<Vec<f64>> = sim
-                .samples
-                .iter()
-                .map(|s| truth_state(run.config, &sim.params, &s.truth))
-                .collect();
+            let truth = SimulatedRun::new(run.config, scenario, &sim, earth_rate).truth_history();
             let figs = figures(out, run, on, &truth)?;
             progress(&format!("figures of {}", run.config));
             Ok(summarise(run, off, on, earth_rate, figs))
         })
-        .collect::<Result<_, String>>()?;
+        .collect::<Result<_, Error>>()?;
     let paper = Paper {
         scenario: scenario.name.clone(),
         command: reproduce_command(scenario_path, seed, out),
@@ -330,10 +333,13 @@ pub fn paper(
 /// Number of progress steps [`paper`] reports.
 pub const PROGRESS_STEPS: u64 = 1 + 7 + 7 + 7 + 7;
 
-fn write_outputs(out: &Path, p: &Paper) -> Result<(), String> {
-    let write = |name: &str, text: String| -> Result<PathBuf, String> {
+fn write_outputs(out: &Path, p: &Paper) -> Result<(), Error> {
+    let write = |name: &str, text: String| -> Result<PathBuf, Error> {
         let path = out.join(name);
-        std::fs::write(&path, text).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        std::fs::write(&path, text).map_err(|source| Error::Write {
+            path: path.display().to_string(),
+            source,
+        })?;
         Ok(path)
     };
     let json = serde_json::json!({
@@ -345,7 +351,7 @@ fn write_outputs(out: &Path, p: &Paper) -> Result<(), String> {
     });
     write(
         "summary.json",
-        serde_json::to_string_pretty(&json).map_err(|e| e.to_string())? + "\n",
+        serde_json::to_string_pretty(&json).map_err(Error::Json)? + "\n",
     )?;
     for (name, obs, er) in [
         ("observability-earth-off.json", &p.obs_off, false),
@@ -354,7 +360,7 @@ fn write_outputs(out: &Path, p: &Paper) -> Result<(), String> {
         let v = observe::report_json(er, obs);
         write(
             name,
-            serde_json::to_string_pretty(&v).map_err(|e| e.to_string())? + "\n",
+            serde_json::to_string_pretty(&v).map_err(Error::Json)? + "\n",
         )?;
     }
     write("summary.md", summary_markdown(p))?;

@@ -1,0 +1,404 @@
+//! The calibrator run on a stream, as `calibrate` drives it: the no_std
+//! session ([`rollcal::session::Session`]) with the host's sample log, the
+//! NIS and failures of every accepted sample, the estimator of record's
+//! final passes with their covariance, the calibrator settings of a
+//! scenario or platform file, and the bound at the estimate without a
+//! truth.
+
+use nalgebra::RealField;
+use rollcal::calibrator::{Calibrator, RejectReason};
+use rollcal::ekf::{self, FilterConfig, Options};
+use rollcal::estimator::{EstimatorOptions, LogError, LogRecord, SampleLog};
+use rollcal::models::{ConfigId, Environment, Model};
+use rollcal::observability::Observability;
+use rollcal::session::{AnyCalibrator, Reply, Session};
+use rollcal::wire::{CalibratorConfig, Estimate, Message};
+
+use crate::analysis::runner;
+use crate::analysis::verdict::Verdict;
+use crate::analysis::Error;
+use crate::sim::scenario::{Platform, Scenario, DEG};
+use crate::sim::truth::PeriodSample;
+
+/// Calibrator settings equal to `runner::filter_config` of the scenario
+/// (so that the stream's filter is `run`'s filter).
+pub fn calibrator_config(sc: &Scenario, id: ConfigId, earth_rate: bool) -> CalibratorConfig {
+    platform_config(&Platform::of_scenario(sc), id, earth_rate)
+}
+
+/// Calibrator settings of a platform file (the `Configure` message a
+/// platform with these settings would send).
+pub fn platform_config(p: &Platform, id: ConfigId, earth_rate: bool) -> CalibratorConfig {
+    let f = runner::filter_config_of(&p.site, &p.noise, earth_rate, Options::default());
+    let mut c = CalibratorConfig::paper(id);
+    c.sigma_accel_g = f.sigma_accel;
+    c.sigma_gyro_rad_s = f.sigma_gyro;
+    c.sigma_gimbal_rad = f.sigma_gimbal;
+    c.earth_rate_n = f.env.earth_rate_n.into();
+    c.gravity_n = f.env.gravity_n.into();
+    c.prior_sigma_rad = p.prior.sigma_deg * DEG;
+    c.limits.period_s = p.timing.period_s;
+    c
+}
+
+/// The filter settings of a calibrator configuration (f64).
+// merge: use core `From<&CalibratorConfig> for FilterConfig<T>`.
+pub fn filter_config(c: &CalibratorConfig) -> FilterConfig<f64> {
+    FilterConfig {
+        env: Environment {
+            earth_rate_n: c.earth_rate_n.into(),
+            gravity_n: c.gravity_n.into(),
+        },
+        sigma_accel: c.sigma_accel_g,
+        sigma_gyro: c.sigma_gyro_rad_s,
+        sigma_gimbal: c.sigma_gimbal_rad,
+        options: c.options,
+    }
+}
+
+/// The host's sample log: a vector that grows as needed.
+pub struct VecLog<T: RealField + Copy = f64>(pub Vec<LogRecord<T>>);
+
+impl<T: RealField + Copy> Default for VecLog<T> {
+    fn default() -> Self {
+        Self(Vec::new())
+    }
+}
+
+impl<T: RealField + Copy> VecLog<T> {
+    /// The records in f64 (exact for f32).
+    pub fn records_f64(&self) -> Vec<LogRecord<f64>> {
+        let f = |v: T| v.to_subset().unwrap_or(f64::NAN);
+        self.0
+            .iter()
+            .map(|r| LogRecord {
+                dt: r.dt,
+                dtheta_cmd: r.dtheta_cmd,
+                observation: r.observation.map(|o| ekf::Observation {
+                    accel_mean: o.accel_mean.map(f),
+                    gimbal: o.gimbal.map(|g| g.map(f)),
+                }),
+            })
+            .collect()
+    }
+}
+
+impl<T: RealField + Copy> SampleLog<T> for VecLog<T> {
+    fn append(&mut self, r: &LogRecord<T>) -> Result<(), LogError> {
+        self.0.push(*r);
+        Ok(())
+    }
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+    fn truncate(&mut self, len: usize) {
+        self.0.truncate(len);
+    }
+    fn get(&mut self, k: usize) -> Option<LogRecord<T>> {
+        self.0.get(k).copied()
+    }
+}
+
+/// The final answer of the session's calibrator.
+pub struct Final {
+    pub estimate: Estimate,
+    /// NIS of every update of the last pass.
+    pub nis: Vec<f64>,
+    /// The accepted updates of the last pass.
+    pub updates: Vec<runner::Update>,
+    /// Time history of the last pass: (t, estimate, σ) per record.
+    pub history: Vec<(f64, Vec<f64>, Vec<f64>)>,
+    /// Covariance of the final filter, row-major (rad²; empty when the
+    /// passes did not run).
+    pub covariance: Vec<f64>,
+}
+
+/// The no_std session (the protocol, once) with the host's log and records
+/// for the report.
+pub struct Host<T: RealField + Copy> {
+    pub session: Session<T>,
+    /// Settings for a stream without a `Configure` message (`--platform`
+    /// or `--scenario`), when the configuration is known.
+    pub fallback: Option<CalibratorConfig>,
+    /// The sample log since the last (re)start, for the final passes.
+    pub log: VecLog<T>,
+    /// NIS of every accepted update since the last (re)start.
+    pub nis: Vec<f64>,
+    /// Filter failures (sequence number, error).
+    pub failures: Vec<(u32, ekf::Error)>,
+    /// Where the fallback settings come from, for the note.
+    pub fallback_of: String,
+    /// Notes for the user (a missing `Configure`, a restart), to print
+    /// after each [`Host::handle`].
+    pub notes: Vec<String>,
+}
+
+impl<T: RealField + Copy> Host<T> {
+    /// A host of a fresh session expecting configuration `expected` (if
+    /// known), with the settings `fallback` for a stream without a
+    /// `Configure`, taken from `fallback_of`.
+    pub fn new(
+        expected: Option<ConfigId>,
+        fallback: Option<CalibratorConfig>,
+        fallback_of: String,
+    ) -> Self {
+        Self {
+            session: Session::new(expected, EstimatorOptions::default()),
+            fallback,
+            log: VecLog::default(),
+            nis: Vec::new(),
+            failures: Vec::new(),
+            fallback_of,
+            notes: Vec::new(),
+        }
+    }
+
+    /// Hands message `m` to the session (configuring it with the fallback
+    /// settings at a first sample without a `Configure`), keeping the NIS
+    /// and the failures of the accepted samples.
+    pub fn handle(&mut self, m: Message) -> Result<(), String> {
+        match &m {
+            Message::Sample(_) if self.session.calibrator().is_none() => {
+                let Some(fallback) = self.fallback else {
+                    return Err("the stream has no Configure message: give --config (and --platform FILE for the platform's settings)".into());
+                };
+                self.notes.push(format!(
+                    "note: the stream has no Configure message; using the settings of {}",
+                    self.fallback_of
+                ));
+                self.session
+                    .configure(fallback)
+                    .map_err(|e| format!("calibrator: {e}"))?;
+            }
+            Message::Configure(_) | Message::Reset => {
+                if self.session.calibrator().is_some() {
+                    self.notes.push(format!(
+                        "\nnote: {} mid-stream: restarting the calibrator",
+                        tag(&m)
+                    ));
+                }
+                self.nis.clear();
+                self.failures.clear();
+            }
+            _ => {}
+        }
+        match self.session.handle(&m, &mut self.log) {
+            Reply::Error(e) => return Err(format!("{e}")),
+            Reply::Rejected(RejectReason::Filter(e)) => {
+                if let Message::Sample(s) = &m {
+                    self.failures.push((s.seq, e));
+                }
+            }
+            Reply::Nothing | Reply::Send(_) | Reply::Rejected(_) => {
+                if let (Message::Sample(s), Some(cal)) = (&m, self.session.calibrator()) {
+                    if cal.progress().last_seq == Some(s.seq) {
+                        self.nis.push(cal.progress().last_nis);
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The estimator of record over the log, at most `passes` passes,
+    /// with the last pass's innovations, history and covariance.
+    pub fn finish(&mut self, passes: u8) -> Option<Final> {
+        let opts = EstimatorOptions {
+            max_passes: passes,
+            ..EstimatorOptions::default()
+        };
+        let cal = self.session.calibrator()?;
+        let (mut nis, mut updates, mut history, mut pass) = (Vec::new(), Vec::new(), Vec::new(), 0);
+        let (estimate, covariance) = finish_with_covariance(cal, &mut self.log, &opts, &mut |ev| {
+            if ev.pass != pass {
+                (pass, nis, updates, history) = (ev.pass, Vec::new(), Vec::new(), Vec::new());
+            }
+            if let Some(u) = ev.update {
+                nis.push(u.nis);
+                updates.push(u);
+            }
+            history.push((ev.t_s, ev.state, ev.sigma));
+        });
+        Some(Final {
+            estimate,
+            nis,
+            updates,
+            history,
+            covariance,
+        })
+    }
+}
+
+/// One record of a pass of [`finish_with_covariance`].
+struct FinishEvent {
+    /// Pass number, from 1.
+    pass: u8,
+    /// Time at the end of the record's period (s from the start of the log).
+    t_s: f64,
+    /// The accepted update of the record, if any.
+    update: Option<runner::Update>,
+    /// Estimate after the record (rad).
+    state: Vec<f64>,
+    /// σ after the record (rad).
+    sigma: Vec<f64>,
+}
+
+/// [`AnyCalibrator::finish`], also returning the final filter's covariance
+/// (row-major, rad²; empty when the passes did not run).
+// merge: use the core covariance accessor of the session's `AnyCalibrator`.
+fn finish_with_covariance<T: RealField + Copy>(
+    cal: &AnyCalibrator<T>,
+    log: &mut (dyn SampleLog<T> + '_),
+    passes: &EstimatorOptions,
+    on_record: &mut dyn FnMut(FinishEvent),
+) -> (Estimate, Vec<f64>) {
+    fn one<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize>(
+        c: &Calibrator<T, M, N, Z>,
+        log: &mut (dyn SampleLog<T> + '_),
+        passes: &EstimatorOptions,
+        on_record: &mut dyn FnMut(FinishEvent),
+    ) -> (Estimate, Vec<f64>) {
+        let f = |v: &T| v.to_subset().unwrap_or(f64::NAN);
+        let mut t = 0.0;
+        let (estimate, filter) = c.finish(log, passes, |e| {
+            t = if e.index == 0 { 0.0 } else { t } + e.record.dt;
+            on_record(FinishEvent {
+                pass: e.pass,
+                t_s: t,
+                update: match &e.result {
+                    Ok(Some(i)) => Some(runner::Update::of(e.index, t, i)),
+                    _ => None,
+                },
+                state: e.filter.state().iter().copied().collect(),
+                sigma: e.filter.sigma().iter().map(f).collect(),
+            })
+        });
+        let covariance = filter.map_or_else(Vec::new, |f| {
+            f.covariance()
+                .transpose()
+                .iter()
+                .map(|v| v.to_subset().unwrap_or(f64::NAN))
+                .collect()
+        });
+        (estimate, covariance)
+    }
+    match cal {
+        AnyCalibrator::M1Pa(c) => one(c, log, passes, on_record),
+        AnyCalibrator::M1Ps(c) => one(c, log, passes, on_record),
+        AnyCalibrator::M2Ps(c) => one(c, log, passes, on_record),
+        AnyCalibrator::M3Pa(c) => one(c, log, passes, on_record),
+        AnyCalibrator::M3Ps(c) => one(c, log, passes, on_record),
+        AnyCalibrator::M4Pa(c) => one(c, log, passes, on_record),
+        AnyCalibrator::M4Ps(c) => one(c, log, passes, on_record),
+    }
+}
+
+fn tag(m: &Message) -> &'static str {
+    match m {
+        Message::Configure(_) => "Configure",
+        Message::Reset => "Reset",
+        _ => "message",
+    }
+}
+
+/// The bound σ (rad) of every state at the estimate along the received
+/// path, and the observability verdict of each, for `calibrate` without a
+/// truth. The initial state is the estimator of record's own start of the
+/// log: the final estimate `x_end` integrated back through every record
+/// ([`rollcal::estimator::back_propagate`], what the next linearised pass
+/// would start from); the bound is [`runner::bound`]'s recursion
+/// ([`Observability`]) from it; the null space is that of the information
+/// matrix along the same records linearised at zero state (as
+/// `observability`), the verdict [`Verdict::of_bound`].
+/// With `x_end` `None` the bound starts at `x_start` instead.
+pub fn bound_at_estimate(
+    id: ConfigId,
+    cfg: FilterConfig<f64>,
+    x_end: Option<&[f64]>,
+    x_start: &[f64],
+    sigma0: f64,
+    records: &[LogRecord<f64>],
+) -> Result<(Vec<f64>, Vec<Verdict>), Error> {
+    fn typed<M: Model<N, Z>, const N: usize, const Z: usize>(
+        id: ConfigId,
+        cfg: FilterConfig<f64>,
+        x_end: Option<&[f64]>,
+        x_start: &[f64],
+        sigma0: f64,
+        records: &[LogRecord<f64>],
+    ) -> Result<(Vec<f64>, Vec<Verdict>), Error> {
+        use rollcal::observability::{COEF_THRESHOLD, RANK_TOLERANCE};
+        let vector = |v: &[f64]| {
+            nalgebra::SVector::<f64, N>::from_iterator(
+                v.iter().copied().chain(std::iter::repeat(0.0)),
+            )
+        };
+        let x0 = match x_end {
+            None => vector(x_start),
+            Some(x_end) => {
+                let mut frame = rollcal::command::CommandFrame::aligned(cfg.env.earth_rate_n);
+                for r in records.iter().filter(|r| r.has_valid_period()) {
+                    let p = frame.period(&r.dtheta_cmd, r.dt);
+                    frame.advance(&p);
+                }
+                let mut storage = records.to_vec();
+                let mut log = rollcal::estimator::SliceLog::from_records(&mut storage);
+                rollcal::estimator::back_propagate::<f64, N, _>(
+                    id.layout(),
+                    &cfg.env,
+                    &vector(x_end),
+                    &frame,
+                    &mut log,
+                )
+                .map_err(|source| Error::Estimator {
+                    context: "the start of the log".into(),
+                    source,
+                })?
+                .0
+            }
+        };
+        let prior = nalgebra::SVector::<f64, N>::repeat(sigma0);
+        let e = |e: ekf::Error| Error::filter("the bound at the estimate", e);
+        let mut at = Observability::<f64, M, N, Z>::new(cfg, x0, prior).map_err(e)?;
+        let mut zero = Observability::<f64, M, N, Z>::new(cfg, nalgebra::SVector::zeros(), prior)
+            .map_err(e)?;
+        for r in records {
+            at.record(r).map_err(e)?;
+            zero.record(r).map_err(e)?;
+        }
+        let part = zero.analyse(RANK_TOLERANCE).map_err(e)?.participation();
+        let ratio = at.ratio();
+        let verdicts = (0..N)
+            .map(|i| Verdict::of_bound(part[i] > COEF_THRESHOLD, ratio[i]))
+            .collect();
+        Ok((at.crlb_sigma().iter().copied().collect(), verdicts))
+    }
+    rollcal::with_config!(id, |M, N, Z| typed::<M, N, Z>(
+        id, cfg, x_end, x_start, sigma0, records
+    ))
+}
+
+/// The calibrator's final values as a [`runner::DynFilter`], for the report.
+pub struct CalibratorView {
+    /// Estimate (rad).
+    pub state: Vec<f64>,
+    /// σ (rad).
+    pub sigma: Vec<f64>,
+    /// Covariance, row-major (rad²).
+    pub covariance: Vec<f64>,
+}
+
+impl runner::DynFilter for CalibratorView {
+    fn step(&mut self, _: &PeriodSample) -> Result<f64, ekf::Error> {
+        Err(ekf::Error::NoPrediction)
+    }
+    fn state(&self) -> Vec<f64> {
+        self.state.clone()
+    }
+    fn sigma(&self) -> Vec<f64> {
+        self.sigma.clone()
+    }
+    fn covariance(&self) -> Vec<f64> {
+        self.covariance.clone()
+    }
+}

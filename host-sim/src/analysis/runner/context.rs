@@ -1,0 +1,149 @@
+//! [`SimulatedRun`]: one simulated run of one configuration, and the facts
+//! every step of `run`, `record --truth`, `observability`, `montecarlo` and
+//! `paper` derives from it — the filter settings, the prior, the true
+//! states, the log records — in one place instead of re-derived at each
+//! step.
+
+use rollcal::ekf::{self, FilterConfig, Options};
+use rollcal::estimator::LogRecord;
+use rollcal::models::ConfigId;
+
+use super::bound::{bound, bound_history};
+use super::config::{filter_config, log_record};
+use super::passes::{result, run_passes, Estimator};
+use super::results::RunResult;
+use crate::sim::scenario::{Scenario, DEG};
+use crate::sim::truth::{truth_state, Simulation};
+
+/// One simulated run (`sim` of `scenario`, Earth rate `earth_rate`) seen
+/// by configuration `config`.
+///
+/// # Examples
+///
+/// ```
+/// use host_sim::analysis::runner::SimulatedRun;
+/// use host_sim::sim::scenario::Scenario;
+/// use host_sim::sim::truth::{simulate, SimOptions};
+/// use rollcal::models::ConfigId;
+///
+/// let mut scenario = Scenario::paper();
+/// scenario.timing.duration_s = 60.0;
+/// scenario.path.truncate(1);
+/// scenario.path[0].angle_deg = 6.0;
+/// let sim = simulate(&scenario, SimOptions { seed: 1, noise: true, earth_rate: true });
+/// let run = SimulatedRun::new(ConfigId::M1Pa, &scenario, &sim, true);
+/// assert_eq!(run.truth_at_start().len(), ConfigId::M1Pa.layout().n());
+/// let crlb = run.crlb().unwrap();
+/// assert!(crlb.iter().all(|s| s.is_finite() && *s > 0.0));
+/// ```
+#[derive(Clone, Copy, Debug)]
+pub struct SimulatedRun<'a> {
+    /// The configuration.
+    pub config: ConfigId,
+    /// The scenario simulated.
+    pub scenario: &'a Scenario,
+    /// The simulated run.
+    pub sim: &'a Simulation,
+    /// Whether the Earth rate is on (and-ed with the scenario's).
+    pub earth_rate: bool,
+}
+
+impl<'a> SimulatedRun<'a> {
+    /// The run `sim` of `scenario` seen by configuration `config`.
+    pub fn new(
+        config: ConfigId,
+        scenario: &'a Scenario,
+        sim: &'a Simulation,
+        earth_rate: bool,
+    ) -> Self {
+        Self {
+            config,
+            scenario,
+            sim,
+            earth_rate,
+        }
+    }
+
+    /// The prior σ of every state (rad).
+    pub fn sigma0(&self) -> f64 {
+        self.scenario.prior.sigma_deg * DEG
+    }
+
+    /// The filter settings of the scenario with filter options `options`
+    /// (the bound's: [`Options::plain`]).
+    pub fn filter_config(&self, options: Options) -> FilterConfig<f64> {
+        filter_config(self.scenario, self.earth_rate, options)
+    }
+
+    /// The true state at the start of the run (rad).
+    pub fn truth_at_start(&self) -> Vec<f64> {
+        truth_state(self.config, &self.sim.params, &self.sim.initial)
+    }
+
+    /// The true state at the end of the run (rad).
+    pub fn truth_at_end(&self) -> Vec<f64> {
+        let last = self
+            .sim
+            .samples
+            .last()
+            .map_or(self.sim.initial, |s| s.truth);
+        truth_state(self.config, &self.sim.params, &last)
+    }
+
+    /// The true state at the end of every period (rad).
+    pub fn truth_history(&self) -> Vec<Vec<f64>> {
+        self.sim
+            .samples
+            .iter()
+            .map(|s| truth_state(self.config, &self.sim.params, &s.truth))
+            .collect()
+    }
+
+    /// The periods as the library's estimator replays them.
+    pub fn records(&self) -> Vec<LogRecord<f64>> {
+        self.sim.samples.iter().map(log_record).collect()
+    }
+
+    /// The estimator `estimator` over the run from `x0` (`None`: the cold
+    /// start, zeros), keeping the last pass's time history if asked.
+    pub fn run(
+        &self,
+        estimator: Estimator,
+        x0: Option<&[f64]>,
+        keep_history: bool,
+    ) -> Result<RunResult, ekf::Error> {
+        let id = self.config;
+        let cfg = self.filter_config(estimator.options);
+        let zeros = vec![0.0; id.layout().n()];
+        let x0 = x0.unwrap_or(&zeros);
+        let sigma0 = self.sigma0();
+        let p = run_passes(
+            id,
+            cfg,
+            sigma0,
+            &self.sim.samples,
+            estimator,
+            x0,
+            keep_history,
+        )?;
+        let truth = self.truth_at_end();
+        Ok(result(id, &p, &truth, sigma0))
+    }
+
+    /// The posterior Cramér–Rao σ (rad) of every state at the end of the
+    /// run ([`bound`] over all its periods from the true initial state).
+    pub fn crlb(&self) -> Result<Vec<f64>, ekf::Error> {
+        let cfg = self.filter_config(Options::plain());
+        let truth0 = self.truth_at_start();
+        let records = self.records();
+        bound(self.config, cfg, &truth0, self.sigma0(), &records)
+    }
+
+    /// [`Self::crlb`] after every period (for the σ(t) figures).
+    pub fn crlb_history(&self) -> Result<Vec<Vec<f64>>, ekf::Error> {
+        let cfg = self.filter_config(Options::plain());
+        let truth0 = self.truth_at_start();
+        let records = self.records();
+        bound_history(self.config, cfg, &truth0, self.sigma0(), &records)
+    }
+}

@@ -1,0 +1,59 @@
+//! Arguments shared by several subcommands: the common options of `run`
+//! and `summary`, the cold-start remedies, and the parsers of a
+//! configuration and a scenario option.
+
+use std::path::{Path, PathBuf};
+
+use rollcal::models::ConfigId;
+
+use super::Error;
+use crate::analysis::remedies::Remedy;
+use crate::analysis::runner::{Estimator, Precision};
+use crate::sim::scenario::Scenario;
+
+/// The value parser of every `--config` (see [`crate::sim::scenario::parse_config`]).
+pub fn parse_config(s: &str) -> Result<ConfigId, String> {
+    crate::sim::scenario::parse_config(s)
+}
+
+/// The scenario of a `--scenario` option (default: the paper's).
+pub fn load_scenario(path: Option<&Path>) -> Result<Scenario, Error> {
+    Ok(Scenario::load(path)?)
+}
+
+/// The options of `run` and `summary`.
+#[derive(clap::Args, Clone)]
+pub struct CommonArgs {
+    /// Scenario file (TOML); default: the paper's scenario (scenarios/paper.toml).
+    #[arg(long, value_name = "FILE")]
+    pub scenario: Option<PathBuf>,
+    /// RNG seed of the noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Switch the Earth rate off (the paper's assumption in its proofs).
+    #[arg(long)]
+    pub no_earth_rate: bool,
+    /// Cold-start remedy of the (first-pass) filter (for comparisons).
+    #[arg(long, value_enum, default_value_t = Remedy::SecondOrder)]
+    pub remedy: Remedy,
+    /// At most this many passes over the data: 1 = extended filter only; each
+    /// further pass is linearised about the previous pass's estimate, until
+    /// the estimate moves by less than 0.1σ.
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(1..=8))]
+    pub passes: u8,
+    /// Precision of the filter's covariance arithmetic (state, nominal and
+    /// residuals are f64 in both).
+    #[arg(long, value_enum, default_value_t = Precision::F64)]
+    pub precision: Precision,
+}
+
+impl CommonArgs {
+    /// The estimator these options ask for.
+    pub fn estimator(&self) -> Estimator {
+        Estimator {
+            options: self.remedy.options(),
+            passes: self.passes,
+            precision: self.precision,
+        }
+    }
+}

@@ -1,0 +1,68 @@
+//! `host-sim summary`: all seven configurations on one simulated run, one
+//! line each.
+
+use std::time::Instant;
+
+use rollcal::models::ConfigId;
+
+use super::args::{load_scenario, CommonArgs};
+use super::Error;
+use crate::analysis::runner::{expected_observable, run_filter};
+use crate::report::group_of;
+use crate::sim::truth::{simulate, SimOptions};
+
+/// `host-sim summary`.
+pub fn command(c: &CommonArgs) -> Result<(), Error> {
+    let scenario = load_scenario(c.scenario.as_deref())?;
+    let earth_rate = !c.no_earth_rate && scenario.site.earth_rate;
+    println!(
+        "scenario '{}', seed {}, Earth rate {}, first-pass remedy {:?}, {} pass(es)",
+        scenario.name,
+        c.seed,
+        if earth_rate { "on" } else { "off" },
+        c.remedy,
+        c.passes
+    );
+    println!(
+        "{:<7} {:>6} {:>12} {:>16} {:>14} {:>9}",
+        "config", "states", "within 3σ", "observable ≤4σ", "max |err|/σ", "wall s"
+    );
+    let t_all = Instant::now();
+    let sim = simulate(
+        &scenario,
+        SimOptions {
+            seed: c.seed,
+            noise: true,
+            earth_rate,
+        },
+    );
+    for id in ConfigId::ALL {
+        let t0 = Instant::now();
+        let r = run_filter(id, &scenario, &sim, earth_rate, c.estimator(), None, false)
+            .map_err(|e| format!("{id}: {e}"))?;
+        let within = r.states.iter().filter(|s| s.ratio() <= 3.0).count();
+        let obs: Vec<_> = r
+            .states
+            .iter()
+            .filter(|s| expected_observable(id, s.name, group_of(s.group)))
+            .collect();
+        let obs_ok = obs.iter().filter(|s| s.ratio() <= 4.0).count();
+        let max = r.states.iter().map(|s| s.ratio()).fold(0.0, f64::max);
+        println!(
+            "{:<7} {:>6} {:>9}/{:<2} {:>13}/{:<2} {:>14.2} {:>9.2}",
+            id.as_str(),
+            r.states.len(),
+            within,
+            r.states.len(),
+            obs_ok,
+            obs.len(),
+            max,
+            t0.elapsed().as_secs_f64()
+        );
+    }
+    println!(
+        "total wall time {:.2} s (simulation included)",
+        t_all.elapsed().as_secs_f64()
+    );
+    Ok(())
+}

@@ -1,0 +1,88 @@
+//! The truth sidecar of a recorded stream (`record --truth PATH`, read by
+//! `calibrate --truth PATH`): the true final and initial states and the
+//! Cramér–Rao σ of the recorded configuration, as JSON.
+
+use std::path::Path;
+
+use rollcal::models::ConfigId;
+
+use super::Error;
+use crate::analysis::runner::SimulatedRun;
+use crate::sim::scenario::Scenario;
+use crate::sim::truth::Simulation;
+
+/// The sidecar of configuration `id` on the simulated run `sim` of
+/// `sc` (seed `seed`, Earth rate `earth_rate`).
+pub fn truth_json(
+    id: ConfigId,
+    sc: &Scenario,
+    sim: &Simulation,
+    seed: u64,
+    earth_rate: bool,
+) -> Result<serde_json::Value, Error> {
+    let run = SimulatedRun::new(id, sc, sim, earth_rate);
+    let truth = run.truth_at_end();
+    let truth0 = run.truth_at_start();
+    let crlb = run.crlb().map_err(Error::Bound)?;
+    Ok(serde_json::json!({
+        "config": id.as_str(),
+        "scenario": sc.name,
+        "seed": seed,
+        "earth_rate": earth_rate,
+        "duration_s": sc.timing.duration_s,
+        "names": id.states().iter().map(|s| s.name).collect::<Vec<_>>(),
+        "truth_rad": truth,
+        "truth0_rad": truth0,
+        "crlb_sigma_rad": crlb,
+    }))
+}
+
+/// The truth sidecar written by `record --truth`.
+pub struct Sidecar {
+    /// True final state (rad).
+    pub truth: Vec<f64>,
+    /// True initial state (rad), for the bound of the samples received.
+    pub truth0: Option<Vec<f64>>,
+    /// σ_CRLB of the full run (rad).
+    pub crlb: Vec<f64>,
+    /// Seed of the recorded run.
+    pub seed: Option<u64>,
+    /// Duration of the recorded run (s).
+    pub duration_s: Option<f64>,
+}
+
+/// Reads the sidecar at `path`, which must hold the truth of `id`.
+pub fn read_sidecar(path: &Path, id: ConfigId) -> Result<Sidecar, Error> {
+    let name = || path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|source| Error::Read {
+        path: name(),
+        source,
+    })?;
+    let v: serde_json::Value = serde_json::from_str(&text).map_err(|source| Error::NotSidecar {
+        path: name(),
+        source,
+    })?;
+    if v["config"].as_str() != Some(id.as_str()) {
+        return Err(Error::SidecarConfig {
+            path: name(),
+            found: v["config"].clone(),
+            expected: id,
+        });
+    }
+    let floats = |key: &str| -> Result<Vec<f64>, Error> {
+        v[key]
+            .as_array()
+            .map(|a| a.iter().map(|x| x.as_f64().unwrap_or(f64::NAN)).collect())
+            .ok_or_else(|| Error::SidecarArray {
+                path: name(),
+                key: key.into(),
+            })
+    };
+    Ok(Sidecar {
+        truth: floats("truth_rad")?,
+        truth0: floats("truth0_rad").ok(),
+        crlb: floats("crlb_sigma_rad")?,
+        seed: v["seed"].as_u64(),
+        duration_s: v["duration_s"].as_f64(),
+    })
+}

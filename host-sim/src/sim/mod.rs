@@ -1,0 +1,15 @@
+//! The simulated platform: scenario files, the truth simulator, the
+//! impairments of a recorded stream and the path segments of a log.
+//!
+//! - [`scenario`]: scenario and platform files (TOML), the paper's scenario
+//!   built in;
+//! - [`truth`]: the truth simulator (physical platform, independent of the
+//!   estimator's models);
+//! - [`impair`]: lost frames, clock steps, bit flips and outliers injected
+//!   into a recorded stream;
+//! - [`segments`]: path segments recovered from the commanded increments.
+
+pub mod impair;
+pub mod scenario;
+pub mod segments;
+pub mod truth;
