@@ -5,7 +5,7 @@
 //!
 //! The data are the paper scenario recorded by the host-sim truth simulator
 //! (noisy, Earth rate on, seed 1; `tests/data/paper_seed1.bin`, decoded with
-//! the library's wire decoder, see `tests/support`). Each filter starts cold (zero state, prior σ from
+//! the library's wire decoder, see `tests/it/support`). Each filter starts cold (zero state, prior σ from
 //! the scenario, 1°) and is first warmed up over `WARM_UP` periods, every
 //! step of which must succeed, so the benchmark measures a converging filter
 //! rather than the first steps. The timed loop then steps one filter through
@@ -32,7 +32,7 @@ use rollcal::wire::CalibratorConfig;
 use rollcal::{Filter, Observation, Options};
 
 mod dense;
-#[path = "../tests/support/mod.rs"]
+#[path = "../tests/it/support/mod.rs"]
 mod support;
 
 /// Periods processed before timing starts.

@@ -3,7 +3,7 @@
 //! multi-pass estimator) over the full paper scenario (5400 periods), run in
 //! parallel on the machine's cores as `host-sim paper` does. The data are
 //! the recorded paper stream (noise seed 1, `tests/data/paper_seed1.bin`,
-//! see `tests/support`).
+//! see `tests/it/support`).
 //!
 //! The other benchmark of the group, one M2-ps Monte Carlo run (simulation
 //! and estimator, `paper_scenario/m2ps_montecarlo_run`), needs the truth
@@ -21,7 +21,7 @@ use rollcal::models::{ConfigId, Model};
 use rollcal::wire::CalibratorConfig;
 use rollcal::Options;
 
-#[path = "../tests/support/mod.rs"]
+#[path = "../tests/it/support/mod.rs"]
 mod support;
 
 /// The estimator of record of configuration `M` over `records` from a cold

@@ -19,7 +19,7 @@ use rollcal::{Filter, Options};
 
 #[path = "../benches/dense/mod.rs"]
 mod dense;
-#[path = "../tests/support/mod.rs"]
+#[path = "../tests/it/support/mod.rs"]
 mod support;
 
 fn dense_periods<const N: usize, const Z: usize>(count: usize) -> Result<(), String> {

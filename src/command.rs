@@ -133,6 +133,23 @@ impl<T: RealField + Copy> CommandFrame<T> {
     /// length `dt` (s) starting at this frame whose commanded angle
     /// increment is `dtheta_c` (rad, c frame): the solution of
     /// `Δθc = u T + T J_r(u T) C^c_n(t_k) ω^n_ie`.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use nalgebra::Vector3;
+    /// use rollcal::command::CommandFrame;
+    /// use rollcal::geometry::{earth_rate_n, EARTH_RATE};
+    ///
+    /// // A frame aligned with North–Up–East, rolling at 1 °/s about its y axis.
+    /// let frame = CommandFrame::aligned(earth_rate_n(EARTH_RATE, 34.25f64.to_radians()));
+    /// let u = Vector3::y() * 1f64.to_radians();
+    /// // A period's commanded increment holds the Earth rate too; path_rate
+    /// // takes it out again.
+    /// let dtheta_c = frame.increment(&u, 1.0);
+    /// assert!((dtheta_c - u).norm() > 1e-5);
+    /// assert!((frame.path_rate(&dtheta_c, 1.0) - u).norm() < 1e-15);
+    /// ```
     pub fn path_rate(&self, dtheta_c: &Vector3<T>, dt: T) -> Vector3<T> {
         let e = self.c_cn * self.earth_rate_n;
         let rate = dtheta_c / dt;
@@ -156,6 +173,26 @@ impl<T: RealField + Copy> CommandFrame<T> {
     /// `C^c_n` after `periods` periods of length `dt` (s) at the constant
     /// path rate `path_rate` (rad/s, c frame): `R(u T n) C^c_n` (the rotation
     /// is about a fixed c-frame axis, so its powers add).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use nalgebra::Vector3;
+    /// use rollcal::command::CommandFrame;
+    /// use rollcal::geometry::r2;
+    ///
+    /// // 90 periods of 1 s at 1 °/s about y: C^c_n = R2(90°) (no Earth rate).
+    /// let mut frame = CommandFrame::aligned(Vector3::zeros());
+    /// let u = Vector3::y() * 1f64.to_radians();
+    /// let c_cn = frame.after(&u, 1.0, 90);
+    /// assert!((c_cn - r2(90f64.to_radians())).norm() < 1e-14);
+    /// // Advancing period by period comes to the same frame.
+    /// for _ in 0..90 {
+    ///     let period = frame.period_at_rate(&u, 1.0);
+    ///     frame.advance(&period);
+    /// }
+    /// assert!((frame.c_cn - c_cn).norm() < 1e-13);
+    /// ```
     pub fn after(&self, path_rate: &Vector3<T>, dt: T, periods: u32) -> Matrix3<T> {
         let n: T = nalgebra::convert(f64::from(periods));
         dcm(&(path_rate * (dt * n))) * self.c_cn

@@ -13,6 +13,16 @@ use crate::precision::{scalar_to_f64, to_f64, to_t};
 use crate::trig::{cos, sin, sin_cos};
 
 /// `[v×]`: the skew-symmetric matrix with `[v×] w = v × w`.
+///
+/// # Examples
+///
+/// ```
+/// use nalgebra::Vector3;
+/// use rollcal::geometry::skew;
+///
+/// let (v, w) = (Vector3::new(1.0, 2.0, 3.0), Vector3::new(-0.5, 0.25, 2.0));
+/// assert_eq!(skew(&v) * w, v.cross(&w));
+/// ```
 #[inline]
 pub fn skew<T: RealField + Copy>(v: &Vector3<T>) -> Matrix3<T> {
     let z = T::zero();
@@ -57,6 +67,25 @@ pub fn d_lower_times<T: RealField + Copy>(v: &Vector3<T>) -> Matrix3<T> {
 
 /// `R(θ) = exp(−[θ×])` (Rodrigues): the DCM of a frame rotated by the
 /// rotation vector `θ` (rad) with respect to the reference frame.
+///
+/// # Examples
+///
+/// ```
+/// use nalgebra::Vector3;
+/// use rollcal::geometry::{dcm, r3};
+///
+/// // A rotation of 30° about z is the passive elementary rotation R3(30°):
+/// // the z axis stays, the x axis of the reference frame has the
+/// // coordinates (cos 30°, −sin 30°, 0) in the rotated frame.
+/// let a = 30f64.to_radians();
+/// let c = dcm(&(Vector3::z() * a));
+/// assert!((c - r3(a)).norm() < 1e-15);
+/// assert!((c * Vector3::x() - Vector3::new(a.cos(), -a.sin(), 0.0)).norm() < 1e-15);
+/// // To first order R(θ) = I − [θ×].
+/// let small = Vector3::new(1e-6, -2e-6, 3e-6);
+/// let first_order = nalgebra::Matrix3::identity() - rollcal::geometry::skew(&small);
+/// assert!((dcm(&small) - first_order).norm() < 1e-11);
+/// ```
 pub fn dcm<T: RealField + Copy>(theta: &Vector3<T>) -> Matrix3<T> {
     RotationCoefficients::new(theta.norm_squared()).dcm(theta)
 }
@@ -218,6 +247,16 @@ pub fn right_jacobian_deviation_times<T: RealField + Copy>(
 
 /// The inverse of [`dcm`]: the rotation vector `θ` (rad) with `R(θ) = c`,
 /// `|θ| ≤ π`. `c` must be a proper rotation matrix.
+///
+/// # Examples
+///
+/// ```
+/// use nalgebra::Vector3;
+/// use rollcal::geometry::{dcm, rotation_vector};
+///
+/// let theta = Vector3::new(0.3, -1.2, 0.7); // rad, |θ| < π
+/// assert!((rotation_vector(&dcm(&theta)) - theta).norm() < 1e-14);
+/// ```
 pub fn rotation_vector<T: RealField + Copy>(c: &Matrix3<T>) -> Vector3<T> {
     let two: T = nalgebra::convert(2.0);
     // R(θ) = exp(−[θ×]) ⇒ the antisymmetric part of c is −sin|θ| [θ̂×].
@@ -259,6 +298,22 @@ pub fn rotation_vector<T: RealField + Copy>(c: &Matrix3<T>) -> Vector3<T> {
 /// vector of `c` ([`rotation_vector`], `c = R(θ)`), `q = [cos(|θ|/2),
 /// sin(|θ|/2) θ/|θ|]`. The wire carries the computed frame `C^c_n` this
 /// way (`docs/wire.md`).
+///
+/// # Examples
+///
+/// ```
+/// use nalgebra::Vector3;
+/// use rollcal::geometry::{dcm, dcm_from_quaternion, quaternion_from_dcm};
+///
+/// let c = dcm(&Vector3::new(0.1, 0.2, -0.3));
+/// let q = quaternion_from_dcm(&c);
+/// let norm = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+/// assert!((norm - 1.0).abs() < 1e-15);
+/// let back = dcm_from_quaternion(&q, 1e-6).unwrap();
+/// assert!((back - c).norm() < 1e-15);
+/// // A quaternion far from unit length is refused.
+/// assert!(dcm_from_quaternion(&[2.0, 0.0, 0.0, 0.0], 1e-6).is_none());
+/// ```
 pub fn quaternion_from_dcm<T: RealField + Copy>(c: &Matrix3<T>) -> [T; 4] {
     let theta = rotation_vector(c);
     let half: T = nalgebra::convert(0.5);
@@ -705,6 +760,21 @@ impl<T: RealField + Copy> EulerTrig<T> {
 /// Gimbal DCM `C^p_r = R3(γ) R2(β) R1(α)` of the gimbal angles
 /// `θA = (α, β, γ)` (rad): outer gimbal about base x, middle about y, inner
 /// about z. The same Euler sequence parameterises the attitude `θp` of M4.
+///
+/// # Examples
+///
+/// ```
+/// use nalgebra::Vector3;
+/// use rollcal::geometry::{euler_angles, gimbal_dcm, r1, r2, r3};
+///
+/// // Outer gimbal α about x, middle β about y, inner γ about z.
+/// let angles = Vector3::new(10f64, -25.0, 40.0).map(f64::to_radians);
+/// let c_pr = gimbal_dcm(&angles);
+/// let product = r3(angles.z) * r2(angles.y) * r1(angles.x);
+/// assert!((c_pr - product).norm() < 1e-15);
+/// // Away from β = ±90° the angles come back from the DCM.
+/// assert!((euler_angles(&c_pr) - angles).norm() < 1e-14);
+/// ```
 pub fn gimbal_dcm<T: RealField + Copy>(gimbal_angles: &Vector3<T>) -> Matrix3<T> {
     EulerTrig::new(gimbal_angles).dcm()
 }
@@ -716,6 +786,19 @@ pub fn gimbal_rate_matrix<T: RealField + Copy>(beta: T, gamma: T) -> Matrix3<T> 
 
 /// `T(β, γ) = M⁻¹`: the map from the platform rate to the gimbal-angle rates,
 /// `θ̇A = T ω^p_rp`. `None` within `1e-9` of the gimbal lock `β = ±90°`.
+///
+/// # Examples
+///
+/// ```
+/// use nalgebra::Matrix3;
+/// use rollcal::geometry::{gimbal_rate_inverse, gimbal_rate_matrix};
+///
+/// let (beta, gamma) = (0.4, -1.1);
+/// let t = gimbal_rate_inverse(beta, gamma).unwrap();
+/// assert!((t * gimbal_rate_matrix(beta, gamma) - Matrix3::identity()).norm() < 1e-14);
+/// // At the gimbal lock the gimbal-angle rates are not defined.
+/// assert!(gimbal_rate_inverse(core::f64::consts::FRAC_PI_2, gamma).is_none());
+/// ```
 pub fn gimbal_rate_inverse<T: RealField + Copy>(beta: T, gamma: T) -> Option<Matrix3<T>> {
     EulerTrig::of_beta_gamma(beta, gamma).rate_inverse()
 }
@@ -751,6 +834,17 @@ pub fn euler_angles<T: RealField + Copy>(c: &Matrix3<T>) -> Vector3<T> {
 }
 
 /// Wraps an angle (rad) into `(−π, π]`. Non-finite input is returned as is.
+///
+/// # Examples
+///
+/// ```
+/// use core::f64::consts::PI;
+/// use rollcal::geometry::wrap_angle;
+///
+/// assert!((wrap_angle(1.5 * PI) + 0.5 * PI).abs() < 1e-15);
+/// assert_eq!(wrap_angle(-PI), PI); // (−π, π]: −π becomes π
+/// assert_eq!(wrap_angle(0.25), 0.25);
+/// ```
 pub fn wrap_angle<T: RealField + Copy>(a: T) -> T {
     let pi = T::pi();
     let two_pi = T::two_pi();
@@ -773,6 +867,19 @@ pub fn wrap_angles<T: RealField + Copy>(a: &Vector3<T>) -> Vector3<T> {
 /// The navigation-frame Earth rate `ω^n_ie = Ω [cos φ, sin φ, 0]` (rad/s) in
 /// the North–Up–East frame, for latitude `φ` (rad) and Earth rate `Ω`
 /// (rad/s; 0 to switch it off).
+///
+/// # Examples
+///
+/// ```
+/// use rollcal::geometry::{earth_rate_n, EARTH_RATE};
+///
+/// // At 34.25° N: North and Up components, none East.
+/// let phi = 34.25f64.to_radians();
+/// let w = earth_rate_n(EARTH_RATE, phi);
+/// assert!((w.norm() - EARTH_RATE).abs() < 1e-20);
+/// assert!((w.y - EARTH_RATE * phi.sin()).abs() < 1e-20);
+/// assert_eq!(w.z, 0.0);
+/// ```
 pub fn earth_rate_n<T: RealField + Copy>(omega: T, latitude: T) -> Vector3<T> {
     let (s, c) = sin_cos(latitude);
     Vector3::new(omega * c, omega * s, T::zero())

@@ -8,7 +8,9 @@
 #   tools/host-instructions.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
-cargo build --release --example period_instructions 2>/dev/null
+# The bench profile (thin LTO, one codegen unit): the profile of
+# BENCHMARKS.md's counts; its output lands in target/release as well.
+cargo build --profile bench --example period_instructions 2>/dev/null
 bin=target/release/examples/period_instructions
 count() {
     valgrind --tool=callgrind --callgrind-out-file=/dev/null "$bin" "$1" "$2" 2>&1 |

@@ -3,7 +3,7 @@
 //! the rotation. A dwell runs through the simulator, `run` and
 //! `observability`; `dwell_s = 0` changes nothing, bit for bit.
 
-mod support;
+use crate::support;
 use std::path::{Path, PathBuf};
 use support::host_sim;
 

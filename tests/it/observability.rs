@@ -3,7 +3,7 @@
 //! with lost periods (on the recorded paper stream); the verdicts on the
 //! paper's scenario are in host-sim's tests.
 
-mod support;
+use crate::support;
 
 use nalgebra::{SMatrix, SVector};
 use rollcal::models::{M1Pa, M2Ps, Model};

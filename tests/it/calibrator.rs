@@ -3,7 +3,7 @@
 //! attitude, emits estimates at its cadence, and
 //! continues bit-identically from a checkpoint taken at any sample.
 
-mod support;
+use crate::support;
 
 use nalgebra::RealField;
 use rollcal::calibrator::{Calibrator, M1PaCalibrator, M2PsCalibrator, RejectReason};
@@ -15,7 +15,7 @@ use rollcal::wire::{
 use support::filter_config;
 
 /// The first `periods` samples of the recorded paper stream (f32 samples,
-/// noise seed 1, `tests/support`) and its settings.
+/// noise seed 1, `tests/it/support`) and its settings.
 fn samples(periods: usize) -> (CalibratorConfig, Vec<Sample>) {
     let (sc, mut data) = support::paper_stream();
     data.truncate(periods);

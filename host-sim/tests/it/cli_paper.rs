@@ -2,7 +2,7 @@
 //! and `montecarlo` write their documented files, and refuse bad arguments
 //! with a clear error.
 
-mod support;
+use crate::support;
 use support::{assert_success, host_sim};
 
 fn temp_dir(tag: &str) -> std::path::PathBuf {

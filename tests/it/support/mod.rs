@@ -18,7 +18,7 @@ use rollcal::models::{ConfigId, Environment};
 use rollcal::wire::{CalibratorConfig, FrameDecoder, Message, Sample};
 
 /// The recorded stream's frames.
-pub const PAPER_STREAM: &[u8] = include_bytes!("../data/paper_seed1.bin");
+pub const PAPER_STREAM: &[u8] = include_bytes!("../../data/paper_seed1.bin");
 
 /// The stream's `Configure` settings and its samples, in order.
 pub fn paper_stream() -> (CalibratorConfig, Vec<Sample>) {

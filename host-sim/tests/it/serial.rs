@@ -12,7 +12,7 @@
 
 #![cfg(target_os = "linux")]
 
-mod support;
+use crate::support;
 use support::{assert_success, host_sim, paper_with_path, scratch};
 
 use std::io::Write;

@@ -1,7 +1,7 @@
 //! The command-line interface: output formats are an interface, and bad
 //! arguments or data give clear errors, never a panic.
 
-mod support;
+use crate::support;
 use support::{assert_success, host_sim, json_file};
 
 #[test]
@@ -75,7 +75,7 @@ fn bad_arguments_and_files_are_reported_not_panicked() {
     let dir = std::env::temp_dir().join(format!("rollcal-cli-bad-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let bad = dir.join("bad.toml");
-    let paper = include_str!("../../scenarios/paper.toml");
+    let paper = include_str!("../../../scenarios/paper.toml");
     for (edit, expect) in [
         (
             paper.replace("rate_deg_s = 0.1", "rate_deg_s = 0.07"),

@@ -1,7 +1,7 @@
 //! The CSV log and platform files (docs/csv.md): a real platform's inputs.
 //! Deterministic: every record is seeded.
 
-mod support;
+use crate::support;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 use support::{assert_success, host_sim, json_file, stderr};

@@ -1,7 +1,7 @@
 //! Bad input to the filter is an error, never a panic, and leaves the filter
 //! as it was; the NIS gate rejects an update.
 
-mod support;
+use crate::support;
 
 use nalgebra::{SVector, Vector3};
 use rollcal::ekf::{M2PsFilter, Observation, Options};

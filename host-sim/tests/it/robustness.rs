@@ -3,7 +3,7 @@
 //! with every observable parameter within 4σ of the truth, and count what
 //! it bridged, re-acquired, re-anchored, gated and rejected.
 
-mod support;
+use crate::support;
 use std::path::PathBuf;
 use std::process::Command;
 use support::host_sim;

@@ -8,7 +8,7 @@ use host_sim::sim::truth::{simulate, SimOptions};
 struct Row(Vec<f64>);
 
 fn golden() -> (Vec<String>, Vec<Row>) {
-    let text = include_str!("../../tests/data/paper_scenario_clean.csv");
+    let text = include_str!("../../../tests/data/paper_scenario_clean.csv");
     let mut lines = text.lines();
     let header: Vec<String> = lines
         .next()

@@ -2,7 +2,7 @@
 //! σ and the bound at the estimate, the data checks and their exit status.
 //! Deterministic: every stream is seeded.
 
-mod support;
+use crate::support;
 use std::path::PathBuf;
 use std::process::Output;
 use support::{assert_success, host_sim, json_file};

@@ -4,7 +4,7 @@
 //! installation angles within 4σ of the reported σ of each parameter; with
 //! the true parameters the compensation of the raw outputs is exact.
 
-mod support;
+use crate::support;
 use host_sim::analysis::compensation::{of_run, Compensation};
 use host_sim::analysis::runner::{run_filter, Estimator};
 use host_sim::sim::scenario::Scenario;

@@ -2,7 +2,7 @@
 //! columns only with a truth, the refusal of a DIR that is a file. The
 //! browser check of the page is `tools/check-report.sh` (CI).
 
-mod support;
+use crate::support;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use support::{assert_success, host_sim, paper_with_path, scratch};

@@ -3,7 +3,7 @@
 //! path past the gimbal limit, and the scenario it writes meets its targets
 //! in `host-sim observability` in less time than the reference path.
 
-mod support;
+use crate::support;
 use support::{assert_success, host_sim};
 
 use host_sim::design::{pattern_of, Goal, NamedAxis, Pattern, Problem, Rotation};

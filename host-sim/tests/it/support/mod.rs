@@ -1,5 +1,5 @@
-//! Helpers shared by the host-sim integration tests: each test file
-//! includes this module (`mod support;`), and not every file uses every
+//! Helpers shared by the host-sim integration tests: each test module
+//! uses this module (`use crate::support;`), and not every module uses every
 //! helper.
 #![allow(dead_code)]
 
@@ -35,7 +35,7 @@ pub fn assert_success(out: &Output) {
 }
 
 /// The repository's paper scenario.
-pub const PAPER: &str = include_str!("../../../scenarios/paper.toml");
+pub const PAPER: &str = include_str!("../../../../scenarios/paper.toml");
 
 /// Writes `dir/<name>.toml`: the paper's scenario with its path replaced by
 /// `segments` (axis, angle in degrees, rate in °/s), its `duration_s` by

@@ -117,7 +117,7 @@ fn synth_log<M: Model<N, Z>, const N: usize, const Z: usize>(
 
 /// The commanded increments of the recorded paper scenario (5400 periods of 1 s).
 fn paper_increments() -> Vec<Vector3<f64>> {
-    let text = include_str!("data/paper_scenario_clean.csv");
+    let text = include_str!("../data/paper_scenario_clean.csv");
     text.lines()
         .skip(1)
         .filter(|l| !l.trim().is_empty())

@@ -3,7 +3,7 @@
 //! the duration would cut, binary on a terminal, empty studies, and the
 //! verdict words of docs/cli.md.
 
-mod support;
+use crate::support;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use support::{host_sim, paper_with_path, scratch, stderr};
@@ -212,7 +212,7 @@ fn empty_studies_are_refused() {
 
 /// The words the "Verdict words" list of docs/cli.md defines.
 fn readme_verdict_words() -> Vec<String> {
-    let readme = include_str!("../../docs/cli.md");
+    let readme = include_str!("../../../docs/cli.md");
     let start = readme
         .find("### Verdict words")
         .expect("docs/cli.md has a Verdict words section");

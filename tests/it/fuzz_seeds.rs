@@ -7,13 +7,13 @@
 //! encoder produces; regenerate them after a wire change with
 //!
 //! ```text
-//! ROLLCAL_WRITE_FUZZ_SEEDS=1 cargo test --test fuzz_seeds
+//! ROLLCAL_WRITE_FUZZ_SEEDS=1 cargo test --test it fuzz_seeds
 //! ```
 //!
 //! A seed is the decoder target's input: one byte of chunk size (the target
 //! feeds the decoder in chunks of that many bytes), then the frames.
 
-mod support;
+use crate::support;
 
 use std::path::PathBuf;
 
@@ -204,13 +204,13 @@ fn decoder_seeds_are_current_valid_frames() {
     names.sort();
     assert_eq!(
         committed, names,
-        "regenerate: ROLLCAL_WRITE_FUZZ_SEEDS=1 cargo test --test fuzz_seeds"
+        "regenerate: ROLLCAL_WRITE_FUZZ_SEEDS=1 cargo test --test it fuzz_seeds"
     );
     for (name, input) in &seeds {
         let on_disk = std::fs::read(dir().join(name)).unwrap();
         assert!(
             &on_disk == input,
-            "{name} is stale: ROLLCAL_WRITE_FUZZ_SEEDS=1 cargo test --test fuzz_seeds"
+            "{name} is stale: ROLLCAL_WRITE_FUZZ_SEEDS=1 cargo test --test it fuzz_seeds"
         );
     }
 }

@@ -2,7 +2,7 @@
 //! independent reference encoder (and `docs/wire.md`), and the decoder
 //! counts and skips every kind of bad input without panicking.
 
-mod support;
+use crate::support;
 
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
@@ -187,7 +187,7 @@ fn docs_worked_example_is_current() {
     });
     let hex: Vec<String> = frame(&m).iter().map(|b| format!("{b:02x}")).collect();
     let hex = hex.join(" ");
-    let doc = include_str!("../docs/wire.md");
+    let doc = include_str!("../../docs/wire.md");
     assert!(
         doc.contains(&hex),
         "docs/wire.md lacks the example frame:\n{hex}"

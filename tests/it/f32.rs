@@ -4,7 +4,7 @@
 //! precision"). host-sim's `tests/f32.rs` adds the other scenarios and the
 //! f32 Monte Carlo.
 
-mod support;
+use crate::support;
 
 use nalgebra::{RealField, SVector};
 use rollcal::ekf::{Observation, Options};
