@@ -44,13 +44,13 @@ import subprocess
 import sys
 
 DEFAULT_ENTRIES = [
-    r"^rollcal::calibrator::Calibrator<.*>::(new|push|push_logged|finish|checkpoint|restore|reset|estimate)$",
-    # (An inherent impl in a submodule demangles as `rollcal::ekf::step::<impl
-    # rollcal::ekf::Filter<T,M,_,_>>::step`.)
+    # An inherent impl in a submodule demangles as `rollcal::ekf::step::<impl
+    # rollcal::ekf::Filter<T,M,_,_>>::step`: each pattern takes both forms.
+    r"^rollcal::calibrator::(\w+::)*(<impl rollcal::calibrator::)?Calibrator<.*>::(new|push|push_logged|finish|checkpoint|restore|reset|estimate)$",
     r"^rollcal::ekf::(\w+::)*(<impl rollcal::ekf::)?Filter<.*>::(step|predict|update|new|from_parts|reacquire_attitude)$",
-    r"^rollcal::session::Session<.*>::(handle|act|sample|finish|checkpoint|configure)$",
-    r"^rollcal::session::AnyCalibrator<.*>::",
-    r"^rollcal::session::restore_into$",
+    r"^rollcal::session::(\w+::)*(<impl rollcal::session::)?Session<.*>::(handle|act|sample|finish|checkpoint|configure)$",
+    r"^rollcal::session::(\w+::)*(<impl rollcal::session::)?AnyCalibrator<.*>::",
+    r"^rollcal::session::(\w+::)*restore_into$",
 ]
 
 DEFAULT_PANICS = [
