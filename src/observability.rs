@@ -266,7 +266,7 @@ pub fn expected_observable_state(id: ConfigId, state: &StateInfo) -> bool {
 /// `FULL = false` ([`Bound`], built by [`Observability::bound_only`])
 /// advances the bound only: the true state and the bound's recursion are
 /// the same code as in the full mode (the bound comes out bit-identical,
-/// `host-sim/tests/design.rs`), but `Φ(k,0)` and `J` are not accumulated,
+/// `host-sim/tests/it/design.rs`), but `Φ(k,0)` and `J` are not accumulated,
 /// so [`Observability::transition`], [`Observability::information`] and
 /// [`Observability::analyse`] exist only for `FULL = true`. It is what a
 /// search over candidate paths that only needs `σ_CRLB` runs.

@@ -31,8 +31,8 @@
 //! about a nominal trajectory (the previous pass's final estimate integrated
 //! back to the start; repeated until the estimate stops moving), whose
 //! covariance is then the posterior Cramér–Rao bound. The same mode with the true initial state as nominal computes that
-//! bound. Measurements of every remedy: README, "The estimator, and the cold
-//! start" (`host-sim remedies`).
+//! bound. Measurements of every remedy: docs/estimator.md, "The cold start"
+//! (`host-sim remedies`).
 //!
 //! **Correlated noise.** The gyro noise of a period moves the attitude
 //! during the same period whose mean the accelerometers report, so it is

@@ -50,7 +50,7 @@
 //! ≤ 4e-16; after the 5400 periods of the paper's path the frame comes back
 //! to `C^c_n(0) = I` within 6e-14, and the back-propagated state agrees with
 //! one propagated through periods stored on the way forward to ≈ 1e-17 rad
-//! (tests in `command.rs` and `tests/estimator.rs`). The alternative, re-walking the frame
+//! (tests in `command.rs` and `tests/it/estimator.rs`). The alternative, re-walking the frame
 //! forward from the start with checkpoints, needs either storage for
 //! `√n` checkpoints or `O(n²)` recomputation.
 //!

@@ -1,7 +1,7 @@
 //! Single precision: the estimator of record with its covariance arithmetic
 //! in `f32` against `f64` on the same recorded data (the paper stream, as a
-//! platform sends it), through the library alone (docs/model.md §Estimator, "single
-//! precision"). host-sim's `tests/f32.rs` adds the other scenarios and the
+//! platform sends it), through the library alone (docs/estimator.md, "Single
+//! precision"). host-sim's `tests/it/f32.rs` adds the other scenarios and the
 //! f32 Monte Carlo.
 
 use crate::support;

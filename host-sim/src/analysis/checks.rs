@@ -175,7 +175,7 @@ impl Judgement {
 /// the log is incomplete, without the periods predicted only), against [`crate::sim::truth::MAX_GIMBAL_BETA_DEG`], the limit the
 /// simulator holds its paths to. Near lock the outer and inner angles'
 /// sensitivity to the attitude grows as `1/cos β` and the linearised model
-/// breaks down (README "Fast rolls"). `None` for a configuration `id` that
+/// breaks down (docs/estimator.md, "Fast rolls"). `None` for a configuration `id` that
 /// does not measure the gimbal angles (its model holds through lock; M1's
 /// samples carry them all the same) or when no record carries them.
 pub fn gimbal_lock_check(

@@ -14,7 +14,8 @@ use crate::report::group_of;
 use crate::sim::scenario::Scenario;
 use crate::sim::truth::{simulate, SimOptions};
 
-/// Cold-start remedies (see the `ekf` module docs and the README).
+/// Cold-start remedies (see the `ekf` module docs and docs/estimator.md,
+/// "The cold start").
 #[derive(Clone, Copy, Debug, clap::ValueEnum, PartialEq, Eq)]
 pub enum Remedy {
     /// Second-order terms in the innovation covariance (the default).

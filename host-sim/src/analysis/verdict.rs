@@ -1,5 +1,5 @@
 //! The verdict on one state: the one vocabulary of `run`, `calibrate`,
-//! `observability` and `paper` (README "Verdict words"). The words are
+//! `observability` and `paper` (docs/cli.md, "Verdict words"). The words are
 //! printed by [`Verdict`]'s `Display` and nowhere else.
 
 use std::fmt;
@@ -46,7 +46,7 @@ impl Verdict {
         Verdict::NotObservable,
     ];
 
-    /// The printed word (README "Verdict words").
+    /// The printed word (docs/cli.md, "Verdict words").
     pub const fn as_str(self) -> &'static str {
         match self {
             Verdict::Converged => "converged",

@@ -572,8 +572,8 @@ fn result<T: RealField + Copy>(
 }
 
 /// Prints the table (against the truth, or with the bound at the estimate
-/// and its verdict, never FAILED: README "Judging a calibration without a
-/// truth"), the data checks and the stream's counters; returns the
+/// and its verdict, never FAILED: docs/own-platform.md, "Judging a
+/// calibration without a truth"), the data checks and the stream's counters; returns the
 /// judgement and, without a truth, the bound at the estimate and its
 /// verdicts.
 #[allow(clippy::type_complexity)]

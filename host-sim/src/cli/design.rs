@@ -35,7 +35,8 @@ pub struct DesignArgs {
     #[arg(long, default_value_t = 1.0, value_parser = parse_positive)]
     pub target_scale: f64,
     /// Maximum rotation rate (°/s). At the paper's 0.1 °/s no path of the
-    /// search space beats the paper's (see README).
+    /// search space beats the paper's (see docs/path-design.md, "Half the
+    /// paper's time at 0.1 °/s is out of reach").
     #[arg(long, value_name = "DEG_S", default_value_t = 1.0, value_parser = parse_positive)]
     pub max_rate_deg_s: f64,
     /// Maximum duration (s); default: the reference scenario's duration.
@@ -64,7 +65,7 @@ pub struct DesignArgs {
     /// also inserts, lengthens, shortens or removes a dwell of 60, 180 or
     /// 600 s after each rotation (zero commanded rate for whole periods);
     /// the better of the searches without and with dwells wins, and it
-    /// costs 1–22 % more search time (README, "Dwells").
+    /// costs 1–22 % more search time (docs/path-design.md, "Dwells").
     #[arg(long)]
     pub no_dwells: bool,
     /// Instead of the shortest path to the targets: the path with the best

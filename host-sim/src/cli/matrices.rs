@@ -38,7 +38,7 @@ pub struct MatricesArgs {
     /// Write the calibrated matrices G and A, the compensation of the raw
     /// gyro and accelerometer outputs, R(λ), the estimates, σ and the
     /// correlation matrix as JSON to PATH, and print them as text (see
-    /// README, "Applying the result").
+    /// docs/cli.md, "Applying the result").
     #[arg(long, value_name = "PATH")]
     pub matrices: Option<PathBuf>,
     /// Write the text report of the matrices to PATH instead of stdout.

@@ -50,7 +50,7 @@ enum Command {
     /// Run all seven configurations and print one summary line each.
     Summary(args::CommonArgs),
     /// Compare the cold-start remedies over seeds and scenarios (the study
-    /// behind the default estimator; see README).
+    /// behind the default estimator; see docs/estimator.md, "The cold start").
     Remedies(remedies::RemediesArgs),
     /// Observability of all seven configurations along the scenario's path:
     /// rank, unobservable combinations, Cramér–Rao σ and verdict per state.
@@ -105,8 +105,8 @@ pub fn main() -> ExitCode {
         Some(Command::Design(args)) => design::command(&args).map_err(Error::from),
         Some(Command::Record(args)) => record::command(&args),
         Some(Command::Calibrate(args)) => match calibrate::command(&args) {
-            // A data-model warning: its own exit status (README "Judging a
-            // calibration without a truth").
+            // A data-model warning: its own exit status (docs/own-platform.md,
+            // "Judging a calibration without a truth").
             Ok(v) if v.is_warning() => {
                 return ExitCode::from(crate::analysis::checks::WARNING_EXIT)
             }

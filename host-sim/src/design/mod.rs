@@ -86,7 +86,7 @@ pub const DEFAULT_STEP_DEG: f64 = 10.0;
 pub const COARSE_SLACK: f64 = 0.01;
 /// Period by period, a target counts as met at σ ≤ (1 + this)·target: the
 /// library's commanded increments and the truth simulator's agree to this
-/// (tests/design.rs); the written scenario is then checked exactly.
+/// (host-sim/tests/it/design.rs); the written scenario is then checked exactly.
 pub const FINE_SLACK: f64 = 1e-4;
 /// Largest number of periods merged into one coarse step.
 pub const MAX_STEP_PERIODS: u64 = 30;

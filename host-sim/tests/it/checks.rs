@@ -131,7 +131,7 @@ fn unmodelled_accel_bias_is_flagged_by_segment_bias() {
 }
 
 /// A log of M2-ps whose middle gimbal comes within 5° of gimbal lock is
-/// flagged by the path check (README "Fast rolls": the model breaks down
+/// flagged by the path check (docs/estimator.md, "Fast rolls": the model breaks down
 /// there), exit status 3, the check first among the failed ones; `record`
 /// refuses such a path, so the log is written from the truth simulator
 /// here: the paper's settings, 87° about Up at 1°/s (β reaches 86.9°),

@@ -2,8 +2,8 @@
 //! covariance arithmetic in f32 ends where the f64 one does, on every
 //! shipped scenario, and its Monte Carlo sits on the Cramér–Rao bound.
 //!
-//! The figures of the README's single-precision section are printed by
-//! `cargo test --release -p host-sim --test f32 -- --nocapture`.
+//! The figures of docs/estimator.md, "Single precision", are printed by
+//! `cargo test --release -p host-sim --test it f32:: -- --nocapture`.
 
 use std::path::Path;
 

@@ -403,8 +403,8 @@ fn convergence_and_innovation_figures_have_their_size_and_content() {
 }
 
 /// Renders the figures of a real paper-scenario run (configuration M2-ps,
-/// seed 1) for looking at: `cargo test --release -p host-sim --test plots
-/// -- --ignored`, into `$ROLLCAL_PLOTS_DIR` (default: a temp directory,
+/// seed 1) for looking at: `cargo test --release -p host-sim --test it
+/// plots:: -- --ignored`, into `$ROLLCAL_PLOTS_DIR` (default: a temp directory,
 /// printed). σ_CRLB is the final bound, drawn as a constant.
 #[test]
 #[ignore = "slow (full estimator run); writes figures to look at"]
