@@ -3,7 +3,7 @@
 //! ends, its [`Piece`]s of whole periods and its scenario segments, and the
 //! reference path of a scenario as a pattern ([`pattern_of`]).
 
-use crate::scenario::{Axis, Scenario, Segment};
+use crate::sim::scenario::{Axis, Scenario, Segment};
 
 use super::{DesignError, NamedAxis};
 

@@ -8,9 +8,9 @@ use std::sync::OnceLock;
 use host_sim::analysis::montecarlo::monte_carlo;
 use host_sim::analysis::observe::{analyse, ConfigObs};
 use host_sim::analysis::runner::{expected_observable, run_filter, Estimator};
+use host_sim::analysis::verdict::Verdict;
 use host_sim::sim::scenario::{Scenario, DEG};
 use host_sim::sim::truth::{simulate, SimOptions, Simulation};
-use host_sim::analysis::verdict::Verdict;
 use nalgebra::SVector;
 use rollcal::models::{ConfigId, Group, M1Ps};
 use rollcal::observability::{Observability, RANK_TOLERANCE};
@@ -93,7 +93,8 @@ fn earth_rate_resolves_the_azimuth_but_not_the_ps_gauge() {
 fn m1ps_information(earth_rate: bool, at_truth: bool) -> (nalgebra::SMatrix<f64, 15, 15>, f64) {
     let scenario = Scenario::paper();
     let sim = clean(earth_rate);
-    let cfg = host_sim::analysis::runner::filter_config(&scenario, earth_rate, rollcal::Options::plain());
+    let cfg =
+        host_sim::analysis::runner::filter_config(&scenario, earth_rate, rollcal::Options::plain());
     let x0 = if at_truth {
         let t = host_sim::sim::truth::truth_state(ConfigId::M1Ps, &sim.params, &sim.initial);
         SVector::<f64, 15>::from_iterator(t)
