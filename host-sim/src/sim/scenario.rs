@@ -92,7 +92,7 @@ pub struct Segment {
 
 /// `skip_serializing_if` for an optional dwell: absent when zero, so paths
 /// without dwells serialise as before.
-fn is_zero(x: &f64) -> bool {
+pub(crate) fn is_zero(x: &f64) -> bool {
     *x == 0.0
 }
 
