@@ -9,9 +9,9 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use host_sim::runner::{run_filter, Estimator};
-use host_sim::scenario::Scenario;
-use host_sim::truth::{simulate, SimOptions};
+use host_sim::analysis::runner::{run_filter, Estimator};
+use host_sim::sim::scenario::Scenario;
+use host_sim::sim::truth::{simulate, SimOptions};
 use rollcal::models::ConfigId;
 
 fn bench(c: &mut Criterion) {

@@ -13,8 +13,8 @@
 //! - [`io`]: streams of wire frames, the CSV log, the truth sidecar;
 //! - [`design`]: designing the rolling path (the shortest path that reaches
 //!   target σ_CRLB, or the best within a budget);
-//! - [`report`], [`html`], [`plots`], [`progress`]: tables, JSON and CSV of
-//!   runs, the HTML report, PNG figures, progress on stderr.
+//! - [`output`]: tables, JSON and CSV of runs, the HTML report, PNG
+//!   figures, progress on stderr.
 
 pub mod analysis;
 pub mod cli;
@@ -22,13 +22,3 @@ pub mod design;
 pub mod io;
 pub mod output;
 pub mod sim;
-
-// merge: the flat paths of before the role folders.
-#[doc(hidden)]
-pub use analysis::{checks, compensation, montecarlo, observe, paper, runner, verdict};
-#[doc(hidden)]
-pub use io::{csvlog, stream};
-#[doc(hidden)]
-pub use output::{html, plots, progress, report};
-#[doc(hidden)]
-pub use sim::{impair, scenario, segments, truth};

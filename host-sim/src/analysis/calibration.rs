@@ -6,12 +6,12 @@
 //! truth.
 
 use nalgebra::RealField;
-use rollcal::calibrator::{Calibrator, RejectReason};
+use rollcal::calibrator::RejectReason;
 use rollcal::ekf::{self, FilterConfig, Options};
-use rollcal::estimator::{EstimatorOptions, LogError, LogRecord, SampleLog};
-use rollcal::models::{ConfigId, Environment, Model};
+use rollcal::estimator::{EstimatorOptions, LogError, LogRecord, PassEvent, SampleLog};
+use rollcal::models::{ConfigId, Model};
 use rollcal::observability::Observability;
-use rollcal::session::{AnyCalibrator, Reply, Session};
+use rollcal::session::{Covariance, PassObserver, Reply, Session};
 use rollcal::wire::{CalibratorConfig, Estimate, Message};
 
 use crate::analysis::runner;
@@ -39,21 +39,6 @@ pub fn platform_config(p: &Platform, id: ConfigId, earth_rate: bool) -> Calibrat
     c.prior_sigma_rad = p.prior.sigma_deg * DEG;
     c.limits.period_s = p.timing.period_s;
     c
-}
-
-/// The filter settings of a calibrator configuration (f64).
-// merge: use core `From<&CalibratorConfig> for FilterConfig<T>`.
-pub fn filter_config(c: &CalibratorConfig) -> FilterConfig<f64> {
-    FilterConfig {
-        env: Environment {
-            earth_rate_n: c.earth_rate_n.into(),
-            gravity_n: c.gravity_n.into(),
-        },
-        sigma_accel: c.sigma_accel_g,
-        sigma_gyro: c.sigma_gyro_rad_s,
-        sigma_gimbal: c.sigma_gimbal_rad,
-        options: c.options,
-    }
 }
 
 /// The host's sample log: a vector that grows as needed.
@@ -208,17 +193,16 @@ impl<T: RealField + Copy> Host<T> {
             ..EstimatorOptions::default()
         };
         let cal = self.session.calibrator()?;
-        let (mut nis, mut updates, mut history, mut pass) = (Vec::new(), Vec::new(), Vec::new(), 0);
-        let (estimate, covariance) = finish_with_covariance(cal, &mut self.log, &opts, &mut |ev| {
-            if ev.pass != pass {
-                (pass, nis, updates, history) = (ev.pass, Vec::new(), Vec::new(), Vec::new());
-            }
-            if let Some(u) = ev.update {
-                nis.push(u.nis);
-                updates.push(u);
-            }
-            history.push((ev.t_s, ev.state, ev.sigma));
-        });
+        let mut last = LastPass::default();
+        let mut covariance = Covariance::new();
+        let estimate = cal.finish_with_covariance(&mut self.log, &opts, &mut last, &mut covariance);
+        let LastPass {
+            nis,
+            updates,
+            history,
+            ..
+        } = last;
+        let covariance = covariance.to_vec();
         Some(Final {
             estimate,
             nis,
@@ -229,67 +213,47 @@ impl<T: RealField + Copy> Host<T> {
     }
 }
 
-/// One record of a pass of [`finish_with_covariance`].
-struct FinishEvent {
-    /// Pass number, from 1.
+/// What [`Host::finish`] keeps of the passes of
+/// [`rollcal::session::AnyCalibrator::finish_with_covariance`]: the last
+/// pass's NIS, updates and history (time, estimate and σ after every
+/// record).
+#[derive(Default)]
+struct LastPass {
+    /// The pass being recorded (number, from 1; 0 before the first).
     pass: u8,
-    /// Time at the end of the record's period (s from the start of the log).
+    /// Time at the end of the last record's period (s from the start of
+    /// the log).
     t_s: f64,
-    /// The accepted update of the record, if any.
-    update: Option<runner::Update>,
-    /// Estimate after the record (rad).
-    state: Vec<f64>,
-    /// σ after the record (rad).
-    sigma: Vec<f64>,
+    /// NIS of every accepted update of the pass.
+    nis: Vec<f64>,
+    /// Every accepted update of the pass.
+    updates: Vec<runner::Update>,
+    /// Time (s), estimate (rad) and σ (rad) after every record of the pass.
+    history: Vec<(f64, Vec<f64>, Vec<f64>)>,
 }
 
-/// [`AnyCalibrator::finish`], also returning the final filter's covariance
-/// (row-major, rad²; empty when the passes did not run).
-// merge: use the core covariance accessor of the session's `AnyCalibrator`.
-fn finish_with_covariance<T: RealField + Copy>(
-    cal: &AnyCalibrator<T>,
-    log: &mut (dyn SampleLog<T> + '_),
-    passes: &EstimatorOptions,
-    on_record: &mut dyn FnMut(FinishEvent),
-) -> (Estimate, Vec<f64>) {
-    fn one<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize>(
-        c: &Calibrator<T, M, N, Z>,
-        log: &mut (dyn SampleLog<T> + '_),
-        passes: &EstimatorOptions,
-        on_record: &mut dyn FnMut(FinishEvent),
-    ) -> (Estimate, Vec<f64>) {
+impl<T: RealField + Copy> PassObserver<T> for LastPass {
+    fn step<M: Model<N, Z>, const N: usize, const Z: usize>(
+        &mut self,
+        e: &PassEvent<'_, T, M, N, Z>,
+    ) {
         let f = |v: &T| v.to_subset().unwrap_or(f64::NAN);
-        let mut t = 0.0;
-        let (estimate, filter) = c.finish(log, passes, |e| {
-            t = if e.index == 0 { 0.0 } else { t } + e.record.dt;
-            on_record(FinishEvent {
-                pass: e.pass,
-                t_s: t,
-                update: match &e.result {
-                    Ok(Some(i)) => Some(runner::Update::of(e.index, t, i)),
-                    _ => None,
-                },
-                state: e.filter.state().iter().copied().collect(),
-                sigma: e.filter.sigma().iter().map(f).collect(),
-            })
-        });
-        let covariance = filter.map_or_else(Vec::new, |f| {
-            f.covariance()
-                .transpose()
-                .iter()
-                .map(|v| v.to_subset().unwrap_or(f64::NAN))
-                .collect()
-        });
-        (estimate, covariance)
-    }
-    match cal {
-        AnyCalibrator::M1Pa(c) => one(c, log, passes, on_record),
-        AnyCalibrator::M1Ps(c) => one(c, log, passes, on_record),
-        AnyCalibrator::M2Ps(c) => one(c, log, passes, on_record),
-        AnyCalibrator::M3Pa(c) => one(c, log, passes, on_record),
-        AnyCalibrator::M3Ps(c) => one(c, log, passes, on_record),
-        AnyCalibrator::M4Pa(c) => one(c, log, passes, on_record),
-        AnyCalibrator::M4Ps(c) => one(c, log, passes, on_record),
+        self.t_s = if e.index == 0 { 0.0 } else { self.t_s } + e.record.dt;
+        let t = self.t_s;
+        if e.pass != self.pass {
+            (self.pass, self.nis, self.updates, self.history) =
+                (e.pass, Vec::new(), Vec::new(), Vec::new());
+        }
+        if let Ok(Some(i)) = &e.result {
+            let u = runner::Update::of(e.index, t, i);
+            self.nis.push(u.nis);
+            self.updates.push(u);
+        }
+        self.history.push((
+            t,
+            e.filter.state().iter().copied().collect(),
+            e.filter.sigma().iter().map(f).collect(),
+        ));
     }
 }
 

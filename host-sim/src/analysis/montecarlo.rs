@@ -60,7 +60,7 @@ impl Consistency {
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct MonteCarlo {
     /// Configuration.
-    #[serde(serialize_with = "ser_config")]
+    #[serde(serialize_with = "observe::ser_config")]
     pub config: ConfigId,
     /// Precision of the filter's covariance arithmetic.
     pub precision: crate::analysis::runner::Precision,
@@ -80,10 +80,6 @@ pub struct MonteCarlo {
     pub worst: (u64, &'static str, u8),
     /// Wall time (s).
     pub wall_s: f64,
-}
-
-fn ser_config<S: serde::Serializer>(c: &ConfigId, s: S) -> Result<S::Ok, S::Error> {
-    s.serialize_str(c.as_str())
 }
 
 // The χ² and normal quantiles: one implementation, in `statistics`.

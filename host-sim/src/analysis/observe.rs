@@ -71,7 +71,8 @@ pub struct ConfigObs {
     pub crlb_history: Vec<Vec<f64>>,
 }
 
-fn ser_config<S: serde::Serializer>(c: &ConfigId, s: S) -> Result<S::Ok, S::Error> {
+/// A configuration in JSON: its name (`"M1-pa"`).
+pub(crate) fn ser_config<S: serde::Serializer>(c: &ConfigId, s: S) -> Result<S::Ok, S::Error> {
     s.serialize_str(c.as_str())
 }
 

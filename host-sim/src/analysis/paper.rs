@@ -14,7 +14,7 @@ use crate::analysis::runner::{
 };
 use crate::analysis::verdict::Verdict;
 use crate::analysis::Error;
-use crate::plots::{plot_group_marked, Curve};
+use crate::output::plots::{plot_group_marked, Curve};
 use crate::sim::scenario::{Scenario, ARCSEC};
 use crate::sim::truth::{simulate, SimOptions, Simulation};
 

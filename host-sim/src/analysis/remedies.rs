@@ -10,7 +10,7 @@ use rollcal::models::ConfigId;
 
 use crate::analysis::runner::{expected_observable, run_filter, Estimator, Precision};
 use crate::analysis::Error;
-use crate::report::group_of;
+use crate::output::report::group_of;
 use crate::sim::scenario::Scenario;
 use crate::sim::truth::{simulate, SimOptions};
 

@@ -8,7 +8,7 @@ use rollcal::models::{ConfigId, Group};
 
 use crate::analysis::runner::StateResult;
 
-pub use rollcal::observability::PRACTICAL_RATIO;
+pub use rollcal::observability::{expected_observable, PRACTICAL_RATIO};
 
 /// What a run or an analysis says of one state.
 ///
@@ -119,19 +119,5 @@ pub fn verdict(id: ConfigId, s: &StateResult, group: Group, prior: f64) -> Verdi
         Verdict::Observable
     } else {
         Verdict::NotObservable
-    }
-}
-
-// merge: use core `observability::expected_observable` (the one home of
-// which states a configuration observes).
-/// Whether a state is expected to converge in configuration `id` (docs/model.md
-/// §Configurations), used for summaries.
-pub fn expected_observable(id: ConfigId, name: &str, group: Group) -> bool {
-    use ConfigId::*;
-    match group {
-        Group::ThetaGT | Group::ThetaAT => true,
-        Group::ThetaGC | Group::ThetaAC => matches!(id, M1Pa | M2Ps | M3Pa | M4Pa),
-        Group::Lambda => id == M2Ps && (name == "lam_x" || name == "lam_z"),
-        Group::Attitude => false,
     }
 }

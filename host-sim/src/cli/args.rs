@@ -9,11 +9,14 @@ use rollcal::models::ConfigId;
 use super::Error;
 use crate::analysis::remedies::Remedy;
 use crate::analysis::runner::{Estimator, Precision};
-use crate::sim::scenario::Scenario;
+use crate::sim::scenario::{config_message, Scenario};
 
-/// The value parser of every `--config` (see [`crate::sim::scenario::parse_config`]).
+/// The value parser of every `--config`: a configuration by name, M1-pa,
+/// M1-ps, M2-ps, M3-pa, M3-ps, M4-pa, M4-ps (case-insensitive; core's
+/// `FromStr for ConfigId`); the error names the seven
+/// ([`config_message`]).
 pub fn parse_config(s: &str) -> Result<ConfigId, String> {
-    crate::sim::scenario::parse_config(s)
+    s.parse::<ConfigId>().map_err(|e| config_message(&e, s))
 }
 
 /// The scenario of a `--scenario` option (default: the paper's).

@@ -37,6 +37,7 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant as Clock};
 
 use nalgebra::RealField;
+use rollcal::ekf::FilterConfig;
 use rollcal::estimator::LogRecord;
 use rollcal::models::ConfigId;
 use rollcal::wire::{
@@ -47,15 +48,15 @@ use super::args::{load_scenario, parse_config};
 use super::checks::print_judgement;
 use super::Error;
 use crate::analysis::calibration::{
-    bound_at_estimate, filter_config, platform_config, CalibratorView, Final, Host,
+    bound_at_estimate, platform_config, CalibratorView, Final, Host,
 };
 use crate::analysis::checks::{self, DataVerdict, Judgement};
 use crate::analysis::runner::{self, Passes, Precision, RunResult};
 use crate::analysis::verdict::Verdict;
 use crate::io::sidecar::{read_sidecar, Sidecar};
 use crate::io::stream::{frames_json, read_input, read_text, reject_json, Format};
-use crate::progress::Progress;
-use crate::report::{print_table, print_table_no_truth, run_json, write_json};
+use crate::output::progress::Progress;
+use crate::output::report::{print_table, print_table_no_truth, run_json, write_json};
 use crate::sim::scenario::Platform;
 
 /// Arguments of `host-sim calibrate`.
@@ -127,7 +128,7 @@ pub fn command(args: &CalibrateArgs) -> Result<DataVerdict, Error> {
 fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<DataVerdict, Error> {
     let t0 = Clock::now();
     if let Some(dir) = &args.report {
-        crate::html::prepare_dir(dir)?;
+        crate::output::html::prepare_dir(dir)?;
     }
     let input = input(args)?;
     let mut host = Host::<T>::new(
@@ -493,7 +494,7 @@ fn received_bound<T: RealField + Copy>(
             (Some(t0), None) => Some(
                 runner::bound(
                     settings.config,
-                    filter_config(settings),
+                    FilterConfig::<f64>::from(settings),
                     t0,
                     sigma0,
                     &host.log.records_f64(),
@@ -602,7 +603,7 @@ fn print_results(c: &Calibration) -> Result<(Judgement, Option<(Vec<f64>, Vec<Ve
         };
         let (b, v) = bound_at_estimate(
             id,
-            filter_config(&c.settings),
+            FilterConfig::<f64>::from(&c.settings),
             end.as_deref(),
             &zeros,
             c.settings.prior_sigma_rad,
@@ -730,7 +731,7 @@ fn report(
         Some(t0) if c.received_bound.is_some() => Some(
             runner::bound_history(
                 id,
-                filter_config(&c.settings),
+                FilterConfig::<f64>::from(&c.settings),
                 t0,
                 c.settings.prior_sigma_rad,
                 &c.records,
@@ -781,7 +782,7 @@ fn report(
         ),
     ];
     let crlb = c.sidecar.as_ref().map(|_| c.crlb.as_slice());
-    let page = crate::html::report_of_calibration(
+    let page = crate::output::html::report_of_calibration(
         dir,
         r,
         crlb,

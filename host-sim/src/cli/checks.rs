@@ -6,16 +6,17 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use rollcal::models::ConfigId;
 
-use super::args::{load_scenario, parse_config};
+use super::args::load_scenario;
 use super::Error;
 use crate::analysis::checks::{cases, rates, Case, Judgement, FALSE_ALARM};
-use crate::progress::Progress;
-use crate::report::write_json;
+use crate::output::progress::Progress;
+use crate::output::report::write_json;
 
-/// `--config` of `checks`: [`parse_config`] with the short message this
-/// subcommand has always given.
+/// `--config` of `checks`: core's `FromStr for ConfigId`, with the short
+/// message this subcommand has always given.
 fn parse_config_short(s: &str) -> Result<ConfigId, String> {
-    parse_config(s).map_err(|_| format!("unknown configuration '{s}'"))
+    s.parse::<ConfigId>()
+        .map_err(|_| format!("unknown configuration '{s}'"))
 }
 
 /// Arguments of `host-sim checks`.

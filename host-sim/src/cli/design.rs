@@ -14,13 +14,13 @@ use crate::design::{
     CoarseCheck, Design, DwellProbe, Goal, NamedAxis, Outcome, Pattern, Problem, Space, Speed,
     TargetArg, DEFAULT_STEP_DEG, DWELL_STEPS_S,
 };
-use crate::scenario::{Axis, Scenario, ARCSEC};
+use crate::sim::scenario::{Axis, Scenario, ARCSEC};
 
 /// Arguments of `host-sim design`.
 #[derive(clap::Args, Clone, Debug)]
 pub struct DesignArgs {
     /// Configuration: M1-pa, M1-ps, M2-ps, M3-pa, M3-ps, M4-pa, M4-ps (case-insensitive).
-    #[arg(long, value_parser = parse_config_id)]
+    #[arg(long, value_parser = super::args::parse_config)]
     pub config: ConfigId,
     /// Scenario file (TOML): site, noise, truth, timing, prior, and the
     /// reference path the targets default to; default: the paper's scenario.
@@ -106,16 +106,6 @@ pub struct DesignArgs {
     pub measure_speed: bool,
 }
 
-fn parse_config_id(s: &str) -> Result<ConfigId, String> {
-    ConfigId::parse(s).ok_or_else(|| {
-        let ids: Vec<&str> = ConfigId::ALL.iter().map(|c| c.as_str()).collect();
-        format!(
-            "unknown configuration '{s}' (expected one of {})",
-            ids.join(", ")
-        )
-    })
-}
-
 fn parse_positive(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
@@ -156,7 +146,7 @@ fn setup(args: &DesignArgs) -> Result<Setup, String> {
     if max_periods == 0 {
         return Err("--max-duration-s is shorter than one period".into());
     }
-    let limit = crate::scenario::MAX_PERIODS;
+    let limit = crate::sim::scenario::MAX_PERIODS;
     if max_periods > limit {
         return Err(format!(
             "--max-duration-s {max_duration} is {max_periods} periods, more than the {limit} this tool simulates"
@@ -186,7 +176,7 @@ fn setup(args: &DesignArgs) -> Result<Setup, String> {
 /// The goal of `args`: the shortest path (within `max_periods`), or the
 /// best within `--budget-s`.
 fn goal_of(args: &DesignArgs, period_s: f64, max_periods: u64) -> Result<Goal, String> {
-    let limit = crate::scenario::MAX_PERIODS;
+    let limit = crate::sim::scenario::MAX_PERIODS;
     Ok(match args.budget_s {
         Some(b) => {
             let p = (b / period_s).round() as u64;

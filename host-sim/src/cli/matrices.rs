@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use super::Error;
 use crate::analysis::compensation::{of_run, Compensation};
 use crate::analysis::runner::RunResult;
-use crate::report::write_json;
+use crate::output::report::write_json;
 
 /// `--matrices PATH` and `--matrices-txt PATH` of `run` and `calibrate`:
 /// writes the JSON to `json` and the text report to `txt`, or to stdout

@@ -10,8 +10,8 @@ use super::args::{load_scenario, parse_config};
 use super::Error;
 use crate::analysis::montecarlo::{monte_carlo, Consistency, MonteCarlo};
 use crate::analysis::runner::{Estimator, Precision};
-use crate::progress::Progress;
-use crate::report::write_json;
+use crate::output::progress::Progress;
+use crate::output::report::write_json;
 use crate::sim::scenario::ARCSEC;
 
 /// Arguments of `host-sim montecarlo`.

@@ -12,7 +12,7 @@ use super::Error;
 use crate::analysis::observe::{
     analyse_all, changes, format_combination, report_json, verdict_matrix_markdown, ConfigObs,
 };
-use crate::report::write_json;
+use crate::output::report::write_json;
 use crate::sim::scenario::ARCSEC;
 
 /// Arguments of `host-sim observability`.

@@ -8,7 +8,7 @@ use super::args::load_scenario;
 use super::Error;
 use crate::analysis::observe::verdict_matrix_markdown;
 use crate::analysis::paper::{all_good, overview_markdown, paper, PROGRESS_STEPS};
-use crate::progress::Progress;
+use crate::output::progress::Progress;
 
 /// Arguments of `host-sim paper`.
 #[derive(clap::Args)]

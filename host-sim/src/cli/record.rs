@@ -14,7 +14,7 @@ use crate::analysis::calibration::calibrator_config;
 use crate::io::csvlog;
 use crate::io::sidecar::truth_json;
 use crate::io::stream::{push_frame, refuse_terminal, to_sample, Format};
-use crate::report::write_json;
+use crate::output::report::write_json;
 use crate::sim::impair::{Applied, Impairments};
 use crate::sim::truth::{check_gimbal_lock, simulate, SimOptions};
 

@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use super::Error;
 use crate::analysis::remedies::{estimators, study, tally, CONFIGS};
-use crate::progress::Progress;
+use crate::output::progress::Progress;
 use crate::sim::scenario::Scenario;
 
 /// Arguments of `host-sim remedies`.

@@ -9,7 +9,7 @@ use rollcal::models::ConfigId;
 use super::args::{load_scenario, parse_config, CommonArgs};
 use super::Error;
 use crate::analysis::runner::SimulatedRun;
-use crate::report::{print_table, run_json, write_csv, write_json};
+use crate::output::report::{print_table, run_json, write_csv, write_json};
 use crate::sim::truth::{simulate, SimOptions};
 
 /// Arguments of `host-sim run`.
@@ -41,7 +41,7 @@ pub fn command(args: &RunArgs) -> Result<(), Error> {
     let scenario = load_scenario(c.scenario.as_deref())?;
     let earth_rate = !c.no_earth_rate && scenario.site.earth_rate;
     if let Some(dir) = &args.report {
-        crate::html::prepare_dir(dir)?;
+        crate::output::html::prepare_dir(dir)?;
     }
     let t0 = Instant::now();
     eprintln!(
@@ -93,7 +93,9 @@ pub fn command(args: &RunArgs) -> Result<(), Error> {
             ("passes".into(), r.passes.to_string()),
             ("precision".into(), c.precision.as_str().into()),
         ];
-        let page = crate::html::report_of_run(dir, &r, &scenario, &sim, earth_rate, &crlb, header)?;
+        let page = crate::output::html::report_of_run(
+            dir, &r, &scenario, &sim, earth_rate, &crlb, header,
+        )?;
         eprintln!("report: {}", page.display());
     }
     Ok(())

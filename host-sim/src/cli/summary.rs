@@ -8,7 +8,7 @@ use rollcal::models::ConfigId;
 use super::args::{load_scenario, CommonArgs};
 use super::Error;
 use crate::analysis::runner::{expected_observable, run_filter};
-use crate::report::group_of;
+use crate::output::report::group_of;
 use crate::sim::truth::{simulate, SimOptions};
 
 /// `host-sim summary`.

@@ -1,7 +1,7 @@
 //! The n-frame rotation axes of a path, named (`north`, `up`, …) or tilted
 //! half-way between two of them (`north+up`).
 
-use crate::scenario::Axis;
+use crate::sim::scenario::Axis;
 
 use super::DesignError;
 

@@ -10,9 +10,9 @@ use rollcal::geometry::euler_angles;
 use rollcal::models::{ConfigId, Model};
 use rollcal::observability::Bound;
 
-use crate::runner::filter_config;
-use crate::scenario::{Scenario, DEG};
-use crate::truth::{truth_state, TruthParams};
+use crate::analysis::runner::filter_config;
+use crate::sim::scenario::{Scenario, DEG};
+use crate::sim::truth::{truth_state, TruthParams};
 
 use super::pattern::gcd;
 use super::{
@@ -26,7 +26,7 @@ impl Problem {
         let params = TruthParams::from_scenario(s);
         let c_r_n = rollcal::geometry::dcm(&params.lambda);
         let c_ps_n = rollcal::geometry::gimbal_dcm(&params.gimbal0) * c_r_n;
-        let at = crate::truth::Instant {
+        let at = crate::sim::truth::Instant {
             t: 0.0,
             c_ps_n,
             c_c_n: nalgebra::Matrix3::identity(),

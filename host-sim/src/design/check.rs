@@ -3,16 +3,16 @@
 //! `host-sim observability --scenario` computes it ([`observability_sigma`],
 //! [`check_designed`]), and the scenario file itself ([`scenario_toml`]).
 
-use crate::scenario::{Scenario, Segment, DEG};
+use crate::sim::scenario::{Scenario, Segment, DEG};
 
 use super::{Design, DesignError, Goal, Outcome, Pattern, Problem};
 
 /// σ of every target of `problem` after the bound of `scenario`'s
 /// simulated run (`host-sim observability --scenario` exactly).
 pub fn observability_sigma(problem: &Problem, s: &Scenario) -> Result<Vec<f64>, DesignError> {
-    let sim = crate::truth::simulate(
+    let sim = crate::sim::truth::simulate(
         s,
-        crate::truth::SimOptions {
+        crate::sim::truth::SimOptions {
             seed: 0,
             noise: false,
             earth_rate: s.site.earth_rate,
@@ -29,7 +29,7 @@ pub fn observability_sigma(problem: &Problem, s: &Scenario) -> Result<Vec<f64>, 
             limit_deg: problem.max_beta / DEG,
         });
     }
-    let obs = crate::observe::analyse(problem.config, s, &sim, s.site.earth_rate, false)
+    let obs = crate::analysis::observe::analyse(problem.config, s, &sim, s.site.earth_rate, false)
         .map_err(|e| DesignError::Observability(e.to_string()))?;
     Ok(obs.states.iter().map(|x| x.sigma_crlb_rad).collect())
 }

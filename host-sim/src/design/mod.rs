@@ -10,7 +10,7 @@
 //! path rate `u`), not from the truth simulator: the bound depends on the
 //! commanded motion only, and the truth simulator's RK4 integral of the same
 //! motion agrees to rounding (tested). The designed path is finally checked
-//! by [`crate::observe::analyse`] on the simulated run, exactly as
+//! by [`crate::analysis::observe::analyse`] on the simulated run, exactly as
 //! `host-sim observability --scenario` computes it.
 //!
 //! **Coarse steps.** During the search, `k` filter periods are merged into

@@ -3,7 +3,7 @@
 //! ends, its [`Piece`]s of whole periods and its scenario segments, and the
 //! reference path of a scenario as a pattern ([`pattern_of`]).
 
-use crate::scenario::{Axis, Scenario, Segment};
+use crate::sim::scenario::{Axis, Scenario, Segment};
 
 use super::{DesignError, NamedAxis};
 
@@ -19,12 +19,8 @@ pub struct Rotation {
     pub rate_deg_s: f64,
     /// Hold still this long after the rotation (s, whole periods): zero
     /// commanded path rate, as `dwell_s` of a scenario segment.
-    #[serde(skip_serializing_if = "is_zero")]
+    #[serde(skip_serializing_if = "crate::sim::scenario::is_zero")]
     pub dwell_s: f64,
-}
-
-fn is_zero(x: &f64) -> bool {
-    *x == 0.0
 }
 
 /// `x / period_s` if it is a whole number ≥ 0.

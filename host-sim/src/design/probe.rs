@@ -41,7 +41,7 @@ pub fn dwell_probe(
     // reaches the targets, not only that it misses the limit.
     let g = match goal {
         Goal::Reach { .. } => Goal::Reach {
-            cutoff: (2 * max_periods).min(crate::scenario::MAX_PERIODS),
+            cutoff: (2 * max_periods).min(crate::sim::scenario::MAX_PERIODS),
         },
         b => b,
     };

@@ -4,7 +4,7 @@
 
 use rayon::prelude::*;
 
-use crate::scenario::Scenario;
+use crate::sim::scenario::Scenario;
 
 use super::{DesignError, Goal, Pattern, Problem};
 
@@ -52,9 +52,9 @@ pub fn measure_speed(
     }
     let fine_s = t0.elapsed().as_secs_f64() / 5.0;
     let t0 = std::time::Instant::now();
-    let sim = crate::truth::simulate(
+    let sim = crate::sim::truth::simulate(
         designed,
-        crate::truth::SimOptions {
+        crate::sim::truth::SimOptions {
             seed: 1,
             noise: true,
             earth_rate: designed.site.earth_rate,
@@ -67,12 +67,12 @@ pub fn measure_speed(
     let t0 = std::time::Instant::now();
     let mut passes = 0;
     for _ in 0..est_reps {
-        passes = crate::runner::run_filter(
+        passes = crate::analysis::runner::run_filter(
             problem.config,
             designed,
             &sim,
             designed.site.earth_rate,
-            crate::runner::Estimator::default(),
+            crate::analysis::runner::Estimator::default(),
             None,
             false,
         )

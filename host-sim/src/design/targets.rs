@@ -4,7 +4,7 @@
 
 use rollcal::models::{ConfigId, Group};
 
-use crate::scenario::ARCSEC;
+use crate::sim::scenario::ARCSEC;
 
 use super::DesignError;
 
@@ -55,7 +55,7 @@ pub fn default_target_states(id: ConfigId) -> Vec<usize> {
     id.states()
         .iter()
         .enumerate()
-        .filter(|(_, s)| crate::montecarlo::in_parameter_block(id, s.name, s.group))
+        .filter(|(_, s)| crate::analysis::montecarlo::in_parameter_block(id, s.name, s.group))
         .map(|(i, _)| i)
         .collect()
 }

@@ -3,7 +3,7 @@
 use rollcal::models::ConfigId;
 
 use super::*;
-use crate::scenario::Scenario;
+use crate::sim::scenario::Scenario;
 
 fn space() -> Space {
     Space {

@@ -21,11 +21,11 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use crate::checks::{Check, Judgement};
+use crate::analysis::checks::{Check, Judgement};
+use crate::analysis::runner::{RunResult, Verdict};
 use crate::output::plots::{self, Curve, Innovations, SigmaSeries};
-use crate::runner::{RunResult, Verdict};
-use crate::scenario::ARCSEC;
-use crate::segments::switch_times;
+use crate::sim::scenario::ARCSEC;
+use crate::sim::segments::switch_times;
 
 /// Everything the report shows.
 pub struct Report<'a> {
@@ -45,7 +45,7 @@ pub struct Report<'a> {
     /// it the error figures use the final truth for the constant parameters
     /// and leave out the (time-varying) attitude.
     pub truth_history: Option<&'a [Vec<f64>]>,
-    /// The consistency checks ([`crate::checks`]).
+    /// The consistency checks ([`crate::analysis::checks`]).
     pub checks: &'a [Check],
     /// The verdict on the data (`consistent` or `warning: …`).
     pub verdict: &'a str,
@@ -68,13 +68,13 @@ pub fn prepare_dir(dir: &Path) -> Result<(), String> {
 }
 
 /// Two-sided 99 % band of the mean of `n` NIS values of `dof` degrees of
-/// freedom each (Wilson–Hilferty, [`crate::montecarlo::chi2_quantile`]).
+/// freedom each (Wilson–Hilferty, [`crate::analysis::montecarlo::chi2_quantile`]).
 pub fn nis_band(n: usize, dof: usize) -> (f64, f64) {
     let k = (n * dof) as f64;
     let n = n as f64;
     (
-        crate::montecarlo::chi2_quantile(0.005, k) / n,
-        crate::montecarlo::chi2_quantile(0.995, k) / n,
+        crate::analysis::montecarlo::chi2_quantile(0.005, k) / n,
+        crate::analysis::montecarlo::chi2_quantile(0.995, k) / n,
     )
 }
 
@@ -531,24 +531,33 @@ fn checks_table(h: &mut String, checks: &[Check]) {
 pub fn report_of_run(
     dir: &Path,
     r: &RunResult,
-    scenario: &crate::scenario::Scenario,
-    sim: &crate::truth::Simulation,
+    scenario: &crate::sim::scenario::Scenario,
+    sim: &crate::sim::truth::Simulation,
     earth_rate: bool,
     crlb: &[f64],
     header: Vec<(String, String)>,
 ) -> Result<PathBuf, String> {
     let id = r.config;
-    let cfg = crate::runner::filter_config(scenario, earth_rate, rollcal::ekf::Options::plain());
-    let truth0 = crate::truth::truth_state(id, &sim.params, &sim.initial);
-    let records: Vec<_> = sim.samples.iter().map(crate::runner::log_record).collect();
-    let crlb_history = crate::runner::bound_history(id, cfg, &truth0, r.prior_sigma_rad, &records)
-        .map_err(|e| format!("Cramér–Rao bound: {e}"))?;
+    let cfg = crate::analysis::runner::filter_config(
+        scenario,
+        earth_rate,
+        rollcal::ekf::Options::plain(),
+    );
+    let truth0 = crate::sim::truth::truth_state(id, &sim.params, &sim.initial);
+    let records: Vec<_> = sim
+        .samples
+        .iter()
+        .map(crate::analysis::runner::log_record)
+        .collect();
+    let crlb_history =
+        crate::analysis::runner::bound_history(id, cfg, &truth0, r.prior_sigma_rad, &records)
+            .map_err(|e| format!("Cramér–Rao bound: {e}"))?;
     let truth_history: Vec<Vec<f64>> = sim
         .samples
         .iter()
-        .map(|s| crate::truth::truth_state(id, &sim.params, &s.truth))
+        .map(|s| crate::sim::truth::truth_state(id, &sim.params, &s.truth))
         .collect();
-    let judgement = crate::checks::judge(r);
+    let judgement = crate::analysis::checks::judge(r);
     let verdict = judgement.verdict.to_string();
     write_report(
         dir,
@@ -569,12 +578,12 @@ pub fn report_of_run(
 }
 
 /// The verdict on every state of `r` against its truth, as the tables
-/// print it ([`crate::runner::verdict`]).
+/// print it ([`crate::analysis::runner::verdict`]).
 pub fn state_verdicts(r: &RunResult) -> Vec<Verdict> {
     r.states
         .iter()
         .map(|s| {
-            crate::runner::verdict(
+            crate::analysis::runner::verdict(
                 r.config,
                 s,
                 crate::output::report::group_of(s.group),

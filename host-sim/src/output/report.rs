@@ -5,8 +5,8 @@ use std::path::Path;
 
 use rollcal::models::Group;
 
-use crate::runner::RunResult;
-use crate::scenario::ARCSEC;
+use crate::analysis::runner::RunResult;
+use crate::sim::scenario::ARCSEC;
 
 /// The `run` JSON document: configuration, seed, Earth rate, duration and
 /// the final states (names and units are an interface: `*_rad`).
@@ -55,7 +55,7 @@ pub fn print_table(r: &RunResult, crlb: &[f64]) {
     );
     for (s, c) in r.states.iter().zip(crlb) {
         let group = group_of(s.group);
-        let verdict = crate::runner::verdict(r.config, s, group, r.prior_sigma_rad);
+        let verdict = crate::analysis::runner::verdict(r.config, s, group, r.prior_sigma_rad);
         println!(
             "{:<11} {:>12.3} {:>12.3} {:>10.4} {:>10.4} {:>8.2} {:>10.4} {:>8.3}  {}",
             s.name,
@@ -75,10 +75,14 @@ pub fn print_table(r: &RunResult, crlb: &[f64]) {
 /// Prints the final table of a run without a truth: per state the
 /// estimate and σ, the bound σ at the estimate along the received path
 /// (`bound`), σ/bound and the observability verdict of that bound
-/// (`verdicts`: [`crate::verdict::Verdict::of_bound`]); never a truth
+/// (`verdicts`: [`crate::analysis::verdict::Verdict::of_bound`]); never a truth
 /// column or `FAILED`. Then the failures and the mean NIS as
 /// [`print_table`].
-pub fn print_table_no_truth(r: &RunResult, bound: &[f64], verdicts: &[crate::verdict::Verdict]) {
+pub fn print_table_no_truth(
+    r: &RunResult,
+    bound: &[f64],
+    verdicts: &[crate::analysis::verdict::Verdict],
+) {
     println!(
         "{:<11} {:>12} {:>10} {:>10} {:>8}  verdict (the bound at the estimate, received path)",
         "state", "estimate ″", "σ ″", "bound ″", "σ/bound"

@@ -5,7 +5,7 @@
 use std::fmt;
 use std::path::Path;
 
-use rollcal::models::ConfigId;
+use rollcal::models::{ConfigId, ParseConfigIdError};
 use serde::{Deserialize, Serialize};
 
 /// The paper's scenario, as shipped in `scenarios/paper.toml`.
@@ -92,7 +92,7 @@ pub struct Segment {
 
 /// `skip_serializing_if` for an optional dwell: absent when zero, so paths
 /// without dwells serialise as before.
-fn is_zero(x: &f64) -> bool {
+pub(crate) fn is_zero(x: &f64) -> bool {
     *x == 0.0
 }
 
@@ -389,18 +389,14 @@ fn check_prior(p: &Prior) -> Result<(), ScenarioError> {
     Ok(())
 }
 
-/// A configuration named on the command line or in a platform file:
-/// M1-pa, M1-ps, M2-ps, M3-pa, M3-ps, M4-pa, M4-ps (case-insensitive); the
-/// error names the seven. The one parser of host-sim.
-// merge: use core `impl FromStr for ConfigId` (same message).
-pub fn parse_config(s: &str) -> Result<ConfigId, String> {
-    ConfigId::parse(s).ok_or_else(|| {
-        let ids: Vec<&str> = ConfigId::ALL.iter().map(|c| c.as_str()).collect();
-        format!(
-            "unknown configuration '{s}' (expected one of {})",
-            ids.join(", ")
-        )
-    })
+/// The message of a text `s` that names no configuration: core's
+/// [`ParseConfigIdError`] (`unknown configuration '…' (expected one of
+/// M1-pa, …)`) with the whole text, where core keeps at most
+/// [`ParseConfigIdError::INPUT_CAPACITY`] bytes of it.
+pub fn config_message(e: &ParseConfigIdError, s: &str) -> String {
+    // The text is the first thing the message quotes (after a prefix that
+    // cannot hold a cut text, which ends with `…`).
+    e.to_string().replacen(e.input(), s, 1)
 }
 
 /// A platform file (TOML): what the calibrator needs to know of a real
@@ -498,7 +494,8 @@ impl Platform {
     /// Checks every field; errors say which and why.
     pub fn validate(&self) -> Result<(), ScenarioError> {
         if let Some(c) = &self.config {
-            parse_config(c).map_err(|e| ScenarioError(format!("config: {e}")))?;
+            c.parse::<ConfigId>()
+                .map_err(|e| ScenarioError(format!("config: {}", config_message(&e, c))))?;
         }
         check_site(&self.site)?;
         let tm = &self.timing;

@@ -6,10 +6,10 @@
 use crate::support;
 use support::{assert_success, host_sim};
 
+use host_sim::analysis::observe::analyse;
 use host_sim::design::{pattern_of, Goal, NamedAxis, Pattern, Problem, Rotation};
-use host_sim::observe::analyse;
-use host_sim::scenario::{Scenario, ARCSEC};
-use host_sim::truth::{simulate, SimOptions};
+use host_sim::sim::scenario::{Scenario, ARCSEC};
+use host_sim::sim::truth::{simulate, SimOptions};
 use rollcal::models::ConfigId;
 
 fn rotation(axis: &str, angle: f64, rate: f64) -> Rotation {
@@ -157,7 +157,7 @@ fn design_accepts_a_reference_path_with_dwells() {
     // bound has no noise).
     let dir = std::env::temp_dir().join(format!("rollcal-design-dwell-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let text = host_sim::scenario::PAPER_TOML;
+    let text = host_sim::sim::scenario::PAPER_TOML;
     let first = "rate_deg_s = 0.1";
     let at = text.find(first).unwrap() + first.len();
     let reference = format!("{}\ndwell_s = 600.0{}", &text[..at], &text[at..])

@@ -409,9 +409,9 @@ fn convergence_and_innovation_figures_have_their_size_and_content() {
 #[test]
 #[ignore = "slow (full estimator run); writes figures to look at"]
 fn real_run_figures() {
-    use host_sim::runner::{crlb_sigma, run_filter, Estimator};
-    use host_sim::scenario::{Scenario, ARCSEC};
-    use host_sim::truth::{simulate, truth_state, SimOptions};
+    use host_sim::analysis::runner::{crlb_sigma, run_filter, Estimator};
+    use host_sim::sim::scenario::{Scenario, ARCSEC};
+    use host_sim::sim::truth::{simulate, truth_state, SimOptions};
     use rollcal::geometry::wrap_angle;
     use rollcal::models::ConfigId;
 
@@ -462,7 +462,7 @@ fn real_run_figures() {
             &format!("{}: {g}, seed 1", id.as_str()),
             &t,
             &c,
-            &host_sim::segments::switch_times(&run.segments),
+            &host_sim::sim::segments::switch_times(&run.segments),
         )
         .unwrap();
         let img = decode(&path);

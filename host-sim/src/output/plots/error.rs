@@ -50,7 +50,7 @@ pub fn plot_group(
 }
 
 /// [`plot_group`] with the path's segment switches (times in s, e.g. the
-/// `t0_s` of every [`crate::segments::CommandSegment`] but the first) drawn
+/// `t0_s` of every [`crate::sim::segments::CommandSegment`] but the first) drawn
 /// as vertical lines in every panel; non-finite times are skipped.
 pub fn plot_group_marked(
     path: &Path,

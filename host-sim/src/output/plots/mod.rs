@@ -16,7 +16,7 @@
 //! The filter's 3σ is a solid vermilion line drawn *over* a wide dark
 //! dashed 3σ_CRLB line: where the filter reaches the bound both stay
 //! visible (the dashes stick out on both sides of the solid line). Path
-//! segment switches ([`crate::segments`]) are thin vertical purple lines in
+//! segment switches ([`crate::sim::segments`]) are thin vertical purple lines in
 //! every panel ([`plot_group_marked`]).
 //!
 //! Text is rendered with the DejaVu Sans font embedded in the binary
