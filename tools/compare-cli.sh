@@ -32,7 +32,7 @@ case_() {
         (cd "$dir" && "$bin" "${args[@]}" >stdout 2>stderr </dev/null; echo $? >rc)
         # Wall-time figures are not answers: progress lines (their order
         # follows the threads), `wall_s` in JSON, the summary's wall column.
-        sed -i -E '/^[a-z]+: ([a-z0-9 -]+: )?[0-9]+\/[0-9]+ /d; /wall time|done in [0-9.]+ ?s/d; s/ +[0-9]+\.[0-9]+$//; s/, [0-9.]+ s: [0-9]+ candidates\/min/, T/; s/took [0-9.]+ s \(in parallel\), everything [0-9.]+ s/took T/' "$dir/stdout" "$dir/stderr"
+        sed -i -E '/^[a-z]+: ([a-z0-9 -]+: )?[0-9]+\/[0-9]+ /d; /wall time|done in [0-9.]+ ?s|[0-9.]+ s wall/d; s/ +[0-9]+\.[0-9]+$//; s/, [0-9.]+ s: [0-9]+ candidates\/min/, T/; s/took [0-9.]+ s \(in parallel\), everything [0-9.]+ s/took T/' "$dir/stdout" "$dir/stderr"
         find "$dir" -name '*.json' -exec sed -i -E 's/"wall_s": [-0-9.e]+/"wall_s": T/' {} +
         # Paths of the two sides differ only by old/new.
         sed -i "s#$OUT/$side#OUT#g" "$dir/stdout" "$dir/stderr"
