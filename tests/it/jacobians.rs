@@ -43,6 +43,19 @@ const DEG: f64 = PI / 180.0;
 const FD_STEP: f64 = 1e-4;
 /// Absolute tolerance of every comparison (rad/rad, g/rad or (rad/s)/rad).
 const TOL: f64 = 1e-9;
+/// Relative tolerance of the transition's (and so of `H`'s) columns of the
+/// full model's gyro errors dg, D_g, kg. `phi_att` is `exp(F_mid T)` to
+/// second order: for the installation angles it differs from the RK4 step's
+/// derivative by ≈ |ω T|³/6 (module docs); for a parameter column `F_p` of
+/// O(1) (`∂rate/∂dg = J G`: `J`, `T(θ)` or `J_r⁻¹(ψ)`, turns with the
+/// attitude) it misses the curvature of `F_p` over the period,
+/// ≈ T³/24 |F_p''| ≈ |θ̇ T|²/24 ≈ 1.2e-7 of the entry (measured ≤ 2.2e-7
+/// relative, 2.0e-7 on entries of 0.9). That is by design (the same
+/// relative accuracy as the installation gyro columns, 5e-8 of theirs;
+/// 2e-7 of the drift's σ0 of 1 °/h is 1e-12 rad per period). A formula
+/// error shows in the instantaneous `F` (checked at `TOL`) or at ≥ 1e-3 of
+/// the entry.
+const REL_TOL_TRANSITION: f64 = 1e-6;
 /// Rolling rate of the paper, 0.1°/s, in rad/s.
 const ROLL_RATE: f64 = 0.1 * DEG;
 
@@ -171,6 +184,24 @@ impl Blocks {
         self.0.iter().map(|b| b.1).fold(0.0, f64::max)
     }
 
+    /// The largest ratio of a group's error to what it is allowed: `TOL`,
+    /// or for the full model's gyro-error groups (dg, Dg, kg) of the
+    /// period's transition `TOL + REL_TOL_TRANSITION · |J|` (see
+    /// [`REL_TOL_TRANSITION`]). ≤ 1 passes.
+    fn worst_ratio(&self, transition: bool) -> f64 {
+        self.0
+            .iter()
+            .map(|(n, e, s)| {
+                let allowed = if transition && matches!(*n, "dg" | "Dg" | "kg") {
+                    TOL + REL_TOL_TRANSITION * s
+                } else {
+                    TOL
+                };
+                e / allowed
+            })
+            .fold(0.0, f64::max)
+    }
+
     fn describe(&self) -> String {
         let parts: Vec<String> = self
             .0
@@ -287,8 +318,15 @@ fn run(id: ConfigId, errors: ErrorModel) -> Report {
 }
 
 /// Runs every configuration, installation-only and full (SPEC §8),
-/// prints the errors of one check and asserts them against `TOL`.
-fn assert_check(name: &str, pick: impl Fn(&Report) -> &Blocks, diagnose: impl Fn(&Report)) {
+/// prints the errors of one check and asserts them against `TOL` (and,
+/// for a `transition` check, the gyro errors' columns against
+/// `REL_TOL_TRANSITION` of their size).
+fn assert_check(
+    name: &str,
+    transition: bool,
+    pick: impl Fn(&Report) -> &Blocks,
+    diagnose: impl Fn(&Report),
+) {
     let mut failures = Vec::new();
     for (id, errors) in ErrorModel::ALL
         .into_iter()
@@ -302,10 +340,10 @@ fn assert_check(name: &str, pick: impl Fn(&Report) -> &Blocks, diagnose: impl Fn
             "{id} {name}: max |analytic − FD| {worst:.2e}  [{}]",
             blocks.describe()
         );
-        if worst > TOL {
+        if blocks.worst_ratio(transition) > 1.0 {
             diagnose(&report);
             failures.push(format!(
-                "{id} {name}: {worst:.2e} > {TOL:e}  [{}]",
+                "{id} {name}: {worst:.2e} > {TOL:e} (or {REL_TOL_TRANSITION:e} relative)  [{}]",
                 blocks.describe()
             ));
         }
@@ -319,20 +357,20 @@ fn assert_check(name: &str, pick: impl Fn(&Report) -> &Blocks, diagnose: impl Fn
 
 #[test]
 fn accel_jacobian_matches_finite_differences() {
-    assert_check("accel_jacobian", |r| &r.accel, |_| {});
+    assert_check("accel_jacobian", false, |r| &r.accel, |_| {});
 }
 
 #[test]
 fn attitude_rate_jacobian_matches_finite_differences() {
-    assert_check("attitude_rate_jacobian", |r| &r.rate, |_| {});
+    assert_check("attitude_rate_jacobian", false, |r| &r.rate, |_| {});
 }
 
 #[test]
 fn transition_matches_finite_differences() {
-    assert_check("phi_att", |r| &r.phi, |_| {});
+    assert_check("phi_att", true, |r| &r.phi, |_| {});
 }
 
 #[test]
 fn measurement_jacobian_matches_finite_differences() {
-    assert_check("H (measurement_at)", |r| &r.h, |_| {});
+    assert_check("H (measurement_at)", true, |r| &r.h, |_| {});
 }
