@@ -1,12 +1,16 @@
 //! The one `ConfigId` → configuration-type dispatch: [`with_config!`]
 //! (every configuration) and [`with_built_config!`] (those built into this
-//! crate by its cargo features `m1-pa` … `m4-ps`), with the hidden helper
+//! crate by its cargo features `m1-pa` … `m4-ps`), their error-model forms
+//! [`with_model!`] and [`with_built_model!`] (`ConfigId` and
+//! [`ErrorModel`](crate::models::ErrorModel) → `M2Ps` or `M2PsFull`, …), with the hidden helper
 //! macros that pass or drop one configuration's arm by this crate's
 //! features. All are `#[macro_export]`: their paths are the crate root's
 //! (`rollcal::with_config!`).
 //!
 //! [`with_config!`]: crate::with_config
 //! [`with_built_config!`]: crate::with_built_config
+//! [`with_model!`]: crate::with_model
+//! [`with_built_model!`]: crate::with_built_model
 
 /// The one `ConfigId` → configuration-type dispatch: evaluates `body` with
 /// `M` the configuration's model type and `N`, `Z` its state and measurement
@@ -185,6 +189,8 @@ macro_rules! with_built_config {
 /// and `N`, `Z` its state and measurement dimensions as `const`s. Every
 /// one of the fourteen arms is instantiated, as [`with_config!`] does;
 /// [`with_built_model!`] instantiates those of the configurations built.
+///
+/// [`with_built_model!`]: crate::with_built_model
 ///
 /// ```
 /// use rollcal::models::{ConfigId, ErrorModel, Model};

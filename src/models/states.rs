@@ -174,7 +174,10 @@ const fn s(name: &'static str, group: Group) -> StateInfo {
     }
 }
 
-/// `a` followed by `b` (`C = A + B`; evaluated at compile time).
+/// `a` followed by `b` (`C = A + B`). Evaluated at compile time only (the
+/// `const` arrays below): an index out of range would be a compile error,
+/// not a panic path of the firmware.
+#[allow(clippy::indexing_slicing)] // i < A, A ≤ i < C = A + B (asserted; const context)
 const fn concat<const A: usize, const B: usize, const C: usize>(
     a: [StateInfo; A],
     b: [StateInfo; B],

@@ -59,7 +59,10 @@ fn zero_errors_agree<
     seed: u64,
 ) -> f64 {
     assert_eq!(I::ID, F::ID);
-    assert_eq!((I::ERRORS, F::ERRORS), (ErrorModel::Installation, ErrorModel::Full));
+    assert_eq!(
+        (I::ERRORS, F::ERRORS),
+        (ErrorModel::Installation, ErrorModel::Full)
+    );
     let (li, lf) = (I::LAYOUT, F::LAYOUT);
     assert_eq!(lf.instruments(), Some(NI));
     let env = env();
@@ -83,8 +86,12 @@ fn zero_errors_agree<
         let ri = li.attitude_rate(&env, &mi, &att, &w, &c_cn).unwrap();
         let rf = lf.attitude_rate(&env, &mf, &att, &w, &c_cn).unwrap();
         diff((ri - rf).amax());
-        let ji: SMatrix<f64, 3, NI> = li.attitude_rate_jacobian(&env, &mi, &att, &w, &c_cn).unwrap();
-        let jf: SMatrix<f64, 3, NF> = lf.attitude_rate_jacobian(&env, &mf, &att, &w, &c_cn).unwrap();
+        let ji: SMatrix<f64, 3, NI> = li
+            .attitude_rate_jacobian(&env, &mi, &att, &w, &c_cn)
+            .unwrap();
+        let jf: SMatrix<f64, 3, NF> = lf
+            .attitude_rate_jacobian(&env, &mf, &att, &w, &c_cn)
+            .unwrap();
         diff((ji - jf.fixed_columns::<NI>(0)).amax());
 
         let (zi, hi): (Vector3<f64>, SMatrix<f64, 3, NI>) =
@@ -109,7 +116,10 @@ fn zero_errors_agree<
         for (a, b) in pi.att.iter().zip(pf.att.iter()) {
             diff((a - b).amax());
         }
-        let (mut hmi, mut hmf) = (SMatrix::<f64, 3, NI>::zeros(), SMatrix::<f64, 3, NF>::zeros());
+        let (mut hmi, mut hmf) = (
+            SMatrix::<f64, 3, NI>::zeros(),
+            SMatrix::<f64, 3, NF>::zeros(),
+        );
         let (zmi, _) = li.mean_accel(&env, &mi, &pi, &period, &mut hmi);
         let (zmf, _) = lf.mean_accel(&env, &mf, &pf, &period, &mut hmf);
         diff((zmi - zmf).amax());
@@ -169,7 +179,12 @@ fn names_of<M: Model<N, Z>, const N: usize, const Z: usize>() {
         let i = M::LAYOUT.instruments().unwrap();
         let expect = |k: usize, group: Group, unit: &str, printed: &str| {
             let s = &states[i + k];
-            assert_eq!((s.group, s.unit, s.printed_scale().1), (group, unit, printed), "{}", s.name);
+            assert_eq!(
+                (s.group, s.unit, s.printed_scale().1),
+                (group, unit, printed),
+                "{}",
+                s.name
+            );
         };
         expect(0, Group::GyroDrift, "rad/s", "°/h");
         expect(3, Group::GyroGDrift, "rad/s/g", "°/h/g");
@@ -178,7 +193,9 @@ fn names_of<M: Model<N, Z>, const N: usize, const Z: usize>() {
         expect(18, Group::AccelScale, "1", "ppm");
         assert_eq!(Some(i + 15), M::LAYOUT.ba());
     } else {
-        assert!(states.iter().all(|s| s.unit == "rad" && !s.group.is_instrument()));
+        assert!(states
+            .iter()
+            .all(|s| s.unit == "rad" && !s.group.is_instrument()));
     }
     // The group names round trip (JSON keys).
     for s in states {
@@ -205,7 +222,10 @@ fn every_model_type_has_n_state_names() {
 fn error_model_parses_its_names() {
     for e in ErrorModel::ALL {
         assert_eq!(e.as_str().parse::<ErrorModel>(), Ok(e));
-        assert_eq!(e.to_string().to_ascii_uppercase().parse::<ErrorModel>(), Ok(e));
+        assert_eq!(
+            e.to_string().to_ascii_uppercase().parse::<ErrorModel>(),
+            Ok(e)
+        );
         assert_eq!(ErrorModel::parse(e.as_str()), Some(e));
     }
     assert_eq!(ErrorModel::default(), ErrorModel::Installation);
@@ -246,7 +266,9 @@ fn run_stream<T: nalgebra::RealField + Copy, M: Model<N, Z>, const N: usize, con
     let config = support::filter_config(&settings, Options::default()).to_precision::<T>();
     let s0 = sigma0::<M, N, Z>(settings.prior_sigma_rad).map(nalgebra::convert::<f64, T>);
     let mut f = Filter::<T, M, N, Z>::new(config, SVector::zeros(), s0).expect("valid filter");
-    let sigma_start = f.sigma().map(|v| nalgebra::try_convert::<T, f64>(v).unwrap());
+    let sigma_start = f
+        .sigma()
+        .map(|v| nalgebra::try_convert::<T, f64>(v).unwrap());
     for s in samples.iter().take(periods) {
         let (dt, inc) = support::period(s);
         let obs = support::observation(s);
@@ -259,7 +281,9 @@ fn run_stream<T: nalgebra::RealField + Copy, M: Model<N, Z>, const N: usize, con
     }
     assert_eq!(f.updates() as usize, periods);
     let x = *f.state();
-    let sigma = f.sigma().map(|v| nalgebra::try_convert::<T, f64>(v).unwrap());
+    let sigma = f
+        .sigma()
+        .map(|v| nalgebra::try_convert::<T, f64>(v).unwrap());
     assert!(x.iter().chain(sigma.iter()).all(|v| v.is_finite()));
     // The accelerometer bias is learnt from the first periods on.
     let iba = M::LAYOUT.ba().unwrap();

@@ -177,16 +177,15 @@ fn mean_accel_output_error<M: Model<N, Z>, const N: usize, const Z: usize>(
         // In f32 with the frame's turn as the single-precision filter forms
         // it (its f64 nodes are `period`'s to 1e-13).
         let (period32, period_in32) = frame.period_in::<f32>(&increment, 1.0);
-        let z32 =
-            layout.mean_accel_output(
-                &env,
-                &m.a,
-                &m.c_rn,
-                &m.params.instruments,
-                &prop.att,
-                &period32,
-                &period_in32.turn,
-            );
+        let z32 = layout.mean_accel_output(
+            &env,
+            &m.a,
+            &m.c_rn,
+            &m.params.instruments,
+            &prop.att,
+            &period32,
+            &period_in32.turn,
+        );
         err64 = err64.max((z64 - z).amax());
         err32 = err32.max((z32 - z).amax());
     }
