@@ -66,6 +66,35 @@ impl<T: RealField + Copy> InstrumentErrors<T> {
         omega_c + self.kg.component_mul(omega_c) + self.dg + self.d_g * f_p
     }
 
+    /// The same errors in the pa frame from the ps ones (SPEC §8):
+    /// `D_g^pa = D_g R(θaC)` (so that `D_g^pa f^pa = D_g f^ps`, with
+    /// `f^ps = R(θaC) f^pa`), `dg`, `kg`, `ba`, `ka` unchanged; `theta_a_c`
+    /// is the accelerometer misalignment θaC (rad).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use nalgebra::{Matrix3, Vector3};
+    /// use rollcal::geometry::dcm;
+    /// use rollcal::models::InstrumentErrors;
+    ///
+    /// let mut ps = InstrumentErrors::<f64>::zeros();
+    /// ps.d_g = Matrix3::new(1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0) * 1e-7;
+    /// let theta_a_c = Vector3::new(2e-3, -1e-3, 3e-3);
+    /// let pa = ps.in_pa(&theta_a_c);
+    /// let f_ps = Vector3::new(0.1, 0.9, -0.2);
+    /// let f_pa = dcm(&-theta_a_c) * f_ps; // f^pa = R(−θaC) f^ps
+    /// let w = Vector3::new(1e-3, 0.0, 2e-3);
+    /// let same = (ps.gyro_input(&w, &f_ps) - pa.gyro_input(&w, &f_pa)).amax();
+    /// assert!(same < 1e-20);
+    /// ```
+    pub fn in_pa(&self, theta_a_c: &Vector3<T>) -> Self {
+        Self {
+            d_g: self.d_g * crate::geometry::dcm(theta_a_c),
+            ..*self
+        }
+    }
+
     /// The accelerometer output of the installed specific force `af`
     /// (`A f^p`, g): `ba + (I + K_a) A f^p` (g).
     pub fn accel(&self, af: &Vector3<T>) -> Vector3<T> {
