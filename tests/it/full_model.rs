@@ -7,6 +7,8 @@
 //! - every one of the 14 model types has `N` state names, the full ones the
 //!   installation names followed by the 21 instrument names;
 //! - `ErrorModel` parses its names back;
+//! - `mean_accel`'s Jacobian with respect to the end-of-period state
+//!   against central differences of its value, for the seven full models;
 //! - a `Filter` of `M2PsFull` and `M1PaFull` (f64, and `M1PaFull` in f32)
 //!   constructs and steps on the recorded paper stream.
 //!
@@ -304,4 +306,104 @@ fn filters_of_full_models_construct_and_step() {
     );
     run_stream::<f64, M1PaFull, 33, 3>(300);
     run_stream::<f32, M1PaFull, 33, 3>(100);
+}
+
+/// `mean_accel`'s Jacobian with respect to the state at the end of the
+/// period against central differences of its value, the period's
+/// trajectory traced back from that state as the filter does
+/// (`Filter::retrace`), for a full model at a state with instrument errors
+/// far from zero. Returns per column `(|analytic − FD|, |FD|)`.
+fn mean_accel_check<M: Model<N, Z>, const N: usize, const Z: usize>() -> Vec<(f64, f64)> {
+    let layout = M::LAYOUT;
+    let env = env();
+    let mut s = 77 + N as u64;
+    let mut x = SVector::<f64, N>::from_fn(|_, _| 5e-3 * lcg(&mut s));
+    if layout.attitude != rollcal::models::AttitudeKind::Misalignment {
+        x.fixed_rows_mut::<3>(0)
+            .copy_from(&Vector3::new(2.0, 0.05, 1.2));
+    }
+    let i = layout.instruments().unwrap();
+    for k in 0..21 {
+        // dg, D_g up to 1e-4 rad/s(/g); kg, ba, ka up to 2e-3.
+        x[i + k] = if k < 12 { 1e-4 } else { 2e-3 } * lcg(&mut s);
+    }
+    let c_cn0 = dcm(&Vector3::new(0.3, 1.0, -0.5));
+    let frame = CommandFrame {
+        c_cn: c_cn0,
+        earth_rate_n: env.earth_rate_n,
+    };
+    let inc = Vector3::new(1.0, -2.0, 0.5).normalize() * (0.1 * DEG) + c_cn0 * env.earth_rate_n;
+    let period: Period<f64> = frame.period(&inc, 1.0);
+    // The mean over the period that ends at `x`, and its Jacobian.
+    let mean = |x: &SVector<f64, N>| -> (Vector3<f64>, SMatrix<f64, 3, N>) {
+        let m = layout.matrices(x);
+        let back: PeriodPropagation<f64, N> = layout
+            .propagate(&env, &m, &layout.attitude(x), &period.reversed())
+            .unwrap();
+        let [a1, am, a0] = back.att;
+        let prop = PeriodPropagation {
+            att: [a0, am, a1],
+            phi_att: rollcal::models::transition_rows(&back.f_mid, period.dt),
+            f_mid: back.f_mid,
+            f_end: layout
+                .attitude_rate_jacobian(
+                    &env,
+                    &m,
+                    &layout.attitude(x),
+                    &period.omega_c[2],
+                    &period.c_cn[2],
+                )
+                .unwrap(),
+            noise_map: back.noise_map,
+        };
+        let mut h = SMatrix::<f64, 3, N>::zeros();
+        let (z, _) = layout.mean_accel(&env, &m, &prop, &period, &mut h);
+        (z, h)
+    };
+    let (_, h) = mean(&x);
+    let step = 1e-4;
+    (0..N)
+        .map(|j| {
+            let at = |k: f64| {
+                let mut xk = x;
+                xk[j] += k * step;
+                mean(&xk).0
+            };
+            let fd = (at(-2.0) - at(-1.0) * 8.0 + at(1.0) * 8.0 - at(2.0)) / (12.0 * step);
+            ((h.column(j) - fd).amax(), fd.amax())
+        })
+        .collect()
+}
+
+#[test]
+fn full_mean_accel_jacobian_matches_finite_differences() {
+    for id in ConfigId::ALL {
+        let cols =
+            rollcal::with_model!(id, ErrorModel::Full, |M, N, Z| mean_accel_check::<M, N, Z>(
+            ));
+        let states = id.states_with(ErrorModel::Full);
+        let mut worst: f64 = 0.0;
+        for ((err, size), s) in cols.iter().zip(states) {
+            // TOL of tests/it/jacobians.rs; the gyro errors' columns go
+            // through the period's transition (REL_TOL_TRANSITION there).
+            let allowed = if matches!(
+                s.group,
+                Group::GyroDrift | Group::GyroGDrift | Group::GyroScale
+            ) {
+                1e-9 + 1e-6 * size
+            } else {
+                1e-9
+            };
+            worst = worst.max(err / allowed);
+            assert!(
+                err <= &allowed,
+                "{id} full {}: {err:.2e} (|J| {size:.1e})",
+                s.name
+            );
+        }
+        eprintln!("{id} full mean_accel: worst error / allowed {worst:.2e}");
+        // The new columns are not trivially zero: ba, ka of O(1).
+        let ika = id.layout_with(ErrorModel::Full).ka().unwrap();
+        assert!(cols[ika].1 > 0.1 && cols[ika - 3].1 > 0.9);
+    }
 }
