@@ -11,7 +11,7 @@
 //! computed frame `C^c_n` for it). An installation-only layout evaluates
 //! exactly the operations it did before the full model existed.
 
-use nalgebra::{RealField, SMatrix, Vector3};
+use nalgebra::{Matrix3, RealField, SMatrix, Vector3};
 
 use super::blocks::set_cols;
 use super::error_model::ErrorModel;
@@ -19,7 +19,6 @@ use super::installation::InstallationMatrices;
 use super::layout::{AttitudeKind, Layout, ATT, GC, GT};
 use super::Environment;
 use crate::geometry::{d_lower_times, dcm, right_jacobian, right_jacobian_inv, skew, EulerTrig};
-use nalgebra::Matrix3;
 
 impl Layout {
     /// The attitude-state rate (rad/s) at attitude `att` under commanded rate
@@ -139,7 +138,7 @@ impl Layout {
                 set_cols(f, ATT, &d_att);
                 set_cols(f, GC, &(jinv * d_g_c));
                 set_cols(f, GT, &(jinv * d_g_t));
-                self.instrument_rate_columns(env, m, &(jinv * m.g), att, omega_c, c_cn, f);
+                self.instrument_rate_columns(env, m, &jinv, att, omega_c, c_cn, f);
             }
             AttitudeKind::Gimbal | AttitudeKind::Attitude => {
                 let trig = EulerTrig::new(att);
@@ -187,22 +186,22 @@ impl Layout {
                     };
                     set_cols(f, il, &d_lam);
                 }
-                self.instrument_rate_columns(env, m, &(t * m.g), att, omega_c, c_cn, f);
+                self.instrument_rate_columns(env, m, &t, att, omega_c, c_cn, f);
             }
         }
         Some(())
     }
 
-    /// The full model's instrument columns of `F` (nothing for an
-    /// installation-only layout): `jg` is `J G` (`J` the rate's map,
-    /// `J_r⁻¹(ψ)` or `T(θ)`): `∂/∂dg = J G`, `∂/∂D_g[i][j] = (J G)_i f^p_j`
-    /// (row-major), `∂/∂kg_i = (J G)_i ωc_i`.
+    /// The full model's instrument columns of `F` (nothing, and no
+    /// arithmetic, for an installation-only layout): with `jmap` the rate's
+    /// map `J` (`J_r⁻¹(ψ)` or `T(θ)`), `∂/∂dg = J G`,
+    /// `∂/∂D_g[i][j] = (J G)_i f^p_j` (row-major), `∂/∂kg_i = (J G)_i ωc_i`.
     #[allow(clippy::too_many_arguments)]
     fn instrument_rate_columns<T: RealField + Copy, const N: usize>(
         &self,
         env: &Environment<T>,
         m: &InstallationMatrices<T>,
-        jg: &Matrix3<T>,
+        jmap: &Matrix3<T>,
         att: &Vector3<T>,
         omega_c: &Vector3<T>,
         c_cn: &Matrix3<T>,
@@ -211,8 +210,9 @@ impl Layout {
         let (Some(idg), Some(id), Some(ikg)) = (self.dg(), self.d_g(), self.kg()) else {
             return;
         };
+        let jg = jmap * m.g;
         let f_p = self.platform_dcm(att, &m.c_rn, c_cn) * env.gravity_n;
-        set_cols(f, idg, jg);
+        set_cols(f, idg, &jg);
         for (i, col) in jg.column_iter().enumerate() {
             let col = col.into_owned();
             let per_force = Matrix3::from_columns(&[col * f_p.x, col * f_p.y, col * f_p.z]);
