@@ -239,6 +239,13 @@ pub fn expected_observable(id: ConfigId, name: &str, group: Group) -> bool {
         Group::ThetaGC | Group::ThetaAC => matches!(id, M1Pa | M2Ps | M3Pa | M4Pa),
         Group::Lambda => id == M2Ps && (name == "lam_x" || name == "lam_z"),
         Group::Attitude => false,
+        // The paper takes the instruments' own errors as calibrated: it
+        // has no verdict on them (SPEC §8 asks the analysis for one).
+        Group::GyroDrift
+        | Group::GyroGDrift
+        | Group::GyroScale
+        | Group::AccelBias
+        | Group::AccelScale => false,
     }
 }
 
@@ -692,7 +699,12 @@ mod tests {
             let (mut n, mut expected) = (0, 0);
             for s in id.states() {
                 let want = match s.group {
-                    Group::Attitude => false,
+                    Group::Attitude
+                    | Group::GyroDrift
+                    | Group::GyroGDrift
+                    | Group::GyroScale
+                    | Group::AccelBias
+                    | Group::AccelScale => false,
                     Group::ThetaGT | Group::ThetaAT => true,
                     Group::ThetaGC | Group::ThetaAC => rotations(id),
                     Group::Lambda => id == M2Ps && s.name != "lam_y",

@@ -28,7 +28,7 @@ use crate::precision::to_t;
 #[derive(Copy, Debug)]
 pub(super) struct MatricesCache<T: RealField + Copy> {
     /// The parameters (rad) they are the matrices of.
-    params: Installation<f64>,
+    pub(super) params: Installation<f64>,
     /// `A` in f64.
     pub(super) a: Matrix3<f64>,
     /// `C^r_n` in f64.
@@ -79,6 +79,7 @@ impl<T: RealField + Copy> MatricesCache<T> {
             theta_a_c: to_t(&params.theta_a_c),
             theta_a_t: to_t(&params.theta_a_t),
             lambda: to_t(&params.lambda),
+            instruments: params.instruments.to_precision(),
         })
     }
 
@@ -90,8 +91,13 @@ impl<T: RealField + Copy> MatricesCache<T> {
     pub(super) fn refresh<const N: usize>(&mut self, layout: &Layout, x: &SVector<f64, N>) {
         let params = layout.installation(x);
         let bits = |p: &Installation<f64>| {
-            [p.theta_g_c, p.theta_g_t, p.theta_a_c, p.theta_a_t, p.lambda]
-                .map(|v| v.map(f64::to_bits))
+            let e = &p.instruments;
+            (
+                [p.theta_g_c, p.theta_g_t, p.theta_a_c, p.theta_a_t, p.lambda]
+                    .map(|v| v.map(f64::to_bits)),
+                [e.dg, e.kg, e.ba, e.ka].map(|v| v.map(f64::to_bits)),
+                e.d_g.map(f64::to_bits),
+            )
         };
         if bits(&params) != bits(&self.params) {
             self.fill(params);
@@ -138,6 +144,7 @@ mod tests {
             theta_a_c: v(-7e-4, 2e-4, 9e-4),
             theta_a_t: v(1e-4, -3e-4, 5e-4),
             lambda: v(0.3, -1.2, 2.0),
+            instruments: crate::models::InstrumentErrors::zeros(),
         };
         let q = Installation {
             lambda: v(0.0, 0.0, 0.0),

@@ -112,6 +112,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 env,
                 &m.a,
                 &m.c_rn,
+                &m.params.instruments,
                 &pending.att,
                 &pending.period,
                 &pending.period_t.turn,
@@ -166,7 +167,13 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             phi_att: crate::models::transition_rows(&back.f_mid, pr.dt),
             f_mid: back.f_mid,
             f_end: layout
-                .attitude_rate_jacobian(&self.config.env, &m, &layout.attitude(x), &pr.omega_c[2])
+                .attitude_rate_jacobian(
+                    &self.config.env,
+                    &m,
+                    &layout.attitude(x),
+                    &pr.omega_c[2],
+                    &pr.c_cn[2],
+                )
                 .ok_or(Error::GimbalLock)?,
             noise_map: back.noise_map,
         };

@@ -198,13 +198,20 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let layout = Self::LAYOUT;
         let env = &self.config.env;
         let [_, wm, _] = period.omega_c;
+        let [_, cm, _] = period.c_cn;
         let [_, att_mid, _] = *att;
         let mut x_mid = self.x;
         x_mid.fixed_rows_mut::<3>(ATT).copy_from(&att_mid);
-        let relevant = |j: usize| j < 9 || layout.lam().is_some_and(|i| (i..i + 3).contains(&j));
+        // The states the rate depends on: attitude, θgC, θgT, λ and, in the
+        // full model, the gyro errors dg, D_g, kg (15 states from dg).
+        let relevant = |j: usize| {
+            j < 9
+                || layout.lam().is_some_and(|i| (i..i + 3).contains(&j))
+                || layout.dg().is_some_and(|i| (i..i + 15).contains(&j))
+        };
         let p_now = to_f64(&self.propagated_factor()?.covariance());
         let (_, q2) = hessian_terms(&x_mid, &p_now, relevant, |xp| {
-            layout.attitude_rate_jacobian(env, &layout.matrices(xp), &layout.attitude(xp), &wm)
+            layout.attitude_rate_jacobian(env, &layout.matrices(xp), &layout.attitude(xp), &wm, &cm)
         })
         .ok_or(Error::GimbalLock)?;
         Ok(to_t(&(q2 * (period.dt * period.dt))))

@@ -73,3 +73,17 @@ pub(super) fn set_cols<T: RealField + Copy, const R: usize, const N: usize>(
         *dst = *src;
     }
 }
+
+/// Rows of columns `0..cols` of `m` multiplied by `scale` (row `i` by
+/// `scale[i]`), on the column arrays (see [`set_cols`]).
+pub(super) fn scale_rows<T: RealField + Copy, const N: usize>(
+    m: &mut SMatrix<T, 3, N>,
+    cols: usize,
+    scale: &Vector3<T>,
+) {
+    for col in m.data.0.iter_mut().take(cols) {
+        for (v, k) in col.iter_mut().zip(scale.iter()) {
+            *v *= *k;
+        }
+    }
+}

@@ -6,6 +6,7 @@
 
 use core::fmt;
 
+use super::error_model::ErrorModel;
 use super::layout::{AttitudeKind, Layout, PlatformFrame};
 
 /// The seven configurations of docs/model.md §Configurations.
@@ -170,7 +171,25 @@ impl ConfigId {
             frame,
             base,
             gimbal_obs,
+            errors: ErrorModel::Installation,
         }
+    }
+
+    /// The configuration's composition with the error model `errors`
+    /// ([`ConfigId::layout`] is the installation-only one).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use rollcal::models::ErrorModel;
+    /// use rollcal::ConfigId;
+    ///
+    /// let full = ConfigId::M4Ps.layout_with(ErrorModel::Full);
+    /// assert_eq!((full.n(), full.z(), full.instruments()), (36, 3, Some(15)));
+    /// assert_eq!(ConfigId::M4Ps.layout_with(ErrorModel::Installation), ConfigId::M4Ps.layout());
+    /// ```
+    pub const fn layout_with(self, errors: ErrorModel) -> Layout {
+        self.layout().with_errors(errors)
     }
 }
 

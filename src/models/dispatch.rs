@@ -1,12 +1,16 @@
 //! The one `ConfigId` → configuration-type dispatch: [`with_config!`]
 //! (every configuration) and [`with_built_config!`] (those built into this
-//! crate by its cargo features `m1-pa` … `m4-ps`), with the hidden helper
+//! crate by its cargo features `m1-pa` … `m4-ps`), their error-model forms
+//! [`with_model!`] and [`with_built_model!`] (`ConfigId` and
+//! [`ErrorModel`](crate::models::ErrorModel) → `M2Ps` or `M2PsFull`, …), with the hidden helper
 //! macros that pass or drop one configuration's arm by this crate's
 //! features. All are `#[macro_export]`: their paths are the crate root's
 //! (`rollcal::with_config!`).
 //!
 //! [`with_config!`]: crate::with_config
 //! [`with_built_config!`]: crate::with_built_config
+//! [`with_model!`]: crate::with_model
+//! [`with_built_model!`]: crate::with_built_model
 
 /// The one `ConfigId` → configuration-type dispatch: evaluates `body` with
 /// `M` the configuration's model type and `N`, `Z` its state and measurement
@@ -174,6 +178,82 @@ macro_rules! with_built_config {
             {
                 let $other = id;
                 $fallback
+            }
+        }
+    }};
+}
+
+/// [`with_config!`] with the error model: evaluates `body` with `M` the
+/// model type of configuration `id` under error model `errors`
+/// ([`ErrorModel`](crate::models::ErrorModel)) — `M2Ps` or `M2PsFull` —
+/// and `N`, `Z` its state and measurement dimensions as `const`s. Every
+/// one of the fourteen arms is instantiated, as [`with_config!`] does;
+/// [`with_built_model!`] instantiates those of the configurations built.
+///
+/// [`with_built_model!`]: crate::with_built_model
+///
+/// ```
+/// use rollcal::models::{ConfigId, ErrorModel, Model};
+/// fn states<M: Model<N, Z>, const N: usize, const Z: usize>() -> (usize, usize) {
+///     (N, M::states().len())
+/// }
+/// let n = rollcal::with_model!(ConfigId::M2Ps, ErrorModel::Full, |M, N, Z| states::<M, N, Z>());
+/// assert_eq!(n, (39, 39));
+/// let n = rollcal::with_model!(ConfigId::M2Ps, ErrorModel::Installation, |M, N, Z| states::<M, N, Z>());
+/// assert_eq!(n, (18, 18));
+/// ```
+#[macro_export]
+macro_rules! with_model {
+    ($id:expr, $errors:expr, |$m:ident, $n:ident, $z:ident| $body:expr) => {
+        match $errors {
+            $crate::models::ErrorModel::Installation => $crate::with_config!($id, |$m, $n, $z| $body),
+            $crate::models::ErrorModel::Full => match $id {
+                $crate::models::ConfigId::M1Pa => $crate::with_config!(@arm M1PaFull, 33, 3, $m, $n, $z, $body),
+                $crate::models::ConfigId::M1Ps => $crate::with_config!(@arm M1PsFull, 36, 3, $m, $n, $z, $body),
+                $crate::models::ConfigId::M2Ps => $crate::with_config!(@arm M2PsFull, 39, 6, $m, $n, $z, $body),
+                $crate::models::ConfigId::M3Pa => $crate::with_config!(@arm M3PaFull, 36, 3, $m, $n, $z, $body),
+                $crate::models::ConfigId::M3Ps => $crate::with_config!(@arm M3PsFull, 39, 3, $m, $n, $z, $body),
+                $crate::models::ConfigId::M4Pa => $crate::with_config!(@arm M4PaFull, 33, 3, $m, $n, $z, $body),
+                $crate::models::ConfigId::M4Ps => $crate::with_config!(@arm M4PsFull, 36, 3, $m, $n, $z, $body),
+            },
+        }
+    };
+}
+
+/// [`with_model!`] over the configurations built into this crate (as
+/// [`with_built_config!`]): only their arms, installation and full, are
+/// instantiated, and `fallback` is evaluated, with `other` the
+/// [`ConfigId`](crate::models::ConfigId), for a configuration left out.
+///
+/// ```
+/// use rollcal::models::{ConfigId, ErrorModel, Model};
+/// fn states<M: Model<N, Z>, const N: usize, const Z: usize>() -> Option<usize> {
+///     Some(N)
+/// }
+/// let n = rollcal::with_built_model!(ConfigId::M4Pa, ErrorModel::Full, |M, N, Z| states::<M, N, Z>(), else |_other| None);
+/// assert_eq!(n, Some(33));
+/// ```
+#[macro_export]
+macro_rules! with_built_model {
+    ($id:expr, $errors:expr, |$m:ident, $n:ident, $z:ident| $body:expr, else |$other:ident| $fallback:expr) => {{
+        let id: $crate::models::ConfigId = $id;
+        match $errors {
+            $crate::models::ErrorModel::Installation => {
+                $crate::with_built_config!(id, |$m, $n, $z| $body, else |$other| $fallback)
+            }
+            $crate::models::ErrorModel::Full => 'dispatch: {
+                $crate::__rollcal_if_m1_pa! { if id == $crate::models::ConfigId::M1Pa { break 'dispatch $crate::with_config!(@arm M1PaFull, 33, 3, $m, $n, $z, $body); } }
+                $crate::__rollcal_if_m1_ps! { if id == $crate::models::ConfigId::M1Ps { break 'dispatch $crate::with_config!(@arm M1PsFull, 36, 3, $m, $n, $z, $body); } }
+                $crate::__rollcal_if_m2_ps! { if id == $crate::models::ConfigId::M2Ps { break 'dispatch $crate::with_config!(@arm M2PsFull, 39, 6, $m, $n, $z, $body); } }
+                $crate::__rollcal_if_m3_pa! { if id == $crate::models::ConfigId::M3Pa { break 'dispatch $crate::with_config!(@arm M3PaFull, 36, 3, $m, $n, $z, $body); } }
+                $crate::__rollcal_if_m3_ps! { if id == $crate::models::ConfigId::M3Ps { break 'dispatch $crate::with_config!(@arm M3PsFull, 39, 3, $m, $n, $z, $body); } }
+                $crate::__rollcal_if_m4_pa! { if id == $crate::models::ConfigId::M4Pa { break 'dispatch $crate::with_config!(@arm M4PaFull, 33, 3, $m, $n, $z, $body); } }
+                $crate::__rollcal_if_m4_ps! { if id == $crate::models::ConfigId::M4Ps { break 'dispatch $crate::with_config!(@arm M4PsFull, 36, 3, $m, $n, $z, $body); } }
+                #[allow(unreachable_code)]
+                {
+                    let $other = id;
+                    $fallback
+                }
             }
         }
     }};

@@ -6,10 +6,13 @@
 
 use nalgebra::{Matrix3, RealField, Vector3};
 
+use super::instrument_errors::InstrumentErrors;
 use crate::geometry::{dcm, dcm_and_right_jacobian, skew};
 
 /// Installation parameters unpacked from a state vector (rad); absent ones
-/// are zero.
+/// are zero. With them the instruments' own errors of a full-model state
+/// ([`InstrumentErrors`], all zero for an installation-only layout), which
+/// the matrices do not depend on but the model functions read.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Installation<T: RealField + Copy> {
     /// Gyro misalignment `θgC` (ps) or `θgC^pa` (pa).
@@ -22,6 +25,9 @@ pub struct Installation<T: RealField + Copy> {
     pub theta_a_t: Vector3<T>,
     /// Base mounting angles `λ` (zero without a base).
     pub lambda: Vector3<T>,
+    /// The instruments' own errors (SPEC §8; zero for
+    /// [`ErrorModel::Installation`](super::ErrorModel::Installation)).
+    pub instruments: InstrumentErrors<T>,
 }
 
 /// The per-period constant matrices of an installation: `G`, `A`, `R(λ)`,
@@ -111,6 +117,7 @@ impl InstallationMatrices<f64> {
                 theta_a_c: v(&p.theta_a_c),
                 theta_a_t: v(&p.theta_a_t),
                 lambda: v(&p.lambda),
+                instruments: p.instruments.to_precision(),
             },
             g: m(&self.g),
             a: m(&self.a),

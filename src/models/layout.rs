@@ -6,12 +6,17 @@
 //! vector into its attitude and installation parameters.
 //!
 //! The state vector is
-//! `[attitude(3), θgC or θgC^pa (3), θgT (3), θaC (3, ps only), θaT (3), λ (3, M2/M3)]`.
+//! `[attitude(3), θgC or θgC^pa (3), θgT (3), θaC (3, ps only), θaT (3), λ (3, M2/M3)]`,
+//! followed for the full model ([`ErrorModel::Full`]) by the instruments'
+//! own errors `[dg (3), D_g (9, row-major), kg (3), ba (3), ka (3)]`
+//! ([`Layout::instruments`], [`Layout::instrument_errors`]).
 
 use nalgebra::{RealField, SVector, Vector3};
 
 use super::blocks::{block3, put3};
+use super::error_model::ErrorModel;
 use super::installation::{Installation, InstallationMatrices};
+use super::instrument_errors::InstrumentErrors;
 use crate::geometry::wrap_angles;
 
 /// How the attitude block of the state describes the platform attitude.
@@ -71,6 +76,9 @@ pub struct Layout {
     pub base: bool,
     /// Whether the gimbal angles are observed (M2).
     pub gimbal_obs: bool,
+    /// Which errors the states hold after the attitude: the installation
+    /// errors alone, or followed by the instruments' own (SPEC §8).
+    pub errors: ErrorModel,
 }
 
 /// Index of the first attitude state.
@@ -103,9 +111,72 @@ impl Layout {
             None
         }
     }
-    /// Number of states.
+    /// Number of states: the installation states
+    /// ([`Layout::installation_n`]) and, for [`ErrorModel::Full`], 21 more.
     pub const fn n(&self) -> usize {
+        self.installation_n() + self.errors.extra_states()
+    }
+    /// Number of installation states (attitude, instrument angles, `λ`):
+    /// [`Layout::n`] of the installation-only layout.
+    pub const fn installation_n(&self) -> usize {
         self.at() + 3 + if self.base { 3 } else { 0 }
+    }
+    /// The same composition with the error model `errors`.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use rollcal::models::ErrorModel;
+    /// use rollcal::ConfigId;
+    ///
+    /// let full = ConfigId::M1Pa.layout().with_errors(ErrorModel::Full);
+    /// assert_eq!(full, ConfigId::M1Pa.layout_with(ErrorModel::Full));
+    /// assert_eq!((full.n(), full.instruments()), (33, Some(12)));
+    /// assert_eq!(
+    ///     (full.dg(), full.d_g(), full.kg(), full.ba(), full.ka()),
+    ///     (Some(12), Some(15), Some(24), Some(27), Some(30))
+    /// );
+    /// assert_eq!(ConfigId::M1Pa.layout().instruments(), None);
+    /// ```
+    pub const fn with_errors(self, errors: ErrorModel) -> Layout {
+        Layout { errors, ..self }
+    }
+    /// Index of the first instrument-error state (the number of
+    /// installation states), [`ErrorModel::Full`] only.
+    pub const fn instruments(&self) -> Option<usize> {
+        match self.errors {
+            ErrorModel::Installation => None,
+            ErrorModel::Full => Some(self.installation_n()),
+        }
+    }
+    /// The index `offset` states after the first instrument-error state.
+    const fn instrument_index(&self, offset: usize) -> Option<usize> {
+        match self.instruments() {
+            Some(i) => Some(i + offset),
+            None => None,
+        }
+    }
+    /// Index of the first constant gyro drift state `dg_x` (rad/s).
+    pub const fn dg(&self) -> Option<usize> {
+        self.instrument_index(0)
+    }
+    /// Index of the first g-sensitive drift state `Dg_xx` (`Dgpa_xx` in
+    /// pa; rad/s per g; nine, row-major: row = gyro, column = force axis).
+    pub const fn d_g(&self) -> Option<usize> {
+        self.instrument_index(3)
+    }
+    /// Index of the first torquer scale-factor state `kg_x` (dimensionless).
+    pub const fn kg(&self) -> Option<usize> {
+        self.instrument_index(12)
+    }
+    /// Index of the first accelerometer bias state `ba_x` (g).
+    pub const fn ba(&self) -> Option<usize> {
+        self.instrument_index(15)
+    }
+    /// Index of the first accelerometer scale-factor state `ka_x`
+    /// (dimensionless).
+    pub const fn ka(&self) -> Option<usize> {
+        self.instrument_index(18)
     }
     /// Number of measurement components per period.
     pub const fn z(&self) -> usize {
@@ -143,6 +214,48 @@ impl Layout {
             theta_a_c: self.ac().map_or_else(Vector3::zeros, |i| block3(x, i)),
             theta_a_t: block3(x, self.at()),
             lambda: self.lam().map_or_else(Vector3::zeros, |i| block3(x, i)),
+            instruments: self.instrument_errors(x),
+        }
+    }
+
+    /// Unpacks the instruments' own errors of a state vector (all zero for
+    /// an [`ErrorModel::Installation`] layout).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use nalgebra::{SVector, Vector3};
+    /// use rollcal::models::ErrorModel;
+    /// use rollcal::ConfigId;
+    ///
+    /// let layout = ConfigId::M2Ps.layout_with(ErrorModel::Full);
+    /// let mut x = SVector::<f64, 39>::zeros();
+    /// x[layout.ba().unwrap() + 1] = 2e-5; // ba_y (g)
+    /// x[layout.d_g().unwrap() + 5] = 1e-7; // Dg_yz (rad/s per g)
+    /// let e = layout.instrument_errors(&x);
+    /// assert_eq!(e.ba, Vector3::new(0.0, 2e-5, 0.0));
+    /// assert_eq!(e.d_g[(1, 2)], 1e-7);
+    /// ```
+    pub fn instrument_errors<T: RealField + Copy, const N: usize>(
+        &self,
+        x: &SVector<T, N>,
+    ) -> InstrumentErrors<T> {
+        match self.instruments() {
+            None => InstrumentErrors::zeros(),
+            Some(i) => {
+                let (r0, r1, r2) = (block3(x, i + 3), block3(x, i + 6), block3(x, i + 9));
+                InstrumentErrors {
+                    dg: block3(x, i),
+                    d_g: nalgebra::Matrix3::from_rows(&[
+                        r0.transpose(),
+                        r1.transpose(),
+                        r2.transpose(),
+                    ]),
+                    kg: block3(x, i + 12),
+                    ba: block3(x, i + 15),
+                    ka: block3(x, i + 18),
+                }
+            }
         }
     }
 

@@ -3,10 +3,15 @@
 //! `Z_a = A C^p_n f^n`, with the platform attitude `C^p_n = R(ψ) C^c_n`
 //! (M1), `C^p_r(θA) R(λ)` (M2, M3) or `C^p_r(θp)` (M4). The mean over a
 //! period is in `period_mean`.
+//!
+//! The full model (SPEC §8, [`ErrorModel::Full`]) reads
+//! `Z_a = ba + (I + K_a) A C^p_n f^n`; an installation-only layout
+//! evaluates exactly the operations it did before the full model existed.
 
 use nalgebra::{Matrix3, RealField, SMatrix, Vector3};
 
-use super::blocks::set_cols;
+use super::blocks::{scale_rows, set_cols};
+use super::error_model::ErrorModel;
 use super::installation::InstallationMatrices;
 use super::layout::{AttitudeKind, Layout, ATT};
 use super::Environment;
@@ -28,7 +33,9 @@ impl Layout {
         }
     }
 
-    /// The accelerometer output `Z_a = A C^p_n f^n` (g) at one instant.
+    /// The accelerometer output `Z_a = A C^p_n f^n` (g) at one instant;
+    /// for the full model `ba + (I + K_a) A C^p_n f^n` with the instrument
+    /// errors of `m.params.instruments`.
     pub fn accel_output<T: RealField + Copy>(
         &self,
         env: &Environment<T>,
@@ -36,7 +43,22 @@ impl Layout {
         att: &Vector3<T>,
         c_cn: &Matrix3<T>,
     ) -> Vector3<T> {
-        m.a * (self.platform_dcm(att, &m.c_rn, c_cn) * env.gravity_n)
+        let af = m.a * (self.platform_dcm(att, &m.c_rn, c_cn) * env.gravity_n);
+        self.accel_errors(m, &af)
+    }
+
+    /// The accelerometer output of the installed specific force `af`
+    /// (`A f^p`, g): `af` itself for an installation-only layout,
+    /// `ba + (I + K_a) af` for the full model (g).
+    pub fn accel_errors<T: RealField + Copy>(
+        &self,
+        m: &InstallationMatrices<T>,
+        af: &Vector3<T>,
+    ) -> Vector3<T> {
+        match self.errors {
+            ErrorModel::Installation => *af,
+            ErrorModel::Full => m.params.instruments.accel(af),
+        }
     }
 
     /// `∂Z_a/∂x` (3×N) at one instant.
@@ -67,6 +89,10 @@ impl Layout {
 
     /// [`Layout::accel_output_and_jacobian`] with the Jacobian written into
     /// `h` (every entry): no 3×N copy of it where the caller keeps it.
+    ///
+    /// For the full model the installation columns are multiplied by
+    /// `I + K_a`, `∂Z/∂ba = I` and `∂Z/∂ka = diag(A f^p)`; the gyro errors'
+    /// columns are zero.
     // Out of line: inlined into `mean_accel`'s loop over the nodes, LLVM
     // unrolled the lot into a 1.5 KB frame of spilled addresses (the M4F's
     // linearised M1-pa period went from 42 k to 93 k instructions).
@@ -122,6 +148,13 @@ impl Layout {
                 * InstallationMatrices::d_rotation_times(&m.c_rn, &m.jr_lambda, &env.gravity_n);
             set_cols(h, il, &d_lam);
         }
-        m.a * f_p
+        let af = m.a * f_p;
+        if let (Some(n_inst), Some(iba), Some(ika)) = (self.instruments(), self.ba(), self.ka()) {
+            let ka = &m.params.instruments.ka;
+            scale_rows(h, n_inst, &(Vector3::repeat(T::one()) + ka));
+            set_cols(h, iba, &Matrix3::identity());
+            set_cols(h, ika, &Matrix3::from_diagonal(&af));
+        }
+        self.accel_errors(m, &af)
     }
 }

@@ -18,13 +18,26 @@
 //! configuration is a zero-sized type implementing [`Model`] with its state
 //! and measurement dimensions fixed at compile time.
 //!
-//! All states are radians. The state vector is
-//! `[attitude(3), θgC or θgC^pa (3), θgT (3), θaC (3, ps only), θaT (3), λ (3, M2/M3)]`.
+//! The state vector is
+//! `[attitude(3), θgC or θgC^pa (3), θgT (3), θaC (3, ps only), θaT (3), λ (3, M2/M3)]`,
+//! all radians: the installation states. The **full model** ([`ErrorModel::Full`],
+//! SPEC §8, types `M1PaFull` … `M4PsFull`) appends the instruments' own
+//! errors ([`InstrumentErrors`]):
+//! `[dg (3, rad/s), D_g (9, rad/s per g, row-major: row = gyro, column =
+//! force axis in the model's platform frame), kg (3), ba (3, g), ka (3)]`,
+//! 21 more states (M1-pa 33, M2-ps 39, …). In the model's platform frame p
+//! the platform rate is `G [(I + K_g) ωc + dg + D_g f^p]` and the
+//! accelerometer output `ba + (I + K_a) A f^p`, with `f^p = C^p_n f^n`
+//! from the attitude state.
 //!
 //! The module by concern:
 //! - `config_id`: [`ConfigId`], the seven by name, and [`ParseConfigIdError`];
-//! - `dispatch`: [`with_config!`](crate::with_config) and
-//!   [`with_built_config!`](crate::with_built_config), `ConfigId` → type;
+//! - `error_model`: [`ErrorModel`] (installation only, or full) and
+//!   [`ParseErrorModelError`];
+//! - `instrument_errors`: [`InstrumentErrors`], the full model's 21 states;
+//! - `dispatch`: [`with_config!`](crate::with_config),
+//!   [`with_built_config!`](crate::with_built_config) and
+//!   [`with_model!`](crate::with_model), `ConfigId` (and [`ErrorModel`]) → type;
 //! - `layout`: [`Layout`], [`AttitudeKind`], [`PlatformFrame`], the state
 //!   indices and the unpacking of a state vector;
 //! - `states`: the state names ([`StateInfo`], [`Group`]);
@@ -61,7 +74,9 @@ mod blocks;
 mod config_id;
 mod dispatch;
 mod dynamics;
+mod error_model;
 mod installation;
+mod instrument_errors;
 mod layout;
 mod measurement;
 mod period_mean;
@@ -71,7 +86,9 @@ mod transition;
 
 pub(crate) use blocks::{attitude_columns, attitude_rows};
 pub use config_id::{ConfigId, ParseConfigIdError};
+pub use error_model::{ErrorModel, ParseErrorModelError};
 pub use installation::{Installation, InstallationMatrices};
+pub use instrument_errors::InstrumentErrors;
 pub use layout::{AttitudeKind, Layout, PlatformFrame, ATT, GC, GT};
 pub use propagation::PeriodPropagation;
 pub use states::{Group, StateInfo};
@@ -100,8 +117,15 @@ pub use transition::{
 pub trait Model<const N: usize, const Z: usize> {
     /// Which configuration this is.
     const ID: ConfigId;
-    /// Its composition (must agree with `ID.layout()`).
-    const LAYOUT: Layout = Self::ID.layout();
+    /// Which errors its states hold (installation only unless said).
+    const ERRORS: ErrorModel = ErrorModel::Installation;
+    /// Its composition (must agree with `ID.layout_with(ERRORS)`).
+    const LAYOUT: Layout = Self::ID.layout_with(Self::ERRORS);
+    /// The names, units and groups of its `N` states
+    /// ([`ConfigId::states_with`] of `ID` and `ERRORS`).
+    fn states() -> &'static [StateInfo] {
+        Self::ID.states_with(Self::ERRORS)
+    }
 }
 
 macro_rules! config_type {
@@ -111,6 +135,15 @@ macro_rules! config_type {
         pub struct $ty;
         impl Model<$n, $z> for $ty {
             const ID: ConfigId = ConfigId::$id;
+        }
+    };
+    (full $(#[$doc:meta])* $ty:ident, $id:ident, $n:literal, $z:literal) => {
+        $(#[$doc])*
+        #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+        pub struct $ty;
+        impl Model<$n, $z> for $ty {
+            const ID: ConfigId = ConfigId::$id;
+            const ERRORS: ErrorModel = ErrorModel::Full;
         }
     };
 }
@@ -136,6 +169,45 @@ config_type!(
 config_type!(
     /// M4-ps: `θp, θgC, θgT, θaC, θaT` (15 states); accelerometer observations.
     M4Ps, M4Ps, 15, 3);
+
+config_type!(full
+    /// M1-pa full model (SPEC §8): the 12 states of [`M1Pa`] followed by
+    /// `dg, D_g^pa, kg, ba, ka` (33 states); accelerometer observations.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use rollcal::models::{ErrorModel, M1PaFull, Model};
+    /// use rollcal::ConfigId;
+    ///
+    /// type M = M1PaFull;
+    /// assert_eq!(<M as Model<33, 3>>::ID, ConfigId::M1Pa);
+    /// assert_eq!(<M as Model<33, 3>>::ERRORS, ErrorModel::Full);
+    /// let layout = <M as Model<33, 3>>::LAYOUT;
+    /// assert_eq!((layout.n(), layout.z(), layout.instruments()), (33, 3, Some(12)));
+    /// let states = <M as Model<33, 3>>::states();
+    /// assert_eq!((states[12].name, states[15].name, states[32].name), ("dg_x", "Dgpa_xx", "ka_z"));
+    /// ```
+    M1PaFull, M1Pa, 33, 3);
+config_type!(full
+    /// M1-ps full model: [`M1Ps`]'s 15 states and the 21 instrument errors (36 states).
+    M1PsFull, M1Ps, 36, 3);
+config_type!(full
+    /// M2-ps full model: [`M2Ps`]'s 18 states and the 21 instrument errors (39 states);
+    /// gimbal + accelerometer observations.
+    M2PsFull, M2Ps, 39, 6);
+config_type!(full
+    /// M3-pa full model: [`M3Pa`]'s 15 states and the 21 instrument errors (36 states).
+    M3PaFull, M3Pa, 36, 3);
+config_type!(full
+    /// M3-ps full model: [`M3Ps`]'s 18 states and the 21 instrument errors (39 states).
+    M3PsFull, M3Ps, 39, 3);
+config_type!(full
+    /// M4-pa full model: [`M4Pa`]'s 12 states and the 21 instrument errors (33 states).
+    M4PaFull, M4Pa, 33, 3);
+config_type!(full
+    /// M4-ps full model: [`M4Ps`]'s 15 states and the 21 instrument errors (36 states).
+    M4PsFull, M4Ps, 36, 3);
 
 /// The environment every model needs.
 #[derive(Clone, Copy, Debug, PartialEq)]

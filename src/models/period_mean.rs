@@ -8,7 +8,9 @@
 
 use nalgebra::{Const, Matrix, Matrix3, RealField, SMatrix, StorageMut, Vector3, U3};
 
+use super::error_model::ErrorModel;
 use super::installation::InstallationMatrices;
+use super::instrument_errors::InstrumentErrors;
 use super::layout::{AttitudeKind, Layout, ATT};
 use super::propagation::PeriodPropagation;
 use super::transition::apply_transition_of;
@@ -96,12 +98,19 @@ impl Layout {
     ///   the first node's, their increments in `J`
     ///   ([`EulerTrig::advanced_in`]; ≤ 7.2e-10 in f32), the rest in f64.
     ///
+    /// For the full model ([`ErrorModel::Full`]) the mean is
+    /// `ba + (I + K_a) A Σ w_j R_j f_j` with `instruments`' `ba`, `ka`
+    /// (exact: the output is affine in `f`); an installation-only layout
+    /// ignores `instruments`.
+    ///
     /// For `J = f64` it equals `mean_accel`'s value to rounding.
+    #[allow(clippy::too_many_arguments)]
     pub fn mean_accel_output<J: RealField + Copy>(
         &self,
         env: &Environment<f64>,
         a: &Matrix3<f64>,
         c_rn: &Matrix3<f64>,
+        instruments: &InstrumentErrors<f64>,
         att: &[Vector3<f64>; 3],
         period: &Period<f64>,
         turn: &[Matrix3<J>; 2],
@@ -142,6 +151,10 @@ impl Layout {
                 }
             }
         }
-        a * mean
+        let af = a * mean;
+        match self.errors {
+            ErrorModel::Installation => af,
+            ErrorModel::Full => instruments.accel(&af),
+        }
     }
 }

@@ -102,10 +102,11 @@ impl Layout {
         out: &mut PeriodPropagation<J, N>,
     ) -> Option<()> {
         let [_, wm, w1] = &period.omega_c;
+        let [_, cm, c1] = &period.c_cn;
         let [_, att_mid, att1] = self.trajectory(env_j, m_j, att0, period)?;
         let (att_mid_j, att1_j) = (vector_in(&att_mid)?, vector_in(&att1)?);
-        self.attitude_rate_jacobian_into(env_j, m_j, &att_mid_j, wm, &mut out.f_mid)?;
-        self.attitude_rate_jacobian_into(env_j, m_j, &att1_j, w1, &mut out.f_end)?;
+        self.attitude_rate_jacobian_into(env_j, m_j, &att_mid_j, wm, cm, &mut out.f_mid)?;
+        self.attitude_rate_jacobian_into(env_j, m_j, &att1_j, w1, c1, &mut out.f_end)?;
         transition_rows_into(&out.f_mid, period.dt, &mut out.phi_att);
         out.noise_map = self.noise_map(&att_mid_j)?;
         out.att = [vector_in(att0)?, att_mid_j, att1_j];
@@ -140,13 +141,16 @@ impl Layout {
         let six: J = nalgebra::convert(6.0);
         let eight: J = nalgebra::convert(8.0);
         let [w0, wm, w1] = &period.omega_c;
+        // C^c_n at the nodes: read by the full model's M1 only (f^p of
+        // the g-sensitive drift).
+        let [c0, cm, c1] = &period.c_cn;
         let a0 = to_j(att0)?;
-        let k1 = self.attitude_rate(env_j, m_j, &a0, w0)?;
-        let k2 = self.attitude_rate(env_j, m_j, &(a0 + k1 * (dt * half)), wm)?;
-        let k3 = self.attitude_rate(env_j, m_j, &(a0 + k2 * (dt * half)), wm)?;
-        let k4 = self.attitude_rate(env_j, m_j, &(a0 + k3 * dt), w1)?;
+        let k1 = self.attitude_rate(env_j, m_j, &a0, w0, c0)?;
+        let k2 = self.attitude_rate(env_j, m_j, &(a0 + k1 * (dt * half)), wm, cm)?;
+        let k3 = self.attitude_rate(env_j, m_j, &(a0 + k2 * (dt * half)), wm, cm)?;
+        let k4 = self.attitude_rate(env_j, m_j, &(a0 + k3 * dt), w1, c1)?;
         let att1 = att0 + to_p((k1 + (k2 + k3) * two + k4) * (dt / six))?;
-        let f1 = self.attitude_rate(env_j, m_j, &to_j(&att1)?, w1)?;
+        let f1 = self.attitude_rate(env_j, m_j, &to_j(&att1)?, w1, c1)?;
         let att_mid =
             (att0 + att1) * nalgebra::convert::<f64, P>(0.5) + to_p((k1 - f1) * (dt / eight))?;
         Some([*att0, att_mid, att1])

@@ -34,13 +34,28 @@ use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use rollcal::command::{CommandFrame, Period};
 use rollcal::ekf::{Filter, FilterConfig, Options};
 use rollcal::geometry::{dcm, earth_rate_n, EARTH_RATE};
-use rollcal::models::{AttitudeKind, ConfigId, Environment, Layout, Model, PeriodPropagation};
+use rollcal::models::{
+    AttitudeKind, ConfigId, Environment, ErrorModel, Layout, Model, PeriodPropagation, StateInfo,
+};
 
 const DEG: f64 = PI / 180.0;
 /// Finite-difference step (rad), see the module docs.
 const FD_STEP: f64 = 1e-4;
 /// Absolute tolerance of every comparison (rad/rad, g/rad or (rad/s)/rad).
 const TOL: f64 = 1e-9;
+/// Relative tolerance of the transition's (and so of `H`'s) columns of the
+/// full model's gyro errors dg, D_g, kg. `phi_att` is `exp(F_mid T)` to
+/// second order: for the installation angles it differs from the RK4 step's
+/// derivative by ≈ |ω T|³/6 (module docs); for a parameter column `F_p` of
+/// O(1) (`∂rate/∂dg = J G`: `J`, `T(θ)` or `J_r⁻¹(ψ)`, turns with the
+/// attitude) it misses the curvature of `F_p` over the period,
+/// ≈ T³/24 |F_p''| ≈ |θ̇ T|²/24 ≈ 1.2e-7 of the entry (measured ≤ 2.2e-7
+/// relative, 2.0e-7 on entries of 0.9). That is by design (the same
+/// relative accuracy as the installation gyro columns, 5e-8 of theirs;
+/// 2e-7 of the drift's σ0 of 1 °/h is 1e-12 rad per period). A formula
+/// error shows in the instantaneous `F` (checked at `TOL`) or at ≥ 1e-3 of
+/// the entry.
+const REL_TOL_TRANSITION: f64 = 1e-6;
 /// Rolling rate of the paper, 0.1°/s, in rad/s.
 const ROLL_RATE: f64 = 0.1 * DEG;
 
@@ -99,6 +114,25 @@ fn state<const N: usize>(layout: &Layout) -> SVector<f64, N> {
     if let Some(i) = layout.lam() {
         set3(&mut x, i, [0.2 * DEG, -0.4 * DEG, 0.3 * DEG]); // λ
     }
+    if let Some(i) = layout.instruments() {
+        // The full model's instrument errors, pseudo-random and far from
+        // zero (larger than the SPEC §8 truths, so that a missing factor
+        // `I + K_a` or term `G D_g ∂f^p/∂att` shows at ≥ 1e-6): dg and D_g
+        // up to 20 °/h (1e-4 rad/s), kg, ka up to 2000 ppm, ba up to 2 mg.
+        let mut seed = 0x5eed_u64 + i as u64;
+        let mut r = || {
+            seed = seed
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+        };
+        for k in 0..12 {
+            x[i + k] = 1e-4 * r(); // dg, D_g (rad/s, rad/s per g)
+        }
+        for k in 12..21 {
+            x[i + k] = 2e-3 * r(); // kg, ba (g), ka
+        }
+    }
     x
 }
 
@@ -116,23 +150,23 @@ struct Blocks(Vec<(&'static str, f64, f64)>);
 
 impl Blocks {
     fn new<const R: usize, const N: usize>(
-        id: ConfigId,
+        states: &[StateInfo],
         an: &SMatrix<f64, R, N>,
         fdj: &SMatrix<f64, R, N>,
     ) -> Self {
         let mut out = Self::default();
-        out.add(id, an, fdj);
+        out.add(states, an, fdj);
         out
     }
 
     fn add<const R: usize, const N: usize>(
         &mut self,
-        id: ConfigId,
+        states: &[StateInfo],
         an: &SMatrix<f64, R, N>,
         fdj: &SMatrix<f64, R, N>,
     ) {
-        assert_eq!(id.states().len(), N);
-        for (j, info) in id.states().iter().enumerate() {
+        assert_eq!(states.len(), N);
+        for (j, info) in states.iter().enumerate() {
             let err = (an.column(j) - fdj.column(j)).amax();
             let size = fdj.column(j).amax();
             let name = info.group.as_str();
@@ -150,6 +184,24 @@ impl Blocks {
         self.0.iter().map(|b| b.1).fold(0.0, f64::max)
     }
 
+    /// The largest ratio of a group's error to what it is allowed: `TOL`,
+    /// or for the full model's gyro-error groups (dg, Dg, kg) of the
+    /// period's transition `TOL + REL_TOL_TRANSITION · |J|` (see
+    /// [`REL_TOL_TRANSITION`]). ≤ 1 passes.
+    fn worst_ratio(&self, transition: bool) -> f64 {
+        self.0
+            .iter()
+            .map(|(n, e, s)| {
+                let allowed = if transition && matches!(*n, "dg" | "Dg" | "kg") {
+                    TOL + REL_TOL_TRANSITION * s
+                } else {
+                    TOL
+                };
+                e / allowed
+            })
+            .fold(0.0, f64::max)
+    }
+
     fn describe(&self) -> String {
         let parts: Vec<String> = self
             .0
@@ -163,6 +215,7 @@ impl Blocks {
 /// The checks of one configuration, plus diagnostics of `H`.
 struct Report {
     id: ConfigId,
+    errors: ErrorModel,
     accel: Blocks,
     rate: Blocks,
     phi: Blocks,
@@ -172,7 +225,8 @@ struct Report {
 fn check<M: Model<N, Z>, const N: usize, const Z: usize>() -> Report {
     let id = M::ID;
     let layout = M::LAYOUT;
-    assert_eq!(layout, id.layout());
+    let states = M::states();
+    assert_eq!(layout, id.layout_with(M::ERRORS));
     assert_eq!((layout.n(), layout.z()), (N, Z));
     let env = env();
     let x: SVector<f64, N> = state(&layout);
@@ -192,25 +246,28 @@ fn check<M: Model<N, Z>, const N: usize, const Z: usize>() -> Report {
             |x| layout.accel_output(&env, &layout.matrices(x), &layout.attitude(x), &c_cn),
             &x,
         );
-        accel.add(id, &an, &fdj);
+        accel.add(states, &an, &fdj);
     }
 
     // Attitude-rate Jacobian (the rows of F), at the start and mid nodes.
     let mut rate = Blocks::default();
-    for w in [period.omega_c[0], period.omega_c[1]] {
+    for (w, c_cn) in [
+        (period.omega_c[0], period.c_cn[0]),
+        (period.omega_c[1], period.c_cn[1]),
+    ] {
         let m = layout.matrices(&x);
         let an: SMatrix<f64, 3, N> = layout
-            .attitude_rate_jacobian(&env, &m, &layout.attitude(&x), &w)
+            .attitude_rate_jacobian(&env, &m, &layout.attitude(&x), &w, &c_cn)
             .expect("no gimbal lock");
         let fdj = fd(
             |x| {
                 layout
-                    .attitude_rate(&env, &layout.matrices(x), &layout.attitude(x), &w)
+                    .attitude_rate(&env, &layout.matrices(x), &layout.attitude(x), &w, &c_cn)
                     .expect("no gimbal lock")
             },
             &x,
         );
-        rate.add(id, &an, &fdj);
+        rate.add(states, &an, &fdj);
     }
 
     // Φ: the attitude rows of ∂x_{k+1}/∂x_k of one RK4 period.
@@ -221,7 +278,7 @@ fn check<M: Model<N, Z>, const N: usize, const Z: usize>() -> Report {
     };
     let an = propagate(&x, &period).phi_att;
     let fdj = fd(|x| propagate(x, &period).att[2], &x);
-    let phi = Blocks::new(id, &an, &fdj);
+    let phi = Blocks::new(states, &an, &fdj);
 
     // H of the filter, w.r.t. the end-of-period state (computed frame
     // starting aligned with n, as the filter's does).
@@ -242,10 +299,11 @@ fn check<M: Model<N, Z>, const N: usize, const Z: usize>() -> Report {
     assert!((x_end - x).amax() > 1e-6, "predict moved the attitude");
     let (_, h_an) = filter.measurement_at(&x_end).expect("measurement");
     let h_fd = fd(|x| filter.measurement_at(x).expect("measurement").0, &x_end);
-    let h = Blocks::new(id, &h_an, &h_fd);
+    let h = Blocks::new(states, &h_an, &h_fd);
 
     Report {
         id,
+        errors: M::ERRORS,
         accel,
         rate,
         phi,
@@ -253,28 +311,39 @@ fn check<M: Model<N, Z>, const N: usize, const Z: usize>() -> Report {
     }
 }
 
-fn run(id: ConfigId) -> Report {
-    let report = rollcal::with_config!(id, |M, N, Z| check::<M, N, Z>());
-    assert_eq!(report.id, id);
+fn run(id: ConfigId, errors: ErrorModel) -> Report {
+    let report = rollcal::with_model!(id, errors, |M, N, Z| check::<M, N, Z>());
+    assert_eq!((report.id, report.errors), (id, errors));
     report
 }
 
-/// Runs every configuration, prints the errors of one check and asserts
-/// them against `TOL`.
-fn assert_check(name: &str, pick: impl Fn(&Report) -> &Blocks, diagnose: impl Fn(&Report)) {
+/// Runs every configuration, installation-only and full (SPEC §8),
+/// prints the errors of one check and asserts them against `TOL` (and,
+/// for a `transition` check, the gyro errors' columns against
+/// `REL_TOL_TRANSITION` of their size).
+fn assert_check(
+    name: &str,
+    transition: bool,
+    pick: impl Fn(&Report) -> &Blocks,
+    diagnose: impl Fn(&Report),
+) {
     let mut failures = Vec::new();
-    for id in ConfigId::ALL {
-        let report = run(id);
+    for (id, errors) in ErrorModel::ALL
+        .into_iter()
+        .flat_map(|e| ConfigId::ALL.map(|id| (id, e)))
+    {
+        let report = run(id, errors);
+        let id = format!("{id} {errors}");
         let blocks = pick(&report);
         let worst = blocks.max();
         eprintln!(
             "{id} {name}: max |analytic − FD| {worst:.2e}  [{}]",
             blocks.describe()
         );
-        if worst > TOL {
+        if blocks.worst_ratio(transition) > 1.0 {
             diagnose(&report);
             failures.push(format!(
-                "{id} {name}: {worst:.2e} > {TOL:e}  [{}]",
+                "{id} {name}: {worst:.2e} > {TOL:e} (or {REL_TOL_TRANSITION:e} relative)  [{}]",
                 blocks.describe()
             ));
         }
@@ -288,20 +357,20 @@ fn assert_check(name: &str, pick: impl Fn(&Report) -> &Blocks, diagnose: impl Fn
 
 #[test]
 fn accel_jacobian_matches_finite_differences() {
-    assert_check("accel_jacobian", |r| &r.accel, |_| {});
+    assert_check("accel_jacobian", false, |r| &r.accel, |_| {});
 }
 
 #[test]
 fn attitude_rate_jacobian_matches_finite_differences() {
-    assert_check("attitude_rate_jacobian", |r| &r.rate, |_| {});
+    assert_check("attitude_rate_jacobian", false, |r| &r.rate, |_| {});
 }
 
 #[test]
 fn transition_matches_finite_differences() {
-    assert_check("phi_att", |r| &r.phi, |_| {});
+    assert_check("phi_att", true, |r| &r.phi, |_| {});
 }
 
 #[test]
 fn measurement_jacobian_matches_finite_differences() {
-    assert_check("H (measurement_at)", |r| &r.h, |_| {});
+    assert_check("H (measurement_at)", true, |r| &r.h, |_| {});
 }

@@ -165,12 +165,27 @@ fn mean_accel_output_error<M: Model<N, Z>, const N: usize, const Z: usize>(
         let mut h = SMatrix::<f64, 3, N>::zeros();
         let (z, _) = layout.mean_accel(&env, &m, &prop, &period, &mut h);
         let turn64 = PeriodIn::<f64>::of(&period).turn;
-        let z64 = layout.mean_accel_output(&env, &m.a, &m.c_rn, &prop.att, &period, &turn64);
+        let z64 = layout.mean_accel_output(
+            &env,
+            &m.a,
+            &m.c_rn,
+            &m.params.instruments,
+            &prop.att,
+            &period,
+            &turn64,
+        );
         // In f32 with the frame's turn as the single-precision filter forms
         // it (its f64 nodes are `period`'s to 1e-13).
         let (period32, period_in32) = frame.period_in::<f32>(&increment, 1.0);
-        let z32 =
-            layout.mean_accel_output(&env, &m.a, &m.c_rn, &prop.att, &period32, &period_in32.turn);
+        let z32 = layout.mean_accel_output(
+            &env,
+            &m.a,
+            &m.c_rn,
+            &m.params.instruments,
+            &prop.att,
+            &period32,
+            &period_in32.turn,
+        );
         err64 = err64.max((z64 - z).amax());
         err32 = err32.max((z32 - z).amax());
     }
@@ -179,11 +194,16 @@ fn mean_accel_output_error<M: Model<N, Z>, const N: usize, const Z: usize>(
 
 #[test]
 fn mean_accel_output_is_mean_accels_value() {
-    use rollcal::models::{M1Pa, M2Ps, M4Pa};
+    use rollcal::models::{M1Pa, M1PaFull, M2Ps, M2PsFull, M4Pa, M4PaFull};
     for (name, (e64, e32)) in [
         ("M1-pa", mean_accel_output_error::<M1Pa, 12, 3>(21)),
         ("M2-ps", mean_accel_output_error::<M2Ps, 18, 6>(22)),
         ("M4-pa", mean_accel_output_error::<M4Pa, 12, 3>(23)),
+        // The full model: instrument errors of 1e-3 in their units (ba, ka
+        // act on the mean exactly as on each node's output).
+        ("M1-pa full", mean_accel_output_error::<M1PaFull, 33, 3>(24)),
+        ("M2-ps full", mean_accel_output_error::<M2PsFull, 39, 6>(25)),
+        ("M4-pa full", mean_accel_output_error::<M4PaFull, 33, 3>(26)),
     ] {
         eprintln!("{name}: mean_accel_output − mean_accel: f64 {e64:.1e} g, f32 {e32:.1e} g");
         // f64: rounding (a few ulp of 1 g). f32: M1's rotations of ≤ 1.7 mrad

@@ -206,7 +206,14 @@ impl Compensation {
             .iter()
             .map(|s| {
                 let (v, k) = match s.group {
-                    Group::Attitude => (Vector3::repeat(f64::NAN), 0),
+                    // The instrument errors of the full model are no
+                    // installation residual (`states()` has none of them).
+                    Group::Attitude
+                    | Group::GyroDrift
+                    | Group::GyroGDrift
+                    | Group::GyroScale
+                    | Group::AccelBias
+                    | Group::AccelScale => (Vector3::repeat(f64::NAN), 0),
                     Group::ThetaGC => (gc, 1),
                     Group::ThetaGT => (gt, 2),
                     Group::ThetaAC => (ac, 3),

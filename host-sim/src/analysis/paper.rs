@@ -105,6 +105,11 @@ fn figure_title(id: ConfigId, g: Group) -> String {
         Group::ThetaGC => "gyro axis rotation θgC",
         Group::Lambda => "base mounting λ",
         Group::Attitude => "attitude",
+        Group::GyroDrift => "gyro drift dg",
+        Group::GyroGDrift => "g-sensitive gyro drift Dg",
+        Group::GyroScale => "gyro scale factor kg",
+        Group::AccelBias => "accelerometer bias ba",
+        Group::AccelScale => "accelerometer scale factor ka",
     };
     format!("{id}: {what} — estimation error, ±3σ filter, ±3σ_CRLB")
 }
