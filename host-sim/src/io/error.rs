@@ -100,10 +100,7 @@ impl fmt::Display for Error {
                 key,
                 found,
                 expected,
-            } => write!(
-                f,
-                "{path}: '{key}' has {found} values, not {expected}"
-            ),
+            } => write!(f, "{path}: '{key}' has {found} values, not {expected}"),
             Error::Bound(e) => write!(f, "Cramér–Rao bound: {e}"),
         }
     }

@@ -100,7 +100,10 @@ mod tests {
         assert_eq!(instrument_names(ConfigId::M1Pa), PA_NAMES);
         assert_eq!(instrument_names(ConfigId::M2Ps), PS_NAMES);
         let u = instrument_units();
-        assert_eq!((u[0], u[3], u[12], u[15], u[18]), ("deg/h", "deg/h/g", "ppm", "ug", "ppm"));
+        assert_eq!(
+            (u[0], u[3], u[12], u[15], u[18]),
+            ("deg/h", "deg/h/g", "ppm", "ug", "ppm")
+        );
         assert!((printed_factor(0) * DEG_H - 1.0).abs() < 1e-15);
         assert_eq!(printed_factor(16) * 30e-6, 30.0);
     }

@@ -9,7 +9,7 @@ use crate::support;
 use host_sim::io::sidecar::read_sidecar;
 use host_sim::io::Error;
 use host_sim::sim::instruments::{
-    instrument_truth_state, instrument_units, PA_NAMES, PS_NAMES, DEG_H, PPM, UG,
+    instrument_truth_state, instrument_units, DEG_H, PA_NAMES, PPM, PS_NAMES, UG,
 };
 use host_sim::sim::scenario::{Scenario, DEG, PAPER_TOML};
 use host_sim::sim::truth::{simulate, SimOptions, Simulation, TruthParams};
@@ -50,7 +50,10 @@ fn text(
         &PAPER_TOML[site..a],
         &PAPER_TOML[b..]
     )
-    .replace("duration_s = 5400.0", &format!("duration_s = {duration_s:?}"))
+    .replace(
+        "duration_s = 5400.0",
+        &format!("duration_s = {duration_s:?}"),
+    )
     .replace("earth_rate = true", &format!("earth_rate = {earth_rate}"))
 }
 
@@ -246,14 +249,26 @@ fn g_sensitive_drift_is_d_g_times_the_specific_force() {
 fn scenario_errors_name_the_field() {
     let zero3 = "[0.0, 0.0, 0.0]";
     for (table, field) in [
-        ("[instruments]\ndg_deg_h = [11.0, 0.0, 0.0]\n", "instruments.dg_deg_h"),
+        (
+            "[instruments]\ndg_deg_h = [11.0, 0.0, 0.0]\n",
+            "instruments.dg_deg_h",
+        ),
         (
             &format!("[instruments]\nd_g_deg_h_g = [{zero3}, [0.0, nan, 0.0], {zero3}]\n"),
             "instruments.d_g_deg_h_g[1]",
         ),
-        ("[instruments]\nkg_ppm = [0.0, 2e4, 0.0]\n", "instruments.kg_ppm"),
-        ("[instruments]\nba_ug = [-2e4, 0.0, 0.0]\n", "instruments.ba_ug"),
-        ("[instruments]\nka_ppm = [0.0, 0.0, inf]\n", "instruments.ka_ppm"),
+        (
+            "[instruments]\nkg_ppm = [0.0, 2e4, 0.0]\n",
+            "instruments.kg_ppm",
+        ),
+        (
+            "[instruments]\nba_ug = [-2e4, 0.0, 0.0]\n",
+            "instruments.ba_ug",
+        ),
+        (
+            "[instruments]\nka_ppm = [0.0, 0.0, inf]\n",
+            "instruments.ka_ppm",
+        ),
         (
             "[instruments.prior]\nsigma_kg_ppm = 0.0\n",
             "instruments.prior.sigma_kg_ppm",
@@ -262,8 +277,14 @@ fn scenario_errors_name_the_field() {
             "[instruments.prior]\nsigma_dg_deg_h = -1.0\n",
             "instruments.prior.sigma_dg_deg_h",
         ),
-        ("[instruments]\nbias_ug = [1.0, 2.0, 3.0]\n", "unknown field `bias_ug`"),
-        ("[instruments.prior]\nsigma_foo = 1.0\n", "unknown field `sigma_foo`"),
+        (
+            "[instruments]\nbias_ug = [1.0, 2.0, 3.0]\n",
+            "unknown field `bias_ug`",
+        ),
+        (
+            "[instruments.prior]\nsigma_foo = 1.0\n",
+            "unknown field `sigma_foo`",
+        ),
         ("[instruments]\nkg_ppm = [1.0, 2.0]\n", "line "),
     ] {
         let e = Scenario::from_toml(&format!("{PAPER_TOML}\n{table}")).unwrap_err();
@@ -274,14 +295,18 @@ fn scenario_errors_name_the_field() {
 
 #[test]
 fn instrumented_scenario_has_the_spec_values() {
-    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../scenarios/instrumented.toml");
+    let file =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/instrumented.toml");
     let sc = Scenario::from_file(&file).unwrap();
     let ins = &sc.instruments;
     assert_eq!(ins.dg_deg_h, [0.02, -0.03, 0.015]);
     assert_eq!(
         ins.d_g_deg_h_g,
-        [[0.03, 0.01, -0.005], [-0.01, 0.02, 0.008], [0.006, -0.012, 0.025]]
+        [
+            [0.03, 0.01, -0.005],
+            [-0.01, 0.02, 0.008],
+            [0.006, -0.012, 0.025]
+        ]
     );
     assert_eq!(ins.kg_ppm, [60.0, -40.0, 80.0]);
     assert_eq!(ins.ba_ug, [30.0, -20.0, 45.0]);
@@ -314,11 +339,13 @@ fn instrumented_scenario_has_the_spec_values() {
     let d_pa = Matrix3::from_fn(|r, c| pa[3 + 3 * r + c]);
     assert!((d_pa * f_pa - p.d_g * f_ps).amax() < 1e-22);
     assert!((d_pa - p.d_g).amax() > 1e-10, "pa differs from ps");
-    assert_eq!(
-        p.gyro_input(&Vector3::zeros(), &f_ps),
-        p.dg + p.d_g * f_ps
+    assert_eq!(p.gyro_input(&Vector3::zeros(), &f_ps), p.dg + p.d_g * f_ps);
+    assert!(
+        (p.accel_output(&f_ps)
+            - (p.ba + (p.a() * f_ps).component_mul(&(Vector3::repeat(1.0) + p.ka))))
+        .amax()
+            < 1e-15
     );
-    assert!((p.accel_output(&f_ps) - (p.ba + (p.a() * f_ps).component_mul(&(Vector3::repeat(1.0) + p.ka)))).amax() < 1e-15);
 }
 
 /// `record` writes the 21 true instrument errors into the truth sidecar
@@ -355,7 +382,10 @@ fn sidecar_records_the_instrument_truth() {
         support::assert_success(&out);
         let json = support::json_file(&truth);
         assert_eq!(json["instrument_names"], serde_json::json!(names));
-        assert_eq!(json["instrument_units"], serde_json::json!(instrument_units()));
+        assert_eq!(
+            json["instrument_units"],
+            serde_json::json!(instrument_units())
+        );
         let mut with_bias = sc.clone();
         for (a, b) in with_bias.instruments.ba_ug.iter_mut().zip(bias) {
             *a += b;
@@ -385,10 +415,21 @@ fn sidecar_records_the_instrument_truth() {
     std::fs::write(&old, json.to_string()).unwrap();
     let e = read_sidecar(&old, ConfigId::M2Ps).err().unwrap();
     assert!(
-        matches!(e, Error::SidecarLength { found: 20, expected: 21, .. }),
+        matches!(
+            e,
+            Error::SidecarLength {
+                found: 20,
+                expected: 21,
+                ..
+            }
+        ),
         "{e}"
     );
-    assert!(e.to_string().contains("'instrument_truth' has 20 values, not 21"), "{e}");
+    assert!(
+        e.to_string()
+            .contains("'instrument_truth' has 20 values, not 21"),
+        "{e}"
+    );
     json["instrument_truth"] = serde_json::json!("none");
     std::fs::write(&old, json.to_string()).unwrap();
     let e = read_sidecar(&old, ConfigId::M2Ps).err().unwrap();
