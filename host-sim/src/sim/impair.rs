@@ -64,8 +64,8 @@ pub struct AccelDefects {
     #[arg(long, value_name = "K", default_value_t = 1.0, value_parser = parse_scale)]
     pub accel_noise_scale: f64,
     /// A constant accelerometer bias X,Y,Z (µg, instrument frame), added to
-    /// the scenario's accelerometer bias (its [instruments] ba_ug; the truth
-    /// sidecar records the sum), which no configuration models yet.
+    /// the scenario's accelerometer bias (ba_ug of its instruments table;
+    /// the truth sidecar records the sum), which no configuration models yet.
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_triple, allow_hyphen_values = true)]
     pub accel_bias_ug: Option<[f64; 3]>,
 }
