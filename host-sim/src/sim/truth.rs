@@ -8,8 +8,8 @@
 //! (0.01 s), and applies the true accelerometers
 //! (`Z_a = ba + (I + K_a) A f^ps`) to the true specific force. With every
 //! instrument error zero it takes exactly the installation-only arithmetic
-//! (`G ωc`, `A f^ps`), bit for bit. It shares with the estimator only the tested
-//! geometry primitives (`skew`, `dcm`, `gimbal_dcm`, `euler_angles`,
+//! (`G ωc`, `A f^ps`), bit for bit. It shares with the estimator only the
+//! tested geometry primitives (`skew`, `dcm`, `gimbal_dcm`, `euler_angles`,
 //! `rotation_vector`, `wrap_angle`); it uses none of the configurations'
 //! state models, dynamics or measurement functions.
 
