@@ -318,6 +318,12 @@ fn instrumented_scenario_has_the_spec_values() {
     assert_eq!(s0[12], 2000.0 * PPM);
     assert_eq!(s0[17], 1000.0 * UG);
     assert_eq!(s0[20], 1000.0 * PPM);
+    // A written scenario (`design --out`) keeps the table; the paper's has none.
+    let written = toml::to_string(&sc).unwrap();
+    assert_eq!(Scenario::from_toml(&written).unwrap(), sc);
+    assert!(!toml::to_string(&Scenario::paper())
+        .unwrap()
+        .contains("instruments"));
     // Everything else is the paper's scenario.
     let mut rest = sc.clone();
     rest.instruments = Default::default();
