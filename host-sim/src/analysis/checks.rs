@@ -473,8 +473,9 @@ pub fn judge_simulated(
 ) -> Result<Judgement, crate::analysis::Error> {
     use crate::sim::truth::{simulate, SimOptions};
     let earth_rate = scenario.site.earth_rate;
+    // The bias is the truth simulator's (added to the scenario's `ba`).
     let mut sim = simulate(
-        scenario,
+        &defect.biased(scenario),
         SimOptions {
             seed,
             noise: true,

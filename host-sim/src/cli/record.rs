@@ -62,7 +62,12 @@ pub fn command(args: &RecordArgs) -> Result<(), Error> {
     if !csv {
         refuse_terminal(&args.out, std::io::stdout().is_terminal())?;
     }
-    let sc = load_scenario(args.scenario.as_deref())?;
+    // `--accel-bias-ug` adds to the scenario's accelerometer bias: the truth
+    // simulator applies it, and the sidecar records the sum.
+    let sc = args
+        .impair
+        .accel
+        .biased(&load_scenario(args.scenario.as_deref())?);
     let earth_rate = !args.no_earth_rate && sc.site.earth_rate;
     eprintln!(
         "recording '{}' ({} periods, seed {}) for {}…",

@@ -61,6 +61,17 @@ pub enum Error {
         /// The missing key.
         key: String,
     },
+    /// A truth sidecar array of the wrong length.
+    SidecarLength {
+        /// The file.
+        path: String,
+        /// The key.
+        key: String,
+        /// Its length.
+        found: usize,
+        /// The length it must have.
+        expected: usize,
+    },
     /// The Cramér–Rao bound of a sidecar could not be computed.
     Bound(rollcal::ekf::Error),
 }
@@ -84,6 +95,12 @@ impl fmt::Display for Error {
                 expected,
             } => write!(f, "{path} holds the truth of {found}, not {expected}"),
             Error::SidecarArray { path, key } => write!(f, "{path}: no '{key}' array"),
+            Error::SidecarLength {
+                path,
+                key,
+                found,
+                expected,
+            } => write!(f, "{path}: '{key}' has {found} values, not {expected}"),
             Error::Bound(e) => write!(f, "Cramér–Rao bound: {e}"),
         }
     }

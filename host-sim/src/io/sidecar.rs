@@ -1,6 +1,7 @@
 //! The truth sidecar of a recorded stream (`record --truth PATH`, read by
 //! `calibrate --truth PATH`): the true final and initial states and the
-//! Cramér–Rao σ of the recorded configuration, as JSON.
+//! Cramér–Rao σ of the recorded configuration, and the true instrument
+//! errors (docs/model.md §Instrument errors), as JSON.
 
 use std::path::Path;
 
@@ -8,11 +9,17 @@ use rollcal::models::ConfigId;
 
 use super::Error;
 use crate::analysis::runner::SimulatedRun;
+use crate::sim::instruments::{
+    instrument_names, instrument_truth_state, instrument_units, INSTRUMENT_STATES,
+};
 use crate::sim::scenario::Scenario;
 use crate::sim::truth::Simulation;
 
 /// The sidecar of configuration `id` on the simulated run `sim` of
-/// `sc` (seed `seed`, Earth rate `earth_rate`).
+/// `sc` (seed `seed`, Earth rate `earth_rate`). Besides the configuration's
+/// states it holds the 21 true instrument errors of the run
+/// (`instrument_names`, `instrument_units` (printed units) and
+/// `instrument_truth` in internal units: rad/s, rad/s/g, 1, g, 1).
 pub fn truth_json(
     id: ConfigId,
     sc: &Scenario,
@@ -34,6 +41,9 @@ pub fn truth_json(
         "truth_rad": truth,
         "truth0_rad": truth0,
         "crlb_sigma_rad": crlb,
+        "instrument_names": instrument_names(id),
+        "instrument_units": instrument_units(),
+        "instrument_truth": instrument_truth_state(id, &sim.params),
     }))
 }
 
@@ -49,6 +59,10 @@ pub struct Sidecar {
     pub seed: Option<u64>,
     /// Duration of the recorded run (s).
     pub duration_s: Option<f64>,
+    /// The true instrument errors (internal units, the order of
+    /// [`crate::sim::instruments`]); zero for a sidecar written before they
+    /// were recorded.
+    pub instruments: [f64; INSTRUMENT_STATES],
 }
 
 /// Reads the sidecar at `path`, which must hold the truth of `id`.
@@ -78,11 +92,26 @@ pub fn read_sidecar(path: &Path, id: ConfigId) -> Result<Sidecar, Error> {
                 key: key.into(),
             })
     };
+    let instruments = match v.get("instrument_truth") {
+        None => [0.0; INSTRUMENT_STATES],
+        Some(_) => {
+            let x = floats("instrument_truth")?;
+            <[f64; INSTRUMENT_STATES]>::try_from(x.as_slice()).map_err(|_| {
+                Error::SidecarLength {
+                    path: name(),
+                    key: "instrument_truth".into(),
+                    found: x.len(),
+                    expected: INSTRUMENT_STATES,
+                }
+            })?
+        }
+    };
     Ok(Sidecar {
         truth: floats("truth_rad")?,
         truth0: floats("truth0_rad").ok(),
         crlb: floats("crlb_sigma_rad")?,
         seed: v["seed"].as_u64(),
         duration_s: v["duration_s"].as_f64(),
+        instruments,
     })
 }

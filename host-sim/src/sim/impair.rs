@@ -7,7 +7,10 @@
 //! 0. accelerometer defects the model does not know of ([`AccelDefects`]):
 //!    more noise than the platform file says (`--accel-noise-scale K`: the
 //!    means get independent extra noise of σ·√(K² − 1), K× in all) and a
-//!    constant bias in the instrument frame (`--accel-bias-ug X,Y,Z`, µg);
+//!    constant bias in the instrument frame (`--accel-bias-ug X,Y,Z`, µg),
+//!    which is not applied here but added to the scenario's accelerometer
+//!    bias `ba` ([`AccelDefects::biased`]) so that the truth simulator is the
+//!    one place that applies a bias (and the truth sidecar records the sum);
 //!    the stream's `Configure` keeps the scenario's noise level;
 //! 1. accelerometer outliers on a fraction of the samples (a spike of `k σ`
 //!    on one random axis, random sign);
@@ -20,6 +23,8 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rollcal::wire::Sample;
+
+use crate::sim::scenario::Scenario;
 
 /// Impairments of a recorded stream (all off by default).
 #[derive(clap::Args, Clone, Debug)]
@@ -58,8 +63,9 @@ pub struct AccelDefects {
     /// (and a CSV log's platform file) keep the scenario's σ.
     #[arg(long, value_name = "K", default_value_t = 1.0, value_parser = parse_scale)]
     pub accel_noise_scale: f64,
-    /// A constant accelerometer bias X,Y,Z (µg, instrument frame: added to
-    /// the accelerometer means), which no configuration models.
+    /// A constant accelerometer bias X,Y,Z (µg, instrument frame), added to
+    /// the scenario's accelerometer bias (ba_ug of its instruments table;
+    /// the truth sidecar records the sum), which no configuration models yet.
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_triple, allow_hyphen_values = true)]
     pub accel_bias_ug: Option<[f64; 3]>,
 }
@@ -79,16 +85,34 @@ impl AccelDefects {
         self.accel_noise_scale != 1.0 || self.accel_bias_ug.is_some_and(|b| b != [0.0; 3])
     }
 
-    /// The offsets (g) to add to `n` consecutive accelerometer means of
-    /// noise σ `sigma_accel` (g), seeded by `seed`.
+    /// The scenario `sc` with the bias added to its accelerometer bias
+    /// (`instruments.ba_ug`, µg): the truth simulator applies it to the
+    /// noise-free means. Without a bias, `sc` unchanged.
+    pub fn biased(&self, sc: &Scenario) -> Scenario {
+        let mut out = sc.clone();
+        if let Some(b) = self.accel_bias_ug.filter(|b| *b != [0.0; 3]) {
+            for (a, d) in out.instruments.ba_ug.iter_mut().zip(b) {
+                *a += d;
+            }
+        }
+        out
+    }
+
+    /// Whether the stream needs per-sample offsets (extra noise).
+    fn extra_noise(&self) -> bool {
+        self.accel_noise_scale != 1.0
+    }
+
+    /// The extra noise (g) to add to `n` consecutive accelerometer means of
+    /// noise σ `sigma_accel` (g), seeded by `seed`. The bias is not among
+    /// them: it is the scenario's ([`Self::biased`]).
     pub fn offsets(&self, n: usize, sigma_accel: f64, seed: u64) -> Vec<[f64; 3]> {
         use rand_distr::{Distribution, StandardNormal};
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x6163_6365_6c64_6566);
         let extra = sigma_accel * (self.accel_noise_scale.powi(2) - 1.0).max(0.0).sqrt();
-        let bias = self.accel_bias_ug.unwrap_or([0.0; 3]).map(|b| b * 1e-6);
         (0..n)
             .map(|_| {
-                let mut o = bias;
+                let mut o = [0.0; 3];
                 if extra > 0.0 {
                     for v in &mut o {
                         let e: f64 = StandardNormal.sample(&mut rng);
@@ -201,7 +225,8 @@ impl Impairments {
     }
 
     /// Steps 0–3 on the samples of a run (accelerometer noise σ `sigma_accel`
-    /// g), seeded by `seed`.
+    /// g), seeded by `seed`; the accelerometer bias is already in the
+    /// samples (the scenario simulated was [`AccelDefects::biased`]).
     pub fn apply_to_samples(
         &self,
         samples: &mut Vec<Sample>,
@@ -209,7 +234,7 @@ impl Impairments {
         seed: u64,
         applied: &mut Applied,
     ) {
-        if self.accel.any() {
+        if self.accel.extra_noise() {
             let offsets = self.accel.offsets(samples.len(), sigma_accel, seed);
             for (s, o) in samples.iter_mut().zip(offsets) {
                 for (a, d) in s.accel_mean.iter_mut().zip(o) {
@@ -340,16 +365,20 @@ mod tests {
     }
 
     #[test]
-    fn accel_defects_add_the_bias_and_the_extra_noise() {
+    fn accel_defects_add_the_bias_to_the_scenario_and_the_extra_noise() {
         let d = AccelDefects {
             accel_noise_scale: 3.0,
             accel_bias_ug: Some([10.0, 0.0, -5.0]),
         };
+        let mut sc = Scenario::paper();
+        sc.instruments.ba_ug = [30.0, -20.0, 45.0];
+        assert_eq!(d.biased(&sc).instruments.ba_ug, [40.0, -20.0, 40.0]);
+        assert_eq!(AccelDefects::default().biased(&sc), sc);
         let o = d.offsets(20_000, 1e-6, 1);
-        for (c, b) in [10e-6, 0.0, -5e-6].iter().enumerate() {
+        for c in 0..3 {
             let m = o.iter().map(|v| v[c]).sum::<f64>() / o.len() as f64;
             let var = o.iter().map(|v| (v[c] - m).powi(2)).sum::<f64>() / o.len() as f64;
-            assert!((m - b).abs() < 1e-7, "{c}: mean {m}");
+            assert!(m.abs() < 1e-7, "{c}: mean {m}");
             // Extra variance 8σ²: 9σ² in all with the simulator's σ².
             assert!((var / 8e-12 - 1.0).abs() < 0.05, "{c}: var {var}");
         }

@@ -5,11 +5,14 @@
 //!   built in;
 //! - [`truth`]: the truth simulator (physical platform, independent of the
 //!   estimator's models);
+//! - [`instruments`]: the 21 instrument-error states (order, names, units,
+//!   true values);
 //! - [`impair`]: lost frames, clock steps, bit flips and outliers injected
 //!   into a recorded stream;
 //! - [`segments`]: path segments recovered from the commanded increments.
 
 pub mod impair;
+pub mod instruments;
 pub mod scenario;
 pub mod segments;
 pub mod truth;

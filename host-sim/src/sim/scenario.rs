@@ -42,6 +42,163 @@ pub struct Scenario {
     pub timing: Timing,
     /// Filter prior.
     pub prior: Prior,
+    /// The instruments' own errors and their prior (docs/model.md
+    /// §Instrument errors). Optional: absent means all zero with the
+    /// default prior, and an all-default table is not written back.
+    #[serde(default, skip_serializing_if = "Instruments::is_default")]
+    pub instruments: Instruments,
+}
+
+/// The instruments' own errors (docs/model.md §Instrument errors), in the
+/// file's printed units, ps frame: gyro drift and scale factor,
+/// accelerometer bias and scale factor. Every key is optional (default 0).
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Instruments {
+    /// Constant gyro drift `dg` per gyro x, y, z (°/h).
+    #[serde(default)]
+    pub dg_deg_h: [f64; 3],
+    /// g-sensitive gyro drift `D_g` (°/h per g), row-major: row = gyro
+    /// x/y/z, column = axis of the specific force in the ps frame.
+    #[serde(default)]
+    pub d_g_deg_h_g: [[f64; 3]; 3],
+    /// Gyro (torquer) scale-factor errors `kg` (ppm).
+    #[serde(default)]
+    pub kg_ppm: [f64; 3],
+    /// Accelerometer bias `ba` (µg), in the accelerometers' output axes.
+    #[serde(default)]
+    pub ba_ug: [f64; 3],
+    /// Accelerometer scale-factor errors `ka` (ppm).
+    #[serde(default)]
+    pub ka_ppm: [f64; 3],
+    /// Prior σ of the 21 instrument states.
+    #[serde(default)]
+    pub prior: InstrumentPrior,
+}
+
+/// Prior σ of the instrument errors (printed units), one number per kind
+/// for every axis; defaults as SPEC §8's instrumented scenario.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct InstrumentPrior {
+    /// σ of each constant drift `dg` (°/h); default 1.
+    #[serde(default = "default_sigma_dg")]
+    pub sigma_dg_deg_h: f64,
+    /// σ of each g-sensitive drift entry of `D_g` (°/h/g); default 1.
+    #[serde(default = "default_sigma_d_g")]
+    pub sigma_d_g_deg_h_g: f64,
+    /// σ of each gyro scale factor `kg` (ppm); default 2000.
+    #[serde(default = "default_sigma_kg")]
+    pub sigma_kg_ppm: f64,
+    /// σ of each accelerometer bias `ba` (µg); default 1000.
+    #[serde(default = "default_sigma_ba")]
+    pub sigma_ba_ug: f64,
+    /// σ of each accelerometer scale factor `ka` (ppm); default 1000.
+    #[serde(default = "default_sigma_ka")]
+    pub sigma_ka_ppm: f64,
+}
+
+fn default_sigma_dg() -> f64 {
+    1.0
+}
+fn default_sigma_d_g() -> f64 {
+    1.0
+}
+fn default_sigma_kg() -> f64 {
+    2000.0
+}
+fn default_sigma_ba() -> f64 {
+    1000.0
+}
+fn default_sigma_ka() -> f64 {
+    1000.0
+}
+
+impl Default for InstrumentPrior {
+    fn default() -> Self {
+        Self {
+            sigma_dg_deg_h: default_sigma_dg(),
+            sigma_d_g_deg_h_g: default_sigma_d_g(),
+            sigma_kg_ppm: default_sigma_kg(),
+            sigma_ba_ug: default_sigma_ba(),
+            sigma_ka_ppm: default_sigma_ka(),
+        }
+    }
+}
+
+/// Largest |dg| and |D_g| entry a scenario may have (°/h, °/h/g).
+pub const MAX_DRIFT_DEG_H: f64 = 10.0;
+/// Largest |kg|, |ka| (ppm) and |ba| (µg) a scenario may have.
+pub const MAX_SCALE_PPM_OR_BIAS_UG: f64 = 1e4;
+
+impl Instruments {
+    /// Whether every error is zero (the priors do not count): the truth
+    /// simulator then runs the installation-only model, bit for bit.
+    pub fn is_zero(&self) -> bool {
+        let zero = |v: &[f64]| v.iter().all(|x| *x == 0.0);
+        zero(&self.dg_deg_h)
+            && self.d_g_deg_h_g.iter().all(|r| zero(r))
+            && zero(&self.kg_ppm)
+            && zero(&self.ba_ug)
+            && zero(&self.ka_ppm)
+    }
+
+    /// Whether the table is what an absent `[instruments]` means (zero
+    /// errors, default priors).
+    pub fn is_default(&self) -> bool {
+        *self == Self::default()
+    }
+
+    /// The 21 prior σ in internal units (rad/s, rad/s per g, 1, g, 1), in
+    /// the order `[dg (3), D_g (9, row-major), kg (3), ba (3), ka (3)]`.
+    pub fn sigma0(&self) -> [f64; 21] {
+        use crate::sim::instruments::{DEG_H, PPM, UG};
+        let p = &self.prior;
+        let mut s = [0.0; 21];
+        s[..3].fill(p.sigma_dg_deg_h * DEG_H);
+        s[3..12].fill(p.sigma_d_g_deg_h_g * DEG_H);
+        s[12..15].fill(p.sigma_kg_ppm * PPM);
+        s[15..18].fill(p.sigma_ba_ug * UG);
+        s[18..].fill(p.sigma_ka_ppm * PPM);
+        s
+    }
+
+    /// Checks every value (finite, within the limits) and every prior
+    /// (> 0); errors name the key.
+    pub fn validate(&self) -> Result<(), ScenarioError> {
+        let within = |name: &str, v: &[f64], max: f64, unit: &str| {
+            if v.iter().all(|x| x.is_finite() && x.abs() <= max) {
+                Ok(())
+            } else {
+                Err(ScenarioError(format!(
+                    "instruments.{name} must be finite and within ±{max} {unit}"
+                )))
+            }
+        };
+        within("dg_deg_h", &self.dg_deg_h, MAX_DRIFT_DEG_H, "°/h")?;
+        for (i, row) in self.d_g_deg_h_g.iter().enumerate() {
+            within(&format!("d_g_deg_h_g[{i}]"), row, MAX_DRIFT_DEG_H, "°/h/g")?;
+        }
+        let max = MAX_SCALE_PPM_OR_BIAS_UG;
+        within("kg_ppm", &self.kg_ppm, max, "ppm")?;
+        within("ba_ug", &self.ba_ug, max, "µg")?;
+        within("ka_ppm", &self.ka_ppm, max, "ppm")?;
+        let p = &self.prior;
+        for (name, v) in [
+            ("sigma_dg_deg_h", p.sigma_dg_deg_h),
+            ("sigma_d_g_deg_h_g", p.sigma_d_g_deg_h_g),
+            ("sigma_kg_ppm", p.sigma_kg_ppm),
+            ("sigma_ba_ug", p.sigma_ba_ug),
+            ("sigma_ka_ppm", p.sigma_ka_ppm),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(ScenarioError(format!(
+                    "instruments.prior.{name} must be finite and > 0"
+                )));
+            }
+        }
+        Ok(())
+    }
 }
 
 /// True installation errors (degrees), in the ps frame.
@@ -303,7 +460,8 @@ impl Scenario {
             ));
         }
         check_noise(&self.noise)?;
-        check_prior(&self.prior)
+        check_prior(&self.prior)?;
+        self.instruments.validate()
     }
 }
 

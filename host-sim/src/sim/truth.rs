@@ -1,12 +1,15 @@
 //! The truth simulator (docs/model.md §Installation models, §Measurement
 //! timing): integrates the physical platform.
 //!
-//! It integrates the platform attitude `C^ps_n` under the true gyro
-//! installation (`ω^ps_ip = G ωc + w_g`), the computed frame `C^c_n` under
-//! the rolling path, and the commanded increment `∫ωc dt`, all by RK4 at the
-//! truth step (0.01 s), and applies the true accelerometer installation `A`
-//! to the true specific force. It shares with the estimator only the tested
-//! geometry primitives (`skew`, `dcm`, `gimbal_dcm`, `euler_angles`,
+//! It integrates the platform attitude `C^ps_n` under the true gyros
+//! (`ω^ps_ip = G [(I + K_g) ωc + ε] + w_g`, `ε = dg + D_g f^ps`; docs/model.md
+//! §Instrument errors), the computed frame `C^c_n` under the rolling path,
+//! and the commanded increment `∫ωc dt`, all by RK4 at the truth step
+//! (0.01 s), and applies the true accelerometers
+//! (`Z_a = ba + (I + K_a) A f^ps`) to the true specific force. With every
+//! instrument error zero it takes exactly the installation-only arithmetic
+//! (`G ωc`, `A f^ps`), bit for bit. It shares with the estimator only the
+//! tested geometry primitives (`skew`, `dcm`, `gimbal_dcm`, `euler_angles`,
 //! `rotation_vector`, `wrap_angle`); it uses none of the configurations'
 //! state models, dynamics or measurement functions.
 
@@ -19,9 +22,12 @@ use rollcal::geometry::{
 };
 use rollcal::models::{AttitudeKind, ConfigId, PlatformFrame};
 
-use crate::sim::scenario::{Scenario, ARCSEC, DEG};
+use crate::sim::instruments::{DEG_H, PPM, UG};
+use crate::sim::scenario::{Instruments, Scenario, ARCSEC, DEG};
 
-/// True parameters in radians, ps frame, plus the exactly derived pa values.
+/// True parameters in radians, ps frame, plus the exactly derived pa values,
+/// and the instruments' own errors in internal units (docs/model.md
+/// §Instrument errors).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TruthParams {
     /// θaT (rad).
@@ -38,6 +44,17 @@ pub struct TruthParams {
     pub lambda: Vector3<f64>,
     /// θA(0) (rad).
     pub gimbal0: Vector3<f64>,
+    /// Constant gyro drift `dg` per gyro (rad/s).
+    pub dg: Vector3<f64>,
+    /// g-sensitive gyro drift `D_g` (rad/s per g; row = gyro, column = axis
+    /// of the specific force in ps).
+    pub d_g: Matrix3<f64>,
+    /// Gyro scale-factor errors `kg` (dimensionless).
+    pub kg: Vector3<f64>,
+    /// Accelerometer bias `ba` (g, accelerometer output axes).
+    pub ba: Vector3<f64>,
+    /// Accelerometer scale-factor errors `ka` (dimensionless).
+    pub ka: Vector3<f64>,
 }
 
 impl TruthParams {
@@ -57,7 +74,70 @@ impl TruthParams {
             theta_g_c_pa,
             lambda: v(t.lambda_deg),
             gimbal0: v(t.gimbal0_deg),
+            ..Self::instruments_of(&s.instruments)
         }
+    }
+
+    /// Zero installation errors and the instrument errors of `ins`, converted
+    /// from the file's units (°/h, °/h/g, ppm, µg) to rad/s, rad/s/g, 1, g.
+    fn instruments_of(ins: &Instruments) -> Self {
+        let v = |a: [f64; 3], unit: f64| Vector3::new(a[0], a[1], a[2]) * unit;
+        let d = &ins.d_g_deg_h_g;
+        let z = Vector3::zeros();
+        Self {
+            theta_a_t: z,
+            theta_a_c: z,
+            theta_g_t: z,
+            theta_g_c: z,
+            theta_g_c_pa: z,
+            lambda: z,
+            gimbal0: z,
+            dg: v(ins.dg_deg_h, DEG_H),
+            d_g: Matrix3::from_fn(|r, c| d[r][c]) * DEG_H,
+            kg: v(ins.kg_ppm, PPM),
+            ba: v(ins.ba_ug, UG),
+            ka: v(ins.ka_ppm, PPM),
+        }
+    }
+
+    /// Whether any instrument error (`dg`, `D_g`, `kg`, `ba`, `ka`) is
+    /// non-zero; without one the simulator runs the installation-only
+    /// arithmetic.
+    pub fn has_instrument_errors(&self) -> bool {
+        let z3 = Vector3::zeros();
+        self.dg != z3
+            || self.d_g != Matrix3::zeros()
+            || self.kg != z3
+            || self.ba != z3
+            || self.ka != z3
+    }
+
+    /// The gyros' input in the bracket of the gyro model,
+    /// `(I + K_g) ωc + dg + D_g f^ps` (rad/s, gyro axes), for the command
+    /// `omega_c` (rad/s) and the specific force `f_ps` (g, ps frame); the
+    /// platform rate is `G` times it (plus noise).
+    pub fn gyro_input(&self, omega_c: &Vector3<f64>, f_ps: &Vector3<f64>) -> Vector3<f64> {
+        omega_c + omega_c.component_mul(&self.kg) + self.dg + self.d_g * f_ps
+    }
+
+    /// The accelerometers' intrinsic errors applied to an installation-only
+    /// output `z = A f^ps` (g): `ba + (I + K_a) z` (g). Linear in `z`, so it
+    /// may be applied to a period mean.
+    pub fn accel_intrinsic(&self, z: &Vector3<f64>) -> Vector3<f64> {
+        self.ba + z + z.component_mul(&self.ka)
+    }
+
+    /// The noise-free accelerometer output `ba + (I + K_a) A f^ps` (g) for
+    /// the specific force `f_ps` (g, ps frame).
+    pub fn accel_output(&self, f_ps: &Vector3<f64>) -> Vector3<f64> {
+        self.accel_intrinsic(&(self.a() * f_ps))
+    }
+
+    /// The g-sensitive drift in the pa frame, `D_g^pa = D_g R(θaC)` (rad/s
+    /// per g; column = axis of the specific force in pa), exactly: with
+    /// `f^pa = R(−θaC) f^ps`, `D_g f^ps = D_g R(θaC) f^pa`.
+    pub fn d_g_pa(&self) -> Matrix3<f64> {
+        self.d_g * dcm(&self.theta_a_c)
     }
 
     fn lower(t: &Vector3<f64>) -> Matrix3<f64> {
@@ -250,7 +330,8 @@ pub fn check_gimbal_lock(id: ConfigId, sim: &Simulation) -> Result<(), GimbalLoc
 
 /// What drives the platform over a period: the path, the Earth rate
 /// `ω^n_ie`, the true gyro and accelerometer matrices `G`, `A`, the
-/// specific force `f^n` and the period's gyro noise rate.
+/// specific force `f^n`, the period's gyro noise rate and the instrument
+/// errors (`None` when all are zero: the installation-only arithmetic).
 struct Dynamics<'a> {
     path: &'a Path,
     w_ie: Vector3<f64>,
@@ -258,6 +339,20 @@ struct Dynamics<'a> {
     a: Matrix3<f64>,
     f_n: Vector3<f64>,
     w_gyro: Vector3<f64>,
+    instruments: Option<&'a TruthParams>,
+}
+
+impl Dynamics<'_> {
+    /// The gyros' input for the command `w_c` at attitude `c_ps_n`:
+    /// `(I + K_g) ωc + dg + D_g f^ps` with `f^ps = C^ps_n f^n` (evaluated at
+    /// each RK4 stage, since it moves with the attitude), or `ωc` itself
+    /// without instrument errors.
+    fn gyro_input(&self, w_c: Vector3<f64>, c_ps_n: &Matrix3<f64>) -> Vector3<f64> {
+        match self.instruments {
+            Some(p) => p.gyro_input(&w_c, &(c_ps_n * self.f_n)),
+            None => w_c,
+        }
+    }
 }
 
 /// Integrates one period `[t0, t0 + nsub·h]` by RK4 in `nsub` substeps of
@@ -277,7 +372,7 @@ fn integrate_period(
         let w_path = d.path.rate(ts);
         let deriv = |x: &State| {
             let w_c = x.c_c_n * (d.w_ie + w_path);
-            let w_ps_np = d.g * w_c + d.w_gyro - x.c_ps_n * d.w_ie;
+            let w_ps_np = d.g * d.gyro_input(w_c, &x.c_ps_n) + d.w_gyro - x.c_ps_n * d.w_ie;
             Deriv {
                 c_ps_n: -skew(&w_ps_np) * x.c_ps_n,
                 c_c_n: -skew(&(x.c_c_n * w_path)) * x.c_c_n,
@@ -341,11 +436,19 @@ pub fn simulate(s: &Scenario, opts: SimOptions) -> Simulation {
     let sigma_accel = s.noise.accel_g;
     let sigma_gimbal = s.noise.gimbal_arcsec * ARCSEC;
 
+    let instruments = params.has_instrument_errors().then_some(&params);
+    // The accelerometers' bias and scale factor on an installation-only
+    // output (or on a Simpson mean of it: they are linear, and the weights
+    // sum to the mean's divisor, so applying them to the mean is exact).
+    let intrinsic = |z: Vector3<f64>| match instruments {
+        Some(p) => p.accel_intrinsic(&z),
+        None => z,
+    };
     let instant = |t: f64, st: &State| Instant {
         t,
         c_ps_n: st.c_ps_n,
         c_c_n: st.c_c_n,
-        accel_at_t: a * st.c_ps_n * f_n,
+        accel_at_t: intrinsic(a * st.c_ps_n * f_n),
         gimbal: wrap_angles(&euler_angles(&(st.c_ps_n * c_r_n.transpose()))),
     };
 
@@ -369,12 +472,13 @@ pub fn simulate(s: &Scenario, opts: SimOptions) -> Simulation {
                 a,
                 f_n,
                 w_gyro,
+                instruments,
             },
             t0,
             h,
             nsub,
         );
-        let accel_mean_clean = acc_sum / (3.0 * nsub as f64);
+        let accel_mean_clean = intrinsic(acc_sum / (3.0 * nsub as f64));
         let truth = instant(k as f64 * dt, &st);
         samples.push(PeriodSample {
             k: k as u32,

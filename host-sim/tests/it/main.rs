@@ -22,6 +22,7 @@ mod f32;
 mod firmware_check;
 mod golden;
 mod innovations;
+mod instruments;
 mod observability;
 mod packed_log;
 mod plots;

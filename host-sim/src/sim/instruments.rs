@@ -1,0 +1,110 @@
+//! The 21 instrument-error states (docs/model.md §Instrument errors, SPEC
+//! §8): their order, names, printed units and true values, shared by the
+//! truth sidecar, the reports and (when the full model lands) the analysis.
+//!
+//! Order: `[dg (3), D_g (9, row-major: row = gyro, column = force axis),
+//! kg (3), ba (3), ka (3)]`. Internal units: rad/s, rad/s per g,
+//! dimensionless, g, dimensionless. In the pa configurations the
+//! g-sensitive drift is `D_g^pa = D_g R(θaC)` (names `Dgpa_*`); `dg`, `kg`,
+//! `ba`, `ka` are the same numbers in both frames.
+
+use rollcal::models::{ConfigId, PlatformFrame};
+
+use crate::sim::scenario::DEG;
+use crate::sim::truth::TruthParams;
+
+/// Number of instrument-error states.
+pub const INSTRUMENT_STATES: usize = 21;
+
+/// Radians per second in one degree per hour (°/h → rad/s).
+pub const DEG_H: f64 = DEG / 3600.0;
+/// One part per million (ppm → dimensionless).
+pub const PPM: f64 = 1e-6;
+/// One micro-g (µg → g).
+pub const UG: f64 = 1e-6;
+
+/// Names of the 21 states in a ps configuration.
+pub const PS_NAMES: [&str; INSTRUMENT_STATES] = [
+    "dg_x", "dg_y", "dg_z", "Dg_xx", "Dg_xy", "Dg_xz", "Dg_yx", "Dg_yy", "Dg_yz", "Dg_zx", "Dg_zy",
+    "Dg_zz", "kg_x", "kg_y", "kg_z", "ba_x", "ba_y", "ba_z", "ka_x", "ka_y", "ka_z",
+];
+
+/// Names of the 21 states in a pa configuration (`Dgpa_*` = `D_g R(θaC)`).
+pub const PA_NAMES: [&str; INSTRUMENT_STATES] = [
+    "dg_x", "dg_y", "dg_z", "Dgpa_xx", "Dgpa_xy", "Dgpa_xz", "Dgpa_yx", "Dgpa_yy", "Dgpa_yz",
+    "Dgpa_zx", "Dgpa_zy", "Dgpa_zz", "kg_x", "kg_y", "kg_z", "ba_x", "ba_y", "ba_z", "ka_x",
+    "ka_y", "ka_z",
+];
+
+/// The printed unit of state `i` (`deg/h`, `deg/h/g`, `ppm`, `ug`, `ppm`).
+pub fn printed_unit(i: usize) -> &'static str {
+    match i {
+        0..=2 => "deg/h",
+        3..=11 => "deg/h/g",
+        15..=17 => "ug",
+        _ => "ppm",
+    }
+}
+
+/// The factor internal → printed of state `i` (multiply an internal value
+/// by it: rad/s → °/h, rad/s/g → °/h/g, 1 → ppm, g → µg).
+pub fn printed_factor(i: usize) -> f64 {
+    match i {
+        0..=11 => 1.0 / DEG_H,
+        15..=17 => 1.0 / UG,
+        _ => 1.0 / PPM,
+    }
+}
+
+/// The 21 names of configuration `id` (`Dgpa_*` in the pa frame).
+pub fn instrument_names(id: ConfigId) -> [&'static str; INSTRUMENT_STATES] {
+    match id.layout().frame {
+        PlatformFrame::Ps => PS_NAMES,
+        PlatformFrame::Pa => PA_NAMES,
+    }
+}
+
+/// The 21 printed units, in state order.
+pub fn instrument_units() -> [&'static str; INSTRUMENT_STATES] {
+    core::array::from_fn(printed_unit)
+}
+
+/// The true instrument states of configuration `id` (internal units, the
+/// order above): `D_g` in ps, `D_g^pa = D_g R(θaC)` in pa.
+pub fn instrument_truth_state(id: ConfigId, p: &TruthParams) -> [f64; INSTRUMENT_STATES] {
+    let d = match id.layout().frame {
+        PlatformFrame::Ps => p.d_g,
+        PlatformFrame::Pa => p.d_g_pa(),
+    };
+    let mut x = [0.0; INSTRUMENT_STATES];
+    x[..3].copy_from_slice(p.dg.as_slice());
+    for r in 0..3 {
+        for c in 0..3 {
+            x[3 + 3 * r + c] = d[(r, c)];
+        }
+    }
+    x[12..15].copy_from_slice(p.kg.as_slice());
+    x[15..18].copy_from_slice(p.ba.as_slice());
+    x[18..].copy_from_slice(p.ka.as_slice());
+    x
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_units_and_factors_line_up() {
+        assert_eq!(PS_NAMES[4], "Dg_xy");
+        assert_eq!(PA_NAMES[11], "Dgpa_zz");
+        assert_eq!(instrument_names(ConfigId::M1Pa), PA_NAMES);
+        assert_eq!(instrument_names(ConfigId::M2Ps), PS_NAMES);
+        let u = instrument_units();
+        assert_eq!(
+            (u[0], u[3], u[12], u[15], u[18]),
+            ("deg/h", "deg/h/g", "ppm", "ug", "ppm")
+        );
+        assert!((printed_factor(0) * DEG_H - 1.0).abs() < 1e-15);
+        assert_eq!(printed_factor(16) * 30e-6, 30.0);
+    }
+}
