@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use rollcal::models::ConfigId;
+use rollcal::models::{ConfigId, ErrorModel};
 
 use super::Error;
 use crate::analysis::remedies::Remedy;
@@ -48,6 +48,18 @@ pub struct CommonArgs {
     /// residuals are f64 in both).
     #[arg(long, value_enum, default_value_t = Precision::F64)]
     pub precision: Precision,
+    /// Error model of the estimator: `installation` (the paper's states) or
+    /// `full` (followed by the instruments' drifts, g-sensitive drifts,
+    /// scale factors and biases; docs/model.md §Full model).
+    #[arg(long, default_value = "installation", value_parser = parse_errors)]
+    pub errors: ErrorModel,
+}
+
+/// The value parser of every `--errors`: `installation` or `full` (core's
+/// `FromStr for ErrorModel`).
+pub fn parse_errors(s: &str) -> Result<ErrorModel, String> {
+    s.parse::<ErrorModel>()
+        .map_err(|_| format!("unknown error model '{s}': expected installation or full"))
 }
 
 impl CommonArgs {

@@ -39,7 +39,7 @@ use std::time::{Duration, Instant as Clock};
 use nalgebra::RealField;
 use rollcal::ekf::FilterConfig;
 use rollcal::estimator::LogRecord;
-use rollcal::models::ConfigId;
+use rollcal::models::{ConfigId, ErrorModel};
 use rollcal::wire::{
     CalibratorConfig, DecoderStats, Estimate, EstimateKind, FrameDecoder, Message, Sample,
 };
@@ -494,9 +494,10 @@ fn received_bound<T: RealField + Copy>(
             (Some(t0), None) => Some(
                 runner::bound(
                     settings.config,
+                    ErrorModel::Installation,
                     FilterConfig::<f64>::from(settings),
                     t0,
-                    sigma0,
+                    &[sigma0],
                     &host.log.records_f64(),
                 )
                 .map_err(|e| format!("Cramér–Rao bound of the received samples: {e}"))?,
@@ -549,6 +550,7 @@ fn result<T: RealField + Copy>(
     let final_pass = fin.filter(|f| matches!(f.estimate.kind, EstimateKind::Final { .. }));
     runner::result(
         id,
+        ErrorModel::Installation,
         &Passes {
             filter: Box::new(CalibratorView {
                 state: state.to_vec(),
@@ -568,7 +570,7 @@ fn result<T: RealField + Copy>(
             passes,
         },
         truth,
-        sigma0,
+        &[sigma0],
     )
 }
 
@@ -731,9 +733,10 @@ fn report(
         Some(t0) if c.received_bound.is_some() => Some(
             runner::bound_history(
                 id,
+                ErrorModel::Installation,
                 FilterConfig::<f64>::from(&c.settings),
                 t0,
-                c.settings.prior_sigma_rad,
+                &[c.settings.prior_sigma_rad],
                 &c.records,
             )
             .map_err(|e| format!("Cramér–Rao bound of the received samples: {e}"))?,

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use rollcal::models::ConfigId;
+use rollcal::models::{ConfigId, ErrorModel};
 
 use super::args::{load_scenario, parse_config, CommonArgs};
 use super::Error;
@@ -38,6 +38,13 @@ pub struct RunArgs {
 /// `host-sim run`.
 pub fn command(args: &RunArgs) -> Result<(), Error> {
     let c = &args.common;
+    if c.errors == ErrorModel::Full
+        && (args.report.is_some()
+            || args.matrices.matrices.is_some()
+            || args.matrices.matrices_txt.is_some())
+    {
+        return Err("--report and --matrices are not available with --errors full yet".into());
+    }
     let scenario = load_scenario(c.scenario.as_deref())?;
     let earth_rate = !c.no_earth_rate && scenario.site.earth_rate;
     if let Some(dir) = &args.report {
@@ -60,7 +67,7 @@ pub fn command(args: &RunArgs) -> Result<(), Error> {
     );
     crate::sim::truth::check_gimbal_lock(args.config, &sim)?;
     eprintln!("running {} estimator…", args.config);
-    let run = SimulatedRun::new(args.config, &scenario, &sim, earth_rate);
+    let run = SimulatedRun::new(args.config, &scenario, &sim, earth_rate).with_errors(c.errors);
     let r = run
         .run(
             c.estimator(),

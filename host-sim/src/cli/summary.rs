@@ -3,11 +3,11 @@
 
 use std::time::Instant;
 
-use rollcal::models::ConfigId;
+use rollcal::models::{ConfigId, ErrorModel};
 
 use super::args::{load_scenario, CommonArgs};
 use super::Error;
-use crate::analysis::runner::{expected_observable, run_filter};
+use crate::analysis::runner::{expected_observable, SimulatedRun};
 use crate::output::report::group_of;
 use crate::sim::truth::{simulate, SimOptions};
 
@@ -23,6 +23,9 @@ pub fn command(c: &CommonArgs) -> Result<(), Error> {
         c.remedy,
         c.passes
     );
+    if c.errors == ErrorModel::Full {
+        println!("error model: full (the installation states and the instruments' 21 errors)");
+    }
     println!(
         "{:<7} {:>6} {:>12} {:>16} {:>14} {:>9}",
         "config", "states", "within 3σ", "observable ≤4σ", "max |err|/σ", "wall s"
@@ -38,7 +41,9 @@ pub fn command(c: &CommonArgs) -> Result<(), Error> {
     );
     for id in ConfigId::ALL {
         let t0 = Instant::now();
-        let r = run_filter(id, &scenario, &sim, earth_rate, c.estimator(), None, false)
+        let r = SimulatedRun::new(id, &scenario, &sim, earth_rate)
+            .with_errors(c.errors)
+            .run(c.estimator(), None, false)
             .map_err(|e| format!("{id}: {e}"))?;
         let within = r.states.iter().filter(|s| s.ratio() <= 3.0).count();
         let obs: Vec<_> = r

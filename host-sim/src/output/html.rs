@@ -454,7 +454,7 @@ fn parameter_table(h: &mut String, rep: &Report<'_>, crlb: Option<&[f64]>) {
                 esc(&v.to_string())
             );
         } else {
-            let _ = write!(h, "<td>{}</td>", num(s.sigma_rad / r.prior_sigma_rad));
+            let _ = write!(h, "<td>{}</td>", num(s.sigma_rad / s.prior));
         }
         h.push_str("</tr>\n");
     }
@@ -537,32 +537,18 @@ pub fn report_of_run(
     crlb: &[f64],
     header: Vec<(String, String)>,
 ) -> Result<PathBuf, String> {
-    let id = r.config;
-    let cfg = crate::analysis::runner::filter_config(
-        scenario,
-        earth_rate,
-        rollcal::ekf::Options::plain(),
-    );
-    let truth0 = crate::sim::truth::truth_state(id, &sim.params, &sim.initial);
-    let records: Vec<_> = sim
-        .samples
-        .iter()
-        .map(crate::analysis::runner::log_record)
-        .collect();
-    let crlb_history =
-        crate::analysis::runner::bound_history(id, cfg, &truth0, r.prior_sigma_rad, &records)
-            .map_err(|e| format!("Cramér–Rao bound: {e}"))?;
-    let truth_history: Vec<Vec<f64>> = sim
-        .samples
-        .iter()
-        .map(|s| crate::sim::truth::truth_state(id, &sim.params, &s.truth))
-        .collect();
+    let run = crate::analysis::runner::SimulatedRun::new(r.config, scenario, sim, earth_rate)
+        .with_errors(r.errors);
+    let crlb_history = run
+        .crlb_history()
+        .map_err(|e| format!("Cramér–Rao bound: {e}"))?;
+    let truth_history = run.truth_history();
     let judgement = crate::analysis::checks::judge(r);
     let verdict = judgement.verdict.to_string();
     write_report(
         dir,
         &Report {
-            title: format!("run {id}"),
+            title: format!("run {}", r.config),
             header,
             result: r,
             crlb: Some(crlb),
@@ -587,7 +573,7 @@ pub fn state_verdicts(r: &RunResult) -> Vec<Verdict> {
                 r.config,
                 s,
                 crate::output::report::group_of(s.group),
-                r.prior_sigma_rad,
+                s.prior,
             )
         })
         .collect()

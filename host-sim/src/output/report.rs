@@ -3,21 +3,66 @@
 
 use std::path::Path;
 
-use rollcal::models::Group;
+use rollcal::models::{ErrorModel, Group};
 
-use crate::analysis::runner::RunResult;
+use crate::analysis::runner::{RunResult, StateResult};
 use crate::sim::scenario::ARCSEC;
 
 /// The `run` JSON document: configuration, seed, Earth rate, duration and
 /// the final states (names and units are an interface: `*_rad`).
 pub fn run_json(r: &RunResult, seed: u64, earth_rate: bool, duration_s: f64) -> serde_json::Value {
-    serde_json::json!({
+    let (installation, instruments): (Vec<&StateResult>, Vec<&StateResult>) =
+        r.states.iter().partition(|s| !s.info.group.is_instrument());
+    let mut json = serde_json::json!({
         "config": r.config.as_str(),
         "seed": seed,
         "earth_rate": earth_rate,
         "duration_s": duration_s,
-        "states": r.states,
+        "states": installation,
+    });
+    if r.errors == ErrorModel::Full {
+        json["errors"] = r.errors.as_str().into();
+        json["instruments"] = instruments.iter().map(|s| instrument_json(s)).collect();
+    }
+    json
+}
+
+/// An instrument state of the full model in its printed unit (°/h, °/h/g,
+/// ppm, µg): `name`, `group`, `unit`, `truth`, `estimate`, `sigma`.
+fn instrument_json(s: &StateResult) -> serde_json::Value {
+    let (k, unit) = s.info.printed_scale();
+    serde_json::json!({
+        "name": s.name,
+        "group": s.group,
+        "unit": unit,
+        "truth": s.truth_rad * k,
+        "estimate": s.estimate_rad * k,
+        "sigma": s.sigma_rad * k,
     })
+}
+
+/// The printed value of `v` (internal unit) of state `s`: arcseconds for
+/// the angles (as every table has always printed them), the unit of
+/// [`rollcal::models::StateInfo::printed_scale`] for the instrument
+/// states.
+pub fn printed(s: &StateResult, v: f64) -> f64 {
+    if s.info.group.is_instrument() {
+        v * s.info.printed_scale().0
+    } else {
+        v / ARCSEC
+    }
+}
+
+/// The CSV column suffix of state `s`: `rad`, or the ASCII form of its
+/// printed unit (`deg_h`, `deg_h_g`, `ppm`, `ug`).
+fn csv_unit(s: &StateResult) -> &'static str {
+    match s.info.printed_scale().1 {
+        _ if !s.info.group.is_instrument() => "rad",
+        "°/h" => "deg_h",
+        "°/h/g" => "deg_h_g",
+        "µg" => "ug",
+        _ => "ppm",
+    }
 }
 
 /// Writes `value` pretty-printed to `path`, with a message naming the path on failure.
@@ -32,15 +77,21 @@ pub fn write_csv(path: &Path, r: &RunResult) -> std::io::Result<()> {
     let mut w = std::io::BufWriter::new(std::fs::File::create(path)?);
     let mut header = vec!["t_s".to_string()];
     for s in &r.states {
-        header.push(format!("{}_rad", s.name));
-        header.push(format!("{}_sigma_rad", s.name));
+        let unit = csv_unit(s);
+        header.push(format!("{}_{unit}", s.name));
+        header.push(format!("{}_sigma_{unit}", s.name));
     }
     writeln!(w, "{}", header.join(","))?;
     for (t, x, sig) in &r.history {
         let mut row = vec![format!("{t}")];
-        for (a, b) in x.iter().zip(sig) {
-            row.push(format!("{a:e}"));
-            row.push(format!("{b:e}"));
+        for ((a, b), s) in x.iter().zip(sig).zip(&r.states) {
+            let k = if s.info.group.is_instrument() {
+                s.info.printed_scale().0
+            } else {
+                1.0
+            };
+            row.push(format!("{:e}", a * k));
+            row.push(format!("{:e}", b * k));
         }
         writeln!(w, "{}", row.join(","))?;
     }
@@ -54,17 +105,22 @@ pub fn print_table(r: &RunResult, crlb: &[f64]) {
         "state", "truth ″", "estimate ″", "error ″", "σ ″", "|err|/σ", "σ_CRLB ″", "σ/σ_CRLB"
     );
     for (s, c) in r.states.iter().zip(crlb) {
-        let group = group_of(s.group);
-        let verdict = crate::analysis::runner::verdict(r.config, s, group, r.prior_sigma_rad);
+        let group = s.info.group;
+        let verdict = crate::analysis::runner::verdict(r.config, s, group, s.prior);
+        let unit = if s.info.group.is_instrument() {
+            format!(" ({})", s.info.printed_scale().1)
+        } else {
+            String::new()
+        };
         println!(
-            "{:<11} {:>12.3} {:>12.3} {:>10.4} {:>10.4} {:>8.2} {:>10.4} {:>8.3}  {}",
+            "{:<11} {:>12.3} {:>12.3} {:>10.4} {:>10.4} {:>8.2} {:>10.4} {:>8.3}  {}{unit}",
             s.name,
-            s.truth_rad / ARCSEC,
-            s.estimate_rad / ARCSEC,
-            s.error() / ARCSEC,
-            s.sigma_rad / ARCSEC,
+            printed(s, s.truth_rad),
+            printed(s, s.estimate_rad),
+            printed(s, s.error()),
+            printed(s, s.sigma_rad),
             s.ratio(),
-            c / ARCSEC,
+            printed(s, *c),
             s.sigma_rad / c,
             verdict
         );

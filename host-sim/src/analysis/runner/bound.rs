@@ -3,7 +3,7 @@
 
 use rollcal::ekf::{self, FilterConfig};
 use rollcal::estimator::LogRecord;
-use rollcal::models::{ConfigId, Model};
+use rollcal::models::{ConfigId, ErrorModel, Model};
 use rollcal::observability::Observability;
 
 use super::config::initial;
@@ -13,21 +13,23 @@ use crate::sim::truth::Simulation;
 
 /// Posterior Cramér–Rao bound σ (rad) of every state after the periods
 /// `records`, from the true initial state `truth0` (rad; missing trailing
-/// states are zero) with prior σ `sigma0` (rad) on every state and the noise
+/// states are zero) with prior σ `sigma0` of every state (internal units), model
+/// `errors`, and the noise
 /// levels of `cfg` (its options are ignored): [`Observability`] along the
 /// true trajectory, a record without measurement being a period that is
 /// only predicted (docs/model.md §Observability, item 3). The one computation of the bound.
 pub fn bound(
     id: ConfigId,
+    errors: ErrorModel,
     cfg: FilterConfig<f64>,
     truth0: &[f64],
-    sigma0: f64,
+    sigma0: &[f64],
     records: &[LogRecord<f64>],
 ) -> Result<Vec<f64>, ekf::Error> {
     fn typed<M: Model<N, Z>, const N: usize, const Z: usize>(
         cfg: FilterConfig<f64>,
         truth0: &[f64],
-        sigma0: f64,
+        sigma0: &[f64],
         records: &[LogRecord<f64>],
     ) -> Result<Vec<f64>, ekf::Error> {
         let (x, s) = initial::<N>(truth0, sigma0);
@@ -37,22 +39,25 @@ pub fn bound(
         }
         Ok(obs.crlb_sigma().iter().copied().collect())
     }
-    rollcal::with_config!(id, |M, N, Z| typed::<M, N, Z>(cfg, truth0, sigma0, records))
+    rollcal::with_model!(id, errors, |M, N, Z| typed::<M, N, Z>(
+        cfg, truth0, sigma0, records
+    ))
 }
 
 /// [`bound`] after every record: σ_CRLB (rad) of every state per record
 /// (for the σ(t) figures).
 pub fn bound_history(
     id: ConfigId,
+    errors: ErrorModel,
     cfg: FilterConfig<f64>,
     truth0: &[f64],
-    sigma0: f64,
+    sigma0: &[f64],
     records: &[LogRecord<f64>],
 ) -> Result<Vec<Vec<f64>>, ekf::Error> {
     fn typed<M: Model<N, Z>, const N: usize, const Z: usize>(
         cfg: FilterConfig<f64>,
         truth0: &[f64],
-        sigma0: f64,
+        sigma0: &[f64],
         records: &[LogRecord<f64>],
     ) -> Result<Vec<Vec<f64>>, ekf::Error> {
         let (x, s) = initial::<N>(truth0, sigma0);
@@ -64,7 +69,9 @@ pub fn bound_history(
         }
         Ok(out)
     }
-    rollcal::with_config!(id, |M, N, Z| typed::<M, N, Z>(cfg, truth0, sigma0, records))
+    rollcal::with_model!(id, errors, |M, N, Z| typed::<M, N, Z>(
+        cfg, truth0, sigma0, records
+    ))
 }
 
 /// Posterior Cramér–Rao bound σ (rad) of every state at the end of `sim`

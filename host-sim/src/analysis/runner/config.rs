@@ -6,9 +6,9 @@ use nalgebra::{RealField, SVector};
 use rollcal::ekf::{FilterConfig, Observation, Options};
 use rollcal::estimator::LogRecord;
 use rollcal::geometry::EARTH_RATE;
-use rollcal::models::Environment;
+use rollcal::models::{Environment, ErrorModel, Layout};
 
-use crate::sim::scenario::{Scenario, ARCSEC, DEG};
+use crate::sim::scenario::{Instruments, Scenario, ARCSEC, DEG};
 use crate::sim::truth::PeriodSample;
 
 /// The measurement of a simulated period in precision `T`.
@@ -63,10 +63,26 @@ pub fn filter_config_of(
     }
 }
 
+/// The initial state `x0` (missing trailing states zero) and the prior σ
+/// `sigma0` of every state (internal units; a short slice is extended by
+/// its last value) as vectors of `N`.
 pub(super) fn initial<const N: usize>(
     x0: &[f64],
-    sigma0: f64,
+    sigma0: &[f64],
 ) -> (SVector<f64, N>, SVector<f64, N>) {
     let x = SVector::<f64, N>::from_iterator(x0.iter().copied().chain(std::iter::repeat(0.0)));
-    (x, SVector::<f64, N>::repeat(sigma0))
+    let last = sigma0.last().copied().unwrap_or(f64::NAN);
+    let s = SVector::<f64, N>::from_iterator(sigma0.iter().copied().chain(std::iter::repeat(last)));
+    (x, s)
+}
+
+/// The prior σ of every state of `layout` (internal units): `angle_rad`
+/// (rad) on the installation states, then, for the full model, the
+/// instrument priors of `instruments` (rad/s, rad/s/g, 1, g, 1; SPEC §8).
+pub fn prior_sigma(layout: Layout, angle_rad: f64, instruments: &Instruments) -> Vec<f64> {
+    let mut s = vec![angle_rad; layout.installation_n()];
+    if layout.errors == ErrorModel::Full {
+        s.extend(instruments.sigma0());
+    }
+    s
 }

@@ -6,14 +6,15 @@
 
 use rollcal::ekf::{self, FilterConfig, Options};
 use rollcal::estimator::LogRecord;
-use rollcal::models::ConfigId;
+use rollcal::models::{ConfigId, ErrorModel, Layout};
 
 use super::bound::{bound, bound_history};
-use super::config::{filter_config, log_record};
+use super::config::{filter_config, log_record, prior_sigma};
 use super::passes::{result, run_passes, Estimator};
 use super::results::RunResult;
+use crate::sim::instruments::instrument_truth_state;
 use crate::sim::scenario::{Scenario, DEG};
-use crate::sim::truth::{truth_state, Simulation};
+use crate::sim::truth::{truth_state, Instant, Simulation};
 
 /// One simulated run (`sim` of `scenario`, Earth rate `earth_rate`) seen
 /// by configuration `config`.
@@ -24,7 +25,7 @@ use crate::sim::truth::{truth_state, Simulation};
 /// use host_sim::analysis::runner::SimulatedRun;
 /// use host_sim::sim::scenario::Scenario;
 /// use host_sim::sim::truth::{simulate, SimOptions};
-/// use rollcal::models::ConfigId;
+/// use rollcal::models::{ConfigId, ErrorModel, Layout};
 ///
 /// let mut scenario = Scenario::paper();
 /// scenario.timing.duration_s = 60.0;
@@ -46,6 +47,8 @@ pub struct SimulatedRun<'a> {
     pub sim: &'a Simulation,
     /// Whether the Earth rate is on (and-ed with the scenario's).
     pub earth_rate: bool,
+    /// The error model of the estimator (default: installation only).
+    pub errors: ErrorModel,
 }
 
 impl<'a> SimulatedRun<'a> {
@@ -61,12 +64,40 @@ impl<'a> SimulatedRun<'a> {
             scenario,
             sim,
             earth_rate,
+            errors: ErrorModel::Installation,
         }
     }
 
-    /// The prior σ of every state (rad).
+    /// The same run seen by the model with error model `errors`.
+    pub fn with_errors(self, errors: ErrorModel) -> Self {
+        Self { errors, ..self }
+    }
+
+    /// The layout of the estimator's model.
+    pub fn layout(&self) -> Layout {
+        self.config.layout_with(self.errors)
+    }
+
+    /// The prior σ of the installation states (rad).
     pub fn sigma0(&self) -> f64 {
         self.scenario.prior.sigma_deg * DEG
+    }
+
+    /// The prior σ of every state of the model (internal units): the
+    /// scenario's `[prior]` on the installation states, its
+    /// `[instruments.prior]` on the instrument states of the full model.
+    pub fn prior_sigma(&self) -> Vec<f64> {
+        prior_sigma(self.layout(), self.sigma0(), &self.scenario.instruments)
+    }
+
+    /// The true state at instant `at` (internal units), in the model's
+    /// order: the installation states, then the instrument errors.
+    fn truth_at(&self, at: &Instant) -> Vec<f64> {
+        let mut x = truth_state(self.config, &self.sim.params, at);
+        if self.errors == ErrorModel::Full {
+            x.extend(instrument_truth_state(self.config, &self.sim.params));
+        }
+        x
     }
 
     /// The filter settings of the scenario with filter options `options`
@@ -75,9 +106,9 @@ impl<'a> SimulatedRun<'a> {
         filter_config(self.scenario, self.earth_rate, options)
     }
 
-    /// The true state at the start of the run (rad).
+    /// The true state at the start of the run (internal units).
     pub fn truth_at_start(&self) -> Vec<f64> {
-        truth_state(self.config, &self.sim.params, &self.sim.initial)
+        self.truth_at(&self.sim.initial)
     }
 
     /// The true state at the end of the run (rad).
@@ -87,7 +118,7 @@ impl<'a> SimulatedRun<'a> {
             .samples
             .last()
             .map_or(self.sim.initial, |s| s.truth);
-        truth_state(self.config, &self.sim.params, &last)
+        self.truth_at(&last)
     }
 
     /// The true state at the end of every period (rad).
@@ -95,7 +126,7 @@ impl<'a> SimulatedRun<'a> {
         self.sim
             .samples
             .iter()
-            .map(|s| truth_state(self.config, &self.sim.params, &s.truth))
+            .map(|s| self.truth_at(&s.truth))
             .collect()
     }
 
@@ -114,20 +145,21 @@ impl<'a> SimulatedRun<'a> {
     ) -> Result<RunResult, ekf::Error> {
         let id = self.config;
         let cfg = self.filter_config(estimator.options);
-        let zeros = vec![0.0; id.layout().n()];
+        let zeros = vec![0.0; self.layout().n()];
         let x0 = x0.unwrap_or(&zeros);
-        let sigma0 = self.sigma0();
+        let sigma0 = self.prior_sigma();
         let p = run_passes(
             id,
+            self.errors,
             cfg,
-            sigma0,
+            &sigma0,
             &self.sim.samples,
             estimator,
             x0,
             keep_history,
         )?;
         let truth = self.truth_at_end();
-        Ok(result(id, &p, &truth, sigma0))
+        Ok(result(id, self.errors, &p, &truth, &sigma0))
     }
 
     /// The posterior Cramér–Rao σ (rad) of every state at the end of the
@@ -136,7 +168,8 @@ impl<'a> SimulatedRun<'a> {
         let cfg = self.filter_config(Options::plain());
         let truth0 = self.truth_at_start();
         let records = self.records();
-        bound(self.config, cfg, &truth0, self.sigma0(), &records)
+        let sigma0 = self.prior_sigma();
+        bound(self.config, self.errors, cfg, &truth0, &sigma0, &records)
     }
 
     /// [`Self::crlb`] after every period (for the σ(t) figures).
@@ -144,6 +177,7 @@ impl<'a> SimulatedRun<'a> {
         let cfg = self.filter_config(Options::plain());
         let truth0 = self.truth_at_start();
         let records = self.records();
-        bound_history(self.config, cfg, &truth0, self.sigma0(), &records)
+        let sigma0 = self.prior_sigma();
+        bound_history(self.config, self.errors, cfg, &truth0, &sigma0, &records)
     }
 }

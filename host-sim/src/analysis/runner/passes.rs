@@ -6,7 +6,7 @@
 use nalgebra::RealField;
 use rollcal::ekf::{self, FilterConfig, Options};
 use rollcal::estimator::{self, EstimatorError, EstimatorOptions, LogRecord, SliceLog};
-use rollcal::models::{ConfigId, Model};
+use rollcal::models::{ConfigId, ErrorModel, Model};
 
 use super::config::{initial, observation_t};
 use super::context::SimulatedRun;
@@ -78,7 +78,7 @@ fn passes_of<
     const Z: usize,
 >(
     cfg: FilterConfig<f64>,
-    sigma0: f64,
+    sigma0: &[f64],
     samples: &[PeriodSample],
     options: &EstimatorOptions,
     x0: &[f64],
@@ -136,11 +136,14 @@ pub fn segments_of_samples(samples: &[PeriodSample]) -> Vec<CommandSegment> {
 /// The multi-pass estimator ([`rollcal::estimator::estimate`]) of
 /// configuration `id` over `samples` (only their increments, periods,
 /// accelerometer means and gimbal angles are used; `truth.t` labels the
-/// history), from `x0` with prior σ `sigma0`.
+/// history), from `x0` with prior σ `sigma0` of every state (internal
+/// units), configuration `id` under error model `errors`.
+#[allow(clippy::too_many_arguments)]
 pub fn run_passes(
     id: ConfigId,
+    errors: ErrorModel,
     cfg: FilterConfig<f64>,
-    sigma0: f64,
+    sigma0: &[f64],
     samples: &[PeriodSample],
     estimator: Estimator,
     x0: &[f64],
@@ -152,10 +155,10 @@ pub fn run_passes(
     };
     let (o, h) = (&options, keep_history);
     let out = match estimator.precision {
-        Precision::F64 => rollcal::with_config!(id, |M, N, Z| passes_of::<f64, M, N, Z>(
+        Precision::F64 => rollcal::with_model!(id, errors, |M, N, Z| passes_of::<f64, M, N, Z>(
             cfg, sigma0, samples, o, x0, h
         )),
-        Precision::F32 => rollcal::with_config!(id, |M, N, Z| passes_of::<f32, M, N, Z>(
+        Precision::F32 => rollcal::with_model!(id, errors, |M, N, Z| passes_of::<f32, M, N, Z>(
             cfg, sigma0, samples, o, x0, h
         )),
     };
@@ -180,32 +183,43 @@ pub fn run_filter(
     SimulatedRun::new(id, scenario, sim, earth_rate).run(estimator, x0, keep_history)
 }
 
-/// A [`RunResult`] from the outcome of [`run_passes`] and the true final
-/// state `truth` (NaN where unknown).
-pub fn result(id: ConfigId, p: &Passes, truth: &[f64], sigma0: f64) -> RunResult {
+/// A [`RunResult`] from the outcome of [`run_passes`] (configuration `id`
+/// under error model `errors`), the true final state `truth` (NaN where
+/// unknown) and the prior σ of every state `sigma0` (internal units).
+pub fn result(
+    id: ConfigId,
+    errors: ErrorModel,
+    p: &Passes,
+    truth: &[f64],
+    sigma0: &[f64],
+) -> RunResult {
     let f = &p.filter;
     let (est, sig) = (f.state(), f.sigma());
+    let at = |v: &[f64], i: usize| v.get(i).copied().unwrap_or(f64::NAN);
     let states = id
-        .states()
+        .states_with(errors)
         .iter()
         .enumerate()
         .map(|(i, info)| StateResult {
             name: info.name,
             group: info.group.as_str(),
-            truth_rad: truth.get(i).copied().unwrap_or(f64::NAN),
-            estimate_rad: est.get(i).copied().unwrap_or(f64::NAN),
-            sigma_rad: sig.get(i).copied().unwrap_or(f64::NAN),
+            truth_rad: at(truth, i),
+            estimate_rad: at(&est, i),
+            sigma_rad: at(&sig, i),
+            prior: at(sigma0, i),
+            info: *info,
         })
         .collect();
     RunResult {
         config: id,
+        errors,
         states,
         covariance: f.covariance(),
         history: p.history.clone(),
         nis: p.nis.clone(),
         updates: p.updates.clone(),
         segments: p.segments.clone(),
-        prior_sigma_rad: sigma0,
+        prior_sigma_rad: sigma0.first().copied().unwrap_or(f64::NAN),
         passes: p.passes,
         failures: p.failures.clone(),
     }

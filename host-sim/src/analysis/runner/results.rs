@@ -4,7 +4,7 @@
 use nalgebra::RealField;
 use rollcal::ekf;
 use rollcal::geometry::wrap_angle;
-use rollcal::models::ConfigId;
+use rollcal::models::{ConfigId, ErrorModel, StateInfo};
 
 use super::filter::f64_of;
 use crate::sim::segments::CommandSegment;
@@ -22,12 +22,26 @@ pub struct StateResult {
     pub estimate_rad: f64,
     /// Filter σ (rad).
     pub sigma_rad: f64,
+    /// Prior σ (internal units), for the verdicts; not in the JSON.
+    #[serde(skip)]
+    pub prior: f64,
+    /// The state's name, group and unit: the `*_rad` fields hold a value
+    /// in its internal unit (rad for the installation states; rad/s,
+    /// rad/s/g, 1 or g for the instrument states of the full model,
+    /// [`rollcal::models::StateInfo::printed_scale`]); not in the JSON.
+    #[serde(skip)]
+    pub info: StateInfo,
 }
 
 impl StateResult {
-    /// Estimation error (rad); angle-wrapped for the attitude states.
+    /// Estimation error (internal unit); angle-wrapped for the angles.
     pub fn error(&self) -> f64 {
-        wrap_angle(self.estimate_rad - self.truth_rad)
+        let d = self.estimate_rad - self.truth_rad;
+        if self.info.group.is_instrument() {
+            d
+        } else {
+            wrap_angle(d)
+        }
     }
     /// |error| / σ.
     pub fn ratio(&self) -> f64 {
@@ -79,6 +93,8 @@ impl Update {
 pub struct RunResult {
     /// Configuration.
     pub config: ConfigId,
+    /// Error model (installation only, or with the instruments' errors).
+    pub errors: ErrorModel,
     /// Final states.
     pub states: Vec<StateResult>,
     /// Final covariance, row-major (rad²).
@@ -92,7 +108,8 @@ pub struct RunResult {
     /// The path's constant-command segments, from the commanded increments
     /// ([`crate::sim::segments::command_segments`]).
     pub segments: Vec<CommandSegment>,
-    /// Prior σ of every state (rad).
+    /// Prior σ of the installation states (rad; each state's own in
+    /// [`StateResult::prior`]).
     pub prior_sigma_rad: f64,
     /// Passes over the data that were run.
     pub passes: u8,
