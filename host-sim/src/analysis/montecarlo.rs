@@ -5,10 +5,10 @@
 
 use rayon::prelude::*;
 use rollcal::ekf;
-use rollcal::models::{ConfigId, Group};
+use rollcal::models::{ConfigId, ErrorModel, Group, StateInfo};
 
 use crate::analysis::observe;
-use crate::analysis::runner::{run_filter, Estimator, RunResult};
+use crate::analysis::runner::{Estimator, RunResult, SimulatedRun};
 use crate::analysis::Error;
 use crate::sim::scenario::Scenario;
 use crate::sim::truth::{simulate, SimOptions};
@@ -18,6 +18,13 @@ use crate::sim::truth::{simulate, SimOptions};
 pub struct StateStats {
     /// State name.
     pub name: &'static str,
+    /// The unit of the `*_rad` values of an instrument state of the full
+    /// model (`rad/s`, `rad/s/g`, `1`, `g`); absent for the angles (rad).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unit: Option<&'static str>,
+    /// Name, group and printed unit of the state; not in the JSON.
+    #[serde(skip)]
+    pub info: StateInfo,
     /// Root-mean-square final error (rad).
     pub rms_error_rad: f64,
     /// Mean error (rad): a bias shows here.
@@ -62,6 +69,9 @@ pub struct MonteCarlo {
     /// Configuration.
     #[serde(serialize_with = "observe::ser_config")]
     pub config: ConfigId,
+    /// Error model (written only for the full model).
+    #[serde(skip_serializing_if = "is_installation", serialize_with = "ser_errors")]
+    pub errors: ErrorModel,
     /// Precision of the filter's covariance arithmetic.
     pub precision: crate::analysis::runner::Precision,
     /// Runs that completed.
@@ -81,6 +91,19 @@ pub struct MonteCarlo {
     /// Wall time (s).
     pub wall_s: f64,
 }
+
+fn is_installation(e: &ErrorModel) -> bool {
+    *e == ErrorModel::Installation
+}
+
+fn ser_errors<S: serde::Serializer>(e: &ErrorModel, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(e.as_str())
+}
+
+/// Of the full model's parameter block: a state whose bound is below this
+/// fraction of its prior σ, so that the data and not the prior make its
+/// estimate (at 0.1 the prior's pull on the estimate is 1 % of the truth).
+pub const FULL_BLOCK_RATIO: f64 = 0.1;
 
 // The χ² and normal quantiles: one implementation, in `statistics`.
 pub use crate::analysis::statistics::{chi2_quantile, normal_quantile};
@@ -106,10 +129,14 @@ pub fn in_parameter_block(id: ConfigId, name: &str, group: Group) -> bool {
 }
 
 /// Runs `runs` seeded Monte Carlo runs (seeds 1..=runs) of configuration
-/// `id` in parallel; `progress` is called after each run with the number
-/// done.
+/// `id` under error model `errors` in parallel; `progress` is called after
+/// each run with the number done. The parameter block is
+/// [`in_parameter_block`] for the installation model; for the full model,
+/// the non-attitude states whose bound is below [`FULL_BLOCK_RATIO`] of
+/// their prior.
 pub fn monte_carlo(
     id: ConfigId,
+    errors: ErrorModel,
     scenario: &Scenario,
     runs: usize,
     estimator: Estimator,
@@ -127,8 +154,8 @@ pub fn monte_carlo(
         },
     );
     crate::sim::truth::check_gimbal_lock(id, &clean)?;
-    let obs = observe::analyse(id, scenario, &clean, earth_rate, false)
-        .map_err(|e| Error::filter(format_args!("{id}: observability"), e))?;
+    let clean_run = SimulatedRun::new(id, scenario, &clean, earth_rate).with_errors(errors);
+    let (crlb, block) = bound_and_block(&clean_run)?;
     let done = std::sync::atomic::AtomicUsize::new(0);
     let seeds: Vec<u64> = (1..=runs as u64).collect();
     let results: Vec<Result<RunResult, (u64, ekf::Error)>> = seeds
@@ -142,7 +169,9 @@ pub fn monte_carlo(
                     earth_rate,
                 },
             );
-            let r = run_filter(id, scenario, &sim, earth_rate, estimator, None, false)
+            let r = SimulatedRun::new(id, scenario, &sim, earth_rate)
+                .with_errors(errors)
+                .run(estimator, None, false)
                 .map_err(|e| (seed, e));
             let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             progress(n);
@@ -156,9 +185,8 @@ pub fn monte_carlo(
             Err((seed, e)) => return Err(Error::filter(format_args!("{id}: seed {seed}"), e)),
         }
     }
-    let block = parameter_block(id);
     let n_runs = ok.len().max(1) as f64;
-    let states = state_stats(id, &ok, &obs, &block);
+    let states = state_stats(id, errors, &ok, &crlb, &block);
     let (nees_sum, max_ratio, worst) = nees_and_worst(id, &ok, &seeds, &block)?;
     let nees = band(nees_sum / n_runs, block.len(), ok.len());
     let z = id.layout().z();
@@ -167,6 +195,7 @@ pub fn monte_carlo(
     let nis = band(nis_mean, z, nis_count);
     Ok(MonteCarlo {
         config: id,
+        errors,
         precision: estimator.precision,
         runs: ok.len(),
         seeds,
@@ -179,26 +208,48 @@ pub fn monte_carlo(
     })
 }
 
-/// The indices of the parameter block of `id` ([`in_parameter_block`]).
-fn parameter_block(id: ConfigId) -> Vec<usize> {
-    id.states()
+/// The bound σ of every state on the noise-free run `run` and the indices
+/// of the parameter block ([`monte_carlo`]).
+fn bound_and_block(run: &SimulatedRun) -> Result<(Vec<f64>, Vec<usize>), Error> {
+    let id = run.config;
+    if run.errors == ErrorModel::Installation {
+        let obs = observe::analyse(id, run.scenario, run.sim, run.earth_rate, false)
+            .map_err(|e| Error::filter(format_args!("{id}: observability"), e))?;
+        let crlb = obs.states.iter().map(|s| s.sigma_crlb_rad).collect();
+        let block = id
+            .states()
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| in_parameter_block(id, s.name, s.group))
+            .map(|(i, _)| i)
+            .collect();
+        return Ok((crlb, block));
+    }
+    let crlb = run
+        .crlb()
+        .map_err(|e| Error::filter(format_args!("{id}: Cramér–Rao bound"), e))?;
+    let prior = run.prior_sigma();
+    let block = id
+        .states_with(run.errors)
         .iter()
         .enumerate()
-        .filter(|(_, s)| in_parameter_block(id, s.name, s.group))
+        .filter(|(i, s)| s.group != Group::Attitude && crlb[*i] < FULL_BLOCK_RATIO * prior[*i])
         .map(|(i, _)| i)
-        .collect()
+        .collect();
+    Ok((crlb, block))
 }
 
 /// The statistics of every state over the runs `ok`, against the bound of
 /// the analysis `obs`.
 fn state_stats(
     id: ConfigId,
+    errors: ErrorModel,
     ok: &[RunResult],
-    obs: &observe::ConfigObs,
+    crlb: &[f64],
     block: &[usize],
 ) -> Vec<StateStats> {
     let n_runs = ok.len().max(1) as f64;
-    id.states()
+    id.states_with(errors)
         .iter()
         .enumerate()
         .map(|(i, info)| {
@@ -206,9 +257,11 @@ fn state_stats(
             let rms = (errs.iter().map(|e| e * e).sum::<f64>() / n_runs).sqrt();
             let mean = errs.iter().sum::<f64>() / n_runs;
             let sig = ok.iter().map(|r| r.states[i].sigma_rad).sum::<f64>() / n_runs;
-            let crlb = obs.states[i].sigma_crlb_rad;
+            let crlb = crlb.get(i).copied().unwrap_or(f64::NAN);
             StateStats {
                 name: info.name,
+                unit: info.group.is_instrument().then_some(info.unit),
+                info: *info,
                 rms_error_rad: rms,
                 mean_error_rad: mean,
                 mean_sigma_rad: sig,
@@ -230,7 +283,7 @@ fn nees_and_worst(
     seeds: &[u64],
     block: &[usize],
 ) -> Result<(f64, f64, (u64, &'static str, u8)), Error> {
-    let n = id.states().len();
+    let n = ok.first().map_or(0, |r| r.states.len());
     let mut nees_sum = 0.0;
     let mut max_ratio: f64 = 0.0;
     let mut worst = (0, "", 0);

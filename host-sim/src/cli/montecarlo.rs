@@ -4,9 +4,9 @@
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use rollcal::models::ConfigId;
+use rollcal::models::{ConfigId, ErrorModel};
 
-use super::args::{load_scenario, parse_config};
+use super::args::{load_scenario, parse_config, parse_errors};
 use super::Error;
 use crate::analysis::montecarlo::{monte_carlo, Consistency, MonteCarlo};
 use crate::analysis::runner::{Estimator, Precision};
@@ -30,6 +30,10 @@ pub struct MonteCarloArgs {
     /// residuals are f64 in both).
     #[arg(long, value_enum, default_value_t = Precision::F64)]
     pub precision: Precision,
+    /// Error model of the estimator: `installation` or `full` (with the
+    /// instruments' 21 errors; docs/model.md §Full model).
+    #[arg(long, default_value = "installation", value_parser = parse_errors)]
+    pub errors: ErrorModel,
     /// Write the statistics as JSON to PATH.
     #[arg(long, value_name = "PATH")]
     pub json: Option<PathBuf>,
@@ -50,6 +54,7 @@ pub fn command(args: &MonteCarloArgs) -> Result<(), Error> {
     let done = AtomicU64::new(0);
     let mc = monte_carlo(
         args.config,
+        args.errors,
         &scenario,
         runs,
         Estimator {
@@ -73,8 +78,12 @@ pub fn command(args: &MonteCarloArgs) -> Result<(), Error> {
 
 /// Prints the Monte Carlo table.
 fn print_monte_carlo(mc: &MonteCarlo) {
+    let errors = match mc.errors {
+        ErrorModel::Installation => String::new(),
+        e => format!(", {} model", e.as_str()),
+    };
     println!(
-        "{} Monte Carlo ({}): {} runs (seeds 1..={}), {:.1} s wall",
+        "{} Monte Carlo ({}{errors}): {} runs (seeds 1..={}), {:.1} s wall",
         mc.config,
         mc.precision.as_str(),
         mc.runs,
@@ -86,13 +95,20 @@ fn print_monte_carlo(mc: &MonteCarlo) {
         "state", "RMS err ″", "mean err ″", "mean σ ″", "σ_CRLB ″", "RMS/CRLB"
     );
     for s in &mc.states {
+        // Angles in ″ as always; instrument states in their printed unit.
+        let (show, unit): (&dyn Fn(f64) -> f64, String) = if s.info.group.is_instrument() {
+            let (k, unit) = s.info.printed_scale();
+            (&move |v: f64| v * k, format!(" ({unit})"))
+        } else {
+            (&|v: f64| v / ARCSEC, String::new())
+        };
         println!(
-            "{:<10} {:>11.4} {:>11.4} {:>11.4} {:>11.4} {:>9.3}  {}",
+            "{:<10} {:>11.4} {:>11.4} {:>11.4} {:>11.4} {:>9.3}  {}{unit}",
             s.name,
-            s.rms_error_rad / ARCSEC,
-            s.mean_error_rad / ARCSEC,
-            s.mean_sigma_rad / ARCSEC,
-            s.sigma_crlb_rad / ARCSEC,
+            show(s.rms_error_rad),
+            show(s.mean_error_rad),
+            show(s.mean_sigma_rad),
+            show(s.sigma_crlb_rad),
             s.rms_over_crlb,
             if s.in_parameter_block { "yes" } else { "" }
         );

@@ -11,7 +11,7 @@ use host_sim::analysis::montecarlo::monte_carlo;
 use host_sim::analysis::runner::{run_filter, Estimator, Precision, RunResult};
 use host_sim::sim::scenario::Scenario;
 use host_sim::sim::truth::{simulate, SimOptions};
-use rollcal::models::ConfigId;
+use rollcal::models::{ConfigId, ErrorModel};
 
 fn scenario(name: &str) -> Scenario {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -74,7 +74,15 @@ fn f32_monte_carlo_of_m2ps_is_at_the_bound_and_consistent() {
         precision: Precision::F32,
         ..Estimator::default()
     };
-    let mc = monte_carlo(ConfigId::M2Ps, &Scenario::paper(), runs, est, &|_| {}).unwrap();
+    let mc = monte_carlo(
+        ConfigId::M2Ps,
+        ErrorModel::Installation,
+        &Scenario::paper(),
+        runs,
+        est,
+        &|_| {},
+    )
+    .unwrap();
     assert_eq!(mc.runs, runs);
     let block: Vec<_> = mc.states.iter().filter(|s| s.in_parameter_block).collect();
     assert_eq!(block.len(), 14, "12 instrument angles + lam_x, lam_z");

@@ -20,6 +20,7 @@ mod design;
 mod dwell;
 mod f32;
 mod firmware_check;
+mod full_model;
 mod golden;
 mod innovations;
 mod instruments;

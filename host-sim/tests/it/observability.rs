@@ -12,7 +12,7 @@ use host_sim::analysis::verdict::Verdict;
 use host_sim::sim::scenario::{Scenario, DEG};
 use host_sim::sim::truth::{simulate, SimOptions, Simulation};
 use nalgebra::SVector;
-use rollcal::models::{ConfigId, Group, M1Ps};
+use rollcal::models::{ConfigId, ErrorModel, Group, M1Ps};
 use rollcal::observability::{Observability, RANK_TOLERANCE};
 
 fn clean(earth_rate: bool) -> Simulation {
@@ -178,6 +178,7 @@ fn firmware_configurations_reach_the_cramer_rao_bound() {
 fn monte_carlo_of_m2ps_is_at_the_bound_and_consistent() {
     let mc = monte_carlo(
         ConfigId::M2Ps,
+        ErrorModel::Installation,
         &Scenario::paper(),
         20,
         Estimator::default(),

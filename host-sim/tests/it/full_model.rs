@@ -1,0 +1,170 @@
+//! The full model (installation errors followed by the instruments' 21
+//! errors, docs/model.md §Full model) on the host: `run --errors full`
+//! against the truth simulator's instrument errors and the Cramér–Rao
+//! bound, a Monte Carlo of it, and the command line.
+
+use crate::support;
+
+use host_sim::analysis::montecarlo::monte_carlo;
+use host_sim::analysis::runner::{Estimator, SimulatedRun};
+use host_sim::sim::scenario::Scenario;
+use host_sim::sim::truth::{simulate, SimOptions};
+use rollcal::models::{ConfigId, ErrorModel, Group};
+
+fn instrumented() -> Scenario {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/instrumented.toml"
+    );
+    Scenario::load(Some(std::path::Path::new(path))).unwrap()
+}
+
+/// On the instrumented scenario (seed 1), the full model of M2-ps and M1-pa
+/// ends with every non-attitude state within 4σ of the truth, σ within 5 %
+/// of σ_CRLB, and the instrument truths those of SPEC §8's table.
+#[test]
+fn full_model_run_is_consistent_with_its_bound() {
+    let scenario = instrumented();
+    let opts = SimOptions {
+        seed: 1,
+        noise: true,
+        earth_rate: true,
+    };
+    let sim = simulate(&scenario, opts);
+    for id in [ConfigId::M2Ps, ConfigId::M1Pa] {
+        let run = SimulatedRun::new(id, &scenario, &sim, true).with_errors(ErrorModel::Full);
+        let r = run.run(Estimator::default(), None, false).unwrap();
+        let crlb = run.crlb().unwrap();
+        assert_eq!(r.states.len(), id.layout_with(ErrorModel::Full).n());
+        assert_eq!(r.states.len(), id.layout().n() + 21);
+        for (s, c) in r.states.iter().zip(&crlb) {
+            if s.info.group == Group::Attitude {
+                continue;
+            }
+            assert!(s.ratio() <= 4.0, "{id} {}: |err|/σ {}", s.name, s.ratio());
+            let q = s.sigma_rad / c;
+            assert!((0.95..=1.05).contains(&q), "{id} {}: σ/σ_CRLB {q}", s.name);
+        }
+        let ba_y = r.states.iter().find(|s| s.name == "ba_y").unwrap();
+        assert!(
+            (ba_y.truth_rad * 1e6 + 20.0).abs() < 1e-9,
+            "{}",
+            ba_y.truth_rad
+        );
+        let kg_z = r.states.iter().find(|s| s.name == "kg_z").unwrap();
+        assert!(
+            (kg_z.truth_rad * 1e6 - 80.0).abs() < 1e-9,
+            "{}",
+            kg_z.truth_rad
+        );
+    }
+}
+
+/// The same run through the installation model alone is far off: the
+/// instruments' errors, unmodelled, bias the installation estimates by
+/// many σ (the reason for the full model).
+#[test]
+fn installation_model_is_biased_by_the_instrument_errors() {
+    let scenario = instrumented();
+    let opts = SimOptions {
+        seed: 1,
+        noise: true,
+        earth_rate: true,
+    };
+    let sim = simulate(&scenario, opts);
+    let r = SimulatedRun::new(ConfigId::M2Ps, &scenario, &sim, true)
+        .run(Estimator::default(), None, false)
+        .unwrap();
+    let worst = r
+        .states
+        .iter()
+        .filter(|s| s.info.group == Group::ThetaAT)
+        .map(|s| s.ratio())
+        .fold(0.0, f64::max);
+    assert!(worst > 20.0, "worst |err|/σ of θaT {worst}");
+}
+
+/// A 20-run Monte Carlo of the full M2-ps model on the instrumented
+/// scenario: the parameter-block NEES and the NIS inside their 95 % bands,
+/// the block's mean (RMS/σ_CRLB)² near 1 and the filter's σ on the bound.
+#[test]
+fn monte_carlo_of_the_full_model_is_consistent() {
+    let mc = monte_carlo(
+        ConfigId::M2Ps,
+        ErrorModel::Full,
+        &instrumented(),
+        20,
+        Estimator::default(),
+        &|_| {},
+    )
+    .unwrap();
+    assert!(mc.nees.inside(), "NEES {:?}", mc.nees);
+    assert!(mc.nis.inside(), "NIS {:?}", mc.nis);
+    let block: Vec<_> = mc.states.iter().filter(|s| s.in_parameter_block).collect();
+    assert!(block.len() >= 30, "block of {} states", block.len());
+    assert!(block.iter().any(|s| s.name == "Dg_zz"));
+    let mean_sq = block.iter().map(|s| s.rms_over_crlb.powi(2)).sum::<f64>() / block.len() as f64;
+    assert!((0.8..=1.2).contains(&mean_sq), "mean (RMS/CRLB)² {mean_sq}");
+    for s in &block {
+        let q = s.mean_sigma_rad / s.sigma_crlb_rad;
+        assert!((0.95..=1.05).contains(&q), "{}: σ/σ_CRLB {q}", s.name);
+    }
+}
+
+/// `run --errors full --json`: the installation states under `states` as
+/// before, the 21 instrument states under `instruments` in their printed
+/// units; a bad `--errors` and `--report` with the full model are one-line
+/// errors.
+#[test]
+fn run_errors_full_on_the_command_line() {
+    let dir = support::scratch("full-model-cli");
+    let json = dir.join("r.json");
+    let scenario = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/instrumented.toml"
+    );
+    let out = support::host_sim()
+        .args([
+            "run",
+            "--config",
+            "M1-pa",
+            "--errors",
+            "full",
+            "--scenario",
+            scenario,
+        ])
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    support::assert_success(&out);
+    let v = support::json_file(&json);
+    assert_eq!(v["errors"], "full");
+    assert_eq!(v["states"].as_array().unwrap().len(), 12);
+    let inst = v["instruments"].as_array().unwrap();
+    assert_eq!(inst.len(), 21);
+    assert_eq!(inst[3]["name"], "Dgpa_xx");
+    assert_eq!(inst[15]["unit"], "µg");
+    assert!((inst[15]["truth"].as_f64().unwrap() - 30.0).abs() < 1e-9);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("ka_z") && stdout.contains("(ppm)"),
+        "{stdout}"
+    );
+
+    let bad = support::host_sim()
+        .args(["run", "--config", "M1-pa", "--errors", "some"])
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(support::stderr(&bad).contains("expected installation or full"));
+    let report = support::host_sim()
+        .args(["run", "--config", "M1-pa", "--errors", "full", "--report"])
+        .arg(dir.join("rep"))
+        .output()
+        .unwrap();
+    assert!(!report.status.success());
+    let err = support::stderr(&report);
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
