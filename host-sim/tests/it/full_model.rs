@@ -168,3 +168,48 @@ fn run_errors_full_on_the_command_line() {
     assert_eq!(err.trim().lines().count(), 1, "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// A prior given as one σ (the installation model's, as `calibrate` gives
+/// it) holds for every state: each result carries it, so the verdicts
+/// read `converged`, not `not observable`.
+#[test]
+fn a_single_prior_sigma_holds_for_every_state() {
+    use host_sim::analysis::runner::{result, Passes};
+    struct Fixed(usize);
+    impl host_sim::analysis::runner::DynFilter for Fixed {
+        fn step(
+            &mut self,
+            _: &host_sim::sim::truth::PeriodSample,
+        ) -> Result<f64, rollcal::ekf::Error> {
+            Ok(0.0)
+        }
+        fn state(&self) -> Vec<f64> {
+            vec![0.0; self.0]
+        }
+        fn sigma(&self) -> Vec<f64> {
+            vec![1e-6; self.0]
+        }
+        fn covariance(&self) -> Vec<f64> {
+            vec![0.0; self.0 * self.0]
+        }
+    }
+    let n = ConfigId::M2Ps.layout().n();
+    let p = Passes {
+        filter: Box::new(Fixed(n)),
+        history: Vec::new(),
+        nis: Vec::new(),
+        updates: Vec::new(),
+        segments: Vec::new(),
+        failures: Vec::new(),
+        passes: 1,
+    };
+    let r = result(
+        ConfigId::M2Ps,
+        ErrorModel::Installation,
+        &p,
+        &vec![0.0; n],
+        &[0.01],
+    );
+    assert_eq!(r.states.len(), n);
+    assert!(r.states.iter().all(|s| s.prior == 0.01), "{:?}", r.states);
+}

@@ -185,7 +185,8 @@ pub fn run_filter(
 
 /// A [`RunResult`] from the outcome of [`run_passes`] (configuration `id`
 /// under error model `errors`), the true final state `truth` (NaN where
-/// unknown) and the prior σ of every state `sigma0` (internal units).
+/// unknown) and the prior σ of every state `sigma0` (internal units; a
+/// short slice is extended by its last value, as the initial prior is).
 pub fn result(
     id: ConfigId,
     errors: ErrorModel,
@@ -206,7 +207,7 @@ pub fn result(
             truth_rad: at(truth, i),
             estimate_rad: at(&est, i),
             sigma_rad: at(&sig, i),
-            prior: at(sigma0, i),
+            prior: sigma0.get(i).or(sigma0.last()).copied().unwrap_or(f64::NAN),
             info: *info,
         })
         .collect();
