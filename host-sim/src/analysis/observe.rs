@@ -3,7 +3,7 @@
 
 use nalgebra::SVector;
 use rollcal::ekf;
-use rollcal::models::{ConfigId, Group, Model};
+use rollcal::models::{ConfigId, ErrorModel, Group, Model};
 use rollcal::observability::{
     Observability, Spectrum, COEF_THRESHOLD, PRACTICAL_RATIO, RANK_TOLERANCE,
 };
@@ -32,6 +32,10 @@ pub struct StateObs {
     /// Its group name (e.g. `thgC`).
     #[serde(skip)]
     pub group: Group,
+    /// The unit of `sigma_crlb_rad` of an instrument state of the full
+    /// model (`rad/s`, `rad/s/g`, `1`, `g`); absent for the angles (rad).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unit: Option<&'static str>,
     /// Posterior Cramér–Rao σ at the end of the path (rad).
     pub sigma_crlb_rad: f64,
     /// `σ_CRLB / σ_prior`.
@@ -54,6 +58,9 @@ pub struct ConfigObs {
     /// Configuration id.
     #[serde(serialize_with = "ser_config")]
     pub config: ConfigId,
+    /// Error model (written only for the full model).
+    #[serde(skip_serializing_if = "is_installation", serialize_with = "ser_errors")]
+    pub errors: ErrorModel,
     /// Number of states.
     pub n: usize,
     /// Numerical rank of the information matrix (zero-state linearisation).
@@ -76,6 +83,14 @@ pub(crate) fn ser_config<S: serde::Serializer>(c: &ConfigId, s: S) -> Result<S::
     s.serialize_str(c.as_str())
 }
 
+fn is_installation(e: &ErrorModel) -> bool {
+    *e == ErrorModel::Installation
+}
+
+fn ser_errors<S: serde::Serializer>(e: &ErrorModel, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(e.as_str())
+}
+
 impl ConfigObs {
     /// Dimension of the null space.
     pub fn nullity(&self) -> usize {
@@ -93,17 +108,14 @@ pub fn format_combination(terms: &[Term]) -> String {
 }
 
 fn analyse_typed<M: Model<N, Z>, const N: usize, const Z: usize>(
-    id: ConfigId,
-    scenario: &Scenario,
-    sim: &Simulation,
-    earth_rate: bool,
+    run: SimulatedRun,
     keep_history: bool,
 ) -> Result<ConfigObs, ekf::Error> {
-    let run = SimulatedRun::new(id, scenario, sim, earth_rate);
+    let (id, sim) = (run.config, run.sim);
     let cfg = run.filter_config(ekf::Options::plain());
     let truth0 = run.truth_at_start();
     let x0 = SVector::<f64, N>::from_iterator(truth0.iter().copied());
-    let prior = SVector::<f64, N>::repeat(run.sigma0());
+    let prior = SVector::<f64, N>::from_iterator(run.prior_sigma());
     // The bound, along the true trajectory.
     let mut obs = Observability::<f64, M, N, Z>::new(cfg, x0, prior)?;
     // The structure, along the path linearised at zero state (the paper's
@@ -124,7 +136,7 @@ fn analyse_typed<M: Model<N, Z>, const N: usize, const Z: usize>(
     let spec: Spectrum<f64, N> = zero.analyse(RANK_TOLERANCE)?;
     let at_truth: Spectrum<f64, N> = obs.analyse(RANK_TOLERANCE)?;
     let leak = at_truth.participation();
-    let names = id.states();
+    let names = id.states_with(run.errors);
     let basis = spec.null_space_basis();
     let null_space = (0..spec.nullity())
         .map(|c| {
@@ -152,6 +164,7 @@ fn analyse_typed<M: Model<N, Z>, const N: usize, const Z: usize>(
             StateObs {
                 name: info.name,
                 group: info.group,
+                unit: info.group.is_instrument().then_some(info.unit),
                 sigma_crlb_rad: sigma[i],
                 ratio: ratio[i],
                 observable: verdict == Verdict::Observable,
@@ -163,6 +176,7 @@ fn analyse_typed<M: Model<N, Z>, const N: usize, const Z: usize>(
         .collect();
     Ok(ConfigObs {
         config: id,
+        errors: run.errors,
         n: N,
         rank: spec.rank,
         rank_at_truth: at_truth.rank,
@@ -183,11 +197,18 @@ pub fn analyse(
     earth_rate: bool,
     keep_history: bool,
 ) -> Result<ConfigObs, ekf::Error> {
-    rollcal::with_config!(id, |M, N, Z| analyse_typed::<M, N, Z>(
-        id,
-        scenario,
-        sim,
-        earth_rate,
+    analyse_run(
+        SimulatedRun::new(id, scenario, sim, earth_rate),
+        keep_history,
+    )
+}
+
+/// [`analyse`] of the model of `run` (its configuration under its error
+/// model, [`SimulatedRun::with_errors`]), with the prior of every state
+/// ([`SimulatedRun::prior_sigma`]).
+pub fn analyse_run(run: SimulatedRun, keep_history: bool) -> Result<ConfigObs, ekf::Error> {
+    rollcal::with_model!(run.config, run.errors, |M, N, Z| analyse_typed::<M, N, Z>(
+        run,
         keep_history
     ))
 }
@@ -195,6 +216,15 @@ pub fn analyse(
 /// [`analyse`] of all seven configurations along the noise-free run of
 /// `scenario` (seed 0), without the σ_CRLB history.
 pub fn analyse_all(scenario: &Scenario, earth_rate: bool) -> Result<Vec<ConfigObs>, Error> {
+    analyse_all_with(scenario, ErrorModel::Installation, earth_rate)
+}
+
+/// [`analyse_all`] under error model `errors`.
+pub fn analyse_all_with(
+    scenario: &Scenario,
+    errors: ErrorModel,
+    earth_rate: bool,
+) -> Result<Vec<ConfigObs>, Error> {
     let sim = crate::sim::truth::simulate(
         scenario,
         crate::sim::truth::SimOptions {
@@ -205,7 +235,10 @@ pub fn analyse_all(scenario: &Scenario, earth_rate: bool) -> Result<Vec<ConfigOb
     );
     ConfigId::ALL
         .iter()
-        .map(|&id| analyse(id, scenario, &sim, earth_rate, false).map_err(|e| Error::filter(id, e)))
+        .map(|&id| {
+            let run = SimulatedRun::new(id, scenario, &sim, earth_rate).with_errors(errors);
+            analyse_run(run, false).map_err(|e| Error::filter(id, e))
+        })
         .collect()
 }
 
@@ -226,19 +259,31 @@ pub fn report_json(earth_rate: bool, configs: &[ConfigObs]) -> serde_json::Value
 /// column per state group, each cell the verdicts of the group's x/y/z (or
 /// 1/2/3) components, e.g. `yes yes weak`.
 pub fn verdict_matrix_markdown(configs: &[ConfigObs]) -> String {
-    let groups = [
-        Group::Attitude,
-        Group::ThetaGC,
-        Group::ThetaGT,
-        Group::ThetaAC,
-        Group::ThetaAT,
-        Group::Lambda,
+    let mut groups = vec![
+        (Group::Attitude, "attitude"),
+        (Group::ThetaGC, "θgC"),
+        (Group::ThetaGT, "θgT"),
+        (Group::ThetaAC, "θaC"),
+        (Group::ThetaAT, "θaT"),
+        (Group::Lambda, "λ"),
     ];
-    let mut out = String::from("| config | rank/n | attitude | θgC | θgT | θaC | θaT | λ |\n");
-    out.push_str("|---|---|---|---|---|---|---|---|\n");
+    if configs.iter().any(|c| c.errors == ErrorModel::Full) {
+        groups.extend([
+            (Group::GyroDrift, "dg"),
+            (Group::GyroGDrift, "D_g"),
+            (Group::GyroScale, "kg"),
+            (Group::AccelBias, "ba"),
+            (Group::AccelScale, "ka"),
+        ]);
+    }
+    let mut out = String::from("| config | rank/n |");
+    for (_, title) in &groups {
+        out.push_str(&format!(" {title} |"));
+    }
+    out.push_str(&format!("\n|---|---|{}\n", "---|".repeat(groups.len())));
     for c in configs {
         out.push_str(&format!("| {} | {}/{} |", c.config, c.rank, c.n));
-        for g in groups {
+        for &(g, _) in &groups {
             let cells: Vec<&str> = c
                 .states
                 .iter()
@@ -269,14 +314,15 @@ pub fn changes(off: &[ConfigObs], on: &[ConfigObs]) -> Vec<String> {
         }
         for (sa, sb) in a.states.iter().zip(&b.states) {
             if sa.verdict != sb.verdict {
+                let (ka, unit) = printed_scale(sa);
                 lines.push(format!(
-                    "{} {}: {} → {} (σ_CRLB {:.3}″ → {:.3}″, ratio {:.2e} → {:.2e})",
+                    "{} {}: {} → {} (σ_CRLB {:.3}{unit} → {:.3}{unit}, ratio {:.2e} → {:.2e})",
                     a.config,
                     sa.name,
                     sa.verdict,
                     sb.verdict,
-                    sa.sigma_crlb_rad / crate::sim::scenario::ARCSEC,
-                    sb.sigma_crlb_rad / crate::sim::scenario::ARCSEC,
+                    ka(sa.sigma_crlb_rad),
+                    ka(sb.sigma_crlb_rad),
                     sa.ratio,
                     sb.ratio
                 ));
@@ -284,4 +330,22 @@ pub fn changes(off: &[ConfigObs], on: &[ConfigObs]) -> Vec<String> {
         }
     }
     lines
+}
+
+/// The printed value of a σ of state `s` (internal unit) and its printed
+/// unit: arcseconds for the angles (as the tables have always printed
+/// them), °/h, °/h/g, ppm, µg for the instrument states.
+pub fn printed_scale(s: &StateObs) -> (impl Fn(f64) -> f64, &'static str) {
+    let instrument = s.group.is_instrument();
+    let (k, unit) = s.group.printed_scale();
+    (
+        move |v: f64| {
+            if instrument {
+                v * k
+            } else {
+                v / crate::sim::scenario::ARCSEC
+            }
+        },
+        unit,
+    )
 }

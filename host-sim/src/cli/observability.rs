@@ -5,15 +5,16 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use rollcal::models::ErrorModel;
 use rollcal::observability::{COEF_THRESHOLD, PRACTICAL_RATIO, RANK_TOLERANCE};
 
-use super::args::load_scenario;
+use super::args::{load_scenario, parse_errors};
 use super::Error;
 use crate::analysis::observe::{
-    analyse_all, changes, format_combination, report_json, verdict_matrix_markdown, ConfigObs,
+    analyse_all_with, changes, format_combination, printed_scale, report_json,
+    verdict_matrix_markdown, ConfigObs,
 };
 use crate::output::report::write_json;
-use crate::sim::scenario::ARCSEC;
 
 /// Arguments of `host-sim observability`.
 #[derive(clap::Args)]
@@ -27,6 +28,11 @@ pub struct ObservabilityArgs {
     /// Write the analysis as JSON to PATH.
     #[arg(long, value_name = "PATH")]
     pub json: Option<PathBuf>,
+    /// Error model: `installation` (the paper's states) or `full` (followed
+    /// by the instruments' 21 errors, with the scenario's
+    /// `[instruments.prior]`; docs/model.md §Full model).
+    #[arg(long, default_value = "installation", value_parser = parse_errors)]
+    pub errors: ErrorModel,
 }
 
 /// `host-sim observability`.
@@ -34,12 +40,16 @@ pub fn command(args: &ObservabilityArgs) -> Result<(), Error> {
     let scenario = load_scenario(args.scenario.as_deref())?;
     let earth_rate = !args.no_earth_rate && scenario.site.earth_rate;
     let t0 = Instant::now();
+    let model = match args.errors {
+        ErrorModel::Installation => String::new(),
+        e => format!(", {} model", e.as_str()),
+    };
     eprintln!(
-        "analysing 7 configurations along '{}' (Earth rate {})…",
+        "analysing 7 configurations along '{}' (Earth rate {}{model})…",
         scenario.name,
         if earth_rate { "on" } else { "off" }
     );
-    let configs = analyse_all(&scenario, earth_rate)?;
+    let configs = analyse_all_with(&scenario, args.errors, earth_rate)?;
     print_report(&configs, earth_rate);
     println!(
         "
@@ -47,7 +57,7 @@ Verdicts (x y z per group; yes: observable in practice, weak: σ_CRLB/σ_prior �
     );
     print!("{}", verdict_matrix_markdown(&configs));
     if earth_rate {
-        let off = analyse_all(&scenario, false)?;
+        let off = analyse_all_with(&scenario, args.errors, false)?;
         let lines = changes(&off, &configs);
         println!("\nWhat the Earth rate changes (against the paper's Earth-off analysis):");
         if lines.is_empty() {
@@ -88,10 +98,16 @@ fn print_report(configs: &[ConfigObs], earth_rate: bool) {
             "state", "σ_CRLB ″", "σ/σ_prior"
         );
         for s in &c.states {
+            let (show, unit) = printed_scale(s);
+            let unit = if s.group.is_instrument() {
+                format!(" ({unit})")
+            } else {
+                String::new()
+            };
             println!(
-                "  {:<10} {:>12.4} {:>10.2e}  {}",
+                "  {:<10} {:>12.4} {:>10.2e}  {}{unit}",
                 s.name,
-                s.sigma_crlb_rad / ARCSEC,
+                show(s.sigma_crlb_rad),
                 s.ratio,
                 s.verdict
             );
