@@ -42,6 +42,7 @@ pub struct MonteCarloArgs {
 /// `host-sim montecarlo`.
 pub fn command(args: &MonteCarloArgs) -> Result<(), Error> {
     let scenario = load_scenario(args.scenario.as_deref())?;
+    super::args::note_instrument_prior(&scenario, args.errors);
     let runs = usize::try_from(args.runs).map_err(|e| e.to_string())?;
     eprintln!(
         "{} runs of {} on '{}' with {} threads…",

@@ -38,6 +38,7 @@ pub struct ObservabilityArgs {
 /// `host-sim observability`.
 pub fn command(args: &ObservabilityArgs) -> Result<(), Error> {
     let scenario = load_scenario(args.scenario.as_deref())?;
+    super::args::note_instrument_prior(&scenario, args.errors);
     let earth_rate = !args.no_earth_rate && scenario.site.earth_rate;
     let t0 = Instant::now();
     let model = match args.errors {

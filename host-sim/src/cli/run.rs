@@ -46,6 +46,7 @@ pub fn command(args: &RunArgs) -> Result<(), Error> {
         return Err("--report and --matrices are not available with --errors full yet".into());
     }
     let scenario = load_scenario(c.scenario.as_deref())?;
+    super::args::note_instrument_prior(&scenario, c.errors);
     let earth_rate = !c.no_earth_rate && scenario.site.earth_rate;
     if let Some(dir) = &args.report {
         crate::output::html::prepare_dir(dir)?;

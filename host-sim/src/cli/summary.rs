@@ -3,7 +3,7 @@
 
 use std::time::Instant;
 
-use rollcal::models::{ConfigId, ErrorModel};
+use rollcal::models::{ConfigId, ErrorModel, Group};
 
 use super::args::{load_scenario, CommonArgs};
 use super::Error;
@@ -14,6 +14,7 @@ use crate::sim::truth::{simulate, SimOptions};
 /// `host-sim summary`.
 pub fn command(c: &CommonArgs) -> Result<(), Error> {
     let scenario = load_scenario(c.scenario.as_deref())?;
+    super::args::note_instrument_prior(&scenario, c.errors);
     let earth_rate = !c.no_earth_rate && scenario.site.earth_rate;
     println!(
         "scenario '{}', seed {}, Earth rate {}, first-pass remedy {:?}, {} pass(es)",
@@ -27,8 +28,8 @@ pub fn command(c: &CommonArgs) -> Result<(), Error> {
         println!("error model: full (the installation states and the instruments' 21 errors)");
     }
     println!(
-        "{:<7} {:>6} {:>12} {:>16} {:>14} {:>9}",
-        "config", "states", "within 3σ", "observable ≤4σ", "max |err|/σ", "wall s"
+        "{:<7} {:>6} {:>12} {:>16} {:>14} {:>9}  {:>14}  data",
+        "config", "states", "within 3σ", "observable ≤4σ", "max |err|/σ", "wall s", "installation"
     );
     let t_all = Instant::now();
     let sim = simulate(
@@ -53,8 +54,17 @@ pub fn command(c: &CommonArgs) -> Result<(), Error> {
             .collect();
         let obs_ok = obs.iter().filter(|s| s.ratio() <= 4.0).count();
         let max = r.states.iter().map(|s| s.ratio()).fold(0.0, f64::max);
+        // The worst installation error (not the attitude, not an
+        // instrument term), and the data checks of `calibrate`.
+        let installation = r
+            .states
+            .iter()
+            .filter(|s| s.info.group != Group::Attitude && !s.info.group.is_instrument())
+            .map(|s| s.ratio())
+            .fold(0.0, f64::max);
+        let data = crate::analysis::checks::judge(&r).verdict;
         println!(
-            "{:<7} {:>6} {:>9}/{:<2} {:>13}/{:<2} {:>14.2} {:>9.2}",
+            "{:<7} {:>6} {:>9}/{:<2} {:>13}/{:<2} {:>14.2} {:>9.2}  {:>14.2}  {}",
             id.as_str(),
             r.states.len(),
             within,
@@ -62,7 +72,9 @@ pub fn command(c: &CommonArgs) -> Result<(), Error> {
             obs_ok,
             obs.len(),
             max,
-            t0.elapsed().as_secs_f64()
+            t0.elapsed().as_secs_f64(),
+            installation,
+            data.word()
         );
     }
     println!(
