@@ -55,14 +55,8 @@ pub fn printed(s: &StateResult, v: f64) -> f64 {
 
 /// The CSV column suffix of state `s`: `rad`, or the ASCII form of its
 /// printed unit (`deg_h`, `deg_h_g`, `ppm`, `ug`).
-fn csv_unit(s: &StateResult) -> &'static str {
-    match s.info.printed_scale().1 {
-        _ if !s.info.group.is_instrument() => "rad",
-        "°/h" => "deg_h",
-        "°/h/g" => "deg_h_g",
-        "µg" => "ug",
-        _ => "ppm",
-    }
+fn csv_unit(s: &StateResult) -> String {
+    crate::sim::instruments::ascii_unit(s.info.group).replace('/', "_")
 }
 
 /// Writes `value` pretty-printed to `path`, with a message naming the path on failure.

@@ -8,7 +8,7 @@
 //! g-sensitive drift is `D_g^pa = D_g R(θaC)` (names `Dgpa_*`); `dg`, `kg`,
 //! `ba`, `ka` are the same numbers in both frames.
 
-use rollcal::models::{ConfigId, PlatformFrame};
+use rollcal::models::{ConfigId, ErrorModel, Group, PlatformFrame, StateInfo};
 
 use crate::sim::scenario::DEG;
 use crate::sim::truth::TruthParams;
@@ -23,45 +23,49 @@ pub const PPM: f64 = 1e-6;
 /// One micro-g (µg → g).
 pub const UG: f64 = 1e-6;
 
-/// Names of the 21 states in a ps configuration.
-pub const PS_NAMES: [&str; INSTRUMENT_STATES] = [
-    "dg_x", "dg_y", "dg_z", "Dg_xx", "Dg_xy", "Dg_xz", "Dg_yx", "Dg_yy", "Dg_yz", "Dg_zx", "Dg_zy",
-    "Dg_zz", "kg_x", "kg_y", "kg_z", "ba_x", "ba_y", "ba_z", "ka_x", "ka_y", "ka_z",
-];
+/// The core's states of the full model of `id` after the installation
+/// ones: the 21 instrument states, names and groups
+/// ([`ConfigId::states_with`], the one table of state names).
+fn instrument_infos(id: ConfigId) -> &'static [StateInfo] {
+    let all = id.states_with(ErrorModel::Full);
+    all.get(id.layout().n()..).unwrap_or(&[])
+}
 
-/// Names of the 21 states in a pa configuration (`Dgpa_*` = `D_g R(θaC)`).
-pub const PA_NAMES: [&str; INSTRUMENT_STATES] = [
-    "dg_x", "dg_y", "dg_z", "Dgpa_xx", "Dgpa_xy", "Dgpa_xz", "Dgpa_yx", "Dgpa_yy", "Dgpa_yz",
-    "Dgpa_zx", "Dgpa_zy", "Dgpa_zz", "kg_x", "kg_y", "kg_z", "ba_x", "ba_y", "ba_z", "ka_x",
-    "ka_y", "ka_z",
-];
-
-/// The printed unit of state `i` (`deg/h`, `deg/h/g`, `ppm`, `ug`, `ppm`).
-pub fn printed_unit(i: usize) -> &'static str {
-    match i {
-        0..=2 => "deg/h",
-        3..=11 => "deg/h/g",
-        15..=17 => "ug",
-        _ => "ppm",
+/// The ASCII form of the printed unit of an instrument group, as the
+/// sidecar and the CSV columns write it (`deg_h`-style names use
+/// [`ascii_unit`] with `/` turned into `_`): `deg/h`, `deg/h/g`, `ppm`,
+/// `ug`; `rad` for the angles.
+pub fn ascii_unit(group: Group) -> &'static str {
+    match group {
+        Group::GyroDrift => "deg/h",
+        Group::GyroGDrift => "deg/h/g",
+        Group::AccelBias => "ug",
+        Group::GyroScale | Group::AccelScale => "ppm",
+        _ => "rad",
     }
 }
 
-/// The factor internal → printed of state `i` (multiply an internal value
-/// by it: rad/s → °/h, rad/s/g → °/h/g, 1 → ppm, g → µg).
+/// The printed unit of instrument state `i` (`deg/h`, `deg/h/g`, `ppm`,
+/// `ug`, `ppm`).
+pub fn printed_unit(i: usize) -> &'static str {
+    instrument_infos(ConfigId::M2Ps)
+        .get(i)
+        .map_or("", |s| ascii_unit(s.group))
+}
+
+/// The factor internal → printed of instrument state `i` (multiply an
+/// internal value by it: rad/s → °/h, rad/s/g → °/h/g, 1 → ppm, g → µg;
+/// core's [`Group::printed_scale`]).
 pub fn printed_factor(i: usize) -> f64 {
-    match i {
-        0..=11 => 1.0 / DEG_H,
-        15..=17 => 1.0 / UG,
-        _ => 1.0 / PPM,
-    }
+    instrument_infos(ConfigId::M2Ps)
+        .get(i)
+        .map_or(f64::NAN, |s| s.group.printed_scale().0)
 }
 
 /// The 21 names of configuration `id` (`Dgpa_*` in the pa frame).
 pub fn instrument_names(id: ConfigId) -> [&'static str; INSTRUMENT_STATES] {
-    match id.layout().frame {
-        PlatformFrame::Ps => PS_NAMES,
-        PlatformFrame::Pa => PA_NAMES,
-    }
+    let infos = instrument_infos(id);
+    core::array::from_fn(|i| infos.get(i).map_or("", |s| s.name))
 }
 
 /// The 21 printed units, in state order.
@@ -95,16 +99,15 @@ mod tests {
 
     #[test]
     fn names_units_and_factors_line_up() {
-        assert_eq!(PS_NAMES[4], "Dg_xy");
-        assert_eq!(PA_NAMES[11], "Dgpa_zz");
-        assert_eq!(instrument_names(ConfigId::M1Pa), PA_NAMES);
-        assert_eq!(instrument_names(ConfigId::M2Ps), PS_NAMES);
+        assert_eq!(instrument_names(ConfigId::M2Ps)[4], "Dg_xy");
+        assert_eq!(instrument_names(ConfigId::M1Pa)[11], "Dgpa_zz");
+        assert_eq!(instrument_names(ConfigId::M4Ps)[20], "ka_z");
         let u = instrument_units();
         assert_eq!(
             (u[0], u[3], u[12], u[15], u[18]),
             ("deg/h", "deg/h/g", "ppm", "ug", "ppm")
         );
         assert!((printed_factor(0) * DEG_H - 1.0).abs() < 1e-15);
-        assert_eq!(printed_factor(16) * 30e-6, 30.0);
+        assert!((printed_factor(16) * 30e-6 - 30.0).abs() < 1e-12);
     }
 }

@@ -9,7 +9,7 @@ use crate::support;
 use host_sim::io::sidecar::read_sidecar;
 use host_sim::io::Error;
 use host_sim::sim::instruments::{
-    instrument_truth_state, instrument_units, DEG_H, PA_NAMES, PPM, PS_NAMES, UG,
+    instrument_names, instrument_truth_state, instrument_units, DEG_H, PPM, UG,
 };
 use host_sim::sim::scenario::{Scenario, DEG, PAPER_TOML};
 use host_sim::sim::truth::{simulate, SimOptions, Simulation, TruthParams};
@@ -370,8 +370,12 @@ fn sidecar_records_the_instrument_truth() {
     std::fs::write(&file, text(SHORT_PATH, 200.0, None, true, ins)).unwrap();
     let sc = Scenario::from_file(&file).unwrap();
     for (config, bias, names) in [
-        (ConfigId::M1Pa, [10.0, 0.0, -5.0], PA_NAMES),
-        (ConfigId::M2Ps, [0.0; 3], PS_NAMES),
+        (
+            ConfigId::M1Pa,
+            [10.0, 0.0, -5.0],
+            instrument_names(ConfigId::M1Pa),
+        ),
+        (ConfigId::M2Ps, [0.0; 3], instrument_names(ConfigId::M2Ps)),
     ] {
         let truth = dir.join(format!("{config}.json"));
         let bias_arg = format!("{},{},{}", bias[0], bias[1], bias[2]);
