@@ -6,12 +6,10 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
-use rollcal::models::{ConfigId, Group};
+use rollcal::models::{ConfigId, ErrorModel, Group};
 
 use crate::analysis::observe::{self, ConfigObs};
-use crate::analysis::runner::{
-    expected_observable, run_filter, Estimator, RunResult, SimulatedRun,
-};
+use crate::analysis::runner::{expected_observable, Estimator, RunResult, SimulatedRun};
 use crate::analysis::verdict::Verdict;
 use crate::analysis::Error;
 use crate::output::plots::{plot_group_marked, Curve};
@@ -25,6 +23,14 @@ pub struct SummaryState {
     pub name: &'static str,
     /// Group name.
     pub group: &'static str,
+    /// The state's group and printed unit (the `*_rad` values of an
+    /// instrument state are in its internal unit, `unit` below).
+    #[serde(skip)]
+    pub info: rollcal::models::StateInfo,
+    /// The internal unit of an instrument state's `*_rad` values (`rad/s`,
+    /// `rad/s/g`, `1`, `g`); absent for the angles.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unit: Option<&'static str>,
     /// Truth at the end of the run (rad).
     pub truth_rad: f64,
     /// Estimate (rad).
@@ -75,6 +81,8 @@ pub struct Paper {
     pub seed: u64,
     /// Whether the runs had the Earth rate.
     pub earth_rate: bool,
+    /// The error model of the analyses and runs.
+    pub errors: ErrorModel,
     /// Observability with the Earth rate off.
     pub obs_off: Vec<ConfigObs>,
     /// Observability with the Earth rate on (as the runs).
@@ -187,7 +195,7 @@ fn summarise(
         .iter()
         .enumerate()
         .map(|(i, s)| {
-            let group = Group::from_name(s.group).unwrap_or(Group::Attitude);
+            let group = s.info.group;
             let observable = at_run.states[i].observable;
             let verdict = if !observable {
                 Verdict::NotObservable
@@ -196,10 +204,15 @@ fn summarise(
             } else {
                 Verdict::Failed
             };
-            let paper = (group != Group::Attitude).then(|| expected_observable(id, s.name, group));
+            // The paper claims nothing per attitude axis, nor of the
+            // instruments' own errors (taken as calibrated).
+            let paper = (group != Group::Attitude && !group.is_instrument())
+                .then(|| expected_observable(id, s.name, group));
             SummaryState {
                 name: s.name,
                 group: s.group,
+                info: s.info,
+                unit: group.is_instrument().then_some(s.info.unit),
                 truth_rad: s.truth_rad,
                 estimate_rad: s.estimate_rad,
                 error_rad: s.error(),
@@ -227,8 +240,16 @@ fn summarise(
 /// The command line that regenerates `paper`'s outputs from a clone of the
 /// repository: the scenario file (when one was given, as it was given), the
 /// seed and the output directory (when not the default `paper-out`).
-pub fn reproduce_command(scenario_path: Option<&Path>, seed: u64, out: &Path) -> String {
+pub fn reproduce_command(
+    scenario_path: Option<&Path>,
+    seed: u64,
+    out: &Path,
+    errors: ErrorModel,
+) -> String {
     let mut c = format!("cargo run --release -p host-sim -- paper --seed {seed}");
+    if errors != ErrorModel::Installation {
+        c.push_str(&format!(" --errors {}", errors.as_str()));
+    }
     if let Some(p) = scenario_path {
         c.push_str(&format!(" --scenario {}", p.display()));
     }
@@ -241,12 +262,14 @@ pub fn reproduce_command(scenario_path: Option<&Path>, seed: u64, out: &Path) ->
 /// Runs everything and writes it into `out` (created if missing).
 /// `scenario_path` is the file `scenario` was read from (`None`: the
 /// built-in paper scenario), for the command line written into the summary.
-/// `progress(what)` is called as tasks finish.
+/// `errors` is the error model of every analysis and run (the figures show
+/// the installation groups). `progress(what)` is called as tasks finish.
 pub fn paper(
     scenario: &Scenario,
     scenario_path: Option<&Path>,
     seed: u64,
     out: &Path,
+    errors: ErrorModel,
     progress: &(dyn Fn(&str) + Sync),
 ) -> Result<Paper, Error> {
     let t0 = std::time::Instant::now();
@@ -279,8 +302,8 @@ pub fn paper(
         ConfigId::ALL
             .par_iter()
             .map(|&id| {
-                let r =
-                    observe::analyse(id, scenario, sim, er, hist).map_err(|e| Error::filter(id, e));
+                let run = SimulatedRun::new(id, scenario, sim, er).with_errors(errors);
+                let r = observe::analyse_run(run, hist).map_err(|e| Error::filter(id, e));
                 progress(&format!(
                     "observability of {id} (Earth rate {})",
                     if er { "on" } else { "off" }
@@ -295,16 +318,10 @@ pub fn paper(
     let runs: Vec<RunResult> = ConfigId::ALL
         .par_iter()
         .map(|&id| {
-            let r = run_filter(
-                id,
-                scenario,
-                &sim,
-                earth_rate,
-                Estimator::default(),
-                None,
-                true,
-            )
-            .map_err(|e| Error::filter(id, e));
+            let r = SimulatedRun::new(id, scenario, &sim, earth_rate)
+                .with_errors(errors)
+                .run(Estimator::default(), None, true)
+                .map_err(|e| Error::filter(id, e));
             progress(&format!("estimator run of {id}"));
             r
         })
@@ -314,7 +331,9 @@ pub fn paper(
         .par_iter()
         .zip(obs_on.par_iter().zip(obs_off.par_iter()))
         .map(|(run, (on, off))| {
-            let truth = SimulatedRun::new(run.config, scenario, &sim, earth_rate).truth_history();
+            let truth = SimulatedRun::new(run.config, scenario, &sim, earth_rate)
+                .with_errors(errors)
+                .truth_history();
             let figs = figures(out, run, on, &truth)?;
             progress(&format!("figures of {}", run.config));
             Ok(summarise(run, off, on, earth_rate, figs))
@@ -322,9 +341,10 @@ pub fn paper(
         .collect::<Result<_, Error>>()?;
     let paper = Paper {
         scenario: scenario.name.clone(),
-        command: reproduce_command(scenario_path, seed, out),
+        command: reproduce_command(scenario_path, seed, out, errors),
         seed,
         earth_rate,
+        errors,
         obs_off,
         obs_on,
         configs,
@@ -347,13 +367,16 @@ fn write_outputs(out: &Path, p: &Paper) -> Result<(), Error> {
         })?;
         Ok(path)
     };
-    let json = serde_json::json!({
+    let mut json = serde_json::json!({
         "scenario": p.scenario,
         "command": p.command,
         "seed": p.seed,
         "earth_rate": p.earth_rate,
         "configs": p.configs,
     });
+    if p.errors != ErrorModel::Installation {
+        json["errors"] = p.errors.as_str().into();
+    }
     write(
         "summary.json",
         serde_json::to_string_pretty(&json).map_err(Error::Json)? + "\n",
@@ -437,15 +460,23 @@ pub fn summary_markdown(p: &Paper) -> String {
                 Some(false) => "**no**",
                 None => "—",
             };
+            // Angles in ″; an instrument state in its printed unit, named
+            // after it.
+            let (k, unit) = st.info.printed_scale();
+            let (show, name): (Box<dyn Fn(f64) -> f64>, String) = if st.info.group.is_instrument() {
+                (Box::new(move |v| v * k), format!("{} ({unit})", st.name))
+            } else {
+                (Box::new(|v| v / ARCSEC), st.name.to_string())
+            };
             let _ = writeln!(
                 s,
                 "| {} | {:.3} | {:.3} | {:.4} | {:.4} | {:.4} | {:.3} | {} | {} | {} |",
-                st.name,
-                st.truth_rad / ARCSEC,
-                st.estimate_rad / ARCSEC,
-                st.error_rad / ARCSEC,
-                st.sigma_filter_rad / ARCSEC,
-                st.sigma_crlb_rad / ARCSEC,
+                name,
+                show(st.truth_rad),
+                show(st.estimate_rad),
+                show(st.error_rad),
+                show(st.sigma_filter_rad),
+                show(st.sigma_crlb_rad),
                 st.sigma_filter_rad / st.sigma_crlb_rad,
                 st.verdict.as_str(),
                 paper,
@@ -520,17 +551,23 @@ pub fn all_good(p: &Paper) -> bool {
 #[cfg(test)]
 mod tests {
     use super::reproduce_command;
+    use rollcal::models::ErrorModel;
     use std::path::Path;
 
     #[test]
     fn the_reproducing_command_carries_the_given_options() {
         let default = Path::new("paper-out");
         assert_eq!(
-            reproduce_command(None, 1, default),
+            reproduce_command(None, 1, default, ErrorModel::Installation),
             "cargo run --release -p host-sim -- paper --seed 1"
         );
         assert_eq!(
-            reproduce_command(Some(Path::new("scenarios/southern-slow.toml")), 7, Path::new("out")),
+            reproduce_command(
+                Some(Path::new("scenarios/southern-slow.toml")),
+                7,
+                Path::new("out"),
+                ErrorModel::Installation
+            ),
             "cargo run --release -p host-sim -- paper --seed 7 --scenario scenarios/southern-slow.toml --out out"
         );
     }

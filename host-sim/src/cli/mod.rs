@@ -117,6 +117,7 @@ pub fn main() -> ExitCode {
             scenario: None,
             seed: 1,
             out: PathBuf::from("paper-out"),
+            errors: rollcal::models::ErrorModel::Installation,
         }),
     };
     match result {

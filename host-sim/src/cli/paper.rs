@@ -4,11 +4,12 @@
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use super::args::load_scenario;
+use super::args::{load_scenario, note_instrument_prior, parse_errors};
 use super::Error;
 use crate::analysis::observe::verdict_matrix_markdown;
 use crate::analysis::paper::{all_good, overview_markdown, paper, PROGRESS_STEPS};
 use crate::output::progress::Progress;
+use rollcal::models::ErrorModel;
 
 /// Arguments of `host-sim paper`.
 #[derive(clap::Args)]
@@ -22,11 +23,17 @@ pub struct PaperArgs {
     /// Output directory (created if missing).
     #[arg(long, value_name = "DIR", default_value = "paper-out")]
     pub out: PathBuf,
+    /// Error model: `installation` (the paper's states) or `full` (followed
+    /// by the instruments' 21 errors; docs/model.md §Full model). The
+    /// figures show the installation groups.
+    #[arg(long, default_value = "installation", value_parser = parse_errors)]
+    pub errors: ErrorModel,
 }
 
 /// `host-sim paper`.
 pub fn command(args: &PaperArgs) -> Result<(), Error> {
     let scenario = load_scenario(args.scenario.as_deref())?;
+    note_instrument_prior(&scenario, args.errors);
     eprintln!(
         "regenerating the paper on '{}' (seed {}) into {}/ with {} threads…",
         scenario.name,
@@ -41,6 +48,7 @@ pub fn command(args: &PaperArgs) -> Result<(), Error> {
         args.scenario.as_deref(),
         args.seed,
         &args.out,
+        args.errors,
         &|what| {
             let n = done.fetch_add(1, Ordering::Relaxed) + 1;
             progress.update(n, what);
@@ -61,6 +69,9 @@ pub fn command(args: &PaperArgs) -> Result<(), Error> {
         p.runs_wall_s,
         p.wall_s
     );
+    if args.errors == ErrorModel::Full {
+        println!("Error model: full (the installation states and the instruments' 21 errors).\n");
+    }
     println!("Which errors can each model observe? (Earth rate off, the paper's assumption)\n");
     print!("{}", verdict_matrix_markdown(&p.obs_off));
     println!("\nWith the Earth rate on:\n");

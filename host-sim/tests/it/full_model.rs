@@ -277,3 +277,33 @@ fn full_model_observability_on_the_paper_path() {
             .all(|s| s.verdict == Verdict::Observable));
     }
 }
+
+/// `paper --errors full`: the observability tables of the seven full
+/// models (Earth rate off and on, with the instrument columns), the runs,
+/// and the summary with the instrument states in their units; the paper's
+/// verdicts on the installation errors still hold under the full model.
+#[test]
+fn paper_errors_full() {
+    let dir = support::scratch("paper-full");
+    let out = support::host_sim()
+        .args(["paper", "--errors", "full", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    support::assert_success(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains(
+            "| config | rank/n | attitude | θgC | θgT | θaC | θaT | λ | dg | D_g | kg | ba | ka |"
+        ),
+        "{stdout}"
+    );
+    assert!(stdout.contains("| M1-pa | 31/33 |"), "{stdout}");
+    assert!(stdout.contains("| M2-ps | 39/39 |"), "{stdout}");
+    let json = support::json_file(&dir.join("summary.json"));
+    assert_eq!(json["errors"], "full");
+    assert!(json["command"].as_str().unwrap().contains("--errors full"));
+    let md = std::fs::read_to_string(dir.join("summary.md")).unwrap();
+    assert!(md.contains("| dg_x (°/h) |"), "summary.md");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
