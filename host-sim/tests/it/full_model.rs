@@ -19,11 +19,9 @@ fn instrumented() -> Scenario {
     Scenario::load(Some(std::path::Path::new(path))).unwrap()
 }
 
-/// On the instrumented scenario (seed 1), the full model of M2-ps and M1-pa
-/// ends with every non-attitude state within 4σ of the truth, σ within 5 %
-/// of σ_CRLB, and the instrument truths those of SPEC §8's table.
-#[test]
-fn full_model_run_is_consistent_with_its_bound() {
+/// The instrumented scenario and its noisy run of seed 1 with the Earth
+/// rate.
+fn instrumented_seed1() -> (Scenario, host_sim::sim::truth::Simulation) {
     let scenario = instrumented();
     let opts = SimOptions {
         seed: 1,
@@ -31,6 +29,15 @@ fn full_model_run_is_consistent_with_its_bound() {
         earth_rate: true,
     };
     let sim = simulate(&scenario, opts);
+    (scenario, sim)
+}
+
+/// On the instrumented scenario (seed 1), the full model of M2-ps and M1-pa
+/// ends with every non-attitude state within 4σ of the truth, σ within 5 %
+/// of σ_CRLB, and the instrument truths those of SPEC §8's table.
+#[test]
+fn full_model_run_is_consistent_with_its_bound() {
+    let (scenario, sim) = instrumented_seed1();
     for id in [ConfigId::M2Ps, ConfigId::M1Pa] {
         let run = SimulatedRun::new(id, &scenario, &sim, true).with_errors(ErrorModel::Full);
         let r = run.run(Estimator::default(), None, false).unwrap();
@@ -65,13 +72,7 @@ fn full_model_run_is_consistent_with_its_bound() {
 /// many σ (the reason for the full model).
 #[test]
 fn installation_model_is_biased_by_the_instrument_errors() {
-    let scenario = instrumented();
-    let opts = SimOptions {
-        seed: 1,
-        noise: true,
-        earth_rate: true,
-    };
-    let sim = simulate(&scenario, opts);
+    let (scenario, sim) = instrumented_seed1();
     let r = SimulatedRun::new(ConfigId::M2Ps, &scenario, &sim, true)
         .run(Estimator::default(), None, false)
         .unwrap();
