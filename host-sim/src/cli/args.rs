@@ -85,3 +85,16 @@ pub fn note_instrument_prior(scenario: &Scenario, errors: ErrorModel) {
         );
     }
 }
+
+/// Warns on stderr when the full model is asked for its first pass alone
+/// (`--passes 1`): from a zero start that pass ends biased by tens of σ on
+/// the instrument terms (docs/model.md §Instrument errors), and the later
+/// passes of the estimator of record are what remove it.
+pub fn warn_full_first_pass(c: &CommonArgs) {
+    if c.errors == ErrorModel::Full && c.passes == 1 {
+        eprintln!(
+            "warning: the full model's first pass alone is biased from a zero start \
+             (tens of σ on ba, ka); leave --passes at its default for the estimator of record"
+        );
+    }
+}

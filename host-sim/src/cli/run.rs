@@ -47,6 +47,7 @@ pub fn command(args: &RunArgs) -> Result<(), Error> {
     }
     let scenario = load_scenario(c.scenario.as_deref())?;
     super::args::note_instrument_prior(&scenario, c.errors);
+    super::args::warn_full_first_pass(c);
     let earth_rate = !c.no_earth_rate && scenario.site.earth_rate;
     if let Some(dir) = &args.report {
         crate::output::html::prepare_dir(dir)?;

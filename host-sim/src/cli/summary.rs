@@ -15,6 +15,7 @@ use crate::sim::truth::{simulate, SimOptions};
 pub fn command(c: &CommonArgs) -> Result<(), Error> {
     let scenario = load_scenario(c.scenario.as_deref())?;
     super::args::note_instrument_prior(&scenario, c.errors);
+    super::args::warn_full_first_pass(c);
     let earth_rate = !c.no_earth_rate && scenario.site.earth_rate;
     println!(
         "scenario '{}', seed {}, Earth rate {}, first-pass remedy {:?}, {} pass(es)",

@@ -159,6 +159,14 @@ fn run_errors_full_on_the_command_line() {
         .unwrap();
     assert!(!bad.status.success());
     assert!(support::stderr(&bad).contains("expected installation or full"));
+    let first = support::host_sim()
+        .args([
+            "run", "--config", "M1-pa", "--errors", "full", "--passes", "1",
+        ])
+        .output()
+        .unwrap();
+    support::assert_success(&first);
+    assert!(support::stderr(&first).contains("first pass alone is biased"));
     let report = support::host_sim()
         .args(["run", "--config", "M1-pa", "--errors", "full", "--report"])
         .arg(dir.join("rep"))
