@@ -6,7 +6,7 @@ use core::any::Any;
 
 use nalgebra::{Matrix3, RealField, SVector};
 
-use crate::models::{Installation, InstallationMatrices, Layout};
+use crate::models::{ErrorModel, Installation, InstallationMatrices, Layout};
 use crate::precision::to_t;
 
 /// The installation matrices of one parameter value as the filter uses
@@ -91,15 +91,22 @@ impl<T: RealField + Copy> MatricesCache<T> {
     pub(super) fn refresh<const N: usize>(&mut self, layout: &Layout, x: &SVector<f64, N>) {
         let params = layout.installation(x);
         let bits = |p: &Installation<f64>| {
+            [p.theta_g_c, p.theta_g_t, p.theta_a_c, p.theta_a_t, p.lambda]
+                .map(|v| v.map(f64::to_bits))
+        };
+        // The instrument errors are zero in an installation-only layout:
+        // compared only in the full model's.
+        let instrument_bits = |p: &Installation<f64>| {
             let e = &p.instruments;
             (
-                [p.theta_g_c, p.theta_g_t, p.theta_a_c, p.theta_a_t, p.lambda]
-                    .map(|v| v.map(f64::to_bits)),
                 [e.dg, e.kg, e.ba, e.ka].map(|v| v.map(f64::to_bits)),
                 e.d_g.map(f64::to_bits),
             )
         };
-        if bits(&params) != bits(&self.params) {
+        let changed = bits(&params) != bits(&self.params)
+            || (layout.errors == ErrorModel::Full
+                && instrument_bits(&params) != instrument_bits(&self.params));
+        if changed {
             self.fill(params);
         }
     }

@@ -70,7 +70,10 @@ pub struct MonteCarlo {
     #[serde(serialize_with = "observe::ser_config")]
     pub config: ConfigId,
     /// Error model (written only for the full model).
-    #[serde(skip_serializing_if = "is_installation", serialize_with = "ser_errors")]
+    #[serde(
+        skip_serializing_if = "observe::is_installation",
+        serialize_with = "observe::ser_errors"
+    )]
     pub errors: ErrorModel,
     /// Precision of the filter's covariance arithmetic.
     pub precision: crate::analysis::runner::Precision,
@@ -90,14 +93,6 @@ pub struct MonteCarlo {
     pub worst: (u64, &'static str, u8),
     /// Wall time (s).
     pub wall_s: f64,
-}
-
-fn is_installation(e: &ErrorModel) -> bool {
-    *e == ErrorModel::Installation
-}
-
-fn ser_errors<S: serde::Serializer>(e: &ErrorModel, s: S) -> Result<S::Ok, S::Error> {
-    s.serialize_str(e.as_str())
 }
 
 /// Of the full model's parameter block: a state whose bound is below this
@@ -208,34 +203,24 @@ pub fn monte_carlo(
     })
 }
 
-/// The bound σ of every state on the noise-free run `run` and the indices
-/// of the parameter block ([`monte_carlo`]).
+/// The bound σ of every state on the noise-free run `run` (its
+/// observability analysis, [`observe::analyse_run`]) and the indices of the
+/// parameter block ([`monte_carlo`]).
 fn bound_and_block(run: &SimulatedRun) -> Result<(Vec<f64>, Vec<usize>), Error> {
     let id = run.config;
-    if run.errors == ErrorModel::Installation {
-        let obs = observe::analyse(id, run.scenario, run.sim, run.earth_rate, false)
-            .map_err(|e| Error::filter(format_args!("{id}: observability"), e))?;
-        let crlb = obs.states.iter().map(|s| s.sigma_crlb_rad).collect();
-        let block = id
-            .states()
-            .iter()
-            .enumerate()
-            .filter(|(_, s)| in_parameter_block(id, s.name, s.group))
-            .map(|(i, _)| i)
-            .collect();
-        return Ok((crlb, block));
-    }
-    let crlb = run
-        .crlb()
-        .map_err(|e| Error::filter(format_args!("{id}: Cramér–Rao bound"), e))?;
-    let prior = run.prior_sigma();
-    let block = id
-        .states_with(run.errors)
+    let obs = observe::analyse_run(*run, false)
+        .map_err(|e| Error::filter(format_args!("{id}: observability"), e))?;
+    let block = obs
+        .states
         .iter()
         .enumerate()
-        .filter(|(i, s)| s.group != Group::Attitude && crlb[*i] < FULL_BLOCK_RATIO * prior[*i])
+        .filter(|(_, s)| match run.errors {
+            ErrorModel::Installation => in_parameter_block(id, s.name, s.group),
+            _ => s.group != Group::Attitude && s.ratio < FULL_BLOCK_RATIO,
+        })
         .map(|(i, _)| i)
         .collect();
+    let crlb = obs.states.iter().map(|s| s.sigma_crlb_rad).collect();
     Ok((crlb, block))
 }
 

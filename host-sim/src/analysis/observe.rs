@@ -10,6 +10,7 @@ use rollcal::observability::{
 
 use crate::analysis::runner::SimulatedRun;
 use crate::analysis::Error;
+use crate::sim::instruments::printed_value;
 use crate::sim::scenario::Scenario;
 use crate::sim::truth::Simulation;
 
@@ -83,11 +84,14 @@ pub(crate) fn ser_config<S: serde::Serializer>(c: &ConfigId, s: S) -> Result<S::
     s.serialize_str(c.as_str())
 }
 
-fn is_installation(e: &ErrorModel) -> bool {
+/// Whether `e` is the installation model (the JSON key `errors` is then
+/// left out, so that the installation documents stay as they were).
+pub(crate) fn is_installation(e: &ErrorModel) -> bool {
     *e == ErrorModel::Installation
 }
 
-fn ser_errors<S: serde::Serializer>(e: &ErrorModel, s: S) -> Result<S::Ok, S::Error> {
+/// An error model in JSON: its name (`"full"`).
+pub(crate) fn ser_errors<S: serde::Serializer>(e: &ErrorModel, s: S) -> Result<S::Ok, S::Error> {
     s.serialize_str(e.as_str())
 }
 
@@ -314,7 +318,8 @@ pub fn changes(off: &[ConfigObs], on: &[ConfigObs]) -> Vec<String> {
         }
         for (sa, sb) in a.states.iter().zip(&b.states) {
             if sa.verdict != sb.verdict {
-                let (ka, unit) = printed_scale(sa);
+                let ka = |v| printed_value(sa.group, v);
+                let unit = sa.group.printed_scale().1;
                 lines.push(format!(
                     "{} {}: {} → {} (σ_CRLB {:.3}{unit} → {:.3}{unit}, ratio {:.2e} → {:.2e})",
                     a.config,
@@ -330,22 +335,4 @@ pub fn changes(off: &[ConfigObs], on: &[ConfigObs]) -> Vec<String> {
         }
     }
     lines
-}
-
-/// The printed value of a σ of state `s` (internal unit) and its printed
-/// unit: arcseconds for the angles (as the tables have always printed
-/// them), °/h, °/h/g, ppm, µg for the instrument states.
-pub fn printed_scale(s: &StateObs) -> (impl Fn(f64) -> f64, &'static str) {
-    let instrument = s.group.is_instrument();
-    let (k, unit) = s.group.printed_scale();
-    (
-        move |v: f64| {
-            if instrument {
-                v * k
-            } else {
-                v / crate::sim::scenario::ARCSEC
-            }
-        },
-        unit,
-    )
 }

@@ -13,6 +13,7 @@ use crate::analysis::runner::{expected_observable, Estimator, RunResult, Simulat
 use crate::analysis::verdict::Verdict;
 use crate::analysis::Error;
 use crate::output::plots::{plot_group_marked, Curve};
+use crate::sim::instruments::printed_value;
 use crate::sim::scenario::{Scenario, ARCSEC};
 use crate::sim::truth::{simulate, SimOptions, Simulation};
 
@@ -462,11 +463,11 @@ pub fn summary_markdown(p: &Paper) -> String {
             };
             // Angles in ″; an instrument state in its printed unit, named
             // after it.
-            let (k, unit) = st.info.printed_scale();
-            let (show, name): (Box<dyn Fn(f64) -> f64>, String) = if st.info.group.is_instrument() {
-                (Box::new(move |v| v * k), format!("{} ({unit})", st.name))
+            let show = |v| printed_value(st.info.group, v);
+            let name = if st.info.group.is_instrument() {
+                format!("{} ({})", st.name, st.info.printed_scale().1)
             } else {
-                (Box::new(|v| v / ARCSEC), st.name.to_string())
+                st.name.to_string()
             };
             let _ = writeln!(
                 s,

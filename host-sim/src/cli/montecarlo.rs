@@ -12,7 +12,7 @@ use crate::analysis::montecarlo::{monte_carlo, Consistency, MonteCarlo};
 use crate::analysis::runner::{Estimator, Precision};
 use crate::output::progress::Progress;
 use crate::output::report::write_json;
-use crate::sim::scenario::ARCSEC;
+use crate::sim::instruments::printed_value;
 
 /// Arguments of `host-sim montecarlo`.
 #[derive(clap::Args)]
@@ -97,11 +97,11 @@ fn print_monte_carlo(mc: &MonteCarlo) {
     );
     for s in &mc.states {
         // Angles in ″ as always; instrument states in their printed unit.
-        let (show, unit): (&dyn Fn(f64) -> f64, String) = if s.info.group.is_instrument() {
-            let (k, unit) = s.info.printed_scale();
-            (&move |v: f64| v * k, format!(" ({unit})"))
+        let show = |v: f64| printed_value(s.info.group, v);
+        let unit = if s.info.group.is_instrument() {
+            format!(" ({})", s.info.printed_scale().1)
         } else {
-            (&|v: f64| v / ARCSEC, String::new())
+            String::new()
         };
         println!(
             "{:<10} {:>11.4} {:>11.4} {:>11.4} {:>11.4} {:>9.3}  {}{unit}",

@@ -11,10 +11,10 @@ use rollcal::observability::{COEF_THRESHOLD, PRACTICAL_RATIO, RANK_TOLERANCE};
 use super::args::{load_scenario, parse_errors};
 use super::Error;
 use crate::analysis::observe::{
-    analyse_all_with, changes, format_combination, printed_scale, report_json,
-    verdict_matrix_markdown, ConfigObs,
+    analyse_all_with, changes, format_combination, report_json, verdict_matrix_markdown, ConfigObs,
 };
 use crate::output::report::write_json;
+use crate::sim::instruments::printed_value;
 
 /// Arguments of `host-sim observability`.
 #[derive(clap::Args)]
@@ -99,9 +99,9 @@ fn print_report(configs: &[ConfigObs], earth_rate: bool) {
             "state", "σ_CRLB ″", "σ/σ_prior"
         );
         for s in &c.states {
-            let (show, unit) = printed_scale(s);
+            let show = |v| printed_value(s.group, v);
             let unit = if s.group.is_instrument() {
-                format!(" ({unit})")
+                format!(" ({})", s.group.printed_scale().1)
             } else {
                 String::new()
             };

@@ -6,6 +6,7 @@ use std::path::Path;
 use rollcal::models::{ErrorModel, Group};
 
 use crate::analysis::runner::{RunResult, StateResult};
+use crate::sim::instruments::printed_value;
 use crate::sim::scenario::ARCSEC;
 
 /// The `run` JSON document: configuration, seed, Earth rate, duration and
@@ -39,18 +40,6 @@ fn instrument_json(s: &StateResult) -> serde_json::Value {
         "estimate": s.estimate_rad * k,
         "sigma": s.sigma_rad * k,
     })
-}
-
-/// The printed value of `v` (internal unit) of state `s`: arcseconds for
-/// the angles (as every table has always printed them), the unit of
-/// [`rollcal::models::StateInfo::printed_scale`] for the instrument
-/// states.
-pub fn printed(s: &StateResult, v: f64) -> f64 {
-    if s.info.group.is_instrument() {
-        v * s.info.printed_scale().0
-    } else {
-        v / ARCSEC
-    }
 }
 
 /// The CSV column suffix of state `s`: `rad`, or the ASCII form of its
@@ -109,12 +98,12 @@ pub fn print_table(r: &RunResult, crlb: &[f64]) {
         println!(
             "{:<11} {:>12.3} {:>12.3} {:>10.4} {:>10.4} {:>8.2} {:>10.4} {:>8.3}  {}{unit}",
             s.name,
-            printed(s, s.truth_rad),
-            printed(s, s.estimate_rad),
-            printed(s, s.error()),
-            printed(s, s.sigma_rad),
+            printed_value(s.info.group, s.truth_rad),
+            printed_value(s.info.group, s.estimate_rad),
+            printed_value(s.info.group, s.error()),
+            printed_value(s.info.group, s.sigma_rad),
             s.ratio(),
-            printed(s, *c),
+            printed_value(s.info.group, *c),
             s.sigma_rad / c,
             verdict
         );

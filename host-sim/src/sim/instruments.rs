@@ -10,7 +10,7 @@
 
 use rollcal::models::{ConfigId, ErrorModel, Group, PlatformFrame, StateInfo};
 
-use crate::sim::scenario::DEG;
+use crate::sim::scenario::{ARCSEC, DEG};
 use crate::sim::truth::TruthParams;
 
 /// Number of instrument-error states.
@@ -42,6 +42,18 @@ pub fn ascii_unit(group: Group) -> &'static str {
         Group::AccelBias => "ug",
         Group::GyroScale | Group::AccelScale => "ppm",
         _ => "rad",
+    }
+}
+
+/// The printed value of `v` (internal unit) of a state of group `group`:
+/// arcseconds for the angles (`v / ARCSEC`, as every table has always
+/// printed them), the unit of [`Group::printed_scale`] (°/h, °/h/g, ppm,
+/// µg) for the instrument states. The one conversion of the tables.
+pub fn printed_value(group: Group, v: f64) -> f64 {
+    if group.is_instrument() {
+        v * group.printed_scale().0
+    } else {
+        v / ARCSEC
     }
 }
 
