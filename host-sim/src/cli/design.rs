@@ -359,6 +359,7 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
         if space.dwell_steps.is_empty() { "no dwells" } else { "dwells" },
         rayon::current_num_threads()
     );
+    let mut fallback = false;
     let (design, cc) = match search_until_fine(&mut problem, &space, goal, max_periods) {
         // The full model: no path reaches every target within the limits;
         // the best worst-case σ/target within the duration limit instead,
@@ -372,6 +373,7 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
             goal = Goal::Budget {
                 periods: max_periods,
             };
+            fallback = true;
             search_until_fine(&mut problem, &space, goal, max_periods)?
         }
         r => r?,
@@ -430,6 +432,7 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
         coarse_change: cc.change,
         probe: probe.as_ref(),
         unreached: &unreached,
+        fallback,
     };
     print_result(&summary);
 
@@ -504,6 +507,9 @@ struct Summary<'a> {
     coarse_change: f64,
     probe: Option<&'a DwellProbe>,
     unreached: &'a [OutOfReach],
+    /// The shortest-path search found no path reaching every target; the
+    /// result is the budget search's within the duration limit.
+    fallback: bool,
 }
 
 /// How far past the duration limit (× the limit) the designed pattern is
@@ -559,7 +565,12 @@ fn print_headline(o: &Summary<'_>) {
             }
         }
         Goal::Budget { periods: b } => println!(
-            "\nBest worst-case σ/target within {} s: {:.3} (the reference path in its {t_ref} s: {:.3})",
+            "\n{}Best worst-case σ/target within {} s: {:.3} (the reference path in its {t_ref} s: {:.3})",
+            if o.fallback {
+                "The shortest-path search found none: no path of its stage 1 (the coarse grammar) reaches every target within the duration limit, and its refinement starts from those; instead, the budget search over the same space:\n"
+            } else {
+                ""
+            },
             b as f64 * period_s,
             problem
                 .targets
@@ -842,18 +853,25 @@ fn write_figure(
         .zip(&problem.targets)
         .partition(|(_, &(i, _))| !names[i].group.is_instrument());
     let title = format!("{id}: σ_CRLB(t), designed path ({t_design} s) vs reference path ({t_ref} s)");
-    let mut figures = vec![(fig.clone(), angles, title.clone())];
+    let mut figures = vec![(fig.clone(), angles, title.clone(), "″")];
     if !instruments.is_empty() {
         let stem = fig.with_extension("");
         let inst = PathBuf::from(format!("{}-instruments.png", stem.display()));
-        figures.push((inst, instruments, format!("{title}, instrument terms (°/h, °/h/g, ppm, µg)")));
+        figures.push((
+            inst,
+            instruments,
+            format!("{title}, instrument terms"),
+            "°/h, °/h/g, ppm, µg",
+        ));
     }
-    for (path, curves, title) in figures {
+    for (path, curves, title, unit) in figures {
         let curves: Vec<_> = curves.into_iter().map(|(c, _)| c).collect();
         if curves.is_empty() {
             continue;
         }
-        crate::output::plots::plot_sigma_comparison(&path, &title, "designed", "reference", &curves)?;
+        crate::output::plots::plot_sigma_comparison_in(
+            &path, &title, "designed", "reference", &curves, unit,
+        )?;
         println!("Wrote the σ(t) figure to {}", path.display());
     }
     Ok(())

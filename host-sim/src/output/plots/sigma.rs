@@ -16,7 +16,7 @@ use super::style::{Area, DrawResult};
 pub struct SigmaCurve {
     /// State name: the panel label.
     pub label: &'static str,
-    /// The target σ (″), drawn as a horizontal line.
+    /// The target σ (″, or the unit of the figure), drawn as a horizontal line.
     pub target: f64,
     /// Path A (the designed one).
     pub a: Vec<(f64, f64)>,
@@ -57,6 +57,20 @@ pub fn plot_sigma_comparison(
     a_label: &str,
     b_label: &str,
     curves: &[SigmaCurve],
+) -> Result<(), String> {
+    plot_sigma_comparison_in(path, title, a_label, b_label, curves, "″")
+}
+
+/// [`plot_sigma_comparison`] with the unit of the values and targets named
+/// in the legend (`unit`: "″", or e.g. "°/h, °/h/g, ppm, µg" for the
+/// instrument terms of the full model, each in its own unit).
+pub fn plot_sigma_comparison_in(
+    path: &Path,
+    title: &str,
+    a_label: &str,
+    b_label: &str,
+    curves: &[SigmaCurve],
+    unit: &str,
 ) -> Result<(), String> {
     if curves.is_empty() {
         return Err("plots: no curve to draw".to_string());
@@ -129,7 +143,7 @@ fn draw_sigma<'a>(
         3,
         CRLB_COLOUR.stroke_width(1),
     ))?;
-    header.draw(&Text::new("target σ [″]", (598, y), label))?;
+    header.draw(&Text::new(format!("target σ [{unit}]"), (598, y), label))?;
     let panels = body.split_evenly((rows, SIGMA_COLUMNS));
     for (area, c) in panels.iter().zip(curves) {
         draw_sigma_panel(area, c, t_max)?;
