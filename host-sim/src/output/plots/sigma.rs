@@ -94,7 +94,7 @@ pub fn plot_sigma_comparison_in(
     let rows = curves.len().div_ceil(SIGMA_COLUMNS);
     let h = HEADER_HEIGHT + SIGMA_ROW_HEIGHT * u32::try_from(rows).unwrap_or(1);
     let root = BitMapBackend::new(path, (WIDTH + 200, h)).into_drawing_area();
-    draw_sigma(&root, title, (a_label, b_label), curves, rows, t_max)
+    draw_sigma(&root, title, (a_label, b_label, unit), curves, rows, t_max)
         .map_err(|e| format!("plots: drawing {}: {e}", path.display()))?;
     root.present()
         .map_err(|e| format!("plots: writing {}: {e}", path.display()))?;
@@ -102,16 +102,16 @@ pub fn plot_sigma_comparison_in(
 }
 
 /// The whole comparison figure on `root`: header, then one panel per curve
-/// (`labels`: paths A and B).
+/// (`labels`: paths A and B, the unit of the targets).
 fn draw_sigma<'a>(
     root: &Area<'a>,
     title: &str,
-    labels: (&str, &str),
+    labels: (&str, &str, &str),
     curves: &[SigmaCurve],
     rows: usize,
     t_max: f64,
 ) -> DrawResult<'a> {
-    let (a_label, b_label) = labels;
+    let (a_label, b_label, unit) = labels;
     root.fill(&WHITE)?;
     let (header, body) = root.split_vertically(HEADER_HEIGHT);
     draw_title(&header, title, 20.0)?;
