@@ -11,8 +11,8 @@ use rollcal::models::{ConfigId, ErrorModel};
 use crate::design::{
     check_designed, coarse_check, contributions, dwell_probe, measure_speed, observability_sigma,
     out_of_reach, parse_target, pattern_of, scenario_toml, scenario_with, search, target_groups,
-    targets_with, CoarseCheck, Design, DesignError, DwellProbe, Goal, InstrumentTargets,
-    NamedAxis, OutOfReach, Outcome, Pattern, Problem, Space, Speed, TargetArg, DEFAULT_STEP_DEG,
+    targets_with, CoarseCheck, Design, DesignError, DwellProbe, Goal, InstrumentTargets, NamedAxis,
+    OutOfReach, Outcome, Pattern, Problem, Space, Speed, TargetArg, DEFAULT_STEP_DEG,
     DWELL_STEPS_S,
 };
 use crate::sim::instruments::printed_value;
@@ -672,7 +672,17 @@ fn print_unreached(o: &Summary<'_>) {
         return;
     }
     if unreached.is_empty() {
-        println!("\n  Every target is met within the limits (rate ≤ {max_rate} °/s, {max_duration} s).");
+        // Period by period, when the designed pattern first meets them all.
+        let first = problem
+            .evaluate(o.best, Goal::Reach { cutoff: o.periods }, true, false)
+            .reach
+            .map_or(String::new(), |r| {
+                format!(
+                    "; the designed pattern meets them all at {} s",
+                    r as f64 * o.period_s
+                )
+            });
+        println!("\n  Every target is met within the limits (rate ≤ {max_rate} °/s, {max_duration} s){first}.");
         return;
     }
     let names = o.id.states_with(problem.errors);
@@ -694,7 +704,9 @@ fn print_unreached(o: &Summary<'_>) {
                 "; at {r} °/s (the same angles) it reaches {:.4} {unit} within {max_duration} s",
                 printed_value(g, s)
             ),
-            None => format!("; no rate up to 10 °/s of the same angles reaches it within {max_duration} s"),
+            None => format!(
+                "; no rate up to 10 °/s of the same angles reaches it within {max_duration} s"
+            ),
         };
         println!(
             "    {:<10} target {:.4} {unit}, reached {:.4} {unit} ({:.2}× the target): {time}{rate}",
@@ -852,7 +864,8 @@ fn write_figure(
         .into_iter()
         .zip(&problem.targets)
         .partition(|(_, &(i, _))| !names[i].group.is_instrument());
-    let title = format!("{id}: σ_CRLB(t), designed path ({t_design} s) vs reference path ({t_ref} s)");
+    let title =
+        format!("{id}: σ_CRLB(t), designed path ({t_design} s) vs reference path ({t_ref} s)");
     let mut figures = vec![(fig.clone(), angles, title.clone(), "″")];
     if !instruments.is_empty() {
         let stem = fig.with_extension("");
@@ -870,7 +883,12 @@ fn write_figure(
             continue;
         }
         crate::output::plots::plot_sigma_comparison_in(
-            &path, &title, "designed", "reference", &curves, unit,
+            &path,
+            &title,
+            "designed",
+            "reference",
+            &curves,
+            unit,
         )?;
         println!("Wrote the σ(t) figure to {}", path.display());
     }
@@ -944,10 +962,12 @@ fn result_json(o: &Summary<'_>, speed: serde_json::Value, wall_s: f64) -> serde_
                 "out_of_reach".into(),
                 unreached
                     .iter()
-                    .map(|u| serde_json::json!({
+                    .map(|u| {
+                        serde_json::json!({
                         "state": names[u.state].name, "target": u.target, "sigma": u.sigma,
                         "time_s": u.time_s, "horizon_s": u.horizon_s,
-                        "rate_deg_s": u.rate.map(|r| r.0), "sigma_at_rate": u.rate.map(|r| r.1)}))
+                        "rate_deg_s": u.rate.map(|r| r.0), "sigma_at_rate": u.rate.map(|r| r.1)})
+                    })
                     .collect::<Vec<_>>()
                     .into(),
             );

@@ -29,8 +29,9 @@ pub fn observability_sigma(problem: &Problem, s: &Scenario) -> Result<Vec<f64>, 
             limit_deg: problem.max_beta / DEG,
         });
     }
-    let run = crate::analysis::runner::SimulatedRun::new(problem.config, s, &sim, s.site.earth_rate)
-        .with_errors(problem.errors);
+    let run =
+        crate::analysis::runner::SimulatedRun::new(problem.config, s, &sim, s.site.earth_rate)
+            .with_errors(problem.errors);
     let obs = crate::analysis::observe::analyse_run(run, false)
         .map_err(|e| DesignError::Observability(e.to_string()))?;
     Ok(obs.states.iter().map(|x| x.sigma_crlb_rad).collect())

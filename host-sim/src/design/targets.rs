@@ -91,9 +91,7 @@ pub fn parse_target(s: &str) -> Result<TargetArg, DesignError> {
         DesignError::Target(format!("target '{s}': '{v}' is not a number of arcseconds (or of the instrument term's °/h, °/h/g, ppm, µg)"))
     })?;
     if !(value.is_finite() && value > 0.0) {
-        return Err(DesignError::Target(format!(
-            "target '{s}': σ must be > 0"
-        )));
+        return Err(DesignError::Target(format!("target '{s}': σ must be > 0")));
     }
     Ok(TargetArg {
         name: name.trim().to_string(),

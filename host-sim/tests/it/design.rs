@@ -489,7 +489,10 @@ fn design_full_separates_the_weak_terms_and_reports_a_target_out_of_reach() {
     };
     let weak = ["Dgpa_zx", "Dgpa_zy", "kg_z"];
     for n in weak {
-        assert!(!verdict(&reference, n), "{n} observable on the paper's path");
+        assert!(
+            !verdict(&reference, n),
+            "{n} observable on the paper's path"
+        );
     }
     let dir = std::env::temp_dir().join(format!("rollcal-design-full-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -523,9 +526,17 @@ fn design_full_separates_the_weak_terms_and_reports_a_target_out_of_reach() {
         .unwrap();
     assert_success(&out);
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(stdout.contains("Out of reach within the limits"), "{stdout}");
+    assert!(
+        stdout.contains("Out of reach within the limits"),
+        "{stdout}"
+    );
     // The second figure: the instrument terms.
-    assert!(std::fs::metadata(dir.join("d-instruments.png")).unwrap().len() > 10_000);
+    assert!(
+        std::fs::metadata(dir.join("d-instruments.png"))
+            .unwrap()
+            .len()
+            > 10_000
+    );
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert_eq!(v["errors"], "full");
