@@ -13,7 +13,9 @@ impl Compensation {
     /// this compensation to instruments whose true matrices (in this
     /// configuration's frame) are `g_true`, `a_true` and, with a base,
     /// `base_true` = `R(λ)`: [`residual_angles`] of the residual
-    /// installations. One value per state, in state order, NaN for the
+    /// installations. One value per installation state (the first
+    /// [`Compensation::installation_n`]; the full model's instrument terms
+    /// have no installation residual), in state order, NaN for the
     /// attitude states.
     pub fn residual(
         &self,

@@ -35,7 +35,7 @@
 //! in pa coordinates.
 //!
 //! Split by concern: this file builds a [`Compensation`] and its JSON;
-//! [`installation`] the residual installation after compensation,
+//! `installation` the residual installation after compensation,
 //! [`instruments`] the full model's terms, their compensation and the
 //! propagation of the covariance to the compensated outputs, `text` the
 //! readable report.
