@@ -132,6 +132,8 @@ pub struct Host<T: RealField + Copy> {
     /// The error model every `Configure` is run with (`calibrate
     /// --errors`), whatever it asks for; `None`: the message's.
     pub errors: Option<ErrorModel>,
+    /// The protocol version of the last frame of another version seen.
+    pub other_version: Option<u8>,
 }
 
 impl<T: RealField + Copy> Host<T> {
@@ -152,6 +154,7 @@ impl<T: RealField + Copy> Host<T> {
             fallback_of,
             notes: Vec::new(),
             errors: None,
+            other_version: None,
         }
     }
 

@@ -41,7 +41,8 @@ use rollcal::ekf::FilterConfig;
 use rollcal::estimator::LogRecord;
 use rollcal::models::{ConfigId, ErrorModel};
 use rollcal::wire::{
-    CalibratorConfig, DecoderStats, Estimate, EstimateKind, FrameDecoder, Message, Sample,
+    CalibratorConfig, DecoderStats, Estimate, EstimateKind, FrameDecoder, FrameError, Message,
+    Sample, VERSION,
 };
 
 use super::args::{load_scenario, parse_config};
@@ -318,10 +319,10 @@ fn feed<T: RealField + Copy>(
         }
         None => read_input(&args.input, args.baud, idle, |bytes| {
             let mut result = Ok(());
-            decoder.feed(bytes, |m| {
-                if result.is_ok() {
-                    result = handle(host, m);
-                }
+            decoder.feed_results(bytes, |r| match r {
+                Ok(m) if result.is_ok() => result = handle(host, m),
+                Err(FrameError::WrongVersion(v)) => host.other_version = Some(v),
+                _ => {}
             });
             let (accepted, text) = detail(host, decoder);
             progress.update(accepted, &text);
@@ -400,6 +401,13 @@ fn answer<T: RealField + Copy>(
     decoder: &FrameDecoder,
 ) -> Result<Calibration, Error> {
     let stats = *decoder.stats();
+    if let (None, Some(v)) = (host.session.calibrator(), host.other_version) {
+        return Err(format!(
+            "the stream is of protocol version {v} ({} frames), this host-sim reads version {VERSION}: record it again with this version",
+            stats.wrong_version
+        )
+        .into());
+    }
     let Some(id) = host.session.calibrator().map(|c| c.settings().config) else {
         return Err(format!(
             "no samples in the stream ({} frames decoded, {} rejected)",
