@@ -133,6 +133,28 @@ pub struct Judgement {
     pub verdict: DataVerdict,
     /// The significance of each check (`FALSE_ALARM / checks.len()`).
     pub alpha_each: f64,
+    /// The likely cause of a warning, when the data say more than "the
+    /// model does not fit" ([`likely_cause`]).
+    pub cause: Option<String>,
+}
+
+/// What the installation model's warning most likely means: a NIS or bias
+/// check failed, the signature of an unmodelled constant error of the
+/// accelerometer outputs (bias, scale factor) or of the platform's drift
+/// (gyro drift, g-sensitive drift), which the installation model takes as
+/// calibrated (docs/model.md §Instrument errors). `None` for the full model,
+/// or when neither check failed.
+pub fn likely_cause(errors: rollcal::models::ErrorModel, verdict: &DataVerdict) -> Option<String> {
+    let DataVerdict::Warning { failed } = verdict else {
+        return None;
+    };
+    let signature = failed.iter().any(|c| c.name == "nis" || c.name == "bias");
+    (errors == rollcal::models::ErrorModel::Installation && signature).then(|| {
+        "likely cause: the instruments' own errors (accelerometer bias or scale factor, \
+         gyro drift), which the installation model takes as calibrated: calibrate again \
+         with --errors full"
+            .to_string()
+    })
 }
 
 impl Judgement {
@@ -146,6 +168,7 @@ impl Judgement {
             "checks": self.checks,
             "path": self.path,
             "data_verdict": self.verdict,
+            "likely_cause": self.cause,
         })
     }
 
@@ -240,7 +263,9 @@ struct Group<'a> {
 /// The checks of the last pass's updates of `r` and the verdict
 /// (see the [module docs](self)).
 pub fn judge(r: &RunResult) -> Judgement {
-    judge_updates(&r.updates, &r.segments)
+    let mut j = judge_updates(&r.updates, &r.segments);
+    j.cause = likely_cause(r.errors, &j.verdict);
+    j
 }
 
 /// [`judge`] of updates and segments.
@@ -258,6 +283,7 @@ pub fn judge_updates(
                 reason: "no innovations of a final pass: the checks need the final passes (not run with --passes 1, or when the log is not the whole run)".into(),
             },
             alpha_each: f64::NAN,
+            cause: None,
         };
     }
     let names = component_names(z);
@@ -284,6 +310,7 @@ pub fn judge_updates(
         path: None,
         verdict,
         alpha_each: alpha,
+        cause: None,
     }
 }
 

@@ -728,6 +728,9 @@ fn json_of(
     json["path_check"] = j["path"].clone();
     json["data_verdict"] = j["data_verdict"].clone();
     json["data_false_alarm"] = j["false_alarm"].clone();
+    if judgement.cause.is_some() {
+        json["data_likely_cause"] = j["likely_cause"].clone();
+    }
     json["pass1"] = serde_json::json!({
         "seq": est.seq,
         "updates": est.updates,

@@ -187,4 +187,7 @@ pub fn print_judgement(j: &Judgement) {
         );
     }
     println!("data verdict: {}", j.verdict);
+    if let Some(cause) = &j.cause {
+        println!("{cause}");
+    }
 }
