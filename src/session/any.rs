@@ -141,19 +141,33 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
     ) -> Result<(), calibrator::Error> {
         match (settings.config, settings.errors) {
             #[cfg(feature = "m1-pa")]
-            (ConfigId::M1Pa, ErrorModel::Installation) => Self::build_one(slot, settings, Self::M1Pa),
+            (ConfigId::M1Pa, ErrorModel::Installation) => {
+                Self::build_one(slot, settings, Self::M1Pa)
+            }
             #[cfg(feature = "m1-ps")]
-            (ConfigId::M1Ps, ErrorModel::Installation) => Self::build_one(slot, settings, Self::M1Ps),
+            (ConfigId::M1Ps, ErrorModel::Installation) => {
+                Self::build_one(slot, settings, Self::M1Ps)
+            }
             #[cfg(feature = "m2-ps")]
-            (ConfigId::M2Ps, ErrorModel::Installation) => Self::build_one(slot, settings, Self::M2Ps),
+            (ConfigId::M2Ps, ErrorModel::Installation) => {
+                Self::build_one(slot, settings, Self::M2Ps)
+            }
             #[cfg(feature = "m3-pa")]
-            (ConfigId::M3Pa, ErrorModel::Installation) => Self::build_one(slot, settings, Self::M3Pa),
+            (ConfigId::M3Pa, ErrorModel::Installation) => {
+                Self::build_one(slot, settings, Self::M3Pa)
+            }
             #[cfg(feature = "m3-ps")]
-            (ConfigId::M3Ps, ErrorModel::Installation) => Self::build_one(slot, settings, Self::M3Ps),
+            (ConfigId::M3Ps, ErrorModel::Installation) => {
+                Self::build_one(slot, settings, Self::M3Ps)
+            }
             #[cfg(feature = "m4-pa")]
-            (ConfigId::M4Pa, ErrorModel::Installation) => Self::build_one(slot, settings, Self::M4Pa),
+            (ConfigId::M4Pa, ErrorModel::Installation) => {
+                Self::build_one(slot, settings, Self::M4Pa)
+            }
             #[cfg(feature = "m4-ps")]
-            (ConfigId::M4Ps, ErrorModel::Installation) => Self::build_one(slot, settings, Self::M4Ps),
+            (ConfigId::M4Ps, ErrorModel::Installation) => {
+                Self::build_one(slot, settings, Self::M4Ps)
+            }
             #[cfg(all(feature = "m1-pa", feature = "full-model"))]
             (ConfigId::M1Pa, ErrorModel::Full) => Self::build_one(slot, settings, Self::M1PaFull),
             #[cfg(all(feature = "m1-ps", feature = "full-model"))]

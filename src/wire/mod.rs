@@ -61,8 +61,8 @@ pub use decoder::{Decoder, DecoderStats, FrameDecoder};
 pub use encode::encode;
 pub use error::{EncodeError, FrameError};
 pub use messages::{
-    CalibratorConfig, Checkpoint, Estimate, EstimateKind, InstrumentPrior, Limits, Message, Progress,
-    RejectCounts, Sample, SinglePassReason, MAX_COVARIANCE, MAX_STATES,
+    CalibratorConfig, Checkpoint, Estimate, EstimateKind, InstrumentPrior, Limits, Message,
+    Progress, RejectCounts, Sample, SinglePassReason, MAX_COVARIANCE, MAX_STATES,
 };
 
 /// Protocol version carried in the first byte of every frame.

@@ -362,13 +362,11 @@ pub fn bound_at_estimate(
     }
     let cfg = FilterConfig::<f64>::from(settings);
     let sigma0 = runner::prior_sigma_of(settings);
-    rollcal::with_model!(settings.config, settings.errors, |M, N, Z| typed::<
-        M,
-        N,
-        Z,
-    >(
-        cfg, x_end, x_start, &sigma0, records
-    ))
+    rollcal::with_model!(
+        settings.config,
+        settings.errors,
+        |M, N, Z| typed::<M, N, Z>(cfg, x_end, x_start, &sigma0, records)
+    )
 }
 
 /// The calibrator's final values as a [`runner::DynFilter`], for the report.

@@ -491,9 +491,11 @@ pub struct Rate {
 }
 
 /// The judgement of one simulated run of configuration `id` with `defect`
-/// on its accelerometer means, the estimator told the scenario's noise.
+/// on its accelerometer means, the estimator (error model `errors`) told
+/// the scenario's noise.
 pub fn judge_simulated(
     id: rollcal::models::ConfigId,
+    errors: rollcal::models::ErrorModel,
     scenario: &crate::sim::scenario::Scenario,
     seed: u64,
     defect: &crate::sim::impair::AccelDefects,
@@ -515,16 +517,10 @@ pub fn judge_simulated(
             *a += d;
         }
     }
-    let r = crate::analysis::runner::run_filter(
-        id,
-        scenario,
-        &sim,
-        earth_rate,
-        crate::analysis::runner::Estimator::default(),
-        None,
-        false,
-    )
-    .map_err(|e| crate::analysis::Error::filter(format_args!("{id} seed {seed}"), e))?;
+    let r = crate::analysis::runner::SimulatedRun::new(id, scenario, &sim, earth_rate)
+        .with_errors(errors)
+        .run(crate::analysis::runner::Estimator::default(), None, false)
+        .map_err(|e| crate::analysis::Error::filter(format_args!("{id} seed {seed}"), e))?;
     Ok(judge(&r))
 }
 
@@ -532,6 +528,7 @@ pub fn judge_simulated(
 /// parallel (rayon), `progress` called after every run.
 pub fn rates(
     id: rollcal::models::ConfigId,
+    errors: rollcal::models::ErrorModel,
     scenario: &crate::sim::scenario::Scenario,
     seeds: u64,
     cases: &[Case],
@@ -544,7 +541,7 @@ pub fn rates(
     let out: Vec<(usize, u64, Option<Judgement>)> = jobs
         .par_iter()
         .map(|&(c, seed)| {
-            let j = judge_simulated(id, scenario, seed, &cases[c].defect).ok();
+            let j = judge_simulated(id, errors, scenario, seed, &cases[c].defect).ok();
             progress();
             (c, seed, j)
         })

@@ -439,7 +439,9 @@ fn answer<T: RealField + Copy>(
     cal.set_frame_errors(stats.errors());
     let settings = *cal.settings();
     let layout = id.layout_with(settings.errors);
-    if settings.errors == ErrorModel::Full && (args.report.is_some() || args.matrices.matrices.is_some()) {
+    if settings.errors == ErrorModel::Full
+        && (args.report.is_some() || args.matrices.matrices.is_some())
+    {
         return Err("--report and --matrices are not available with --errors full yet".into());
     }
     let est = cal.estimate();

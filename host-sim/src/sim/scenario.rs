@@ -137,7 +137,9 @@ impl InstrumentPrior {
             ("sigma_ka_ppm", self.sigma_ka_ppm),
         ] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(ScenarioError(format!("{prefix}.{name} must be finite and > 0")));
+                return Err(ScenarioError(format!(
+                    "{prefix}.{name} must be finite and > 0"
+                )));
             }
         }
         Ok(())

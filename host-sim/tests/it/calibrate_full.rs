@@ -77,10 +77,7 @@ fn calibrate_errors_full_is_run_errors_full() {
             .output()
             .unwrap();
         support::assert_success(&run);
-        let (c, r) = (
-            support::json_file(&cal_json),
-            support::json_file(&run_json),
-        );
+        let (c, r) = (support::json_file(&cal_json), support::json_file(&run_json));
         assert_eq!(c["errors"], "full");
         let (c, r) = (states(&c), states(&r));
         assert_eq!(c.len(), if config == "M2-ps" { 39 } else { 33 });
@@ -152,9 +149,7 @@ fn platform_file_errors_and_old_streams() {
     assert!(err.contains("ba_ug"), "{err}");
     let out = platform("[instruments.prior]\nsigma_ba_ug = -1.0");
     assert!(!out.status.success());
-    assert!(
-        support::stderr(&out).contains("instruments.prior.sigma_ba_ug must be finite and > 0")
-    );
+    assert!(support::stderr(&out).contains("instruments.prior.sigma_ba_ug must be finite and > 0"));
     let out = platform("errors = \"bias\"");
     assert!(support::stderr(&out).contains("errors: 'bias'"));
 
