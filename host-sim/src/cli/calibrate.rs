@@ -439,10 +439,8 @@ fn answer<T: RealField + Copy>(
     cal.set_frame_errors(stats.errors());
     let settings = *cal.settings();
     let layout = id.layout_with(settings.errors);
-    if settings.errors == ErrorModel::Full
-        && (args.report.is_some() || args.matrices.matrices.is_some())
-    {
-        return Err("--report and --matrices are not available with --errors full yet".into());
+    if settings.errors == ErrorModel::Full && args.report.is_some() {
+        return Err("--report is not available with --errors full yet".into());
     }
     let est = cal.estimate();
     // The running filter's covariance (the answer when the passes do not run).

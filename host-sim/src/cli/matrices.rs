@@ -38,7 +38,10 @@ pub struct MatricesArgs {
     /// Write the calibrated matrices G and A, the compensation of the raw
     /// gyro and accelerometer outputs, R(λ), the estimates, σ and the
     /// correlation matrix as JSON to PATH, and print them as text (see
-    /// docs/cli.md, "Applying the result").
+    /// docs/cli.md, "Applying the result"). With `--errors full` also every
+    /// instrument term (dg, D_g, kg, ba, ka) with its unit and σ, the
+    /// torquer command and the compensated specific force they give, and
+    /// the covariance of all states.
     #[arg(long, value_name = "PATH")]
     pub matrices: Option<PathBuf>,
     /// Write the text report of the matrices to PATH instead of stdout.
@@ -47,7 +50,9 @@ pub struct MatricesArgs {
 }
 
 impl MatricesArgs {
-    /// Writes what was asked for of the final result `r`.
+    /// Writes what was asked for of the final result `r`, in its error
+    /// model (`r.errors`: the installation model's document, or the full
+    /// model's with the instrument terms).
     pub fn write(&self, r: &RunResult) -> Result<(), Error> {
         if self.matrices.is_none() && self.matrices_txt.is_none() {
             return Ok(());

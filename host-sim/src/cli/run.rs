@@ -38,12 +38,8 @@ pub struct RunArgs {
 /// `host-sim run`.
 pub fn command(args: &RunArgs) -> Result<(), Error> {
     let c = &args.common;
-    if c.errors == ErrorModel::Full
-        && (args.report.is_some()
-            || args.matrices.matrices.is_some()
-            || args.matrices.matrices_txt.is_some())
-    {
-        return Err("--report and --matrices are not available with --errors full yet".into());
+    if c.errors == ErrorModel::Full && args.report.is_some() {
+        return Err("--report is not available with --errors full yet".into());
     }
     let scenario = load_scenario(c.scenario.as_deref())?;
     super::args::note_instrument_prior(&scenario, c.errors);

@@ -36,7 +36,8 @@ fn states(v: &serde_json::Value) -> Vec<(String, f64, f64)> {
 /// model's `Configure`, calibrated with `--errors full`, equals `run
 /// --errors full` of the same seed within 0.05σ (the stream's f32 samples
 /// are the only difference), every state within 4σ of the sidecar's truth;
-/// `record --errors full` asks for it in the stream itself.
+/// `record --errors full` asks for it in the stream itself; `--matrices`
+/// carries every state.
 #[test]
 fn calibrate_errors_full_is_run_errors_full() {
     let dir = support::scratch("calibrate-full");
@@ -57,11 +58,14 @@ fn calibrate_errors_full_is_run_errors_full() {
         if record_errors == "installation" {
             cal.args(["--errors", "full"]);
         }
+        let matrices = dir.join("m.json");
         let cal = cal
             .arg("--truth")
             .arg(&truth)
             .arg("--json")
             .arg(&cal_json)
+            .arg("--matrices")
+            .arg(&matrices)
             .output()
             .unwrap();
         support::assert_success(&cal);
@@ -88,6 +92,10 @@ fn calibrate_errors_full_is_run_errors_full() {
             assert!(dx < 0.05, "{config} {}: {dx}σ from run's", a.0);
             assert!((a.2 / b.2 - 1.0).abs() < 1e-3, "{config} {} σ", a.0);
         }
+        // The matrices carry every state of the full model.
+        let m = support::json_file(&matrices);
+        assert_eq!(m["errors"], "full");
+        assert_eq!(m["all_states"]["names"].as_array().unwrap().len(), c.len());
         let v = support::json_file(&cal_json);
         for s in v["instruments"].as_array().unwrap() {
             let err = (s["estimate"].as_f64().unwrap() - s["truth"].as_f64().unwrap()).abs()

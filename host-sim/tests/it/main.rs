@@ -14,6 +14,7 @@ mod cli;
 mod cli_defects;
 mod cli_paper;
 mod compensation;
+mod compensation_full;
 mod consistency;
 mod convergence;
 mod csv_log;
