@@ -39,6 +39,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         }
         Checkpoint {
             config: M::ID,
+            errors: M::ERRORS,
             state: collect(f.state()),
             factor,
             nominal: f.nominal().map(collect),
@@ -68,8 +69,8 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         settings: CalibratorConfig,
         cp: &Checkpoint,
     ) -> Result<(), Error> {
-        Self::check_config(settings.config)?;
-        Self::check_config(cp.config)?;
+        Self::check_config(settings.config, settings.errors)?;
+        Self::check_config(cp.config, cp.errors)?;
         let vector = |v: &[f64]| {
             (v.len() == N)
                 .then(|| SVector::<f64, N>::from_iterator(v.iter().copied()))

@@ -5,8 +5,8 @@ use nalgebra::{RealField, SVector, Vector3};
 
 use super::{to_t, Calibrator, Error};
 use crate::ekf::FilterConfig;
-use crate::models::{ConfigId, Environment, Model};
-use crate::wire::CalibratorConfig;
+use crate::models::{ConfigId, Environment, ErrorModel, Model};
+use crate::wire::{CalibratorConfig, MAX_STATES};
 
 /// The filter settings of a calibrator's settings: the environment as it
 /// is (f64), the noise levels in the filter's scalar `T`, the options as
@@ -45,26 +45,46 @@ impl<T: RealField + Copy> From<&CalibratorConfig> for FilterConfig<T> {
 impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize>
     Calibrator<T, M, N, Z>
 {
-    /// `Ok` when `found` is this calibrator type's configuration.
-    pub(super) fn check_config(found: ConfigId) -> Result<(), Error> {
-        if found == M::ID {
-            Ok(())
-        } else {
-            Err(Error::ConfigMismatch {
+    /// `Ok` when `found` and `errors` are this calibrator type's
+    /// configuration and error model, and its states fit the messages
+    /// ([`MAX_STATES`]: the full model needs the `full-model` feature).
+    pub(super) fn check_config(found: ConfigId, errors: ErrorModel) -> Result<(), Error> {
+        if found != M::ID {
+            return Err(Error::ConfigMismatch {
                 expected: M::ID,
                 found,
-            })
+            });
         }
+        if N > MAX_STATES {
+            return Err(Error::ErrorModelMismatch {
+                expected: ErrorModel::Installation,
+                found: M::ERRORS,
+            });
+        }
+        if errors != M::ERRORS {
+            return Err(Error::ErrorModelMismatch {
+                expected: M::ERRORS,
+                found: errors,
+            });
+        }
+        Ok(())
     }
 
     /// The filter's start of `s`: its settings, the zero estimate and the
-    /// prior σ (`prior_sigma_rad`) of every state: what a new calibrator, a
-    /// reset and every pass of the estimator of record start from.
+    /// prior σ of every state (`prior_sigma_rad` on the installation
+    /// states, `instrument_prior` on the instrument errors of the full
+    /// model): what a new calibrator, a reset and every pass of the
+    /// estimator of record start from.
     pub(super) fn prior(s: &CalibratorConfig) -> (FilterConfig<T>, SVector<f64, N>, SVector<T, N>) {
-        (
-            FilterConfig::from(s),
-            SVector::zeros(),
-            SVector::repeat(to_t(s.prior_sigma_rad)),
-        )
+        let installation = M::LAYOUT.installation_n();
+        let instruments = s.instrument_prior.sigma();
+        let sigma0 = SVector::from_fn(|i, _| {
+            let sigma = match i.checked_sub(installation) {
+                None => s.prior_sigma_rad,
+                Some(k) => instruments.get(k).copied().unwrap_or(s.prior_sigma_rad),
+            };
+            to_t(sigma)
+        });
+        (FilterConfig::from(s), SVector::zeros(), sigma0)
     }
 }

@@ -1,7 +1,7 @@
 //! Errors of building or restoring a calibrator ([`Error`]).
 
 use crate::ekf;
-use crate::models::ConfigId;
+use crate::models::{ConfigId, ErrorModel};
 
 /// Errors of building or restoring a calibrator.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -15,6 +15,15 @@ pub enum Error {
         /// The configuration found.
         found: ConfigId,
     },
+    /// The settings or checkpoint name another error model than the
+    /// type's, or the full model in a build without the `full-model`
+    /// feature (whose messages cannot carry its states).
+    ErrorModelMismatch {
+        /// The calibrator's (or the build's) error model.
+        expected: ErrorModel,
+        /// The error model found.
+        found: ErrorModel,
+    },
     /// A checkpoint vector has the wrong length for the configuration.
     CheckpointDimension,
     /// The filter refused the settings or the checkpoint's values.
@@ -27,6 +36,12 @@ impl core::fmt::Display for Error {
             Error::ConfigMismatch { expected, found } => write!(
                 f,
                 "configuration {} given to a {} calibrator",
+                found.as_str(),
+                expected.as_str()
+            ),
+            Error::ErrorModelMismatch { expected, found } => write!(
+                f,
+                "error model {} given to a calibrator of the {} model",
                 found.as_str(),
                 expected.as_str()
             ),

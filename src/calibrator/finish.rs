@@ -118,12 +118,13 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         let mut state = heapless::Vec::new();
         let mut sigma = heapless::Vec::new();
         for (x, s) in filter.state().iter().zip(filter.sigma().iter()) {
-            // N ≤ MAX_STATES for every configuration: the pushes cannot fail.
+            // N ≤ MAX_STATES (`check_config`): the pushes cannot fail.
             let _ = state.push(*x);
             let _ = sigma.push(to_f64(*s));
         }
         Estimate {
             config: M::ID,
+            errors: M::ERRORS,
             seq: self.progress.last_seq.unwrap_or(0),
             updates: filter.updates(),
             state,

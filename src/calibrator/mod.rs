@@ -151,6 +151,13 @@ pub type M2PsCalibrator<T> = Calibrator<T, crate::models::M2Ps, 18, 6>;
 pub type M1PaCalibrator<T> = Calibrator<T, crate::models::M1Pa, 12, 3>;
 /// M4-pa calibrator (12 states).
 pub type M4PaCalibrator<T> = Calibrator<T, crate::models::M4Pa, 12, 3>;
+/// Full-model M2-ps calibrator (39 states; needs gimbal angles and the
+/// `full-model` feature).
+pub type M2PsFullCalibrator<T> = Calibrator<T, crate::models::M2PsFull, 39, 6>;
+/// Full-model M1-pa calibrator (33 states; needs the `full-model` feature).
+pub type M1PaFullCalibrator<T> = Calibrator<T, crate::models::M1PaFull, 33, 3>;
+/// Full-model M4-pa calibrator (33 states; needs the `full-model` feature).
+pub type M4PaFullCalibrator<T> = Calibrator<T, crate::models::M4PaFull, 33, 3>;
 
 impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize>
     Calibrator<T, M, N, Z>
@@ -167,7 +174,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     /// whose variances (rad²) it returns for
     /// [`Calibrator::with_prior_variance`].
     pub(crate) fn prior_variance(settings: &CalibratorConfig) -> Result<SVector<T, N>, Error> {
-        Self::check_config(settings.config)?;
+        Self::check_config(settings.config, settings.errors)?;
         let (config, x0, sigma0) = Self::prior(settings);
         Ok(Filter::<T, M, N, Z>::prior_variance(&config, &x0, &sigma0)?)
     }

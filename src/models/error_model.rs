@@ -27,7 +27,10 @@ use core::fmt;
 /// assert_eq!(ConfigId::M2Ps.layout().n(), 18);
 /// assert_eq!(ConfigId::M2Ps.layout_with(full).n(), 39);
 /// ```
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+// Serialised as its index (postcard: a varint): `Installation` 0, `Full` 1.
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
+)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ErrorModel {
     /// The installation errors only (the paper's models): the instruments'

@@ -9,7 +9,9 @@ use crate::calibrator::{self, Calibrator, RejectReason};
 use crate::ekf::Filter;
 use crate::estimator::SampleLog;
 #[allow(unused_imports)] // the configurations left out of a build (cargo features)
-use crate::models::{ConfigId, M1Pa, M1Ps, M2Ps, M3Pa, M3Ps, M4Pa, M4Ps, Model};
+use crate::models::{ConfigId, ErrorModel, M1Pa, M1Ps, M2Ps, M3Pa, M3Ps, M4Pa, M4Ps, Model};
+#[allow(unused_imports)] // the configurations left out of a build (cargo features)
+use crate::models::{M1PaFull, M1PsFull, M2PsFull, M3PaFull, M3PsFull, M4PaFull, M4PsFull};
 use crate::wire::{CalibratorConfig, Checkpoint, Estimate, Progress};
 
 /// A calibrator of any of the seven configurations (the value-level side of
@@ -39,6 +41,27 @@ pub enum AnyCalibrator<T: RealField + Copy> {
     /// M4-ps.
     #[cfg(feature = "m4-ps")]
     M4Ps(Calibrator<T, M4Ps, 15, 3>),
+    /// M1-pa, full model.
+    #[cfg(all(feature = "m1-pa", feature = "full-model"))]
+    M1PaFull(Calibrator<T, M1PaFull, 33, 3>),
+    /// M1-ps, full model.
+    #[cfg(all(feature = "m1-ps", feature = "full-model"))]
+    M1PsFull(Calibrator<T, M1PsFull, 36, 3>),
+    /// M2-ps, full model.
+    #[cfg(all(feature = "m2-ps", feature = "full-model"))]
+    M2PsFull(Calibrator<T, M2PsFull, 39, 6>),
+    /// M3-pa, full model.
+    #[cfg(all(feature = "m3-pa", feature = "full-model"))]
+    M3PaFull(Calibrator<T, M3PaFull, 36, 3>),
+    /// M3-ps, full model.
+    #[cfg(all(feature = "m3-ps", feature = "full-model"))]
+    M3PsFull(Calibrator<T, M3PsFull, 39, 3>),
+    /// M4-pa, full model.
+    #[cfg(all(feature = "m4-pa", feature = "full-model"))]
+    M4PaFull(Calibrator<T, M4PaFull, 33, 3>),
+    /// M4-ps, full model.
+    #[cfg(all(feature = "m4-ps", feature = "full-model"))]
+    M4PsFull(Calibrator<T, M4PsFull, 36, 3>),
 }
 
 /// A filter of any of the seven configurations: the one in which a
@@ -70,6 +93,27 @@ pub enum AnyFilter<T: RealField + Copy> {
     /// M4-ps.
     #[cfg(feature = "m4-ps")]
     M4Ps(Filter<T, M4Ps, 15, 3>),
+    /// M1-pa, full model.
+    #[cfg(all(feature = "m1-pa", feature = "full-model"))]
+    M1PaFull(Filter<T, M1PaFull, 33, 3>),
+    /// M1-ps, full model.
+    #[cfg(all(feature = "m1-ps", feature = "full-model"))]
+    M1PsFull(Filter<T, M1PsFull, 36, 3>),
+    /// M2-ps, full model.
+    #[cfg(all(feature = "m2-ps", feature = "full-model"))]
+    M2PsFull(Filter<T, M2PsFull, 39, 6>),
+    /// M3-pa, full model.
+    #[cfg(all(feature = "m3-pa", feature = "full-model"))]
+    M3PaFull(Filter<T, M3PaFull, 36, 3>),
+    /// M3-ps, full model.
+    #[cfg(all(feature = "m3-ps", feature = "full-model"))]
+    M3PsFull(Filter<T, M3PsFull, 39, 3>),
+    /// M4-pa, full model.
+    #[cfg(all(feature = "m4-pa", feature = "full-model"))]
+    M4PaFull(Filter<T, M4PaFull, 33, 3>),
+    /// M4-ps, full model.
+    #[cfg(all(feature = "m4-ps", feature = "full-model"))]
+    M4PsFull(Filter<T, M4PsFull, 36, 3>),
 }
 
 impl<T: RealField + Copy> AnyCalibrator<T> {
@@ -83,7 +127,8 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
         })
     }
 
-    /// Puts a calibrator of `settings.config` at the prior into `slot`
+    /// Puts a calibrator of `settings.config` and `settings.errors` at the
+    /// prior into `slot`
     /// (whatever it held; untouched on error). Each configuration is built
     /// by its own out-of-line function, so a firmware's stack holds one
     /// configuration's temporaries, not seven (37 KB of frame on the M7
@@ -94,24 +139,58 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
         slot: &mut Option<Self>,
         settings: CalibratorConfig,
     ) -> Result<(), calibrator::Error> {
-        match settings.config {
+        match (settings.config, settings.errors) {
             #[cfg(feature = "m1-pa")]
-            ConfigId::M1Pa => Self::build_one(slot, settings, Self::M1Pa),
+            (ConfigId::M1Pa, ErrorModel::Installation) => {
+                Self::build_one(slot, settings, Self::M1Pa)
+            }
             #[cfg(feature = "m1-ps")]
-            ConfigId::M1Ps => Self::build_one(slot, settings, Self::M1Ps),
+            (ConfigId::M1Ps, ErrorModel::Installation) => {
+                Self::build_one(slot, settings, Self::M1Ps)
+            }
             #[cfg(feature = "m2-ps")]
-            ConfigId::M2Ps => Self::build_one(slot, settings, Self::M2Ps),
+            (ConfigId::M2Ps, ErrorModel::Installation) => {
+                Self::build_one(slot, settings, Self::M2Ps)
+            }
             #[cfg(feature = "m3-pa")]
-            ConfigId::M3Pa => Self::build_one(slot, settings, Self::M3Pa),
+            (ConfigId::M3Pa, ErrorModel::Installation) => {
+                Self::build_one(slot, settings, Self::M3Pa)
+            }
             #[cfg(feature = "m3-ps")]
-            ConfigId::M3Ps => Self::build_one(slot, settings, Self::M3Ps),
+            (ConfigId::M3Ps, ErrorModel::Installation) => {
+                Self::build_one(slot, settings, Self::M3Ps)
+            }
             #[cfg(feature = "m4-pa")]
-            ConfigId::M4Pa => Self::build_one(slot, settings, Self::M4Pa),
+            (ConfigId::M4Pa, ErrorModel::Installation) => {
+                Self::build_one(slot, settings, Self::M4Pa)
+            }
             #[cfg(feature = "m4-ps")]
-            ConfigId::M4Ps => Self::build_one(slot, settings, Self::M4Ps),
+            (ConfigId::M4Ps, ErrorModel::Installation) => {
+                Self::build_one(slot, settings, Self::M4Ps)
+            }
+            #[cfg(all(feature = "m1-pa", feature = "full-model"))]
+            (ConfigId::M1Pa, ErrorModel::Full) => Self::build_one(slot, settings, Self::M1PaFull),
+            #[cfg(all(feature = "m1-ps", feature = "full-model"))]
+            (ConfigId::M1Ps, ErrorModel::Full) => Self::build_one(slot, settings, Self::M1PsFull),
+            #[cfg(all(feature = "m2-ps", feature = "full-model"))]
+            (ConfigId::M2Ps, ErrorModel::Full) => Self::build_one(slot, settings, Self::M2PsFull),
+            #[cfg(all(feature = "m3-pa", feature = "full-model"))]
+            (ConfigId::M3Pa, ErrorModel::Full) => Self::build_one(slot, settings, Self::M3PaFull),
+            #[cfg(all(feature = "m3-ps", feature = "full-model"))]
+            (ConfigId::M3Ps, ErrorModel::Full) => Self::build_one(slot, settings, Self::M3PsFull),
+            #[cfg(all(feature = "m4-pa", feature = "full-model"))]
+            (ConfigId::M4Pa, ErrorModel::Full) => Self::build_one(slot, settings, Self::M4PaFull),
+            #[cfg(all(feature = "m4-ps", feature = "full-model"))]
+            (ConfigId::M4Ps, ErrorModel::Full) => Self::build_one(slot, settings, Self::M4PsFull),
+            // The full model in a build without the `full-model` feature.
+            #[cfg(not(feature = "full-model"))]
+            (_, ErrorModel::Full) => Err(calibrator::Error::ErrorModelMismatch {
+                expected: ErrorModel::Installation,
+                found: ErrorModel::Full,
+            }),
             // A configuration left out of this build (cargo features).
             #[allow(unreachable_patterns)]
-            found => Err(calibrator::Error::ConfigMismatch {
+            (found, _) => Err(calibrator::Error::ConfigMismatch {
                 expected: ConfigId::first_built(),
                 found,
             }),

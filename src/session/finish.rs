@@ -57,6 +57,20 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
             AnyCalibrator::M4Pa(c) => finish_as!(c, M4Pa),
             #[cfg(feature = "m4-ps")]
             AnyCalibrator::M4Ps(c) => finish_as!(c, M4Ps),
+            #[cfg(all(feature = "m1-pa", feature = "full-model"))]
+            AnyCalibrator::M1PaFull(c) => finish_as!(c, M1PaFull),
+            #[cfg(all(feature = "m1-ps", feature = "full-model"))]
+            AnyCalibrator::M1PsFull(c) => finish_as!(c, M1PsFull),
+            #[cfg(all(feature = "m2-ps", feature = "full-model"))]
+            AnyCalibrator::M2PsFull(c) => finish_as!(c, M2PsFull),
+            #[cfg(all(feature = "m3-pa", feature = "full-model"))]
+            AnyCalibrator::M3PaFull(c) => finish_as!(c, M3PaFull),
+            #[cfg(all(feature = "m3-ps", feature = "full-model"))]
+            AnyCalibrator::M3PsFull(c) => finish_as!(c, M3PsFull),
+            #[cfg(all(feature = "m4-pa", feature = "full-model"))]
+            AnyCalibrator::M4PaFull(c) => finish_as!(c, M4PaFull),
+            #[cfg(all(feature = "m4-ps", feature = "full-model"))]
+            AnyCalibrator::M4PsFull(c) => finish_as!(c, M4PsFull),
         }
     }
 }

@@ -39,6 +39,20 @@ macro_rules! each {
             AnyCalibrator::M4Pa($c) => $body,
             #[cfg(feature = "m4-ps")]
             AnyCalibrator::M4Ps($c) => $body,
+            #[cfg(all(feature = "m1-pa", feature = "full-model"))]
+            AnyCalibrator::M1PaFull($c) => $body,
+            #[cfg(all(feature = "m1-ps", feature = "full-model"))]
+            AnyCalibrator::M1PsFull($c) => $body,
+            #[cfg(all(feature = "m2-ps", feature = "full-model"))]
+            AnyCalibrator::M2PsFull($c) => $body,
+            #[cfg(all(feature = "m3-pa", feature = "full-model"))]
+            AnyCalibrator::M3PaFull($c) => $body,
+            #[cfg(all(feature = "m3-ps", feature = "full-model"))]
+            AnyCalibrator::M3PsFull($c) => $body,
+            #[cfg(all(feature = "m4-pa", feature = "full-model"))]
+            AnyCalibrator::M4PaFull($c) => $body,
+            #[cfg(all(feature = "m4-ps", feature = "full-model"))]
+            AnyCalibrator::M4PsFull($c) => $body,
         }
     };
 }

@@ -9,9 +9,19 @@ use heapless::Vec;
 use serde::{Deserialize, Serialize};
 
 use crate::ekf::Options;
-use crate::models::ConfigId;
+use crate::models::{ConfigId, ErrorModel};
 
-/// Largest state dimension of any configuration (M2-ps, M3-ps).
+/// Largest state dimension of any model this build carries: 39 (the full
+/// M2-ps and M3-ps models) with the `full-model` feature, else 18 (M2-ps,
+/// M3-ps). It sizes the messages' vectors only: the bytes of a message do
+/// not depend on it (postcard writes a vector's length before its items).
+#[cfg(feature = "full-model")]
+pub const MAX_STATES: usize = 39;
+/// Largest state dimension of any model this build carries: 39 (the full
+/// M2-ps and M3-ps models) with the `full-model` feature, else 18 (M2-ps,
+/// M3-ps). It sizes the messages' vectors only: the bytes of a message do
+/// not depend on it (postcard writes a vector's length before its items).
+#[cfg(not(feature = "full-model"))]
 pub const MAX_STATES: usize = 18;
 
 /// Capacity of a row-major covariance of [`MAX_STATES`] states.
@@ -139,12 +149,87 @@ pub struct CalibratorConfig {
     /// Emit an [`Estimate`] every this many accepted samples (0 = never;
     /// [`crate::calibrator::Calibrator::estimate`] is always available).
     pub estimate_every: u32,
+    /// Which errors the filter estimates: the installation errors alone, or
+    /// followed by the instruments' own ([`ErrorModel::Full`], 21 more
+    /// states; needs the `full-model` feature).
+    pub errors: ErrorModel,
+    /// Prior σ of the instrument errors (used by [`ErrorModel::Full`]).
+    pub instrument_prior: InstrumentPrior,
+}
+
+/// Prior σ of the instrument errors of the full model (docs/model.md
+/// §Instrument errors), one per group, in the filter's internal units; the
+/// initial estimate is zero. [`Default`] is SPEC §8's: 1 °/h, 1 °/h/g,
+/// 2 000 ppm, 1 000 µg, 1 000 ppm.
+///
+/// # Examples
+///
+/// ```
+/// use rollcal::wire::InstrumentPrior;
+///
+/// let p = InstrumentPrior::default();
+/// assert_eq!(p.ba_g, 1e-3); // 1 000 µg
+/// let sigma = p.sigma();
+/// assert_eq!(sigma.len(), 21);
+/// assert_eq!(sigma[15], 1e-3); // ba_x, after dg (3), D_g (9), kg (3)
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct InstrumentPrior {
+    /// σ of each constant gyro drift `dg` (rad/s).
+    pub dg_rad_s: f64,
+    /// σ of each entry of the g-sensitive drift `D_g` (rad/s per g).
+    pub d_g_rad_s_g: f64,
+    /// σ of each torquer scale-factor error `kg` (dimensionless).
+    pub kg: f64,
+    /// σ of each accelerometer bias `ba` (g).
+    pub ba_g: f64,
+    /// σ of each accelerometer scale-factor error `ka` (dimensionless).
+    pub ka: f64,
+}
+
+impl Default for InstrumentPrior {
+    fn default() -> Self {
+        let deg_h = core::f64::consts::PI / 180.0 / 3600.0;
+        Self {
+            dg_rad_s: deg_h,
+            d_g_rad_s_g: deg_h,
+            kg: 2e-3,
+            ba_g: 1e-3,
+            ka: 1e-3,
+        }
+    }
+}
+
+impl InstrumentPrior {
+    /// The 21 σ in state order `[dg (3), D_g (9, row-major), kg (3), ba (3),
+    /// ka (3)]` (internal units).
+    pub fn sigma(&self) -> [f64; 21] {
+        let mut s = [self.dg_rad_s; 21];
+        for (i, v) in s.iter_mut().enumerate() {
+            *v = match i {
+                0..=2 => self.dg_rad_s,
+                3..=11 => self.d_g_rad_s_g,
+                12..=14 => self.kg,
+                15..=17 => self.ba_g,
+                _ => self.ka,
+            };
+        }
+        s
+    }
+
+    /// Every σ finite and positive.
+    pub fn is_valid(&self) -> bool {
+        [self.dg_rad_s, self.d_g_rad_s_g, self.kg, self.ba_g, self.ka]
+            .iter()
+            .all(|v| v.is_finite() && *v > 0.0)
+    }
 }
 
 impl CalibratorConfig {
     /// The paper's settings (docs/model.md §The paper's scenario) for configuration `config`: noise
     /// 1e-6 g, 0.1°/h, 10″; latitude 34.25° with Earth rate; prior 1°;
-    /// default options and limits; an estimate every 60 samples.
+    /// default options and limits; an estimate every 60 samples; the
+    /// installation model (SPEC §8's instrument prior, unused by it).
     ///
     /// # Examples
     ///
@@ -176,6 +261,8 @@ impl CalibratorConfig {
             options: Options::default(),
             limits: Limits::default(),
             estimate_every: 60,
+            errors: ErrorModel::Installation,
+            instrument_prior: InstrumentPrior::default(),
         }
     }
 }
@@ -369,15 +456,19 @@ pub enum EstimateKind {
 /// that an f64 firmware build can be compared with the host to 1e-9 rad.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Estimate {
-    /// The configuration; the states are in its order ([`ConfigId::states`]).
+    /// The configuration; the states are in its order
+    /// ([`ConfigId::states_with`] of `config` and `errors`).
     pub config: ConfigId,
+    /// The error model: the installation states alone, or followed by the
+    /// 21 instrument errors (internal units: rad/s, rad/s per g, 1, g, 1).
+    pub errors: ErrorModel,
     /// Sequence number of the last accepted sample (0 before any).
     pub seq: u32,
     /// Filter updates processed.
     pub updates: u32,
-    /// Estimated states (rad).
+    /// Estimated states (rad; the instrument errors in internal units).
     pub state: Vec<f64, MAX_STATES>,
-    /// Their σ, `√P_ii` (rad).
+    /// Their σ, `√P_ii` (the states' units).
     pub sigma: Vec<f64, MAX_STATES>,
     /// Calibrator bookkeeping: last NIS, accepted, bridged, re-acquired,
     /// rejected by reason.
@@ -395,6 +486,8 @@ pub struct Estimate {
 pub struct Checkpoint {
     /// The configuration.
     pub config: ConfigId,
+    /// The error model.
+    pub errors: ErrorModel,
     /// State `x` (rad).
     pub state: Vec<f64, MAX_STATES>,
     /// The packed U-D factor of the covariance `P = U D Uᵀ` (rad²),

@@ -61,12 +61,12 @@ pub use decoder::{Decoder, DecoderStats, FrameDecoder};
 pub use encode::encode;
 pub use error::{EncodeError, FrameError};
 pub use messages::{
-    CalibratorConfig, Checkpoint, Estimate, EstimateKind, Limits, Message, Progress, RejectCounts,
-    Sample, SinglePassReason, MAX_COVARIANCE, MAX_STATES,
+    CalibratorConfig, Checkpoint, Estimate, EstimateKind, InstrumentPrior, Limits, Message,
+    Progress, RejectCounts, Sample, SinglePassReason, MAX_COVARIANCE, MAX_STATES,
 };
 
 /// Protocol version carried in the first byte of every frame.
-pub const VERSION: u8 = 4;
+pub const VERSION: u8 = 5;
 
 /// Length of the CRC trailer (bytes).
 pub const CRC_LEN: usize = 4;
@@ -75,6 +75,16 @@ pub const CRC_LEN: usize = 4;
 pub const MIN_DECODED_LEN: usize = 1 + 1 + CRC_LEN;
 
 /// Upper bound of an encoded frame of any [`Message`], delimiter included
-/// (bytes). The largest message is an 18-state [`Checkpoint`] (about 3.2 KB
-/// encoded); a [`Decoder`] with this capacity accepts every message.
+/// (bytes). The largest message is a [`Checkpoint`] of [`MAX_STATES`]
+/// states: about 3.0 KB encoded for 18 states, 12.3 KB for the full
+/// model's 39 (`full-model` feature); a [`Decoder`] with this capacity
+/// accepts every message.
+#[cfg(not(feature = "full-model"))]
 pub const MAX_FRAME_LEN: usize = 4096;
+/// Upper bound of an encoded frame of any [`Message`], delimiter included
+/// (bytes). The largest message is a [`Checkpoint`] of [`MAX_STATES`]
+/// states: about 3.0 KB encoded for 18 states, 12.3 KB for the full
+/// model's 39 (`full-model` feature); a [`Decoder`] with this capacity
+/// accepts every message.
+#[cfg(feature = "full-model")]
+pub const MAX_FRAME_LEN: usize = 16384;

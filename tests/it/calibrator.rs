@@ -1042,3 +1042,53 @@ fn a_request_is_the_message_it_names() {
         }
     }
 }
+
+/// The full model (installation states followed by the 21 instrument
+/// errors) through the calibrator and the session: a checkpoint restored
+/// over the wire continues bit-identically (f64 M2-ps, f32 M1-pa), names
+/// its error model and is refused by a calibrator of the other; the
+/// prior of each instrument error is the `Configure`'s.
+#[test]
+fn the_full_model_checkpoints_restores_and_names_its_error_model() {
+    use rollcal::calibrator::{Error, M2PsFullCalibrator};
+    use rollcal::models::{ErrorModel, M1PaFull, M2PsFull};
+    use rollcal::session::AnyCalibrator;
+    let (sc, data) = samples(300);
+    let full = |id| CalibratorConfig {
+        errors: ErrorModel::Full,
+        ..settings(&sc, id, 50)
+    };
+    let (c2, c1) = (full(ConfigId::M2Ps), full(ConfigId::M1Pa));
+    let r = run::<f64, M2PsFull, 39, 6>(c2, &data, &[]);
+    assert_eq!(r.1.len(), 6);
+    assert!(r.2.iter().all(|o| o.is_ok()));
+    assert_eq!(run::<f64, M2PsFull, 39, 6>(c2, &data, &[1, 150, 299]), r);
+    let p = run::<f32, M1PaFull, 33, 3>(c1, &data, &[]);
+    assert_eq!(run::<f32, M1PaFull, 33, 3>(c1, &data, &[2, 100]), p);
+
+    let cal = M2PsFullCalibrator::<f64>::new(c2).unwrap();
+    let cp = over_the_wire(cal.checkpoint());
+    assert_eq!((cp.errors, cp.state.len()), (ErrorModel::Full, 39));
+    let installation = settings(&sc, ConfigId::M2Ps, 50);
+    let refused = Error::ErrorModelMismatch {
+        expected: ErrorModel::Installation,
+        found: ErrorModel::Full,
+    };
+    assert_eq!(
+        M2PsCalibrator::<f64>::restore(installation, &cp),
+        Err(refused)
+    );
+    assert_eq!(M2PsCalibrator::<f64>::new(c2), Err(refused));
+
+    let any = AnyCalibrator::<f64>::new(c2).unwrap();
+    let e = any.estimate();
+    assert_eq!(
+        (e.config, e.errors, e.sigma.len()),
+        (ConfigId::M2Ps, ErrorModel::Full, 39)
+    );
+    // σ of the prior: 1° on the installation states, then dg (1 °/h), …,
+    // ba_x (1000 µg, state 18 + 15).
+    assert_eq!(e.sigma[0], sc.prior_sigma_rad);
+    assert_eq!(e.sigma[18], c2.instrument_prior.dg_rad_s);
+    assert_eq!(e.sigma[33], 1e-3);
+}

@@ -49,6 +49,7 @@ fn big_checkpoint() -> Checkpoint {
     let v: heapless::Vec<f64, MAX_STATES> = (0..MAX_STATES).map(|i| -1e-3 * i as f64).collect();
     Checkpoint {
         config: ConfigId::M2Ps,
+        errors: rollcal::models::ErrorModel::Full,
         state: v.clone(),
         factor: (0..MAX_COVARIANCE).map(|i| 1e-300 * i as f64).collect(),
         nominal: Some(v),
@@ -92,6 +93,7 @@ fn big_checkpoint() -> Checkpoint {
 fn all_messages() -> Vec<Message> {
     let est = Estimate {
         config: ConfigId::M1Pa,
+        errors: rollcal::models::ErrorModel::Installation,
         seq: 77,
         updates: 76,
         state: (0..12).map(|i| i as f64 * 1e-5).collect(),
@@ -539,6 +541,11 @@ fn arb_message() -> impl Strategy<Value = Message> {
             .prop_map(|(config, seq, updates, state, sigma, progress, fe)| {
                 Message::Estimate(Estimate {
                     config,
+                    errors: if seq % 2 == 0 {
+                        rollcal::models::ErrorModel::Installation
+                    } else {
+                        rollcal::models::ErrorModel::Full
+                    },
                     seq,
                     updates,
                     state,
@@ -568,6 +575,11 @@ fn arb_message() -> impl Strategy<Value = Message> {
                 |(config, state, factor, nominal, c_cn, updates, progress)| {
                     Message::Checkpoint(Checkpoint {
                         config,
+                        errors: if updates % 2 == 0 {
+                            rollcal::models::ErrorModel::Installation
+                        } else {
+                            rollcal::models::ErrorModel::Full
+                        },
                         state,
                         factor,
                         nominal,

@@ -9,7 +9,7 @@ use nalgebra::RealField;
 use rollcal::calibrator::RejectReason;
 use rollcal::ekf::{self, FilterConfig, Options};
 use rollcal::estimator::{EstimatorOptions, LogError, LogRecord, PassEvent, SampleLog};
-use rollcal::models::{ConfigId, Model};
+use rollcal::models::{ConfigId, ErrorModel, Model};
 use rollcal::observability::Observability;
 use rollcal::session::{Covariance, PassObserver, Reply, Session};
 use rollcal::wire::{CalibratorConfig, Estimate, Message};
@@ -21,14 +21,25 @@ use crate::sim::scenario::{Platform, Scenario, DEG};
 use crate::sim::truth::PeriodSample;
 
 /// Calibrator settings equal to `runner::filter_config` of the scenario
-/// (so that the stream's filter is `run`'s filter).
-pub fn calibrator_config(sc: &Scenario, id: ConfigId, earth_rate: bool) -> CalibratorConfig {
-    platform_config(&Platform::of_scenario(sc), id, earth_rate)
+/// (so that the stream's filter is `run`'s filter), for error model
+/// `errors` with the scenario's instrument prior.
+pub fn calibrator_config(
+    sc: &Scenario,
+    id: ConfigId,
+    errors: ErrorModel,
+    earth_rate: bool,
+) -> CalibratorConfig {
+    platform_config(&Platform::of_scenario(sc), id, errors, earth_rate)
 }
 
 /// Calibrator settings of a platform file (the `Configure` message a
-/// platform with these settings would send).
-pub fn platform_config(p: &Platform, id: ConfigId, earth_rate: bool) -> CalibratorConfig {
+/// platform with these settings would send), for error model `errors`.
+pub fn platform_config(
+    p: &Platform,
+    id: ConfigId,
+    errors: ErrorModel,
+    earth_rate: bool,
+) -> CalibratorConfig {
     let f = runner::filter_config_of(&p.site, &p.noise, earth_rate, Options::default());
     let mut c = CalibratorConfig::paper(id);
     c.sigma_accel_g = f.sigma_accel;
@@ -38,6 +49,8 @@ pub fn platform_config(p: &Platform, id: ConfigId, earth_rate: bool) -> Calibrat
     c.gravity_n = f.env.gravity_n.into();
     c.prior_sigma_rad = p.prior.sigma_deg * DEG;
     c.limits.period_s = p.timing.period_s;
+    c.errors = errors;
+    c.instrument_prior = p.instruments.prior.to_wire();
     c
 }
 
@@ -116,6 +129,11 @@ pub struct Host<T: RealField + Copy> {
     /// Notes for the user (a missing `Configure`, a restart), to print
     /// after each [`Host::handle`].
     pub notes: Vec<String>,
+    /// The error model every `Configure` is run with (`calibrate
+    /// --errors`), whatever it asks for; `None`: the message's.
+    pub errors: Option<ErrorModel>,
+    /// The protocol version of the last frame of another version seen.
+    pub other_version: Option<u8>,
 }
 
 impl<T: RealField + Copy> Host<T> {
@@ -135,6 +153,8 @@ impl<T: RealField + Copy> Host<T> {
             failures: Vec::new(),
             fallback_of,
             notes: Vec::new(),
+            errors: None,
+            other_version: None,
         }
     }
 
@@ -142,6 +162,12 @@ impl<T: RealField + Copy> Host<T> {
     /// settings at a first sample without a `Configure`), keeping the NIS
     /// and the failures of the accepted samples.
     pub fn handle(&mut self, m: Message) -> Result<(), String> {
+        let m = match (m, self.errors) {
+            (Message::Configure(settings), Some(errors)) => {
+                Message::Configure(CalibratorConfig { errors, ..settings })
+            }
+            (m, _) => m,
+        };
         match &m {
             Message::Sample(_) if self.session.calibrator().is_none() => {
                 let Some(fallback) = self.fallback else {
@@ -276,19 +302,16 @@ fn tag(m: &Message) -> &'static str {
 /// `observability`), the verdict [`Verdict::of_bound`].
 /// With `x_end` `None` the bound starts at `x_start` instead.
 pub fn bound_at_estimate(
-    id: ConfigId,
-    cfg: FilterConfig<f64>,
+    settings: &CalibratorConfig,
     x_end: Option<&[f64]>,
     x_start: &[f64],
-    sigma0: f64,
     records: &[LogRecord<f64>],
 ) -> Result<(Vec<f64>, Vec<Verdict>), Error> {
     fn typed<M: Model<N, Z>, const N: usize, const Z: usize>(
-        id: ConfigId,
         cfg: FilterConfig<f64>,
         x_end: Option<&[f64]>,
         x_start: &[f64],
-        sigma0: f64,
+        sigma0: &[f64],
         records: &[LogRecord<f64>],
     ) -> Result<(Vec<f64>, Vec<Verdict>), Error> {
         use rollcal::observability::{COEF_THRESHOLD, RANK_TOLERANCE};
@@ -308,7 +331,7 @@ pub fn bound_at_estimate(
                 let mut storage = records.to_vec();
                 let mut log = rollcal::estimator::SliceLog::from_records(&mut storage);
                 rollcal::estimator::back_propagate::<f64, N, _>(
-                    id.layout(),
+                    M::LAYOUT,
                     &cfg.env,
                     &vector(x_end),
                     &frame,
@@ -321,7 +344,7 @@ pub fn bound_at_estimate(
                 .0
             }
         };
-        let prior = nalgebra::SVector::<f64, N>::repeat(sigma0);
+        let prior = vector(sigma0);
         let e = |e: ekf::Error| Error::filter("the bound at the estimate", e);
         let mut at = Observability::<f64, M, N, Z>::new(cfg, x0, prior).map_err(e)?;
         let mut zero = Observability::<f64, M, N, Z>::new(cfg, nalgebra::SVector::zeros(), prior)
@@ -337,9 +360,13 @@ pub fn bound_at_estimate(
             .collect();
         Ok((at.crlb_sigma().iter().copied().collect(), verdicts))
     }
-    rollcal::with_config!(id, |M, N, Z| typed::<M, N, Z>(
-        id, cfg, x_end, x_start, sigma0, records
-    ))
+    let cfg = FilterConfig::<f64>::from(settings);
+    let sigma0 = runner::prior_sigma_of(settings);
+    rollcal::with_model!(
+        settings.config,
+        settings.errors,
+        |M, N, Z| typed::<M, N, Z>(cfg, x_end, x_start, &sigma0, records)
+    )
 }
 
 /// The calibrator's final values as a [`runner::DynFilter`], for the report.

@@ -133,6 +133,28 @@ pub struct Judgement {
     pub verdict: DataVerdict,
     /// The significance of each check (`FALSE_ALARM / checks.len()`).
     pub alpha_each: f64,
+    /// The likely cause of a warning, when the data say more than "the
+    /// model does not fit" ([`likely_cause`]).
+    pub cause: Option<String>,
+}
+
+/// What the installation model's warning most likely means: a NIS or bias
+/// check failed, the signature of an unmodelled constant error of the
+/// accelerometer outputs (bias, scale factor) or of the platform's drift
+/// (gyro drift, g-sensitive drift), which the installation model takes as
+/// calibrated (docs/model.md §Instrument errors). `None` for the full model,
+/// or when neither check failed.
+pub fn likely_cause(errors: rollcal::models::ErrorModel, verdict: &DataVerdict) -> Option<String> {
+    let DataVerdict::Warning { failed } = verdict else {
+        return None;
+    };
+    let signature = failed.iter().any(|c| c.name == "nis" || c.name == "bias");
+    (errors == rollcal::models::ErrorModel::Installation && signature).then(|| {
+        "likely cause: the instruments' own errors (accelerometer bias or scale factor, \
+         gyro drift), which the installation model takes as calibrated: calibrate again \
+         with --errors full"
+            .to_string()
+    })
 }
 
 impl Judgement {
@@ -146,6 +168,7 @@ impl Judgement {
             "checks": self.checks,
             "path": self.path,
             "data_verdict": self.verdict,
+            "likely_cause": self.cause,
         })
     }
 
@@ -240,7 +263,9 @@ struct Group<'a> {
 /// The checks of the last pass's updates of `r` and the verdict
 /// (see the [module docs](self)).
 pub fn judge(r: &RunResult) -> Judgement {
-    judge_updates(&r.updates, &r.segments)
+    let mut j = judge_updates(&r.updates, &r.segments);
+    j.cause = likely_cause(r.errors, &j.verdict);
+    j
 }
 
 /// [`judge`] of updates and segments.
@@ -258,6 +283,7 @@ pub fn judge_updates(
                 reason: "no innovations of a final pass: the checks need the final passes (not run with --passes 1, or when the log is not the whole run)".into(),
             },
             alpha_each: f64::NAN,
+            cause: None,
         };
     }
     let names = component_names(z);
@@ -284,6 +310,7 @@ pub fn judge_updates(
         path: None,
         verdict,
         alpha_each: alpha,
+        cause: None,
     }
 }
 
@@ -464,9 +491,11 @@ pub struct Rate {
 }
 
 /// The judgement of one simulated run of configuration `id` with `defect`
-/// on its accelerometer means, the estimator told the scenario's noise.
+/// on its accelerometer means, the estimator (error model `errors`) told
+/// the scenario's noise.
 pub fn judge_simulated(
     id: rollcal::models::ConfigId,
+    errors: rollcal::models::ErrorModel,
     scenario: &crate::sim::scenario::Scenario,
     seed: u64,
     defect: &crate::sim::impair::AccelDefects,
@@ -488,16 +517,10 @@ pub fn judge_simulated(
             *a += d;
         }
     }
-    let r = crate::analysis::runner::run_filter(
-        id,
-        scenario,
-        &sim,
-        earth_rate,
-        crate::analysis::runner::Estimator::default(),
-        None,
-        false,
-    )
-    .map_err(|e| crate::analysis::Error::filter(format_args!("{id} seed {seed}"), e))?;
+    let r = crate::analysis::runner::SimulatedRun::new(id, scenario, &sim, earth_rate)
+        .with_errors(errors)
+        .run(crate::analysis::runner::Estimator::default(), None, false)
+        .map_err(|e| crate::analysis::Error::filter(format_args!("{id} seed {seed}"), e))?;
     Ok(judge(&r))
 }
 
@@ -505,6 +528,7 @@ pub fn judge_simulated(
 /// parallel (rayon), `progress` called after every run.
 pub fn rates(
     id: rollcal::models::ConfigId,
+    errors: rollcal::models::ErrorModel,
     scenario: &crate::sim::scenario::Scenario,
     seeds: u64,
     cases: &[Case],
@@ -517,7 +541,7 @@ pub fn rates(
     let out: Vec<(usize, u64, Option<Judgement>)> = jobs
         .par_iter()
         .map(|&(c, seed)| {
-            let j = judge_simulated(id, scenario, seed, &cases[c].defect).ok();
+            let j = judge_simulated(id, errors, scenario, seed, &cases[c].defect).ok();
             progress();
             (c, seed, j)
         })

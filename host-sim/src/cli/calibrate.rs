@@ -41,7 +41,8 @@ use rollcal::ekf::FilterConfig;
 use rollcal::estimator::LogRecord;
 use rollcal::models::{ConfigId, ErrorModel};
 use rollcal::wire::{
-    CalibratorConfig, DecoderStats, Estimate, EstimateKind, FrameDecoder, Message, Sample,
+    CalibratorConfig, DecoderStats, Estimate, EstimateKind, FrameDecoder, FrameError, Message,
+    Sample, VERSION,
 };
 
 use super::args::{load_scenario, parse_config};
@@ -85,6 +86,12 @@ pub struct CalibrateArgs {
     /// A serial stream ends after this many seconds without a byte.
     #[arg(long, default_value_t = 5.0)]
     pub idle_timeout: f64,
+    /// Error model: `installation` (the paper's) or `full` (the
+    /// instruments' own errors too, docs/model.md §Full model); overrides
+    /// the stream's `Configure` (default: the stream's, else the platform
+    /// file's `errors`, else installation).
+    #[arg(long, value_parser = super::args::parse_errors)]
+    pub errors: Option<ErrorModel>,
     /// Settings used when the stream has no `Configure` message (default:
     /// the paper's scenario).
     #[arg(long, value_name = "FILE")]
@@ -133,11 +140,17 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<DataVerdict
     let input = input(args)?;
     let mut host = Host::<T>::new(
         input.expected,
-        input
-            .expected
-            .map(|id| platform_config(&input.platform, id, input.platform.site.earth_rate)),
+        input.expected.map(|id| {
+            platform_config(
+                &input.platform,
+                id,
+                input.errors.unwrap_or_default(),
+                input.platform.site.earth_rate,
+            )
+        }),
         input.source.clone(),
     );
+    host.errors = args.errors;
     let mut decoder = FrameDecoder::new();
     let runs = input.expected.map_or_else(
         || "the stream's configuration".to_string(),
@@ -179,6 +192,8 @@ struct Input {
     source: String,
     /// The configuration `--config` or the platform file names.
     expected: Option<ConfigId>,
+    /// The error model `--errors` or the platform file names.
+    errors: Option<ErrorModel>,
 }
 
 /// The format of the input and the settings without a Configure message:
@@ -213,11 +228,13 @@ fn input(args: &CalibrateArgs) -> Result<Input, Error> {
         }
         (a, b) => a.or(b),
     };
+    let errors = args.errors.or(platform.error_model());
     Ok(Input {
         format,
         platform,
         source,
         expected,
+        errors,
     })
 }
 
@@ -236,7 +253,10 @@ fn read_csv(
     };
     let text = read_text(&args.input)?;
     let mut log = crate::io::csvlog::parse(&text).map_err(|e| format!("{}: {e}", args.input))?;
-    let settings = fallback.unwrap_or_else(|| CalibratorConfig::paper(id));
+    let settings = fallback.unwrap_or_else(|| CalibratorConfig {
+        errors: input.errors.unwrap_or_default(),
+        ..CalibratorConfig::paper(id)
+    });
     if !log.has_frames {
         crate::io::csvlog::fill_frames(&mut log.samples, settings.earth_rate_n)
             .map_err(|e| format!("{}: {e}", args.input))?;
@@ -299,10 +319,10 @@ fn feed<T: RealField + Copy>(
         }
         None => read_input(&args.input, args.baud, idle, |bytes| {
             let mut result = Ok(());
-            decoder.feed(bytes, |m| {
-                if result.is_ok() {
-                    result = handle(host, m);
-                }
+            decoder.feed_results(bytes, |r| match r {
+                Ok(m) if result.is_ok() => result = handle(host, m),
+                Err(FrameError::WrongVersion(v)) => host.other_version = Some(v),
+                _ => {}
             });
             let (accepted, text) = detail(host, decoder);
             progress.update(accepted, &text);
@@ -381,6 +401,13 @@ fn answer<T: RealField + Copy>(
     decoder: &FrameDecoder,
 ) -> Result<Calibration, Error> {
     let stats = *decoder.stats();
+    if let (None, Some(v)) = (host.session.calibrator(), host.other_version) {
+        return Err(format!(
+            "the stream is of protocol version {v} ({} frames), this host-sim reads version {VERSION}: record it again with this version",
+            stats.wrong_version
+        )
+        .into());
+    }
     let Some(id) = host.session.calibrator().map(|c| c.settings().config) else {
         return Err(format!(
             "no samples in the stream ({} frames decoded, {} rejected)",
@@ -411,10 +438,14 @@ fn answer<T: RealField + Copy>(
     };
     cal.set_frame_errors(stats.errors());
     let settings = *cal.settings();
+    let layout = id.layout_with(settings.errors);
+    if settings.errors == ErrorModel::Full && args.report.is_some() {
+        return Err("--report is not available with --errors full yet".into());
+    }
     let est = cal.estimate();
     // The running filter's covariance (the answer when the passes do not run).
     let running_covariance = crate::analysis::compensation::covariance_of_packed_ud(
-        id.layout().n(),
+        layout.n(),
         &cal.checkpoint().factor,
     );
     let p = est.progress;
@@ -426,12 +457,16 @@ fn answer<T: RealField + Copy>(
         )
         .into());
     }
-    let sigma0 = settings.prior_sigma_rad;
-    let nan = vec![f64::NAN; id.layout().n()];
+    let sigma0 = runner::prior_sigma_of(&settings);
+    let nan = vec![f64::NAN; layout.n()];
     let received_bound = received_bound(&settings, sidecar.as_ref(), &est, host)?;
+    // The sidecar's bound is the installation model's: not the full model's.
     let crlb = received_bound
         .as_ref()
-        .or(sidecar.as_ref().map(|s| &s.crlb))
+        .or(sidecar
+            .as_ref()
+            .map(|s| &s.crlb)
+            .filter(|_| settings.errors == ErrorModel::Installation))
         .unwrap_or(&nan)
         .clone();
     // The final answer: the calibrator's own estimator of record over its
@@ -444,15 +479,17 @@ fn answer<T: RealField + Copy>(
     if let Some(EstimateKind::SinglePass { reason, .. }) = fin.as_ref().map(|f| f.estimate.kind) {
         eprintln!("note: {reason}: the final answer is the calibrator's pass 1");
     }
-    let truth = sidecar.as_ref().map_or(&nan, |s| &s.truth);
+    let truth = sidecar
+        .as_ref()
+        .map_or_else(|| nan.clone(), |s| s.truth_of(settings.errors));
     let r = result(
-        id,
+        &settings,
         host,
         &est,
         fin.as_ref(),
         running_covariance,
-        truth,
-        sigma0,
+        &truth,
+        &sigma0,
     );
     let final_answer = fin
         .as_ref()
@@ -485,19 +522,19 @@ fn received_bound<T: RealField + Copy>(
     est: &Estimate,
     host: &Host<T>,
 ) -> Result<Option<Vec<f64>>, Error> {
-    let sigma0 = settings.prior_sigma_rad;
+    let sigma0 = runner::prior_sigma_of(settings);
     Ok(
         match (
-            sidecar.and_then(|s| s.truth0.as_ref()),
+            sidecar.and_then(|s| s.truth0_of(settings.errors)),
             est.progress.log_incomplete,
         ) {
             (Some(t0), None) => Some(
                 runner::bound(
                     settings.config,
-                    ErrorModel::Installation,
+                    settings.errors,
                     FilterConfig::<f64>::from(settings),
-                    t0,
-                    &[sigma0],
+                    &t0,
+                    &sigma0,
                     &host.log.records_f64(),
                 )
                 .map_err(|e| format!("Cramér–Rao bound of the received samples: {e}"))?,
@@ -511,13 +548,13 @@ fn received_bound<T: RealField + Copy>(
 /// covariance, innovations and history when they are the answer, else
 /// pass 1's (with the running filter's covariance).
 fn result<T: RealField + Copy>(
-    id: ConfigId,
+    settings: &CalibratorConfig,
     host: &Host<T>,
     est: &Estimate,
     fin: Option<&Final>,
     running_covariance: Vec<f64>,
     truth: &[f64],
-    sigma0: f64,
+    sigma0: &[f64],
 ) -> RunResult {
     let (state, sigma, nis, failures, passes) = match fin {
         Some(Final { estimate, nis, .. })
@@ -549,8 +586,8 @@ fn result<T: RealField + Copy>(
     // whose innovations and history were not kept).
     let final_pass = fin.filter(|f| matches!(f.estimate.kind, EstimateKind::Final { .. }));
     runner::result(
-        id,
-        ErrorModel::Installation,
+        settings.config,
+        settings.errors,
         &Passes {
             filter: Box::new(CalibratorView {
                 state: state.to_vec(),
@@ -570,7 +607,7 @@ fn result<T: RealField + Copy>(
             passes,
         },
         truth,
-        &[sigma0],
+        sigma0,
     )
 }
 
@@ -587,7 +624,7 @@ fn print_results(c: &Calibration) -> Result<(Judgement, Option<(Vec<f64>, Vec<Ve
         // A log that is not the whole run (re-acquired attitude, full log)
         // has no known start: the bound along the logged records from the
         // cold start (zero state, as pass 1), said so.
-        let zeros = vec![0.0; id.layout().n()];
+        let zeros = vec![0.0; id.layout_with(c.settings.errors).n()];
         let end = if p.log_incomplete.is_some() {
             eprintln!(
                 "note: the log is not the whole run: the bound is taken from the cold start along the {} logged samples only (of {} accepted)",
@@ -603,14 +640,7 @@ fn print_results(c: &Calibration) -> Result<(Judgement, Option<(Vec<f64>, Vec<Ve
                     .collect::<Vec<f64>>(),
             )
         };
-        let (b, v) = bound_at_estimate(
-            id,
-            FilterConfig::<f64>::from(&c.settings),
-            end.as_deref(),
-            &zeros,
-            c.settings.prior_sigma_rad,
-            records,
-        )?;
+        let (b, v) = bound_at_estimate(&c.settings, end.as_deref(), &zeros, records)?;
         print_table_no_truth(r, &b, &v);
         Some((b, v))
     } else {
@@ -698,6 +728,9 @@ fn json_of(
     json["path_check"] = j["path"].clone();
     json["data_verdict"] = j["data_verdict"].clone();
     json["data_false_alarm"] = j["false_alarm"].clone();
+    if judgement.cause.is_some() {
+        json["data_likely_cause"] = j["likely_cause"].clone();
+    }
     json["pass1"] = serde_json::json!({
         "seq": est.seq,
         "updates": est.updates,

@@ -25,6 +25,10 @@ pub struct ChecksArgs {
     /// Configuration: M1-pa, M1-ps, M2-ps, M3-pa, M3-ps, M4-pa, M4-ps.
     #[arg(long, value_parser = parse_config_short)]
     pub config: rollcal::models::ConfigId,
+    /// Error model of the estimator: `installation` (the paper's) or
+    /// `full` (the instruments' own errors too).
+    #[arg(long, default_value = "installation", value_parser = super::args::parse_errors)]
+    pub errors: rollcal::models::ErrorModel,
     /// Seeds 1..=N of every case.
     #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u64).range(1..=100_000))]
     pub seeds: u64,
@@ -78,15 +82,29 @@ pub fn command(args: &ChecksArgs) -> Result<(), Error> {
     );
     let progress = Progress::stderr("checks", total, "runs");
     let done = AtomicU64::new(0);
-    let out = rates(args.config, &scenario, args.seeds, &cases, &|| {
-        let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-        progress.update(n, "");
-    });
+    super::args::note_instrument_prior(&scenario, args.errors);
+    let out = rates(
+        args.config,
+        args.errors,
+        &scenario,
+        args.seeds,
+        &cases,
+        &|| {
+            let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+            progress.update(n, "");
+        },
+    );
     progress.finish(done.load(Ordering::Relaxed), "");
     let b = args.bias_ug;
     println!(
-        "{} on '{}', seeds 1..={}; the estimator told the scenario's noise; judgement at a stated false-alarm rate of {FALSE_ALARM}",
-        args.config, scenario.name, args.seeds
+        "{}{} on '{}', seeds 1..={}; the estimator told the scenario's noise; judgement at a stated false-alarm rate of {FALSE_ALARM}",
+        args.config,
+        match args.errors {
+            rollcal::models::ErrorModel::Full => " (full model)",
+            _ => "",
+        },
+        scenario.name,
+        args.seeds
     );
     println!(
         "{:<28} {:>8} {:>14}   {:>5} {:>9} {:>5}  errors",
@@ -129,6 +147,7 @@ pub fn command(args: &ChecksArgs) -> Result<(), Error> {
     if let Some(path) = &args.json {
         let v = serde_json::json!({
             "config": args.config.as_str(),
+            "errors": args.errors.as_str(),
             "scenario": scenario.name,
             "seeds": args.seeds,
             "false_alarm": FALSE_ALARM,
@@ -187,4 +206,7 @@ pub fn print_judgement(j: &Judgement) {
         );
     }
     println!("data verdict: {}", j.verdict);
+    if let Some(cause) = &j.cause {
+        println!("{cause}");
+    }
 }

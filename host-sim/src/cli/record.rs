@@ -43,6 +43,10 @@ pub struct RecordArgs {
     /// Estimate cadence written into the `Configure` message (samples).
     #[arg(long, default_value_t = 60)]
     pub estimate_every: u32,
+    /// The error model the stream's `Configure` asks the calibrator for
+    /// (`installation` or `full`; `calibrate --errors` overrides it).
+    #[arg(long, default_value = "installation", value_parser = super::args::parse_errors)]
+    pub errors: rollcal::models::ErrorModel,
     /// Impairments of the link and the platform (lost frames, clock steps,
     /// bit flips, outliers), applied after the simulation.
     #[command(flatten)]
@@ -68,6 +72,10 @@ pub fn command(args: &RecordArgs) -> Result<(), Error> {
         .impair
         .accel
         .biased(&load_scenario(args.scenario.as_deref())?);
+    // The scenario's `ba` plus `--accel-bias-ug` within the model's limits.
+    sc.instruments
+        .validate()
+        .map_err(|e| format!("with --accel-bias-ug: {}", e.0))?;
     let earth_rate = !args.no_earth_rate && sc.site.earth_rate;
     eprintln!(
         "recording '{}' ({} periods, seed {}) for {}…",
@@ -85,7 +93,7 @@ pub fn command(args: &RecordArgs) -> Result<(), Error> {
         },
     );
     check_gimbal_lock(args.config, &sim)?;
-    let mut settings = calibrator_config(&sc, args.config, earth_rate);
+    let mut settings = calibrator_config(&sc, args.config, args.errors, earth_rate);
     settings.estimate_every = args.estimate_every;
     let mut samples: Vec<Sample> = sim.samples.iter().map(to_sample).collect();
     let mut applied = Applied::default();

@@ -5,7 +5,7 @@
 
 use std::path::Path;
 
-use rollcal::models::ConfigId;
+use rollcal::models::{ConfigId, ErrorModel};
 
 use super::Error;
 use crate::analysis::runner::SimulatedRun;
@@ -63,6 +63,29 @@ pub struct Sidecar {
     /// [`crate::sim::instruments`]); zero for a sidecar written before they
     /// were recorded.
     pub instruments: [f64; INSTRUMENT_STATES],
+}
+
+impl Sidecar {
+    /// The true final state of the model of `errors`: the installation
+    /// states, then (full model) the instrument errors.
+    pub fn truth_of(&self, errors: ErrorModel) -> Vec<f64> {
+        with_instruments(&self.truth, &self.instruments, errors)
+    }
+
+    /// The true initial state of the model of `errors`, when recorded.
+    pub fn truth0_of(&self, errors: ErrorModel) -> Option<Vec<f64>> {
+        self.truth0
+            .as_ref()
+            .map(|t| with_instruments(t, &self.instruments, errors))
+    }
+}
+
+fn with_instruments(x: &[f64], instruments: &[f64], errors: ErrorModel) -> Vec<f64> {
+    let mut v = x.to_vec();
+    if errors == ErrorModel::Full {
+        v.extend_from_slice(instruments);
+    }
+    v
 }
 
 /// Reads the sidecar at `path`, which must hold the truth of `id`.

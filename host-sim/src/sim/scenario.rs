@@ -114,6 +114,38 @@ fn default_sigma_ka() -> f64 {
     1000.0
 }
 
+impl InstrumentPrior {
+    /// The prior as a `Configure` message carries it (internal units).
+    pub fn to_wire(&self) -> rollcal::wire::InstrumentPrior {
+        use crate::sim::instruments::{DEG_H, PPM, UG};
+        rollcal::wire::InstrumentPrior {
+            dg_rad_s: self.sigma_dg_deg_h * DEG_H,
+            d_g_rad_s_g: self.sigma_d_g_deg_h_g * DEG_H,
+            kg: self.sigma_kg_ppm * PPM,
+            ba_g: self.sigma_ba_ug * UG,
+            ka: self.sigma_ka_ppm * PPM,
+        }
+    }
+
+    /// Every σ finite and > 0; errors name the key (`prefix.sigma_…`).
+    pub fn validate(&self, prefix: &str) -> Result<(), ScenarioError> {
+        for (name, v) in [
+            ("sigma_dg_deg_h", self.sigma_dg_deg_h),
+            ("sigma_d_g_deg_h_g", self.sigma_d_g_deg_h_g),
+            ("sigma_kg_ppm", self.sigma_kg_ppm),
+            ("sigma_ba_ug", self.sigma_ba_ug),
+            ("sigma_ka_ppm", self.sigma_ka_ppm),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(ScenarioError(format!(
+                    "{prefix}.{name} must be finite and > 0"
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
 impl Default for InstrumentPrior {
     fn default() -> Self {
         Self {
@@ -149,20 +181,6 @@ impl Instruments {
         *self == Self::default()
     }
 
-    /// The 21 prior σ in internal units (rad/s, rad/s per g, 1, g, 1), in
-    /// the order `[dg (3), D_g (9, row-major), kg (3), ba (3), ka (3)]`.
-    pub fn sigma0(&self) -> [f64; 21] {
-        use crate::sim::instruments::{DEG_H, PPM, UG};
-        let p = &self.prior;
-        let mut s = [0.0; 21];
-        s[..3].fill(p.sigma_dg_deg_h * DEG_H);
-        s[3..12].fill(p.sigma_d_g_deg_h_g * DEG_H);
-        s[12..15].fill(p.sigma_kg_ppm * PPM);
-        s[15..18].fill(p.sigma_ba_ug * UG);
-        s[18..].fill(p.sigma_ka_ppm * PPM);
-        s
-    }
-
     /// Checks every value (finite, within the limits) and every prior
     /// (> 0); errors name the key.
     pub fn validate(&self) -> Result<(), ScenarioError> {
@@ -183,21 +201,7 @@ impl Instruments {
         within("kg_ppm", &self.kg_ppm, max, "ppm")?;
         within("ba_ug", &self.ba_ug, max, "µg")?;
         within("ka_ppm", &self.ka_ppm, max, "ppm")?;
-        let p = &self.prior;
-        for (name, v) in [
-            ("sigma_dg_deg_h", p.sigma_dg_deg_h),
-            ("sigma_d_g_deg_h_g", p.sigma_d_g_deg_h_g),
-            ("sigma_kg_ppm", p.sigma_kg_ppm),
-            ("sigma_ba_ug", p.sigma_ba_ug),
-            ("sigma_ka_ppm", p.sigma_ka_ppm),
-        ] {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(ScenarioError(format!(
-                    "instruments.prior.{name} must be finite and > 0"
-                )));
-            }
-        }
-        Ok(())
+        self.prior.validate("instruments.prior")
     }
 }
 
@@ -583,6 +587,25 @@ pub struct Platform {
     /// The nominal rolling path (optional; for reporting only).
     #[serde(default)]
     pub path: Vec<Segment>,
+    /// The error model to calibrate (`installation`, the default, or
+    /// `full`: the instruments' own errors too); `calibrate --errors`
+    /// overrides it.
+    #[serde(default)]
+    pub errors: Option<String>,
+    /// The instruments' prior (`[instruments.prior]`, used by the full
+    /// model; default SPEC §8's). A platform file carries no instrument
+    /// values: they are what the calibration estimates.
+    #[serde(default)]
+    pub instruments: PlatformInstruments,
+}
+
+/// The `[instruments]` table of a platform file: the prior alone.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct PlatformInstruments {
+    /// Prior σ of the 21 instrument states.
+    #[serde(default)]
+    pub prior: InstrumentPrior,
 }
 
 /// Timing of a platform.
@@ -632,7 +655,18 @@ impl Platform {
             },
             prior: s.prior.clone(),
             path: s.path.clone(),
+            errors: None,
+            instruments: PlatformInstruments {
+                prior: s.instruments.prior.clone(),
+            },
         }
+    }
+
+    /// The error model the file names (`errors`), if any.
+    pub fn error_model(&self) -> Option<rollcal::models::ErrorModel> {
+        self.errors
+            .as_deref()
+            .and_then(rollcal::models::ErrorModel::parse)
     }
 
     /// The configuration the file names, if any.
@@ -655,6 +689,11 @@ impl Platform {
             c.parse::<ConfigId>()
                 .map_err(|e| ScenarioError(format!("config: {}", config_message(&e, c))))?;
         }
+        if let Some(e) = &self.errors {
+            e.parse::<rollcal::models::ErrorModel>()
+                .map_err(|err| ScenarioError(format!("errors: '{e}': {err}")))?;
+        }
+        self.instruments.prior.validate("instruments.prior")?;
         check_site(&self.site)?;
         let tm = &self.timing;
         if !(tm.period_s.is_finite() && tm.period_s > 0.0) {

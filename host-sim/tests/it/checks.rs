@@ -271,9 +271,23 @@ fn with_a_truth_the_table_keeps_the_truth_columns_and_the_checks() {
 fn m1_pa_in_process_cases() {
     let sc = Scenario::paper();
     let [clean, noise, bias] = cases([10.0, 10.0, 10.0]);
-    let j = judge_simulated(ConfigId::M1Pa, &sc, 1, &clean.defect).unwrap();
+    let j = judge_simulated(
+        ConfigId::M1Pa,
+        rollcal::models::ErrorModel::Installation,
+        &sc,
+        1,
+        &clean.defect,
+    )
+    .unwrap();
     assert_eq!(j.verdict, DataVerdict::Consistent, "{}", j.verdict);
-    let j = judge_simulated(ConfigId::M1Pa, &sc, 1, &noise.defect).unwrap();
+    let j = judge_simulated(
+        ConfigId::M1Pa,
+        rollcal::models::ErrorModel::Installation,
+        &sc,
+        1,
+        &noise.defect,
+    )
+    .unwrap();
     assert!(
         j.checks
             .iter()
@@ -281,7 +295,14 @@ fn m1_pa_in_process_cases() {
         "{}",
         j.verdict
     );
-    let j = judge_simulated(ConfigId::M1Pa, &sc, 1, &bias.defect).unwrap();
+    let j = judge_simulated(
+        ConfigId::M1Pa,
+        rollcal::models::ErrorModel::Installation,
+        &sc,
+        1,
+        &bias.defect,
+    )
+    .unwrap();
     assert!(j.verdict.is_warning(), "{}", j.verdict);
 }
 

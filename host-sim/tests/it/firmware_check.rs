@@ -41,6 +41,7 @@ fn estimate(x: &[f64]) -> Estimate {
 fn estimate_of(x: &[f64], kind: EstimateKind) -> Estimate {
     let mut e = Estimate {
         config: ConfigId::M1Pa,
+        errors: rollcal::models::ErrorModel::Installation,
         seq: 7,
         updates: 7,
         state: Default::default(),

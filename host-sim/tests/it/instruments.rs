@@ -312,7 +312,7 @@ fn instrumented_scenario_has_the_spec_values() {
     assert_eq!(ins.ba_ug, [30.0, -20.0, 45.0]);
     assert_eq!(ins.ka_ppm, [40.0, -25.0, 35.0]);
     assert!(!ins.is_zero());
-    let s0 = ins.sigma0();
+    let s0 = ins.prior.to_wire().sigma();
     assert_eq!(s0[0], DEG_H);
     assert_eq!(s0[11], DEG_H);
     assert_eq!(s0[12], 2000.0 * PPM);

@@ -8,6 +8,7 @@
 
 mod support;
 
+mod calibrate_full;
 mod checks;
 mod cli;
 mod cli_defects;

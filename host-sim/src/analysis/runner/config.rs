@@ -8,7 +8,7 @@ use rollcal::estimator::LogRecord;
 use rollcal::geometry::EARTH_RATE;
 use rollcal::models::{Environment, ErrorModel, Layout};
 
-use crate::sim::scenario::{Instruments, Scenario, ARCSEC, DEG};
+use crate::sim::scenario::{Scenario, ARCSEC, DEG};
 use crate::sim::truth::PeriodSample;
 
 /// The measurement of a simulated period in precision `T`.
@@ -78,11 +78,26 @@ pub(super) fn initial<const N: usize>(
 
 /// The prior σ of every state of `layout` (internal units): `angle_rad`
 /// (rad) on the installation states, then, for the full model, the
-/// instrument priors of `instruments` (rad/s, rad/s/g, 1, g, 1; SPEC §8).
-pub fn prior_sigma(layout: Layout, angle_rad: f64, instruments: &Instruments) -> Vec<f64> {
+/// instrument priors `instruments` (rad/s, rad/s/g, 1, g, 1; SPEC §8): the
+/// calibrator's prior ([`rollcal::wire::InstrumentPrior::sigma`]).
+pub fn prior_sigma(
+    layout: Layout,
+    angle_rad: f64,
+    instruments: &rollcal::wire::InstrumentPrior,
+) -> Vec<f64> {
     let mut s = vec![angle_rad; layout.installation_n()];
     if layout.errors == ErrorModel::Full {
-        s.extend(instruments.sigma0());
+        s.extend(instruments.sigma());
     }
     s
+}
+
+/// The prior σ of every state of a calibrator's settings (its
+/// configuration and error model): [`prior_sigma`] of the `Configure`.
+pub fn prior_sigma_of(settings: &rollcal::wire::CalibratorConfig) -> Vec<f64> {
+    prior_sigma(
+        settings.config.layout_with(settings.errors),
+        settings.prior_sigma_rad,
+        &settings.instrument_prior,
+    )
 }

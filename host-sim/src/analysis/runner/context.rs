@@ -87,7 +87,11 @@ impl<'a> SimulatedRun<'a> {
     /// scenario's `[prior]` on the installation states, its
     /// `[instruments.prior]` on the instrument states of the full model.
     pub fn prior_sigma(&self) -> Vec<f64> {
-        prior_sigma(self.layout(), self.sigma0(), &self.scenario.instruments)
+        prior_sigma(
+            self.layout(),
+            self.sigma0(),
+            &self.scenario.instruments.prior.to_wire(),
+        )
     }
 
     /// The true state at instant `at` (internal units), in the model's
