@@ -55,7 +55,7 @@ impl Problem {
             prior: prior_sigma(
                 id.layout_with(errors),
                 s.prior.sigma_deg * DEG,
-                &s.instruments,
+                &s.instruments.prior.to_wire(),
             ),
             period_s: s.timing.period_s,
             max_beta: max_beta_deg * DEG,
