@@ -20,7 +20,7 @@ use nalgebra::{RealField, SMatrix, SVector, Vector3};
 use rollcal::command::CommandFrame;
 use rollcal::estimator::{EstimatorOptions, LogRecord, SampleLog, SliceLog};
 use rollcal::geometry::{quaternion_from_dcm, wrap_angles};
-use rollcal::models::{ConfigId, Environment, Layout};
+use rollcal::models::{ConfigId, Environment, ErrorModel, Layout};
 use rollcal::session::{AnyCalibrator, Reply, Session, SessionError};
 use rollcal::wire::{
     encode, CalibratorConfig, Checkpoint, Estimate, EstimateKind, FrameDecoder, Message, Progress,
@@ -89,6 +89,10 @@ fn value32(u: &mut Unstructured, plausible: f32) -> Result<f32> {
 /// Settings for `id`: the paper's, rarely perturbed or garbage.
 fn settings(u: &mut Unstructured, id: ConfigId) -> Result<CalibratorConfig> {
     let mut s = CalibratorConfig::paper(id);
+    // The full model (21 more states) in a quarter of the runs.
+    if rare(u, 4) {
+        s.errors = ErrorModel::Full;
+    }
     s.estimate_every = match u.int_in_range(0..=7u8)? {
         0..=2 => 60,
         3 => 0,
@@ -103,6 +107,10 @@ fn settings(u: &mut Unstructured, id: ConfigId) -> Result<CalibratorConfig> {
             *v = value(u, *v)?;
         }
         s.prior_sigma_rad = value(u, s.prior_sigma_rad)?;
+        let p = &mut s.instrument_prior;
+        for v in [&mut p.dg_rad_s, &mut p.d_g_rad_s_g, &mut p.kg, &mut p.ba_g, &mut p.ka] {
+            *v = value(u, *v)?;
+        }
         let l = &mut s.limits;
         l.period_s = value(u, l.period_s)?;
         l.period_tolerance_s = value(u, l.period_tolerance_s)?;
@@ -706,8 +714,8 @@ impl<T: RealField + Copy> Harness<'_, T> {
                 let Reply::Send(Message::Checkpoint(cp)) = &reply else {
                     panic!("{reply:?}")
                 };
-                let n = c.settings().config.layout().n();
-                assert_eq!(cp.config, c.settings().config);
+                let n = c.settings().config.layout_with(c.settings().errors).n();
+                assert_eq!((cp.config, cp.errors), (c.settings().config, c.settings().errors));
                 assert_eq!((cp.state.len(), cp.factor.len()), (n, n * n));
                 assert!(same_progress(&cp.progress, c.progress()));
                 // Its own checkpoint restores, bit-identically — except
@@ -822,8 +830,8 @@ impl<T: RealField + Copy> Harness<'_, T> {
     /// An estimate of calibrator `c`: its configuration, bookkeeping and
     /// the frame-error count the harness gave it.
     fn check_estimate(&self, c: &AnyCalibrator<T>, e: &Estimate) {
-        let n = c.settings().config.layout().n();
-        assert_eq!(e.config, c.settings().config);
+        let n = c.settings().config.layout_with(c.settings().errors).n();
+        assert_eq!((e.config, e.errors), (c.settings().config, c.settings().errors));
         assert_eq!((e.state.len(), e.sigma.len()), (n, n));
         assert!(same_progress(&e.progress, c.progress()));
         assert_eq!(e.seq, c.progress().last_seq.unwrap_or(0));
