@@ -541,3 +541,121 @@ fn print_annotated_examples() {
         }
     }
 }
+
+/// The hex of a value's little-endian bytes (the Python decoder's floats).
+fn bits<T: Serialize>(v: &T) -> String {
+    pc(v).iter().map(|b| format!("{b:02x}")).collect()
+}
+
+fn run_python(args: &[&str]) -> String {
+    let root = env!("CARGO_MANIFEST_DIR");
+    let out = std::process::Command::new("python3")
+        .arg(format!("{root}/tools/wire_decode.py"))
+        .args(args)
+        .output()
+        .expect("python3 runs (tools/wire_decode.py)");
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        out.status.success(),
+        "tools/wire_decode.py {args:?} failed:\n{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    text
+}
+
+/// An independent decoder written from the page alone (`tools/wire_decode.py`)
+/// reads the recorded stream (5401 frames) bit-identically to the Rust
+/// decoder, and reads every worked example (the replies included) to the
+/// fields the Rust side built.
+#[test]
+fn a_python_decoder_written_from_the_page_reads_the_stream_and_every_example() {
+    let root = env!("CARGO_MANIFEST_DIR");
+    let samples_path = std::env::temp_dir().join(format!("wire_doc_{}.txt", std::process::id()));
+    let samples_arg = samples_path.to_str().unwrap();
+    let stream = run_python(&[
+        "stream",
+        &format!("{root}/tests/data/paper_seed1.bin"),
+        "--samples",
+        samples_arg,
+    ]);
+    let got = std::fs::read_to_string(&samples_path).unwrap();
+    std::fs::remove_file(&samples_path).ok();
+    assert!(
+        stream.contains("frames ok=5401 truncated=0 corrupt=0 wrong_version=0 malformed=0 empty=0"),
+        "{stream}"
+    );
+    assert!(stream.contains("messages Configure=1 Sample=5400"), "{stream}");
+    let (_, samples) = crate::support::paper_stream();
+    let want: String = samples
+        .iter()
+        .map(|s| {
+            let mut f = vec![s.seq.to_string(), s.t_us.to_string(), bits(&s.dt)];
+            f.extend(s.dtheta_cmd.iter().map(bits));
+            f.extend(s.c_cn_quat.iter().map(bits));
+            f.extend(s.accel_mean.iter().map(bits));
+            match s.gimbal {
+                Some(g) => f.extend(g.iter().map(bits)),
+                None => f.push("none".into()),
+            }
+            f.join(" ") + "\n"
+        })
+        .collect();
+    assert_eq!(got.lines().count(), 5400);
+    for (i, (a, b)) in got.lines().zip(want.lines()).enumerate() {
+        assert_eq!(a, b, "sample {i}: Python decoder vs Rust decoder");
+    }
+
+    let doc = run_python(&["doc", &format!("{root}/docs/wire.md")]);
+    let single_pass = |r: SinglePassReason| format!("{r:?}");
+    for (name, msg) in examples() {
+        let line = doc
+            .lines()
+            .find(|l| l.starts_with(&format!("{name}: ")))
+            .unwrap_or_else(|| panic!("the Python decoder did not read `{name}`:\n{doc}"));
+        let expect: Vec<String> = match &msg {
+            Message::Sample(s) => vec![format!("seq={}", s.seq), format!("t_us={}", s.t_us)],
+            Message::Estimate(e) => {
+                let kind = match e.kind {
+                    EstimateKind::Running => "Running".to_string(),
+                    EstimateKind::Final { passes, converged } => format!(
+                        "Final(passes={passes}, converged={})",
+                        if converged { "True" } else { "False" }
+                    ),
+                    EstimateKind::SinglePass { reason, logged } => {
+                        format!("SinglePass(reason={}, logged={logged})", single_pass(reason))
+                    }
+                };
+                vec![
+                    format!("Estimate config={} errors={:?}", e.config, e.errors),
+                    format!("seq={} updates={}", e.seq, e.updates),
+                    format!("state.len={} sigma.len={}", e.state.len(), e.sigma.len()),
+                    format!("progress.last_nis={}", bits(&e.progress.last_nis)),
+                    format!("progress.logged={}", e.progress.logged),
+                    format!(
+                        "progress.log_incomplete={}",
+                        e.progress.log_incomplete.map_or("None".into(), single_pass)
+                    ),
+                    format!("progress.rejects.duplicate={}", e.progress.rejects.duplicate),
+                    format!("frame_errors={} kind={kind}", e.frame_errors),
+                ]
+            }
+            Message::Checkpoint(c) => vec![
+                format!("factor.len={}", c.factor.len()),
+                format!("updates={} gated_run={}", c.updates, c.gated_run),
+                format!("progress.accepted={}", c.progress.accepted),
+            ],
+            Message::Configure(c) => vec![
+                format!("Configure config={}", c.config),
+                format!("options.nis_gate={}", bits(&c.options.nis_gate)),
+                format!("limits.max_bridge={}", c.limits.max_bridge),
+                format!("estimate_every={} errors={:?}", c.estimate_every, c.errors),
+                format!("instrument_prior.dg_rad_s={}", bits(&c.instrument_prior.dg_rad_s)),
+                format!("instrument_prior.ka={}", bits(&c.instrument_prior.ka)),
+            ],
+            other => vec![format!("{other:?}")],
+        };
+        for e in expect {
+            assert!(line.contains(&e), "{name}: the Python decoder's line lacks `{e}`:\n{line}");
+        }
+    }
+}
