@@ -194,12 +194,18 @@ fn every_worked_example_is_the_encoders_output_and_decodes() {
     for (name, msg) in examples() {
         let want = frame(&msg);
         if print {
-            println!("frame ({name}): {} bytes\n{}\n", want.len(), hex_lines(&want, 24));
+            println!(
+                "frame ({name}): {} bytes\n{}\n",
+                want.len(),
+                hex_lines(&want, 24)
+            );
             let r = raw(&msg);
             println!("raw ({name}): {} bytes\n{}\n", r.len(), hex_lines(&r, 8));
         }
         match block("frame", name) {
-            None => failures.push(format!("docs/wire.md has no `frame ({name}): N bytes` block")),
+            None => failures.push(format!(
+                "docs/wire.md has no `frame ({name}): N bytes` block"
+            )),
             Some((stated, got)) => {
                 if got != want {
                     failures.push(format!(
@@ -207,7 +213,10 @@ fn every_worked_example_is_the_encoders_output_and_decodes() {
                         hex_lines(&want, 24)
                     ));
                 } else if stated != want.len() {
-                    failures.push(format!("frame ({name}): {} bytes, the page says {stated}", want.len()));
+                    failures.push(format!(
+                        "frame ({name}): {} bytes, the page says {stated}",
+                        want.len()
+                    ));
                 }
                 // The page's bytes decode to the message: re-encoded
                 // bit-identical (a NaN field is not `==` itself).
@@ -215,7 +224,9 @@ fn every_worked_example_is_the_encoders_output_and_decodes() {
                 f.pop();
                 match decode_frame(&mut f) {
                     Ok(back) if frame(&back) == got => {}
-                    other => failures.push(format!("frame ({name}): the page's hex decodes to {other:?}")),
+                    other => failures.push(format!(
+                        "frame ({name}): the page's hex decodes to {other:?}"
+                    )),
                 }
             }
         }
@@ -368,11 +379,31 @@ fn configure_of(max: bool) -> Message {
 fn the_pages_frame_sizes_are_measured() {
     let rows: Vec<(String, Message, Message)> = vec![
         ("`Sample`".into(), sample_of(false), sample_of(true)),
-        ("`Estimate`, 18 states".into(), estimate_of(18, false), estimate_of(18, true)),
-        ("`Estimate`, 39 states".into(), estimate_of(39, false), estimate_of(39, true)),
-        ("`Checkpoint`, 18 states".into(), checkpoint_of(18, false), checkpoint_of(18, true)),
-        ("`Checkpoint`, 39 states".into(), checkpoint_of(39, false), checkpoint_of(39, true)),
-        ("`Configure`".into(), configure_of(false), configure_of(true)),
+        (
+            "`Estimate`, 18 states".into(),
+            estimate_of(18, false),
+            estimate_of(18, true),
+        ),
+        (
+            "`Estimate`, 39 states".into(),
+            estimate_of(39, false),
+            estimate_of(39, true),
+        ),
+        (
+            "`Checkpoint`, 18 states".into(),
+            checkpoint_of(18, false),
+            checkpoint_of(18, true),
+        ),
+        (
+            "`Checkpoint`, 39 states".into(),
+            checkpoint_of(39, false),
+            checkpoint_of(39, true),
+        ),
+        (
+            "`Configure`".into(),
+            configure_of(false),
+            configure_of(true),
+        ),
         (
             "`Reset`, `CheckpointRequest`, `EstimateRequest`, `Finish`".into(),
             Message::Reset,
@@ -391,7 +422,11 @@ fn the_pages_frame_sizes_are_measured() {
             missing.push(row);
         }
     }
-    assert!(missing.is_empty(), "docs/wire.md lacks the rows\n{}", missing.join("\n"));
+    assert!(
+        missing.is_empty(),
+        "docs/wire.md lacks the rows\n{}",
+        missing.join("\n")
+    );
 }
 
 /// The raw bytes of a message field by field, with a label each: the page's
@@ -410,11 +445,26 @@ fn annotated(msg: &Message) -> Vec<(Vec<u8>, String)> {
         }
     };
     let progress = |f: &mut dyn FnMut(Vec<u8>, String), p: &Progress| {
-        f(pc(&p.last_seq), format!("progress.last_seq = {:?}", p.last_seq));
-        f(pc(&p.last_t_us), format!("progress.last_t_us = {:?}", p.last_t_us));
-        f(pc(&p.last_increment), format!("progress.last_increment = {:?}", p.last_increment));
-        f(pc(&p.clock_candidate), format!("progress.clock_candidate = {:?}", p.clock_candidate));
-        f(pc(&p.last_nis), format!("progress.last_nis = {:?}", p.last_nis));
+        f(
+            pc(&p.last_seq),
+            format!("progress.last_seq = {:?}", p.last_seq),
+        );
+        f(
+            pc(&p.last_t_us),
+            format!("progress.last_t_us = {:?}", p.last_t_us),
+        );
+        f(
+            pc(&p.last_increment),
+            format!("progress.last_increment = {:?}", p.last_increment),
+        );
+        f(
+            pc(&p.clock_candidate),
+            format!("progress.clock_candidate = {:?}", p.clock_candidate),
+        );
+        f(
+            pc(&p.last_nis),
+            format!("progress.last_nis = {:?}", p.last_nis),
+        );
         for (name, v) in [
             ("accepted", p.accepted),
             ("bridged", p.bridged),
@@ -425,9 +475,15 @@ fn annotated(msg: &Message) -> Vec<(Vec<u8>, String)> {
         ] {
             f(pc(&v), format!("progress.{name} = {v}"));
         }
-        f(pc(&p.log_incomplete), format!("progress.log_incomplete = {:?}", p.log_incomplete));
+        f(
+            pc(&p.log_incomplete),
+            format!("progress.log_incomplete = {:?}", p.log_incomplete),
+        );
         f(pc(&p.gated), format!("progress.gated = {}", p.gated));
-        f(pc(&p.since_estimate), format!("progress.since_estimate = {}", p.since_estimate));
+        f(
+            pc(&p.since_estimate),
+            format!("progress.since_estimate = {}", p.since_estimate),
+        );
         let r = &p.rejects;
         let nonzero: Vec<String> = [
             ("duplicate", r.duplicate),
@@ -456,7 +512,10 @@ fn annotated(msg: &Message) -> Vec<(Vec<u8>, String)> {
             for (i, x) in s.c_cn_quat.iter().enumerate() {
                 f(pc(x), format!("c_cn_quat[{i}] = {x:e} (f32)"));
             }
-            f(pc(&s.accel_mean), format!("accel_mean = {:?} (3 × f32)", s.accel_mean));
+            f(
+                pc(&s.accel_mean),
+                format!("accel_mean = {:?} (3 × f32)", s.accel_mean),
+            );
             f(pc(&s.gimbal), format!("gimbal = {:?}", s.gimbal));
         }
         Message::Estimate(e) => {
@@ -464,42 +523,117 @@ fn annotated(msg: &Message) -> Vec<(Vec<u8>, String)> {
             f(pc(&e.errors), format!("errors = {:?}", e.errors));
             f(pc(&e.seq), format!("seq = {}", e.seq));
             f(pc(&e.updates), format!("updates = {}", e.updates));
-            f(pc(&(e.state.len() as u32)), format!("state: length {}", e.state.len()));
+            f(
+                pc(&(e.state.len() as u32)),
+                format!("state: length {}", e.state.len()),
+            );
             floats(&mut f, "state", &e.state);
-            f(pc(&(e.sigma.len() as u32)), format!("sigma: length {}", e.sigma.len()));
+            f(
+                pc(&(e.sigma.len() as u32)),
+                format!("sigma: length {}", e.sigma.len()),
+            );
             floats(&mut f, "sigma", &e.sigma);
             progress(&mut f, &e.progress);
-            f(pc(&e.frame_errors), format!("frame_errors = {}", e.frame_errors));
+            f(
+                pc(&e.frame_errors),
+                format!("frame_errors = {}", e.frame_errors),
+            );
             f(pc(&e.kind), format!("kind = {:?}", e.kind));
         }
         Message::Configure(c) => {
             f(pc(&c.config), format!("config = {:?}", c.config));
-            f(pc(&c.sigma_accel_g), format!("sigma_accel_g = {:e}", c.sigma_accel_g));
-            f(pc(&c.sigma_gyro_rad_s), format!("sigma_gyro_rad_s = {:e}", c.sigma_gyro_rad_s));
-            f(pc(&c.sigma_gimbal_rad), format!("sigma_gimbal_rad = {:e}", c.sigma_gimbal_rad));
+            f(
+                pc(&c.sigma_accel_g),
+                format!("sigma_accel_g = {:e}", c.sigma_accel_g),
+            );
+            f(
+                pc(&c.sigma_gyro_rad_s),
+                format!("sigma_gyro_rad_s = {:e}", c.sigma_gyro_rad_s),
+            );
+            f(
+                pc(&c.sigma_gimbal_rad),
+                format!("sigma_gimbal_rad = {:e}", c.sigma_gimbal_rad),
+            );
             floats(&mut f, "earth_rate_n", &c.earth_rate_n);
             floats(&mut f, "gravity_n", &c.gravity_n);
-            f(pc(&c.prior_sigma_rad), format!("prior_sigma_rad = {:e}", c.prior_sigma_rad));
+            f(
+                pc(&c.prior_sigma_rad),
+                format!("prior_sigma_rad = {:e}", c.prior_sigma_rad),
+            );
             let o = &c.options;
-            f(pc(&o.second_order_covariance), format!("options.second_order_covariance = {}", o.second_order_covariance));
-            f(pc(&o.second_order_mean), format!("options.second_order_mean = {}", o.second_order_mean));
-            f(pc(&o.second_order_dynamics), format!("options.second_order_dynamics = {}", o.second_order_dynamics));
-            f(pc(&o.iterations), format!("options.iterations = {} (u8)", o.iterations));
-            f(pc(&o.iterate_updates), format!("options.iterate_updates = {}", o.iterate_updates));
-            f(pc(&o.nis_gate), format!("options.nis_gate = {:?}", o.nis_gate));
+            f(
+                pc(&o.second_order_covariance),
+                format!(
+                    "options.second_order_covariance = {}",
+                    o.second_order_covariance
+                ),
+            );
+            f(
+                pc(&o.second_order_mean),
+                format!("options.second_order_mean = {}", o.second_order_mean),
+            );
+            f(
+                pc(&o.second_order_dynamics),
+                format!(
+                    "options.second_order_dynamics = {}",
+                    o.second_order_dynamics
+                ),
+            );
+            f(
+                pc(&o.iterations),
+                format!("options.iterations = {} (u8)", o.iterations),
+            );
+            f(
+                pc(&o.iterate_updates),
+                format!("options.iterate_updates = {}", o.iterate_updates),
+            );
+            f(
+                pc(&o.nis_gate),
+                format!("options.nis_gate = {:?}", o.nis_gate),
+            );
             let l = &c.limits;
-            f(pc(&l.period_s), format!("limits.period_s = {:?}", l.period_s));
-            f(pc(&l.period_tolerance_s), format!("limits.period_tolerance_s = {:e}", l.period_tolerance_s));
-            f(pc(&l.max_accel_g), format!("limits.max_accel_g = {:?}", l.max_accel_g));
-            f(pc(&l.max_increment_rad), format!("limits.max_increment_rad = {:?}", l.max_increment_rad));
-            f(pc(&l.max_gimbal_rad), format!("limits.max_gimbal_rad = {:?} (2π)", l.max_gimbal_rad));
-            f(pc(&l.max_bridge), format!("limits.max_bridge = {}", l.max_bridge));
-            f(pc(&l.frame_tolerance_rad), format!("limits.frame_tolerance_rad = {:e}", l.frame_tolerance_rad));
-            f(pc(&c.estimate_every), format!("estimate_every = {}", c.estimate_every));
+            f(
+                pc(&l.period_s),
+                format!("limits.period_s = {:?}", l.period_s),
+            );
+            f(
+                pc(&l.period_tolerance_s),
+                format!("limits.period_tolerance_s = {:e}", l.period_tolerance_s),
+            );
+            f(
+                pc(&l.max_accel_g),
+                format!("limits.max_accel_g = {:?}", l.max_accel_g),
+            );
+            f(
+                pc(&l.max_increment_rad),
+                format!("limits.max_increment_rad = {:?}", l.max_increment_rad),
+            );
+            f(
+                pc(&l.max_gimbal_rad),
+                format!("limits.max_gimbal_rad = {:?} (2π)", l.max_gimbal_rad),
+            );
+            f(
+                pc(&l.max_bridge),
+                format!("limits.max_bridge = {}", l.max_bridge),
+            );
+            f(
+                pc(&l.frame_tolerance_rad),
+                format!("limits.frame_tolerance_rad = {:e}", l.frame_tolerance_rad),
+            );
+            f(
+                pc(&c.estimate_every),
+                format!("estimate_every = {}", c.estimate_every),
+            );
             f(pc(&c.errors), format!("errors = {:?}", c.errors));
             let p = &c.instrument_prior;
-            f(pc(&p.dg_rad_s), format!("instrument_prior.dg_rad_s = {:e}", p.dg_rad_s));
-            f(pc(&p.d_g_rad_s_g), format!("instrument_prior.d_g_rad_s_g = {:e}", p.d_g_rad_s_g));
+            f(
+                pc(&p.dg_rad_s),
+                format!("instrument_prior.dg_rad_s = {:e}", p.dg_rad_s),
+            );
+            f(
+                pc(&p.d_g_rad_s_g),
+                format!("instrument_prior.d_g_rad_s_g = {:e}", p.d_g_rad_s_g),
+            );
             f(pc(&p.kg), format!("instrument_prior.kg = {:e}", p.kg));
             f(pc(&p.ba_g), format!("instrument_prior.ba_g = {:e}", p.ba_g));
             f(pc(&p.ka), format!("instrument_prior.ka = {:e}", p.ka));
@@ -509,7 +643,13 @@ fn annotated(msg: &Message) -> Vec<(Vec<u8>, String)> {
     let r = raw(msg);
     let crc = r[r.len() - 4..].to_vec();
     let c = u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]);
-    out.push((crc, format!("CRC-32 of the {} bytes above = 0x{c:08X}, little-endian", r.len() - 4)));
+    out.push((
+        crc,
+        format!(
+            "CRC-32 of the {} bytes above = 0x{c:08X}, little-endian",
+            r.len() - 4
+        ),
+    ));
     let joined: Vec<u8> = out.iter().flat_map(|(b, _)| b.clone()).collect();
     assert_eq!(joined, r, "the annotation's fields are the message's bytes");
     out
@@ -584,7 +724,10 @@ fn a_python_decoder_written_from_the_page_reads_the_stream_and_every_example() {
         stream.contains("frames ok=5401 truncated=0 corrupt=0 wrong_version=0 malformed=0 empty=0"),
         "{stream}"
     );
-    assert!(stream.contains("messages Configure=1 Sample=5400"), "{stream}");
+    assert!(
+        stream.contains("messages Configure=1 Sample=5400"),
+        "{stream}"
+    );
     let (_, samples) = crate::support::paper_stream();
     let want: String = samples
         .iter()
@@ -622,7 +765,10 @@ fn a_python_decoder_written_from_the_page_reads_the_stream_and_every_example() {
                         if converged { "True" } else { "False" }
                     ),
                     EstimateKind::SinglePass { reason, logged } => {
-                        format!("SinglePass(reason={}, logged={logged})", single_pass(reason))
+                        format!(
+                            "SinglePass(reason={}, logged={logged})",
+                            single_pass(reason)
+                        )
                     }
                 };
                 vec![
@@ -635,7 +781,10 @@ fn a_python_decoder_written_from_the_page_reads_the_stream_and_every_example() {
                         "progress.log_incomplete={}",
                         e.progress.log_incomplete.map_or("None".into(), single_pass)
                     ),
-                    format!("progress.rejects.duplicate={}", e.progress.rejects.duplicate),
+                    format!(
+                        "progress.rejects.duplicate={}",
+                        e.progress.rejects.duplicate
+                    ),
                     format!("frame_errors={} kind={kind}", e.frame_errors),
                 ]
             }
@@ -649,13 +798,19 @@ fn a_python_decoder_written_from_the_page_reads_the_stream_and_every_example() {
                 format!("options.nis_gate={}", bits(&c.options.nis_gate)),
                 format!("limits.max_bridge={}", c.limits.max_bridge),
                 format!("estimate_every={} errors={:?}", c.estimate_every, c.errors),
-                format!("instrument_prior.dg_rad_s={}", bits(&c.instrument_prior.dg_rad_s)),
+                format!(
+                    "instrument_prior.dg_rad_s={}",
+                    bits(&c.instrument_prior.dg_rad_s)
+                ),
                 format!("instrument_prior.ka={}", bits(&c.instrument_prior.ka)),
             ],
             other => vec![format!("{other:?}")],
         };
         for e in expect {
-            assert!(line.contains(&e), "{name}: the Python decoder's line lacks `{e}`:\n{line}");
+            assert!(
+                line.contains(&e),
+                "{name}: the Python decoder's line lacks `{e}`:\n{line}"
+            );
         }
     }
 }
