@@ -814,3 +814,28 @@ fn a_python_decoder_written_from_the_page_reads_the_stream_and_every_example() {
         }
     }
 }
+
+/// The prose of the worked examples: the numbers it quotes are the bytes'.
+#[test]
+fn the_worked_examples_prose_is_the_bytes() {
+    let r = raw(&Message::Checkpoint(checkpoint()));
+    let quoted = format!("`raw` ({} bytes)", r.len());
+    assert!(
+        PAGE.contains(&quoted),
+        "docs/wire.md §Checkpoint lacks {quoted}"
+    );
+    let diag = hex_lines(
+        &pc(&CalibratorConfig::paper(ConfigId::M1Pa)
+            .prior_sigma_rad
+            .powi(2)),
+        8,
+    );
+    assert!(
+        PAGE.contains(&format!("`{diag}`")),
+        "docs/wire.md §Checkpoint lacks `{diag}`"
+    );
+    let r = raw(&Message::Estimate(final_estimate()));
+    let tail = hex_lines(&r[r.len() - 8..r.len() - 4], 8);
+    assert_eq!(tail, "00 01 03 01");
+    assert!(PAGE.contains(&format!("ends in `… {tail}`")));
+}
