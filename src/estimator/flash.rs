@@ -19,10 +19,13 @@
 //! | 12+n … 12+n+3 | CRC-32 ([`crate::wire::crc32`]) of the bytes before it |
 //! | the rest | padding, left erased (`0xFF`) |
 //!
-//! That is 43 bytes for the accelerometer-only layouts, 52 for M2-ps: with a
-//! `WRITE_SIZE` of 1, 2 or 4 a period takes 44 or 52 bytes (48 and 56 with
-//! 8 or 16), and the paper's 5 400 periods 237 600 bytes (232 KiB) or
-//! 280 800 bytes (274 KiB), plus the unused bytes at the end of each sector.
+//! That is 43 bytes for the accelerometer-only layout and 52 for M2-ps,
+//! rounded up to the write and read sizes: 44 and 52 bytes per period
+//! with 4-byte words, 48 and 56 with 8-byte words, 48 and 64 with 16-byte
+//! ones. With 4-byte words and 4 KiB sectors (93 and 78 slots a sector)
+//! the paper's 5 400 periods take 59 sectors (236 KiB) and 70 sectors
+//! (280 KiB) (`cargo test --release -p rollcal --test it flash_log::
+//! -- --nocapture` prints it).
 //!
 //! # Writing
 //!
@@ -278,11 +281,7 @@ impl<F: NorFlash, T: RealField + Copy, const S: usize> FlashLog<F, T, S> {
     ///
     /// Errors: [`FlashLogError::Region`], [`FlashLogError::Geometry`], or a
     /// failed read ([`FlashLogError::Flash`]).
-    pub fn open(
-        flash: F,
-        region: Range<u32>,
-        layout: PackedLayout,
-    ) -> Result<Self, FlashLogError> {
+    pub fn open(flash: F, region: Range<u32>, layout: PackedLayout) -> Result<Self, FlashLogError> {
         let erase = F::ERASE_SIZE;
         let slot = Self::slot_len_of(layout);
         // Slots start at multiples of their length inside a sector, so a

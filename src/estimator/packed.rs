@@ -264,7 +264,6 @@ impl<'a, T: RealField + Copy> PackedLog<'a, T> {
         self.used_periods += 1;
         Some(i)
     }
-
 }
 
 /// The bytes of a packed record, with 8 bytes of slack for the 64-bit
@@ -274,7 +273,10 @@ pub(super) type Bits = [u8; MAX_RECORD + 8];
 /// `record`'s fields in `layout` (the period-length index left 0); `None`
 /// when a value is out of its field's range or the record has gimbal
 /// angles that `layout` does not store.
-pub(super) fn pack<T: RealField + Copy>(layout: PackedLayout, record: &LogRecord<T>) -> Option<Bits> {
+pub(super) fn pack<T: RealField + Copy>(
+    layout: PackedLayout,
+    record: &LogRecord<T>,
+) -> Option<Bits> {
     let mut bits = [0u8; MAX_RECORD + 8];
     for (f, v) in DTHETA.iter().zip(record.dtheta_cmd.iter()) {
         let q = f.quantise(*v)?;

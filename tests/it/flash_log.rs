@@ -202,7 +202,10 @@ fn packed(layout: PackedLayout, records: &[LogRecord<f64>]) -> Vec<LogRecord<f64
 /// Every record of `log`.
 fn contents(log: &mut dyn SampleLog<f64>) -> Vec<LogRecord<f64>> {
     (0..log.len())
-        .map(|k| log.get(k).unwrap_or_else(|| panic!("record {k} reads back")))
+        .map(|k| {
+            log.get(k)
+                .unwrap_or_else(|| panic!("record {k} reads back"))
+        })
         .collect()
 }
 
@@ -246,7 +249,8 @@ macro_rules! paper_run {
         let mut bytes = vec![0u8; samples.len() * layout.record_len()];
         let mut table = [0.0; MAX_PERIODS];
         let mut in_ram = PackedLog::new(&mut bytes, &mut table, layout);
-        let mut storage = vec![LogRecord::predicted(1.0, nalgebra::Vector3::zeros()); samples.len()];
+        let mut storage =
+            vec![LogRecord::predicted(1.0, nalgebra::Vector3::zeros()); samples.len()];
         let mut full = SliceLog::new(&mut storage);
         let mut cal_ram = <$cal>::new(cfg).unwrap();
         let mut cal_full = <$cal>::new(cfg).unwrap();
@@ -258,7 +262,11 @@ macro_rules! paper_run {
         let (on_flash, _) = cal.finish(&mut flash, &opts, |_| {});
         let (on_ram, _) = cal_ram.finish(&mut in_ram, &opts, |_| {});
         let (on_full, _) = cal_full.finish(&mut full, &opts, |_| {});
-        assert!(matches!(on_flash.kind, EstimateKind::Final { .. }), "{:?}", on_flash.kind);
+        assert!(
+            matches!(on_flash.kind, EstimateKind::Final { .. }),
+            "{:?}",
+            on_flash.kind
+        );
         assert_eq!(bits(&on_flash), bits(&on_ram));
         let worst = on_flash
             .state
@@ -267,7 +275,11 @@ macro_rules! paper_run {
             .zip(&on_full.sigma)
             .map(|((a, b), s)| ((a - b) / s).abs())
             .fold(0.0f64, f64::max);
-        assert!(worst < 0.01, "{}: the flash log moved the answer by {worst:.3e}σ", id.as_str());
+        assert!(
+            worst < 0.01,
+            "{}: the flash log moved the answer by {worst:.3e}σ",
+            id.as_str()
+        );
         // After a reset: the run read back from the device, the same answer.
         let dev = flash.into_inner();
         let (writes, erases) = (dev.writes, dev.erases);
@@ -297,7 +309,12 @@ macro_rules! paper_run {
 
 #[test]
 fn the_paper_run_on_flash_gives_the_packed_logs_answer_bit_for_bit() {
-    let (slot, used) = paper_run!(M2PsCalibrator<f64>, ConfigId::M2Ps, PackedLayout::AccelGimbal, 52);
+    let (slot, used) = paper_run!(
+        M2PsCalibrator<f64>,
+        ConfigId::M2Ps,
+        PackedLayout::AccelGimbal,
+        52
+    );
     assert_eq!((slot, used), (52, 70 * 4096));
     let (slot, used) = paper_run!(M1PaCalibrator<f64>, ConfigId::M1Pa, PackedLayout::Accel, 44);
     assert_eq!((slot, used), (44, 59 * 4096));
@@ -321,6 +338,10 @@ fn script() -> Vec<Step> {
     s
 }
 
+/// The device after a script, the log as of the last append that returned
+/// `Ok`, and the log it was truncated to after that, if it was.
+type Outcome<D> = (D, Vec<LogRecord<f64>>, Option<Vec<LogRecord<f64>>>);
+
 /// Runs the script on `dev` until an append fails. Returns the device, the
 /// log as of the last append that returned `Ok` (records completely
 /// written), and the log it was truncated to after that, if it was.
@@ -329,7 +350,7 @@ fn run<const R: usize, const W: usize, const E: usize>(
     region: std::ops::Range<u32>,
     layout: PackedLayout,
     recs: &[LogRecord<f64>],
-) -> (Nor<R, W, E>, Vec<LogRecord<f64>>, Option<Vec<LogRecord<f64>>>) {
+) -> Outcome<Nor<R, W, E>> {
     let mut log = FlashLog::<_, f64>::open(dev, region, layout).unwrap();
     let mut durable: Vec<LogRecord<f64>> = Vec::new();
     let mut pending: Option<Vec<LogRecord<f64>>> = None;
@@ -366,10 +387,19 @@ fn cut_everywhere<const R: usize, const W: usize, const E: usize>(layout: Packed
     let per_sector = E / FlashLog::<Nor<R, W, E>, f64>::slot_len_of(layout);
     let sectors = 40usize.div_ceil(per_sector) + 1;
     let region = E as u32..(E * (sectors + 1)) as u32;
-    let (whole, all, _) = run(Nor::<R, W, E>::new(sectors + 1), region.clone(), layout, &recs);
+    let (whole, all, _) = run(
+        Nor::<R, W, E>::new(sectors + 1),
+        region.clone(),
+        layout,
+        &recs,
+    );
     assert_eq!(all.len(), 9);
     let ops = whole.ops;
-    assert!(whole.erases >= 4, "the run crosses sectors ({} erases)", whole.erases);
+    assert!(
+        whole.erases >= 4,
+        "the run crosses sectors ({} erases)",
+        whole.erases
+    );
     let mut cases = 0;
     for cut in [Cut::Nothing, Cut::Half, Cut::AllButOneWord] {
         for k in 0..ops {
@@ -398,10 +428,11 @@ fn cut_everywhere<const R: usize, const W: usize, const E: usize>(layout: Packed
             // The log goes on after the cut, and a reopen finds it all.
             let base = back.len();
             for r in &recs[34..40] {
-                log.append(r).unwrap_or_else(|e| panic!("{what}: append after resume: {e}"));
+                log.append(r)
+                    .unwrap_or_else(|e| panic!("{what}: append after resume: {e}"));
             }
-            let mut again = FlashLog::<_, f64>::open(log.into_inner(), region.clone(), layout)
-                .unwrap();
+            let mut again =
+                FlashLog::<_, f64>::open(log.into_inner(), region.clone(), layout).unwrap();
             let more = contents(&mut again);
             assert_eq!(more.len(), base + 6, "{what}");
             assert_eq!(&more[..base], &back[..], "{what}");
@@ -440,7 +471,11 @@ fn truncation_starts_a_segment_and_survives_a_reopen() {
         log.append(r).unwrap();
     }
     assert_eq!(log.segments(), 2);
-    let want: Vec<_> = expected[..12].iter().chain(&expected[20..25]).copied().collect();
+    let want: Vec<_> = expected[..12]
+        .iter()
+        .chain(&expected[20..25])
+        .copied()
+        .collect();
     assert_eq!(contents(&mut log), want);
     let mut log = FlashLog::<Dev, f64, 2>::open(log.into_inner(), region.clone(), layout).unwrap();
     assert_eq!(contents(&mut log), want);
