@@ -369,6 +369,9 @@ impl<F: NorFlash, T: RealField + Copy, const S: usize> FlashLog<F, T, S> {
     /// empty and its sectors are erased again as the log reaches them.
     pub fn format(&mut self) -> Result<(), LogError> {
         self.restart();
+        // Nothing is known erased until the erase has returned.
+        self.head = 0;
+        self.erased_to = 0;
         let end = self
             .sectors
             .checked_mul(self.erase_size())
