@@ -6,15 +6,17 @@
 
 use std::path::PathBuf;
 
-use rollcal::models::ConfigId;
+use rollcal::models::{ConfigId, ErrorModel};
 
 use crate::design::{
     check_designed, coarse_check, contributions, dwell_probe, measure_speed, observability_sigma,
-    parse_target, pattern_of, scenario_toml, scenario_with, search, target_groups, targets,
-    CoarseCheck, Design, DwellProbe, Goal, NamedAxis, Outcome, Pattern, Problem, Space, Speed,
-    TargetArg, DEFAULT_STEP_DEG, DWELL_STEPS_S,
+    out_of_reach, parse_target, pattern_of, scenario_toml, scenario_with, search, target_groups,
+    targets_with, CoarseCheck, Design, DesignError, DwellProbe, Goal, InstrumentTargets, NamedAxis,
+    OutOfReach, Outcome, Pattern, Problem, Space, Speed, TargetArg, DEFAULT_STEP_DEG,
+    DWELL_STEPS_S,
 };
-use crate::sim::scenario::{Axis, Scenario, ARCSEC};
+use crate::sim::instruments::printed_value;
+use crate::sim::scenario::{Axis, Scenario, MAX_PERIODS};
 
 /// Arguments of `host-sim design`.
 #[derive(clap::Args, Clone, Debug)]
@@ -26,11 +28,22 @@ pub struct DesignArgs {
     /// reference path the targets default to; default: the paper's scenario.
     #[arg(long, value_name = "FILE")]
     pub scenario: Option<PathBuf>,
-    /// A target σ, NAME=ARCSEC, NAME a state (thgC_x) or a group (thgC);
-    /// repeatable. Default: the reference path's final σ_CRLB on every
-    /// parameter the configuration observes (the parameter block).
-    #[arg(long = "target", value_name = "NAME=ARCSEC", value_parser = parse_target)]
+    /// A target σ, NAME=VALUE, NAME a state (thgC_x) or a group (thgC),
+    /// VALUE in arcseconds (with `--errors full`, an instrument term's in
+    /// °/h, °/h/g, ppm or µg: dg=0.01); repeatable. Default: the reference
+    /// path's final σ_CRLB on every parameter the configuration observes
+    /// (the parameter block); with `--errors full` also dg 0.005 °/h, Dg
+    /// 0.005 °/h/g, kg 1 ppm, ba 1 µg, ka 1 ppm.
+    #[arg(long = "target", value_name = "NAME=VALUE", value_parser = parse_target)]
     pub targets: Vec<TargetArg>,
+    /// Error model of the bound: `installation` (the paper's states) or
+    /// `full` (followed by the instruments' 21 errors, with the scenario's
+    /// `[instruments.prior]`). With `full`, a target out of reach is
+    /// reported with the σ reached and what time or rate reaches it, and
+    /// when no path reaches every target the search falls back to the best
+    /// worst-case σ/target within the duration limit.
+    #[arg(long, default_value = "installation", value_parser = super::args::parse_errors)]
+    pub errors: ErrorModel,
     /// Multiply the default targets by this factor (e.g. 2: half the accuracy).
     #[arg(long, default_value_t = 1.0, value_parser = parse_positive)]
     pub target_scale: f64,
@@ -223,7 +236,7 @@ fn search_until_fine(
     space: &Space,
     goal: Goal,
     max_periods: u64,
-) -> Result<(Design, CoarseCheck), String> {
+) -> Result<(Design, CoarseCheck), DesignError> {
     loop {
         let progress = crate::output::progress::Progress::stderr("design", 1, "candidates");
         let last = std::sync::Mutex::new(0u64);
@@ -280,13 +293,31 @@ fn reference_targets(
         return Err(format!("{id}: the bound cannot start on this scenario"));
     }
     // The default targets: the reference scenario's σ_CRLB exactly as
-    // `host-sim observability --scenario` computes it.
-    let ref_sigma = {
+    // `host-sim observability --scenario` computes it, with the installation
+    // model (with `--errors full` too: the installation errors at the
+    // reference path's σ, as the installation model reaches them there).
+    let sigma_of = |problem: &Problem, errors: ErrorModel| {
         let mut p = problem.clone();
         p.max_beta = f64::INFINITY;
-        observability_sigma(&p, base)?
+        if p.errors != errors {
+            p = Problem::with_errors(id, errors, base, f64::INFINITY);
+        }
+        observability_sigma(&p, base)
     };
-    problem.targets = targets(id, &ref_sigma, args.target_scale, &args.targets)?;
+    let inst_sigma = sigma_of(problem, ErrorModel::Installation)?;
+    problem.targets = targets_with(
+        id,
+        problem.errors,
+        &inst_sigma,
+        &InstrumentTargets::PSINS,
+        args.target_scale,
+        &args.targets,
+    )?;
+    // The reference σ shown: the bound of the model searched.
+    let ref_sigma = match problem.errors {
+        ErrorModel::Installation => inst_sigma,
+        errors => sigma_of(problem, errors)?,
+    };
 
     Ok((ref_out, ref_sigma))
 }
@@ -305,16 +336,20 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
     } = setup(args)?;
     let id = args.config;
     let period_s = base.timing.period_s;
-    let mut problem = Problem::new(id, &base, args.max_beta_deg);
+    if args.errors == ErrorModel::Full {
+        super::args::note_instrument_prior(&base, args.errors);
+    }
+    let mut problem = Problem::with_errors(id, args.errors, &base, args.max_beta_deg);
     problem.step_deg = args.step_deg;
 
     let (ref_out, ref_sigma) =
         reference_targets(args, &base, &mut problem, &reference, ref_periods)?;
 
-    let goal = goal_of(args, period_s, max_periods)?;
+    let mut goal = goal_of(args, period_s, max_periods)?;
     let space = space_of(args, axes, max_rate, max_duration);
     eprintln!(
-        "design: {id} on '{}': {} targets, max rate {max_rate} °/s, {} s at most, |β| ≤ {}°, axes {}{}, {}; {} threads",
+        "design: {id}{} on '{}': {} targets, max rate {max_rate} °/s, {} s at most, |β| ≤ {}°, axes {}{}, {}; {} threads",
+        if problem.errors == ErrorModel::Full { " (full model)" } else { "" },
         base.name,
         problem.targets.len(),
         max_duration,
@@ -324,7 +359,25 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
         if space.dwell_steps.is_empty() { "no dwells" } else { "dwells" },
         rayon::current_num_threads()
     );
-    let (design, cc) = search_until_fine(&mut problem, &space, goal, max_periods)?;
+    let mut fallback = false;
+    let (design, cc) = match search_until_fine(&mut problem, &space, goal, max_periods) {
+        // The full model: no path reaches every target within the limits;
+        // the best worst-case σ/target within the duration limit instead,
+        // and the targets out of reach are reported with the bound.
+        Err(DesignError::NoPathReaches { within_s })
+            if problem.errors == ErrorModel::Full && args.budget_s.is_none() =>
+        {
+            eprintln!(
+                "design: no path of the search space reaches every target within {within_s} s; searching the best worst-case σ/target within it"
+            );
+            goal = Goal::Budget {
+                periods: max_periods,
+            };
+            fallback = true;
+            search_until_fine(&mut problem, &space, goal, max_periods)?
+        }
+        r => r?,
+    };
     let best = &design.best.pattern;
 
     // Check with `host-sim observability`'s computation; one more period at
@@ -338,6 +391,19 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
         None
     } else {
         dwell_probe(&problem, best, goal, max_periods, &space.dwell_steps)
+    };
+    // The full model: every target out of reach, with what reaches it.
+    let unreached = if problem.errors == ErrorModel::Full {
+        out_of_reach(
+            &problem,
+            best,
+            &checked.sigma,
+            max_periods,
+            max_rate,
+            (OUT_OF_REACH_HORIZON * max_periods).min(MAX_PERIODS),
+        )
+    } else {
+        Vec::new()
     };
 
     // Report.
@@ -365,6 +431,8 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
         coarse_periods: cc.coarse_periods,
         coarse_change: cc.change,
         probe: probe.as_ref(),
+        unreached: &unreached,
+        fallback,
     };
     print_result(&summary);
 
@@ -438,13 +506,22 @@ struct Summary<'a> {
     coarse_periods: u64,
     coarse_change: f64,
     probe: Option<&'a DwellProbe>,
+    unreached: &'a [OutOfReach],
+    /// The shortest-path search found no path reaching every target; the
+    /// result is the budget search's within the duration limit.
+    fallback: bool,
 }
+
+/// How far past the duration limit (× the limit) the designed pattern is
+/// repeated to tell when a target out of reach is met.
+const OUT_OF_REACH_HORIZON: u64 = 10;
 
 /// The printed result: headline, path, targets, search, dwell probe.
 fn print_result(o: &Summary<'_>) {
     print_headline(o);
     print_path(o);
     print_targets(o);
+    print_unreached(o);
     print_search(o);
     print_probe(o);
 }
@@ -488,7 +565,12 @@ fn print_headline(o: &Summary<'_>) {
             }
         }
         Goal::Budget { periods: b } => println!(
-            "\nBest worst-case σ/target within {} s: {:.3} (the reference path in its {t_ref} s: {:.3})",
+            "\n{}Best worst-case σ/target within {} s: {:.3} (the reference path in its {t_ref} s: {:.3})",
+            if o.fallback {
+                "The shortest-path search found none: no path of its stage 1 (the coarse grammar) reaches every target within the duration limit, and its refinement starts from those; instead, the budget search over the same space:\n"
+            } else {
+                ""
+            },
             b as f64 * period_s,
             problem
                 .targets
@@ -530,7 +612,8 @@ fn print_path(o: &Summary<'_>) {
     }
 }
 
-/// Per target: the target, the reference and the designed σ.
+/// Per target: the target, the reference and the designed σ (″; with the
+/// full model, an instrument term in its printed unit, in a unit column).
 fn print_targets(o: &Summary<'_>) {
     let Summary {
         problem,
@@ -538,22 +621,101 @@ fn print_targets(o: &Summary<'_>) {
         ref_sigma,
         ..
     } = *o;
-    let names = o.id.states();
-    println!(
-        "\n  {:<10} {:>12} {:>14} {:>14} {:>8}",
-        "state", "target ″", "reference ″", "designed ″", "σ/target"
-    );
-    for &(i, t) in &problem.targets {
+    let names = o.id.states_with(problem.errors);
+    let full = problem.errors == ErrorModel::Full;
+    if full {
         println!(
-            "  {:<10} {:>12.4} {:>14.4} {:>14.4} {:>8.3}",
+            "\n  {:<10} {:<6} {:>12} {:>14} {:>14} {:>8}",
+            "state", "unit", "target", "reference", "designed", "σ/target"
+        );
+    } else {
+        println!(
+            "\n  {:<10} {:>12} {:>14} {:>14} {:>8}",
+            "state", "target ″", "reference ″", "designed ″", "σ/target"
+        );
+    }
+    for &(i, t) in &problem.targets {
+        let g = names[i].group;
+        let unit = if full {
+            format!(" {:<6}", g.printed_scale().1)
+        } else {
+            String::new()
+        };
+        println!(
+            "  {:<10}{unit} {:>12.4} {:>14.4} {:>14.4} {:>8.3}",
             names[i].name,
-            t / ARCSEC,
-            ref_sigma[i] / ARCSEC,
-            check[i] / ARCSEC,
+            printed_value(g, t),
+            printed_value(g, ref_sigma[i]),
+            printed_value(g, check[i]),
             check[i] / t
         );
     }
-    println!("  (designed σ: `host-sim observability --scenario` of the written scenario)");
+    if full {
+        println!("  (targets: the installation errors at the reference path's σ_CRLB of the installation model, the instrument terms at dg 0.005 °/h, Dg 0.005 °/h/g, kg 1 ppm, ba 1 µg, ka 1 ppm{}; reference and designed σ: `host-sim observability --errors full --scenario` of the reference and the written scenario)",
+            if o.args.target_scale == 1.0 { String::new() } else { format!(", × {}", o.args.target_scale) });
+    } else {
+        println!("  (designed σ: `host-sim observability --scenario` of the written scenario)");
+    }
+}
+
+/// The full model: each target out of reach within the limits, the σ the
+/// bound reaches, and the time or rate that reaches it.
+fn print_unreached(o: &Summary<'_>) {
+    let Summary {
+        problem,
+        unreached,
+        max_rate,
+        max_duration,
+        ..
+    } = *o;
+    if problem.errors != ErrorModel::Full {
+        return;
+    }
+    if unreached.is_empty() {
+        // Period by period, when the designed pattern first meets them all.
+        let first = problem
+            .evaluate(o.best, Goal::Reach { cutoff: o.periods }, true, false)
+            .reach
+            .map_or(String::new(), |r| {
+                format!(
+                    "; the designed pattern meets them all at {} s",
+                    r as f64 * o.period_s
+                )
+            });
+        println!("\n  Every target is met within the limits (rate ≤ {max_rate} °/s, {max_duration} s){first}.");
+        return;
+    }
+    let names = o.id.states_with(problem.errors);
+    println!(
+        "\n  Out of reach within the limits (rate ≤ {max_rate} °/s, {max_duration} s), by the bound (σ_CRLB):"
+    );
+    for u in unreached {
+        let g = names[u.state].group;
+        let unit = g.printed_scale().1;
+        let time = match u.time_s {
+            Some(t) => format!("the designed pattern repeated reaches it at {t} s"),
+            None => format!(
+                "not within {} s of the designed pattern repeated",
+                u.horizon_s
+            ),
+        };
+        let rate = match u.rate {
+            Some((r, s)) => format!(
+                "; at {r} °/s (the same angles) it reaches {:.4} {unit} within {max_duration} s",
+                printed_value(g, s)
+            ),
+            None => format!(
+                "; no rate up to 10 °/s of the same angles reaches it within {max_duration} s"
+            ),
+        };
+        println!(
+            "    {:<10} target {:.4} {unit}, reached {:.4} {unit} ({:.2}× the target): {time}{rate}",
+            names[u.state].name,
+            printed_value(g, u.target),
+            printed_value(g, u.sigma),
+            u.sigma / u.target
+        );
+    }
 }
 
 /// The search statistics, the coarse steps and the optimality.
@@ -638,8 +800,13 @@ fn write_scenario(o: &Summary<'_>, name: &str) -> Result<(), String> {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("{name}.toml")));
+    let full = if o.problem.errors == ErrorModel::Full {
+        " --errors full"
+    } else {
+        ""
+    };
     let header = format!(
-        "# Designed by `host-sim design --config {id}` (rollcal): {}\n# reaches {} in {t_design} s (reference path: {t_ref} s); check with\n#   host-sim observability --scenario {}\n",
+        "# Designed by `host-sim design --config {id}{full}` (rollcal): {}\n# reaches {} in {t_design} s (reference path: {t_ref} s); check with\n#   host-sim observability{full} --scenario {}\n",
         best.describe(),
         match goal {
             Goal::Reach { .. } => "every target".to_string(),
@@ -668,7 +835,7 @@ fn write_figure(
         t_ref,
         ..
     } = *o;
-    let names = id.states();
+    let names = id.states_with(problem.errors);
     let fig = args
         .figure
         .clone()
@@ -678,27 +845,53 @@ fn write_figure(
         .iter()
         .map(|&(i, t)| crate::output::plots::SigmaCurve {
             label: names[i].name,
-            target: t / ARCSEC,
+            target: printed_value(names[i].group, t),
             a: fine_rec
                 .history
                 .iter()
-                .map(|h| (h.0, h.1[i] / ARCSEC))
+                .map(|h| (h.0, printed_value(names[i].group, h.1[i])))
                 .collect(),
             b: ref_out
                 .history
                 .iter()
-                .map(|h| (h.0, h.1[i] / ARCSEC))
+                .map(|h| (h.0, printed_value(names[i].group, h.1[i])))
                 .collect(),
         })
         .collect();
-    crate::output::plots::plot_sigma_comparison(
-        &fig,
-        &format!("{id}: σ_CRLB(t), designed path ({t_design} s) vs reference path ({t_ref} s)"),
-        "designed",
-        "reference",
-        &series,
-    )?;
-    println!("Wrote the σ(t) figure to {}", fig.display());
+    // The angles in the figure; with the full model, the instrument terms
+    // (their printed units) in a second one beside it, `<figure>-instruments.png`.
+    let (angles, instruments): (Vec<_>, Vec<_>) = series
+        .into_iter()
+        .zip(&problem.targets)
+        .partition(|(_, &(i, _))| !names[i].group.is_instrument());
+    let title =
+        format!("{id}: σ_CRLB(t), designed path ({t_design} s) vs reference path ({t_ref} s)");
+    let mut figures = vec![(fig.clone(), angles, title.clone(), "″")];
+    if !instruments.is_empty() {
+        let stem = fig.with_extension("");
+        let inst = PathBuf::from(format!("{}-instruments.png", stem.display()));
+        figures.push((
+            inst,
+            instruments,
+            format!("{title}, instrument terms"),
+            "°/h, °/h/g, ppm, µg",
+        ));
+    }
+    for (path, curves, title, unit) in figures {
+        let curves: Vec<_> = curves.into_iter().map(|(c, _)| c).collect();
+        if curves.is_empty() {
+            continue;
+        }
+        crate::output::plots::plot_sigma_comparison_in(
+            &path,
+            &title,
+            "designed",
+            "reference",
+            &curves,
+            unit,
+        )?;
+        println!("Wrote the σ(t) figure to {}", path.display());
+    }
     Ok(())
 }
 
@@ -725,10 +918,11 @@ fn result_json(o: &Summary<'_>, speed: serde_json::Value, wall_s: f64) -> serde_
         coarse,
         coarse_change,
         probe,
+        unreached,
         ..
     } = *o;
-    let names = id.states();
-    serde_json::json!({
+    let names = id.states_with(problem.errors);
+    let mut json = serde_json::json!({
         "config": id.as_str(),
         "scenario": base.name,
         "goal": match goal { Goal::Reach{..} => "shortest".to_string(), Goal::Budget{periods} => format!("budget {} s", periods as f64 * period_s) },
@@ -750,7 +944,36 @@ fn result_json(o: &Summary<'_>, speed: serde_json::Value, wall_s: f64) -> serde_
         "dwell_probe": probe.as_ref().map(|p| serde_json::json!({
             "pattern": p.pattern, "score": p.score, "without": p.base})),
         "wall_s": wall_s,
-    })
+    });
+    // The full model only (the installation document stays as it was): the
+    // error model, each instrument target's internal unit (`target_rad`
+    // &c. hold rad/s, rad/s/g, 1 or g there), and the targets out of reach.
+    if problem.errors == ErrorModel::Full {
+        if let Some(m) = json.as_object_mut() {
+            m.insert("errors".into(), problem.errors.as_str().into());
+            if let Some(serde_json::Value::Array(ts)) = m.get_mut("targets") {
+                for (t, &(i, _)) in ts.iter_mut().zip(&problem.targets) {
+                    if let (Some(t), true) = (t.as_object_mut(), names[i].group.is_instrument()) {
+                        t.insert("unit".into(), names[i].unit.into());
+                    }
+                }
+            }
+            m.insert(
+                "out_of_reach".into(),
+                unreached
+                    .iter()
+                    .map(|u| {
+                        serde_json::json!({
+                        "state": names[u.state].name, "target": u.target, "sigma": u.sigma,
+                        "time_s": u.time_s, "horizon_s": u.horizon_s,
+                        "rate_deg_s": u.rate.map(|r| r.0), "sigma_at_rate": u.rate.map(|r| r.1)})
+                    })
+                    .collect::<Vec<_>>()
+                    .into(),
+            );
+        }
+    }
+    json
 }
 
 /// Writes σ(t) of every target state, designed and reference, as CSV.
@@ -761,7 +984,7 @@ fn write_sigma_csv(
     b: &Outcome,
 ) -> Result<(), String> {
     use std::fmt::Write;
-    let names = problem.config.states();
+    let names = problem.config.states_with(problem.errors);
     let mut text = String::from("path,t_s");
     for &(i, _) in &problem.targets {
         let _ = write!(text, ",{}_sigma_rad", names[i].name);

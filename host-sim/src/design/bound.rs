@@ -7,10 +7,11 @@ use nalgebra::{SVector, Vector3};
 use rollcal::command::CommandFrame;
 use rollcal::ekf::{FilterConfig, Options};
 use rollcal::geometry::euler_angles;
-use rollcal::models::{ConfigId, Model};
+use rollcal::models::{ConfigId, ErrorModel, Model};
 use rollcal::observability::Bound;
 
-use crate::analysis::runner::filter_config;
+use crate::analysis::runner::{filter_config, prior_sigma};
+use crate::sim::instruments::instrument_truth_state;
 use crate::sim::scenario::{Scenario, DEG};
 use crate::sim::truth::{truth_state, TruthParams};
 
@@ -23,6 +24,15 @@ impl Problem {
     /// The problem of configuration `id` on scenario `s` (its truth, site,
     /// noise, timing, prior), Earth rate as in the scenario, without targets.
     pub fn new(id: ConfigId, s: &Scenario, max_beta_deg: f64) -> Self {
+        Self::with_errors(id, ErrorModel::Installation, s, max_beta_deg)
+    }
+
+    /// [`Problem::new`] under error model `errors`: with the full model, the
+    /// true instrument errors of the scenario follow the installation
+    /// states, and the prior is the scenario's `[instruments.prior]` on them
+    /// (as [`crate::analysis::runner::SimulatedRun`] sets them for
+    /// `host-sim observability`).
+    pub fn with_errors(id: ConfigId, errors: ErrorModel, s: &Scenario, max_beta_deg: f64) -> Self {
         let params = TruthParams::from_scenario(s);
         let c_r_n = rollcal::geometry::dcm(&params.lambda);
         let c_ps_n = rollcal::geometry::gimbal_dcm(&params.gimbal0) * c_r_n;
@@ -33,11 +43,20 @@ impl Problem {
             accel_at_t: Vector3::zeros(),
             gimbal: params.gimbal0,
         };
+        let mut truth0 = truth_state(id, &params, &at);
+        if errors == ErrorModel::Full {
+            truth0.extend(instrument_truth_state(id, &params));
+        }
         Self {
             config: id,
+            errors,
             cfg: filter_config(s, s.site.earth_rate, Options::plain()),
-            truth0: truth_state(id, &params, &at),
-            sigma0: s.prior.sigma_deg * DEG,
+            truth0,
+            prior: prior_sigma(
+                id.layout_with(errors),
+                s.prior.sigma_deg * DEG,
+                &s.instruments.prior.to_wire(),
+            ),
             period_s: s.timing.period_s,
             max_beta: max_beta_deg * DEG,
             targets: Vec::new(),
@@ -80,7 +99,7 @@ impl Problem {
     /// `record`: keep σ of every state after every step.
     pub fn evaluate(&self, p: &Pattern, goal: Goal, fine: bool, record: bool) -> Outcome {
         let id = self.config;
-        rollcal::with_config!(id, |M, N, Z| self
+        rollcal::with_model!(id, self.errors, |M, N, Z| self
             .evaluate_typed::<M, N, Z>(p, goal, fine, record))
     }
 
@@ -100,7 +119,7 @@ impl Problem {
         let x0 = SVector::<f64, N>::from_iterator(
             self.truth0.iter().copied().chain(std::iter::repeat(0.0)),
         );
-        let prior = SVector::<f64, N>::repeat(self.sigma0);
+        let prior = SVector::<f64, N>::from_iterator(self.prior.iter().copied());
         let mut out = Outcome {
             k,
             worst_ratio: f64::INFINITY,

@@ -29,7 +29,10 @@ pub fn observability_sigma(problem: &Problem, s: &Scenario) -> Result<Vec<f64>, 
             limit_deg: problem.max_beta / DEG,
         });
     }
-    let obs = crate::analysis::observe::analyse(problem.config, s, &sim, s.site.earth_rate, false)
+    let run =
+        crate::analysis::runner::SimulatedRun::new(problem.config, s, &sim, s.site.earth_rate)
+            .with_errors(problem.errors);
+    let obs = crate::analysis::observe::analyse_run(run, false)
         .map_err(|e| DesignError::Observability(e.to_string()))?;
     Ok(obs.states.iter().map(|x| x.sigma_crlb_rad).collect())
 }

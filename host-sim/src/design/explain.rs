@@ -23,7 +23,7 @@ pub struct Contribution {
 
 /// The groups of the targets of `problem`, in state order.
 pub fn target_groups(problem: &Problem) -> Vec<Group> {
-    let names = problem.config.states();
+    let names = problem.config.states_with(problem.errors);
     let mut g: Vec<Group> = Vec::new();
     for &(i, _) in &problem.targets {
         if !g.contains(&names[i].group) {
@@ -35,7 +35,7 @@ pub fn target_groups(problem: &Problem) -> Vec<Group> {
 
 /// Per contiguous rotation of a recorded outcome, the information shares.
 pub fn contributions(problem: &Problem, p: &Pattern, o: &Outcome) -> Vec<Contribution> {
-    let names = problem.config.states();
+    let names = problem.config.states_with(problem.errors);
     let groups = target_groups(problem);
     let info = |s: &[f64], g: Group| -> f64 {
         problem
@@ -45,7 +45,7 @@ pub fn contributions(problem: &Problem, p: &Pattern, o: &Outcome) -> Vec<Contrib
             .map(|(i, _)| 1.0 / (s[*i] * s[*i]))
             .sum()
     };
-    let prior: Vec<f64> = vec![problem.sigma0; names.len()];
+    let prior: Vec<f64> = problem.prior.clone();
     let last = o.history.last().map_or(&prior, |h| &h.1);
     let total: Vec<f64> = groups
         .iter()

@@ -58,6 +58,7 @@ mod explain;
 mod pattern;
 mod probe;
 mod problem;
+mod reach;
 mod search;
 mod speed;
 mod targets;
@@ -76,9 +77,12 @@ pub use explain::{contributions, target_groups, Contribution};
 pub use pattern::{pattern_of, Pattern, Piece, Rotation};
 pub use probe::{dwell_probe, DwellProbe};
 pub use problem::{Goal, Outcome, Problem};
+pub use reach::{out_of_reach, OutOfReach, FASTER_RATES_DEG_S};
 pub use search::{best_of, score_all, search, Design, Scored, StageStats};
 pub use speed::{measure_speed, Speed};
-pub use targets::{default_target_states, parse_target, targets, TargetArg};
+pub use targets::{
+    default_target_states, parse_target, targets, targets_with, InstrumentTargets, TargetArg,
+};
 
 /// Largest rotation (°) within one coarse step of the search.
 pub const DEFAULT_STEP_DEG: f64 = 10.0;

@@ -3,7 +3,7 @@
 //! evaluation. The evaluation itself is in `bound.rs`.
 
 use rollcal::ekf::FilterConfig;
-use rollcal::models::ConfigId;
+use rollcal::models::{ConfigId, ErrorModel};
 
 /// What the search aims at.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -26,12 +26,17 @@ pub enum Goal {
 pub struct Problem {
     /// Configuration.
     pub config: ConfigId,
+    /// Error model of the bound: the installation errors, or the full model
+    /// (the 21 instrument terms too).
+    pub errors: ErrorModel,
     /// Filter settings (noise levels of the scenario, Earth rate).
     pub cfg: FilterConfig<f64>,
-    /// True initial state (rad).
+    /// True initial state (internal units: rad, then the instrument terms'
+    /// rad/s, rad/s/g, 1, g, 1 with the full model).
     pub truth0: Vec<f64>,
-    /// Prior σ (rad).
-    pub sigma0: f64,
+    /// Prior σ of every state (internal units; the scenario's `[prior]` and,
+    /// with the full model, `[instruments.prior]`).
+    pub prior: Vec<f64>,
     /// Filter period (s).
     pub period_s: f64,
     /// Largest |β| (rad) allowed.

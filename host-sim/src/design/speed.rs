@@ -67,15 +67,15 @@ pub fn measure_speed(
     let t0 = std::time::Instant::now();
     let mut passes = 0;
     for _ in 0..est_reps {
-        passes = crate::analysis::runner::run_filter(
+        // The estimator of the problem's error model.
+        passes = crate::analysis::runner::SimulatedRun::new(
             problem.config,
             designed,
             &sim,
             designed.site.earth_rate,
-            crate::analysis::runner::Estimator::default(),
-            None,
-            false,
         )
+        .with_errors(problem.errors)
+        .run(crate::analysis::runner::Estimator::default(), None, false)
         .map_err(|e| DesignError::Estimator(e.to_string()))?
         .passes;
     }

@@ -172,7 +172,7 @@ fn targets_parse_and_override() {
         1.0,
         &[TargetArg {
             name: "lam_y".into(),
-            arcsec: 30.0,
+            value: 30.0,
         }],
     )
     .unwrap();
@@ -183,7 +183,7 @@ fn targets_parse_and_override() {
         1.0,
         &[TargetArg {
             name: "nope".into(),
-            arcsec: 1.0
+            value: 1.0
         }]
     )
     .is_err());

@@ -10,7 +10,7 @@ use host_sim::analysis::observe::analyse;
 use host_sim::design::{pattern_of, Goal, NamedAxis, Pattern, Problem, Rotation};
 use host_sim::sim::scenario::{Scenario, ARCSEC};
 use host_sim::sim::truth::{simulate, SimOptions};
-use rollcal::models::ConfigId;
+use rollcal::models::{ConfigId, ErrorModel};
 
 fn rotation(axis: &str, angle: f64, rate: f64) -> Rotation {
     Rotation::new(NamedAxis::named(axis).unwrap(), angle, rate)
@@ -429,5 +429,158 @@ fn the_search_proposes_a_dwell_where_it_helps() {
     let s = Scenario::from_file(&dir.join("with.toml")).unwrap();
     assert_eq!(s.timing.duration_s, 900.0);
     assert!(s.path.iter().any(|g| g.dwell_s > 0.0));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The instrumented scenario (the paper's path and SPEC §8's instrument
+/// errors).
+fn instrumented() -> (std::path::PathBuf, Scenario) {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/instrumented.toml");
+    let s = Scenario::from_file(&path).unwrap();
+    (path, s)
+}
+
+/// The full model's bound of `s` as `host-sim observability --errors full`
+/// computes it.
+fn full_obs(id: ConfigId, s: &Scenario) -> host_sim::analysis::observe::ConfigObs {
+    let sim = simulate(
+        s,
+        SimOptions {
+            seed: 0,
+            noise: false,
+            earth_rate: s.site.earth_rate,
+        },
+    );
+    let run = host_sim::analysis::runner::SimulatedRun::new(id, s, &sim, s.site.earth_rate)
+        .with_errors(ErrorModel::Full);
+    host_sim::analysis::observe::analyse_run(run, false).unwrap()
+}
+
+#[test]
+fn the_search_bound_of_the_full_model_is_the_observability_bound() {
+    // With the instrument terms too (their truth and prior from the
+    // scenario): the σ the search scores is `observability --errors full`'s.
+    let (_, s) = instrumented();
+    let id = ConfigId::M1Pa;
+    let obs = full_obs(id, &s);
+    let problem = Problem::with_errors(id, ErrorModel::Full, &s, 60.0);
+    let p = pattern_of(&s).unwrap();
+    let o = problem.evaluate(&p, Goal::Budget { periods: 5400 }, true, false);
+    assert_eq!(o.sigma_end.len(), 33);
+    for (st, sig) in obs.states.iter().zip(&o.sigma_end) {
+        let rel = (sig / st.sigma_crlb_rad - 1.0).abs();
+        assert!(rel < 1e-4, "{id} {}: {rel:e}", st.name);
+    }
+}
+
+#[test]
+fn design_full_separates_the_weak_terms_and_reports_a_target_out_of_reach() {
+    // M1-pa on the paper's path: Dgpa_zx, Dgpa_zy and kg_z weak (one roll
+    // rate, one sense of rotation). A small search (pairs of rotations about
+    // three axes, 2700 s) finds a path on which they are observable in
+    // practice; the D_g diagonal's 0.005 °/h/g is out of reach there, and the
+    // report says so with the bound.
+    let (scenario, s) = instrumented();
+    let id = ConfigId::M1Pa;
+    let reference = full_obs(id, &s);
+    let verdict = |o: &host_sim::analysis::observe::ConfigObs, n: &str| {
+        o.states.iter().find(|x| x.name == n).unwrap().observable
+    };
+    let weak = ["Dgpa_zx", "Dgpa_zy", "kg_z"];
+    for n in weak {
+        assert!(
+            !verdict(&reference, n),
+            "{n} observable on the paper's path"
+        );
+    }
+    let dir = std::env::temp_dir().join(format!("rollcal-design-full-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (toml, json, png) = (dir.join("d.toml"), dir.join("d.json"), dir.join("d.png"));
+    let out = host_sim()
+        .args([
+            "design",
+            "--config",
+            "M1-pa",
+            "--errors",
+            "full",
+            "--max-rotations",
+            "2",
+            "--refine-starts",
+            "1",
+            "--axes",
+            "north,east,south",
+            "--no-dwells",
+            "--max-duration-s",
+            "2700",
+            "--scenario",
+        ])
+        .arg(&scenario)
+        .arg("--out")
+        .arg(&toml)
+        .arg("--json")
+        .arg(&json)
+        .arg("--figure")
+        .arg(&png)
+        .output()
+        .unwrap();
+    assert_success(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("Out of reach within the limits"),
+        "{stdout}"
+    );
+    // The second figure: the instrument terms.
+    assert!(
+        std::fs::metadata(dir.join("d-instruments.png"))
+            .unwrap()
+            .len()
+            > 10_000
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(v["errors"], "full");
+    let targets = v["targets"].as_array().unwrap();
+    // The 9 installation parameters and the 21 instrument terms.
+    assert_eq!(targets.len(), 30);
+    // The written scenario, analysed as `observability --errors full` does.
+    let designed = Scenario::from_file(&toml).unwrap();
+    assert_eq!(designed.timing.duration_s, 2700.0);
+    let obs = full_obs(id, &designed);
+    for n in weak {
+        assert!(verdict(&obs, n), "{n} not observable on the designed path");
+    }
+    let sigma = |n: &str| {
+        obs.states
+            .iter()
+            .find(|x| x.name == n)
+            .unwrap()
+            .sigma_crlb_rad
+    };
+    // Every target out of reach is missed by the bound of the written
+    // scenario, by the σ reported; every other target is met.
+    let missed = v["out_of_reach"].as_array().unwrap();
+    assert!(missed.iter().any(|m| m["state"] == "Dgpa_xx"));
+    for t in targets {
+        let n = t["state"].as_str().unwrap();
+        let target = t["target_rad"].as_f64().unwrap();
+        match missed.iter().find(|m| m["state"] == n) {
+            Some(m) => {
+                let reported = m["sigma"].as_f64().unwrap();
+                assert!((reported / sigma(n) - 1.0).abs() < 1e-12, "{n}");
+                assert!(reported > target, "{n}");
+                assert_eq!(m["target"].as_f64().unwrap(), target);
+                // What reaches it: later than the limit, or faster.
+                if let Some(ts) = m["time_s"].as_f64() {
+                    assert!(ts > 2700.0, "{n}: {ts}");
+                }
+                if let Some(r) = m["rate_deg_s"].as_f64() {
+                    assert!(r > 1.0, "{n}: {r}");
+                    assert!(m["sigma_at_rate"].as_f64().unwrap() <= target, "{n}");
+                }
+            }
+            None => assert!(sigma(n) <= target, "{n}"),
+        }
+    }
     std::fs::remove_dir_all(&dir).ok();
 }

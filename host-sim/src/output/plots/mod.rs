@@ -43,5 +43,5 @@ mod style;
 pub use convergence::{convergence_size, plot_convergence, SigmaSeries};
 pub use error::{figure_size, plot_group, plot_group_marked, Curve};
 pub use innovations::{moving_average, plot_innovations, Innovations, INNOVATIONS_SIZE};
-pub use sigma::{plot_sigma_comparison, SigmaCurve};
+pub use sigma::{plot_sigma_comparison, plot_sigma_comparison_in, SigmaCurve};
 pub use style::{HEADER_HEIGHT, MAX_PANELS, PANEL_HEIGHT, WIDTH};

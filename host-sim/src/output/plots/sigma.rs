@@ -16,7 +16,7 @@ use super::style::{Area, DrawResult};
 pub struct SigmaCurve {
     /// State name: the panel label.
     pub label: &'static str,
-    /// The target σ (″), drawn as a horizontal line.
+    /// The target σ (″, or the unit of the figure), drawn as a horizontal line.
     pub target: f64,
     /// Path A (the designed one).
     pub a: Vec<(f64, f64)>,
@@ -58,6 +58,20 @@ pub fn plot_sigma_comparison(
     b_label: &str,
     curves: &[SigmaCurve],
 ) -> Result<(), String> {
+    plot_sigma_comparison_in(path, title, a_label, b_label, curves, "″")
+}
+
+/// [`plot_sigma_comparison`] with the unit of the values and targets named
+/// in the legend (`unit`: "″", or e.g. "°/h, °/h/g, ppm, µg" for the
+/// instrument terms of the full model, each in its own unit).
+pub fn plot_sigma_comparison_in(
+    path: &Path,
+    title: &str,
+    a_label: &str,
+    b_label: &str,
+    curves: &[SigmaCurve],
+    unit: &str,
+) -> Result<(), String> {
     if curves.is_empty() {
         return Err("plots: no curve to draw".to_string());
     }
@@ -80,7 +94,7 @@ pub fn plot_sigma_comparison(
     let rows = curves.len().div_ceil(SIGMA_COLUMNS);
     let h = HEADER_HEIGHT + SIGMA_ROW_HEIGHT * u32::try_from(rows).unwrap_or(1);
     let root = BitMapBackend::new(path, (WIDTH + 200, h)).into_drawing_area();
-    draw_sigma(&root, title, (a_label, b_label), curves, rows, t_max)
+    draw_sigma(&root, title, (a_label, b_label, unit), curves, rows, t_max)
         .map_err(|e| format!("plots: drawing {}: {e}", path.display()))?;
     root.present()
         .map_err(|e| format!("plots: writing {}: {e}", path.display()))?;
@@ -88,16 +102,16 @@ pub fn plot_sigma_comparison(
 }
 
 /// The whole comparison figure on `root`: header, then one panel per curve
-/// (`labels`: paths A and B).
+/// (`labels`: paths A and B, the unit of the targets).
 fn draw_sigma<'a>(
     root: &Area<'a>,
     title: &str,
-    labels: (&str, &str),
+    labels: (&str, &str, &str),
     curves: &[SigmaCurve],
     rows: usize,
     t_max: f64,
 ) -> DrawResult<'a> {
-    let (a_label, b_label) = labels;
+    let (a_label, b_label, unit) = labels;
     root.fill(&WHITE)?;
     let (header, body) = root.split_vertically(HEADER_HEIGHT);
     draw_title(&header, title, 20.0)?;
@@ -129,7 +143,7 @@ fn draw_sigma<'a>(
         3,
         CRLB_COLOUR.stroke_width(1),
     ))?;
-    header.draw(&Text::new("target σ [″]", (598, y), label))?;
+    header.draw(&Text::new(format!("target σ [{unit}]"), (598, y), label))?;
     let panels = body.split_evenly((rows, SIGMA_COLUMNS));
     for (area, c) in panels.iter().zip(curves) {
         draw_sigma_panel(area, c, t_max)?;
