@@ -76,15 +76,15 @@ pub const MIN_DECODED_LEN: usize = 1 + 1 + CRC_LEN;
 
 /// Upper bound of an encoded frame of any [`Message`], delimiter included
 /// (bytes). The largest message is a [`Checkpoint`] of [`MAX_STATES`]
-/// states: about 3.0 KB encoded for 18 states, 12.3 KB for the full
-/// model's 39 (`full-model` feature); a [`Decoder`] with this capacity
-/// accepts every message.
+/// states: 2 881 to 3 157 bytes encoded for 18 states, 12 625 to 13 108
+/// for the full model's 39 (`full-model` feature; docs/wire.md §Limits and
+/// sizes); a [`Decoder`] with this capacity accepts every message.
 #[cfg(not(feature = "full-model"))]
 pub const MAX_FRAME_LEN: usize = 4096;
 /// Upper bound of an encoded frame of any [`Message`], delimiter included
 /// (bytes). The largest message is a [`Checkpoint`] of [`MAX_STATES`]
-/// states: about 3.0 KB encoded for 18 states, 12.3 KB for the full
-/// model's 39 (`full-model` feature); a [`Decoder`] with this capacity
-/// accepts every message.
+/// states: 2 881 to 3 157 bytes encoded for 18 states, 12 625 to 13 108
+/// for the full model's 39 (`full-model` feature; docs/wire.md §Limits and
+/// sizes); a [`Decoder`] with this capacity accepts every message.
 #[cfg(feature = "full-model")]
 pub const MAX_FRAME_LEN: usize = 16384;

@@ -22,3 +22,4 @@ mod jacobians;
 mod observability;
 mod shared_evaluations;
 mod wire;
+mod wire_doc;

@@ -175,26 +175,7 @@ fn encode_reports_a_small_buffer() {
     }
 }
 
-/// The worked example of docs/wire.md is what the encoder produces.
-#[test]
-fn docs_worked_example_is_current() {
-    let m = Message::Sample(Sample {
-        seq: 1,
-        t_us: 1_000_000,
-        dt: 1.0,
-        dtheta_cmd: [-1.745_329_3e-3, 0.0, 0.0],
-        accel_mean: [0.0, 1.0, 0.0],
-        gimbal: None,
-        c_cn_quat: [0.999_999_6, -8.726_6e-4, 0.0, 0.0],
-    });
-    let hex: Vec<String> = frame(&m).iter().map(|b| format!("{b:02x}")).collect();
-    let hex = hex.join(" ");
-    let doc = include_str!("../../docs/wire.md");
-    assert!(
-        doc.contains(&hex),
-        "docs/wire.md lacks the example frame:\n{hex}"
-    );
-}
+// The worked examples of docs/wire.md: `wire_doc.rs`.
 
 #[test]
 fn any_chunking_gives_the_same_messages() {
