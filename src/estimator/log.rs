@@ -16,8 +16,10 @@
 //!
 //! # Backing the log with external flash or FRAM
 //!
-//! An integrator implements [`SampleLog`] over the device as an array of
-//! fixed-size records:
+//! For NOR flash behind `embedded-storage`'s `NorFlash` (any HAL's),
+//! `FlashLog` (feature `flash-log`, `estimator::flash`) does all of the
+//! following with the packed records. Otherwise an integrator implements
+//! [`SampleLog`] over the device as an array of fixed-size records:
 //!
 //! - **Fixed-size records.** Encode every record in the same number of
 //!   bytes `SIZE` whether or not it holds a measurement: a flag byte

@@ -31,8 +31,9 @@
 //!
 //! No heap and nothing proportional to the run: one filter, three state
 //! vectors and the computed frame on the stack. The log is the caller's
-//! ([`SliceLog`] over a RAM slice, or a flash/FRAM implementation of
-//! [`SampleLog`], see [`log`]).
+//! ([`SliceLog`] over a RAM slice, [`PackedLog`] over a RAM byte slice,
+//! `FlashLog` over a NOR flash with feature `flash-log`, or an
+//! implementation of [`SampleLog`] of the caller's, see [`log`]).
 //!
 //! # Walking the computed frame backwards
 //!
@@ -60,9 +61,13 @@
 //! back-propagation reads them once more backwards: at most
 //! `2·max_passes − 1` reads of each record.
 
+#[cfg(feature = "flash-log")]
+pub mod flash;
 pub mod log;
 pub mod packed;
 
+#[cfg(feature = "flash-log")]
+pub use flash::{FlashLog, FlashLogError, DEFAULT_SEGMENTS, MAX_SLOT};
 pub use log::{LogError, LogRecord, SampleLog, SliceLog};
 pub use packed::{PackedLayout, PackedLog, MAX_PERIODS};
 

@@ -264,33 +264,64 @@ impl<'a, T: RealField + Copy> PackedLog<'a, T> {
         self.used_periods += 1;
         Some(i)
     }
+}
 
-    /// The record's bits (the period-length index left 0).
-    fn encode(&self, record: &LogRecord<T>) -> Option<[u8; MAX_RECORD + 8]> {
-        let mut bits = [0u8; MAX_RECORD + 8];
-        for (f, v) in DTHETA.iter().zip(record.dtheta_cmd.iter()) {
+/// The bytes of a packed record, with 8 bytes of slack for the 64-bit
+/// windows the fields are read and written through.
+pub(super) type Bits = [u8; MAX_RECORD + 8];
+
+/// `record`'s fields in `layout` (the period-length index left 0); `None`
+/// when a value is out of its field's range or the record has gimbal
+/// angles that `layout` does not store.
+pub(super) fn pack<T: RealField + Copy>(
+    layout: PackedLayout,
+    record: &LogRecord<T>,
+) -> Option<Bits> {
+    let mut bits = [0u8; MAX_RECORD + 8];
+    for (f, v) in DTHETA.iter().zip(record.dtheta_cmd.iter()) {
+        let q = f.quantise(*v)?;
+        f.store(&mut bits, q);
+    }
+    if let Some(obs) = &record.observation {
+        let mut flags = HAS_OBSERVATION;
+        for (f, v) in ACCEL.iter().zip(obs.accel_mean.iter()) {
             let q = f.quantise(*v)?;
             f.store(&mut bits, q);
         }
-        if let Some(obs) = &record.observation {
-            let mut flags = HAS_OBSERVATION;
-            for (f, v) in ACCEL.iter().zip(obs.accel_mean.iter()) {
+        if let Some(g) = obs.gimbal {
+            if layout != PackedLayout::AccelGimbal {
+                return None;
+            }
+            flags |= HAS_GIMBAL;
+            for (f, v) in GIMBAL.iter().zip(g.iter()) {
                 let q = f.quantise(*v)?;
                 f.store(&mut bits, q);
             }
-            if let Some(g) = obs.gimbal {
-                if self.layout != PackedLayout::AccelGimbal {
-                    return None;
-                }
-                flags |= HAS_GIMBAL;
-                for (f, v) in GIMBAL.iter().zip(g.iter()) {
-                    let q = f.quantise(*v)?;
-                    f.store(&mut bits, q);
-                }
-            }
-            put_bits(&mut bits, 0, 2, u64::from(flags));
         }
-        Some(bits)
+        put_bits(&mut bits, 0, 2, u64::from(flags));
+    }
+    Some(bits)
+}
+
+/// The record whose fields are `bits` (as [`pack`] wrote them) and whose
+/// period is `dt` (s).
+pub(super) fn unpack<T: RealField + Copy>(bits: &Bits, dt: f64) -> LogRecord<T> {
+    let flags = get_bits(bits, 0, 2) as u8;
+    let [x, y, z] = DTHETA;
+    let dtheta_cmd = Vector3::new(x.load(bits), y.load(bits), z.load(bits));
+    let observation = (flags & HAS_OBSERVATION != 0).then(|| {
+        let [ax, ay, az] = ACCEL;
+        let [ga, gb, gc] = GIMBAL;
+        Observation {
+            accel_mean: Vector3::new(ax.load(bits), ay.load(bits), az.load(bits)),
+            gimbal: (flags & HAS_GIMBAL != 0)
+                .then(|| Vector3::new(ga.load(bits), gb.load(bits), gc.load(bits))),
+        }
+    });
+    LogRecord {
+        dt,
+        dtheta_cmd,
+        observation,
     }
 }
 
@@ -300,7 +331,7 @@ impl<T: RealField + Copy> SampleLog<T> for PackedLog<'_, T> {
         if self.len >= self.capacity() {
             return Err(LogError::Full);
         }
-        let Some(mut bits) = self.encode(record) else {
+        let Some(mut bits) = pack(self.layout, record) else {
             return Err(LogError::Unrepresentable);
         };
         let at = self.len * n;
@@ -331,25 +362,9 @@ impl<T: RealField + Copy> SampleLog<T> for PackedLog<'_, T> {
         let mut bits = [0u8; MAX_RECORD + 8];
         bits.get_mut(..n)?
             .copy_from_slice(self.bytes.get(k * n..k * n + n)?);
-        let flags = get_bits(&bits, 0, 2) as u8;
         let index = get_bits(&bits, 2, PERIOD_BITS) as usize;
         let dt = *self.periods.get(..self.used_periods)?.get(index)?;
-        let [x, y, z] = DTHETA;
-        let dtheta_cmd = Vector3::new(x.load(&bits), y.load(&bits), z.load(&bits));
-        let observation = (flags & HAS_OBSERVATION != 0).then(|| {
-            let [ax, ay, az] = ACCEL;
-            let [ga, gb, gc] = GIMBAL;
-            Observation {
-                accel_mean: Vector3::new(ax.load(&bits), ay.load(&bits), az.load(&bits)),
-                gimbal: (flags & HAS_GIMBAL != 0)
-                    .then(|| Vector3::new(ga.load(&bits), gb.load(&bits), gc.load(&bits))),
-            }
-        });
-        Some(LogRecord {
-            dt,
-            dtheta_cmd,
-            observation,
-        })
+        Some(unpack(&bits, dt))
     }
 
     /// Forgets records from `len` on. The table of period lengths keeps its

@@ -14,6 +14,7 @@ mod configs;
 mod estimator;
 mod f32;
 mod filter_api;
+mod flash_log;
 mod full_model;
 mod fuzz_seeds;
 mod geometry;
