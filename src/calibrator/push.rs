@@ -109,9 +109,17 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         let gap = checked.gap;
         let dt = f64::from(s.dt);
         let dtheta = Vector3::from(s.dtheta_cmd);
+        // The gimbal angles of a configuration that does not measure them
+        // are dropped here, not carried into the log: its filter ignores
+        // them, and a compact log of that configuration
+        // (`PackedLayout::Accel`) has no room for them.
         let obs = Observation {
             accel_mean: vec3_f32(&s.accel_mean),
-            gimbal: s.gimbal.as_ref().map(vec3_f32),
+            gimbal: s
+                .gimbal
+                .as_ref()
+                .filter(|_| M::LAYOUT.gimbal_obs)
+                .map(vec3_f32),
         };
         if gap > 0 {
             self.bridge_gap(s, gap, checked.reanchored, log.as_deref_mut())?;

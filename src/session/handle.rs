@@ -58,8 +58,8 @@ impl<T: RealField + Copy> Session<T> {
     }
 
     /// [`Session::handle`] with the reply written into `reply` (what it
-    /// held is replaced). A reply is message-sized (≈ 3 KB, a checkpoint's
-    /// size, whatever it holds): a firmware that keeps the slot in static
+    /// held is replaced). A reply is message-sized (a checkpoint's size
+    /// whatever it holds: ≈ 3 KB, ≈ 12.5 KB with the `full-model` feature): a firmware that keeps the slot in static
     /// memory has none on its stack. Every reply is written straight into
     /// the slot, and no frame below which the estimator runs holds a
     /// message.

@@ -59,8 +59,8 @@ pub fn decode_frame(frame: &mut [u8]) -> Result<Message, FrameError> {
 }
 
 /// [`decode_frame`] with the message written into `msg` (what it held is
-/// replaced; untouched on error). A message is ≈ 3 KB (a checkpoint's size,
-/// whatever it holds): a firmware that keeps `msg` in static memory has no
+/// replaced; untouched on error). A message is a checkpoint's size whatever it
+/// holds (≈ 3 KB, ≈ 12.5 KB with the `full-model` feature): a firmware that keeps `msg` in static memory has no
 /// second copy of it on its stack.
 pub fn decode_frame_into(frame: &mut [u8], msg: &mut Message) -> Result<(), FrameError> {
     message_into(frame_payload(frame)?, msg)

@@ -152,7 +152,8 @@ impl<const CAP: usize> Decoder<CAP> {
     /// [`Decoder::push_byte`] with a decoded message written into `msg`
     /// (what it held is replaced; it is untouched when the frame is
     /// rejected): `Some(Ok(()))` when `msg` holds a new message. A message
-    /// is ≈ 3 KB (a checkpoint's size, whatever it holds): a firmware that
+    /// is a checkpoint's size whatever it holds (≈ 3 KB, ≈ 12.5 KB with the
+    /// `full-model` feature): a firmware that
     /// keeps `msg` in static memory has none in its frames
     /// ([`decode_frame_into`]).
     #[inline(never)]

@@ -1092,3 +1092,31 @@ fn the_full_model_checkpoints_restores_and_names_its_error_model() {
     assert_eq!(e.sigma[18], c2.instrument_prior.dg_rad_s);
     assert_eq!(e.sigma[33], 1e-3);
 }
+
+/// A stream that carries the gimbal angles (the recorded one does, for
+/// every configuration) logs into the compact log of an
+/// accelerometer-only configuration: the calibrator drops the angles it
+/// does not use, the log holds the whole run, and `Finish` is the
+/// estimator of record, not pass 1.
+#[test]
+fn an_accelerometer_only_calibrator_logs_a_stream_with_gimbal_angles_compactly() {
+    use rollcal::estimator::{EstimatorOptions, PackedLayout, PackedLog};
+    use rollcal::wire::EstimateKind;
+    let (sc, data) = samples(600);
+    assert!(data.iter().all(|s| s.gimbal.is_some()));
+    let cfg = settings(&sc, ConfigId::M1Pa, 0);
+    let mut cal = M1PaCalibrator::<f64>::new(cfg).unwrap();
+    let (mut bytes, mut table) = (vec![0u8; 600 * 27], vec![0.0; 8]);
+    let mut log = PackedLog::<f64>::new(&mut bytes, &mut table, PackedLayout::Accel);
+    for s in &data {
+        assert_eq!(cal.push_logged(s, &mut log), Ok(None));
+    }
+    assert_eq!(cal.progress().log_incomplete, None);
+    assert_eq!(cal.progress().logged, 600);
+    let (answer, _) = cal.finish(&mut log, &EstimatorOptions::default(), |_| {});
+    assert!(
+        matches!(answer.kind, EstimateKind::Final { .. }),
+        "{:?}",
+        answer.kind
+    );
+}
