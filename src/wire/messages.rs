@@ -204,17 +204,13 @@ impl InstrumentPrior {
     /// The 21 σ in state order `[dg (3), D_g (9, row-major), kg (3), ba (3),
     /// ka (3)]` (internal units).
     pub fn sigma(&self) -> [f64; 21] {
-        let mut s = [self.dg_rad_s; 21];
-        for (i, v) in s.iter_mut().enumerate() {
-            *v = match i {
-                0..=2 => self.dg_rad_s,
-                3..=11 => self.d_g_rad_s_g,
-                12..=14 => self.kg,
-                15..=17 => self.ba_g,
-                _ => self.ka,
-            };
-        }
-        s
+        core::array::from_fn(|i| match i {
+            0..=2 => self.dg_rad_s,
+            3..=11 => self.d_g_rad_s_g,
+            12..=14 => self.kg,
+            15..=17 => self.ba_g,
+            _ => self.ka,
+        })
     }
 
     /// Every σ finite and positive.
