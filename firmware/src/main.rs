@@ -29,7 +29,7 @@ use core::mem::size_of;
 
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use defmt_semihosting as _;
-use rollcal::models::ConfigId;
+use rollcal::models::{ConfigId, ErrorModel};
 
 /// The estimator's scalar in this build.
 #[cfg(not(feature = "f64"))]
@@ -75,6 +75,8 @@ pub struct Args {
     pub reply_uart1: bool,
     /// `config=M2-ps|M1-pa|…` (synthetic runs; any of the seven).
     pub config: ConfigId,
+    /// `errors=installation|full` (synthetic runs): the error model.
+    pub errors: ErrorModel,
     /// `mode=default|plain|linearised` (`plain` overrides the options of a
     /// `Configure` message; `linearised` is synthetic only).
     pub mode: Mode,
@@ -103,6 +105,7 @@ impl Args {
             } else {
                 ConfigId::first_built()
             },
+            errors: ErrorModel::Installation,
             mode: Mode::Default,
             periods: 200,
             noise_scale: 1,
@@ -122,6 +125,10 @@ impl Args {
                 (b"reply", b"uart1") => a.reply_uart1 = true,
                 (b"config", id) => match core::str::from_utf8(id).ok().and_then(ConfigId::parse) {
                     Some(id) => a.config = id,
+                    None => defmt::warn!("ignored argument {=[u8]:a}", word),
+                },
+                (b"errors", e) => match core::str::from_utf8(e).ok().and_then(ErrorModel::parse) {
+                    Some(e) => a.errors = e,
                     None => defmt::warn!("ignored argument {=[u8]:a}", word),
                 },
                 (b"mode", b"default") => a.mode = Mode::Default,

@@ -8,6 +8,7 @@ use nalgebra::{SVector, Vector3};
 use rollcal::ekf::{Filter, FilterConfig, Observation, Options};
 use rollcal::geometry::{earth_rate_n, gravity_n};
 use rollcal::models::{Environment, Model};
+use rollcal::wire::InstrumentPrior;
 
 use crate::marks::{rollcal_mark_period_end, rollcal_mark_period_start};
 use crate::{Args, Mode, Real};
@@ -40,7 +41,17 @@ fn run_model<M: Model<N, Z>, const N: usize, const Z: usize>(args: &Args) -> boo
         Mode::Plain => Options::plain(),
         _ => Options::default(),
     };
-    let sigma0 = SVector::<Real, N>::repeat((1.0 * DEG) as Real);
+    // 1° for the installation states, SPEC §8's prior for the instrument
+    // terms of the full model.
+    let installation = M::LAYOUT.installation_n();
+    let instruments = InstrumentPrior::default().sigma();
+    let sigma0 = SVector::<Real, N>::from_fn(|i, _| {
+        let s = match i.checked_sub(installation) {
+            None => 1.0 * DEG,
+            Some(k) => instruments.get(k).copied().unwrap_or(1.0 * DEG),
+        };
+        s as Real
+    });
     // Used where it was built: moving it out of the `Result` would put a
     // second filter on the stack.
     let mut built = Filter::<Real, M, N, Z>::new(
@@ -91,7 +102,7 @@ fn run_model<M: Model<N, Z>, const N: usize, const Z: usize>(args: &Args) -> boo
 /// (false for a configuration this image does not hold: cargo features
 /// `config-*`).
 pub fn run(args: &Args) -> bool {
-    rollcal::with_built_config!(args.config, |M, N, Z| run_model::<M, N, Z>(args), else |other| {
+    rollcal::with_built_model!(args.config, args.errors, |M, N, Z| run_model::<M, N, Z>(args), else |other| {
         defmt::error!("{} is not in this firmware image (cargo features config-*)", other);
         false
     })
