@@ -4,10 +4,15 @@
 //! gimbal angles). The numbers are not a calibration, only a load of the
 //! same shape as the recorded stream.
 
+use core::mem::{align_of, size_of, MaybeUninit};
+use core::ptr::addr_of_mut;
+use core::sync::atomic::{AtomicBool, Ordering};
+
 use nalgebra::{SVector, Vector3};
 use rollcal::ekf::{Filter, FilterConfig, Observation, Options};
 use rollcal::geometry::{earth_rate_n, gravity_n};
 use rollcal::models::{Environment, Model};
+use rollcal::session::AnyFilter;
 use rollcal::wire::InstrumentPrior;
 
 use crate::marks::{rollcal_mark_period_end, rollcal_mark_period_start};
@@ -33,10 +38,39 @@ pub fn filter_config(options: Options, noise_scale: u32) -> FilterConfig<Real> {
     }
 }
 
+/// The synthetic run's filter, in static memory: as large as the largest
+/// filter this image holds (an `AnyFilter`; the full M2-ps model's is 18 KB
+/// in f64, more than the firmware's stack budget). Only [`filter_slot`]
+/// touches it.
+static mut ARENA: MaybeUninit<AnyFilter<Real>> = MaybeUninit::uninit();
+
+/// Set once [`filter_slot`] has handed out [`ARENA`].
+static ARENA_TAKEN: AtomicBool = AtomicBool::new(false);
+
+/// [`ARENA`] as an empty slot for a filter of `M`; `None` on a second call.
+fn filter_slot<M: Model<N, Z> + 'static, const N: usize, const Z: usize>(
+) -> Option<&'static mut Option<Filter<Real, M, N, Z>>> {
+    const {
+        assert!(size_of::<Option<Filter<Real, M, N, Z>>>() <= size_of::<AnyFilter<Real>>());
+        assert!(align_of::<Option<Filter<Real, M, N, Z>>>() <= align_of::<AnyFilter<Real>>());
+    }
+    if ARENA_TAKEN.swap(true, Ordering::AcqRel) {
+        return None;
+    }
+    // SAFETY: the flag above makes this the only reference ever made to
+    // ARENA, whose size and alignment hold the slot (checked above); the
+    // slot is written before the reference is formed.
+    unsafe {
+        let p = addr_of_mut!(ARENA).cast::<Option<Filter<Real, M, N, Z>>>();
+        p.write(None);
+        Some(&mut *p)
+    }
+}
+
 // Not inlined: `run` dispatches to one of these per configuration, and
-// their filters must not add up in `main`'s frame (which every run pays).
+// their frames must not add up in `main`'s frame (which every run pays).
 #[inline(never)]
-fn run_model<M: Model<N, Z>, const N: usize, const Z: usize>(args: &Args) -> bool {
+fn run_model<M: Model<N, Z> + 'static, const N: usize, const Z: usize>(args: &Args) -> bool {
     let options = match args.mode {
         Mode::Plain => Options::plain(),
         _ => Options::default(),
@@ -52,14 +86,17 @@ fn run_model<M: Model<N, Z>, const N: usize, const Z: usize>(args: &Args) -> boo
         };
         s as Real
     });
-    // Used where it was built: moving it out of the `Result` would put a
-    // second filter on the stack.
-    let mut built = Filter::<Real, M, N, Z>::new(
+    let Some(slot) = filter_slot::<M, N, Z>() else {
+        defmt::error!("the synthetic run's filter is already in use");
+        return false;
+    };
+    // Built straight into its static slot: no filter on the stack.
+    let Ok(f) = Filter::new_in(
+        slot,
         filter_config(options, args.noise_scale),
         SVector::zeros(),
         sigma0,
-    );
-    let Ok(f) = built.as_mut() else {
+    ) else {
         defmt::error!("invalid filter configuration");
         return false;
     };

@@ -8,47 +8,67 @@ use crate::ekf::{FilterConfig, Parts};
 use crate::models::Model;
 use crate::wire::{CalibratorConfig, Checkpoint};
 
+/// `v` becomes the values of `it`, in order (at most its capacity: the
+/// calibrator's `N` is checked against [`crate::wire::MAX_STATES`] when it
+/// is built, so a checkpoint's vectors hold every value).
+fn fill<const CAP: usize>(v: &mut heapless::Vec<f64, CAP>, it: impl Iterator<Item = f64>) {
+    v.clear();
+    for x in it {
+        let _ = v.push(x);
+    }
+}
+
 impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize>
     Calibrator<T, M, N, Z>
 {
     /// A checkpoint from which [`Calibrator::restore`] continues
-    /// bit-identically.
+    /// bit-identically ([`Calibrator::checkpoint_into`] into a new one).
+    pub fn checkpoint(&self) -> Checkpoint {
+        let mut cp = Checkpoint::empty();
+        self.checkpoint_into(&mut cp);
+        cp
+    }
+
+    /// [`Calibrator::checkpoint`] written into `cp` (whatever it held),
+    /// field by field: no checkpoint-sized temporary (12.6 KB with the full
+    /// model's 39 states) on the stack, and none of the factor's transpose
+    /// (12.2 KB). A firmware that keeps `cp` in static memory (the reply
+    /// slot of [`crate::session::Session::handle_into`]) checkpoints in a
+    /// few hundred bytes of stack.
     // Not inlined: the session dispatches to seven of these, and their
     // frames must not add up in one caller's frame (firmware stack).
     #[inline(never)]
-    pub fn checkpoint(&self) -> Checkpoint {
+    pub fn checkpoint_into(&self, cp: &mut Checkpoint) {
         let f = &self.filter;
-        let collect = |v: &SVector<f64, N>| {
-            let mut out = heapless::Vec::new();
-            for x in v.iter() {
-                let _ = out.push(*x);
+        cp.config = M::ID;
+        cp.errors = M::ERRORS;
+        fill(&mut cp.state, f.state().iter().copied());
+        // Row-major.
+        cp.factor.clear();
+        for row in f.factor().row_iter() {
+            for v in row.iter() {
+                let _ = cp.factor.push(to_f64(*v));
             }
-            out
-        };
-        let mut factor = heapless::Vec::new();
-        // Row-major: the column-major storage of the transpose.
-        for v in f.factor().transpose().iter() {
-            let _ = factor.push(to_f64(*v));
         }
-        let mut c_cn = [0.0; 9];
-        for (o, v) in c_cn
+        match (f.nominal(), &mut cp.nominal) {
+            (Some(n), Some(v)) => fill(v, n.iter().copied()),
+            (Some(n), slot @ None) => {
+                let mut v = heapless::Vec::new();
+                fill(&mut v, n.iter().copied());
+                *slot = Some(v);
+            }
+            (None, slot) => *slot = None,
+        }
+        for (o, v) in cp
+            .c_cn
             .iter_mut()
             .zip(f.command_frame().c_cn.transpose().iter())
         {
             *o = *v;
         }
-        Checkpoint {
-            config: M::ID,
-            errors: M::ERRORS,
-            state: collect(f.state()),
-            factor,
-            nominal: f.nominal().map(collect),
-            c_cn,
-            updates: f.updates(),
-            gated_run: f.gate_state().0,
-            gate_open: f.gate_state().1,
-            progress: self.progress,
-        }
+        cp.updates = f.updates();
+        (cp.gated_run, cp.gate_open) = f.gate_state();
+        cp.progress = self.progress;
     }
 
     /// A calibrator with settings `settings` continuing from checkpoint `cp`.

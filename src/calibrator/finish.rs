@@ -107,6 +107,16 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         }
     }
 
+    /// A filter of this configuration for [`Calibrator::finish_in`], which
+    /// restarts it (what it holds does not matter): the prior's, built
+    /// straight into the caller's place (inlined; no filter-sized
+    /// temporary on a firmware's stack).
+    #[inline(always)]
+    pub(crate) fn scratch_filter(&self) -> Filter<T, M, N, Z> {
+        let (config, x0, sigma0) = Self::prior(&self.settings);
+        Filter::with_prior_variance(config, x0, &sigma0)
+    }
+
     /// The running estimate as the final answer when the passes cannot
     /// run: [`EstimateKind::SinglePass`] with `reason`.
     pub(crate) fn single_pass(&self, reason: SinglePassReason) -> Estimate {

@@ -98,9 +98,11 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
 
     /// Bridges the `gap` periods lost before sample `s` (along the
     /// commanded motion, or re-acquiring the attitude), rolling the filter
-    /// back if that fails. Out of line: the filter's copy kept for the
-    /// rollback is on the stack only while a gap is bridged, not under
-    /// every sample's filter step.
+    /// back if that fails. The point to roll back to is the state, the
+    /// factor's attitude rows and the frame (`ekf::rollback`), not a copy of
+    /// the filter (18 KB for the full M2-ps model in f64). Out of line: it
+    /// is on the stack only while a gap is bridged, not under every
+    /// sample's filter step.
     #[inline(never)]
     pub(super) fn bridge_gap(
         &mut self,
@@ -111,7 +113,10 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     ) -> Result<(), RejectReason> {
         let dt = f64::from(s.dt);
         let motion = self.motion_across(s, gap);
-        let saved = self.filter.clone();
+        let saved = match self.filter.rollback_point() {
+            Ok(point) => point,
+            Err(e) => return Err(self.reject(RejectReason::Filter(e))),
+        };
         let logged_before = self.progress.logged;
         match self.bridge(gap, dt, &motion, log) {
             Ok(last) => {
@@ -136,7 +141,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
                 p.last_increment = [last.x, last.y, last.z];
             }
             Err(e) => {
-                self.filter = saved;
+                self.filter.roll_back(&saved);
                 if self.progress.logged != logged_before {
                     self.log_broken(SinglePassReason::FilterFailed);
                 }

@@ -63,6 +63,46 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         Ok(Self::with_prior_variance(config, x0, &variance))
     }
 
+    /// [`Filter::new`] built straight into `slot` (whatever it held), and
+    /// returned there: a firmware that keeps its filter in static memory
+    /// has no filter-sized value on its stack (18 KB for the full M2-ps
+    /// model in f64, more than a Cortex-M's whole stack budget of 16 KB).
+    /// On error `slot` is unchanged.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// # use nalgebra::SVector;
+    /// # use rollcal::ekf::{FilterConfig, M2PsFullFilter, Options};
+    /// # use rollcal::geometry::{earth_rate_n, gravity_n, EARTH_RATE};
+    /// # use rollcal::models::Environment;
+    /// # let deg = core::f64::consts::PI / 180.0;
+    /// # let config = FilterConfig::<f64> {
+    /// #     env: Environment { earth_rate_n: earth_rate_n(EARTH_RATE, 34.25 * deg), gravity_n: gravity_n() },
+    /// #     sigma_accel: 1e-6,
+    /// #     sigma_gyro: 0.1 * deg / 3600.0,
+    /// #     sigma_gimbal: 10.0 * deg / 3600.0,
+    /// #     options: Options::default(),
+    /// # };
+    /// // In a firmware: `static mut SLOT: Option<M2PsFullFilter<f64>> = None;`
+    /// let mut slot: Option<M2PsFullFilter<f64>> = None;
+    /// let f = M2PsFullFilter::new_in(&mut slot, config, SVector::zeros(), SVector::repeat(1e-3))?;
+    /// assert_eq!(f.state().len(), 39);
+    /// # Ok::<(), rollcal::Error>(())
+    /// ```
+    // Not inlined: its frame holds the prior's checks, not a filter.
+    #[inline(never)]
+    pub fn new_in<'a>(
+        slot: &'a mut Option<Self>,
+        config: FilterConfig<T>,
+        x0: SVector<f64, N>,
+        sigma0: SVector<T, N>,
+    ) -> Result<&'a mut Self, Error> {
+        let variance = Self::prior_variance(&config, &x0, &sigma0)?;
+        *slot = Some(Self::with_prior_variance(config, x0, &variance));
+        slot.as_mut().ok_or(Error::NonFiniteInput)
+    }
+
     /// [`Filter::new`] from the prior variances `variance` that
     /// [`Filter::prior_variance`] returned for `config`, `x0`: it cannot
     /// fail, so a caller can build the filter straight into its place (the

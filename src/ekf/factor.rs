@@ -65,8 +65,21 @@ const _ATTITUDE_FIRST: () = assert!(ATT == 0);
 /// a projection `Uᵀ h` of 18 states 1 480 → 738 instructions, a scalar
 /// update 2 650 → 1 190, counted with `tools/qemu-insnmark` on the call
 /// site; `firmware/bench.sh` counts the periods).
+///
+/// Above [`UNROLLED_UP_TO`] states (the full model's 33 to 39) the
+/// triangle is one loop whose length the compiler is not told, so that it
+/// is not unrolled whole: unrolled, the 780 products of `N = 39` made one
+/// scalar update 40 KB of code and 5 KB of stack (Cortex-M7), a flight
+/// image's whole budget. The columns and the products are the same, in
+/// the same order, so the results are the same bits.
 #[inline(always)]
 fn in_runs<const N: usize>(mut column: impl FnMut(usize)) {
+    if N > UNROLLED_UP_TO {
+        for j in 0..core::hint::black_box(N).min(N) {
+            column(j);
+        }
+        return;
+    }
     for j in 0..N / 2 {
         column(j);
     }
@@ -80,6 +93,10 @@ fn in_runs<const N: usize>(mut column: impl FnMut(usize)) {
         column(j);
     }
 }
+
+/// The most states whose triangles [`in_runs`] lets the compiler unroll:
+/// the installation models' (12 to 18).
+const UNROLLED_UP_TO: usize = 18;
 
 /// Process noise on the three attitude states (rad²) in the form the time
 /// update reads: `Q = B diag(w) Bᵀ`, `w ≥ 0` (3×3 each).
@@ -554,6 +571,17 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
             }
         }
         Some(rows)
+    }
+
+    /// The first three (attitude) rows of the packed factor: all that
+    /// [`Ud::predict_attitude`] and [`Ud::reset_attitude`] change.
+    pub fn attitude_rows(&self) -> SMatrix<T, 3, N> {
+        self.m.fixed_rows::<3>(0).into_owned()
+    }
+
+    /// Puts back rows saved by [`Ud::attitude_rows`].
+    pub fn set_attitude_rows(&mut self, rows: &SMatrix<T, 3, N>) {
+        self.m.fixed_rows_mut::<3>(0).copy_from(rows);
     }
 
     /// Re-opens the attitude: its covariance becomes `variance · I` (rad²)

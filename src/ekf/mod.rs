@@ -62,6 +62,7 @@ mod parts;
 mod pending;
 mod predict;
 mod reacquire;
+mod rollback;
 mod second_order;
 mod step;
 mod update;

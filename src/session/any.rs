@@ -240,6 +240,11 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
         each!(self, c => c.checkpoint())
     }
 
+    /// [`Calibrator::checkpoint_into`]: written into `cp`, whatever it held.
+    pub fn checkpoint_into(&self, cp: &mut Checkpoint) {
+        each!(self, c => c.checkpoint_into(cp))
+    }
+
     /// [`Calibrator::reset`].
     pub fn reset(&mut self) -> Result<(), calibrator::Error> {
         each!(self, c => c.reset())

@@ -3,6 +3,7 @@
 //! one [`Message`] with nothing left over.
 
 use super::crc::crc32;
+use super::in_place::MessageInto;
 use super::{FrameError, Message, CRC_LEN, MIN_DECODED_LEN, VERSION};
 
 /// Decodes COBS in place; returns the decoded length, or `None` when a block
@@ -59,9 +60,13 @@ pub fn decode_frame(frame: &mut [u8]) -> Result<Message, FrameError> {
 }
 
 /// [`decode_frame`] with the message written into `msg` (what it held is
-/// replaced; untouched on error). A message is a checkpoint's size whatever it
-/// holds (≈ 3 KB, ≈ 12.5 KB with the `full-model` feature): a firmware that keeps `msg` in static memory has no
-/// second copy of it on its stack.
+/// replaced). A message is a checkpoint's size whatever it holds (≈ 3 KB,
+/// ≈ 12.6 KB with the `full-model` feature): a firmware that keeps `msg` in
+/// static memory has no copy of it on its stack, as a checkpoint is
+/// decoded into `msg`'s own vectors (the `in_place` module). On an error of
+/// the frame (COBS, length, CRC, version) `msg` is untouched; on a
+/// malformed payload it holds some valid message, not necessarily the one
+/// it held.
 pub fn decode_frame_into(frame: &mut [u8], msg: &mut Message) -> Result<(), FrameError> {
     message_into(frame_payload(frame)?, msg)
 }
@@ -95,16 +100,19 @@ fn message_of(payload: &[u8]) -> Result<Message, FrameError> {
     }
 }
 
-/// [`message_of`] written into `msg` (untouched on error). Out of line:
-/// the decoding's copies of the message are in this frame only, not in
-/// its callers'.
+/// [`message_of`] written into `msg`, a checkpoint into its own vectors
+/// ([`MessageInto`]): the same messages and errors, no message-sized
+/// temporary. Out of line: the small messages' values are in this frame
+/// only, not in its callers'.
 #[inline(never)]
 fn message_into(payload: &[u8], msg: &mut Message) -> Result<(), FrameError> {
-    match postcard::take_from_bytes::<Message>(payload) {
-        Ok((m, [])) => {
-            *msg = m;
-            Ok(())
-        }
+    use serde::de::DeserializeSeed;
+    let mut d = postcard::Deserializer::from_bytes(payload);
+    match MessageInto(msg)
+        .deserialize(&mut d)
+        .and_then(|()| d.finalize())
+    {
+        Ok([]) => Ok(()),
         _ => Err(FrameError::Malformed),
     }
 }

@@ -506,6 +506,27 @@ pub struct Checkpoint {
     pub progress: Progress,
 }
 
+impl Checkpoint {
+    /// A checkpoint of no states (M1-pa's configuration, zeros): the value
+    /// [`crate::calibrator::Calibrator::checkpoint_into`] writes over. Its
+    /// vectors are empty, so building it writes a few hundred bytes, not
+    /// the vectors' capacity.
+    pub fn empty() -> Self {
+        Self {
+            config: ConfigId::M1Pa,
+            errors: ErrorModel::Installation,
+            state: Vec::new(),
+            factor: Vec::new(),
+            nominal: None,
+            c_cn: [0.0; 9],
+            updates: 0,
+            gated_run: 0,
+            gate_open: false,
+            progress: Progress::default(),
+        }
+    }
+}
+
 /// Every message of the protocol. The postcard tag is the variant's index
 /// (a varint): `Sample` 0, `Estimate` 1, `Checkpoint` 2, `Configure` 3,
 /// `Reset` 4, `CheckpointRequest` 5, `EstimateRequest` 6, `Finish` 7. New variants are

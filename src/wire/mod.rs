@@ -53,6 +53,7 @@ mod decode;
 mod decoder;
 mod encode;
 mod error;
+mod in_place;
 mod messages;
 
 pub use crc::crc32;
