@@ -92,12 +92,12 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// ```
     // Not inlined: its frame holds the prior's checks, not a filter.
     #[inline(never)]
-    pub fn new_in<'a>(
-        slot: &'a mut Option<Self>,
+    pub fn new_in(
+        slot: &mut Option<Self>,
         config: FilterConfig<T>,
         x0: SVector<f64, N>,
         sigma0: SVector<T, N>,
-    ) -> Result<&'a mut Self, Error> {
+    ) -> Result<&mut Self, Error> {
         let variance = Self::prior_variance(&config, &x0, &sigma0)?;
         *slot = Some(Self::with_prior_variance(config, x0, &variance));
         slot.as_mut().ok_or(Error::NonFiniteInput)
