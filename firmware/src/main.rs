@@ -14,11 +14,13 @@
 //! final answer was a single pass), 101 panic or HardFault ([`EXIT_OK`],
 //! [`EXIT_REJECTS`], [`EXIT_NO_FINAL`], [`EXIT_CRASH`]).
 //!
-//! The sample log of the estimator of record is a static in the linker
-//! section `.log`, the `LOG` region of `memory.x` (see [`stream`]).
+//! The sample log of the estimator of record is `rollcal`'s `FlashLog` over
+//! a NOR flash device in the linker section `.log`, the `LOG` region of
+//! `memory.x` ([`flash`], [`stream`]).
 #![no_std]
 #![no_main]
 
+mod flash;
 mod marks;
 mod stack;
 mod stream;

@@ -18,33 +18,39 @@
 //!
 //! # The sample log
 //!
-//! [`LOG_CAPACITY`] records in the static `LOG`, linker section `.log`:
-//! the `LOG` region of `memory.x` (SSRAM2&3 from 0x2010_0000, outside the
-//! 128 KiB of `RAM`). The section is NOLOAD, so the start-up code neither
-//! copies nor zeroes it; [`log_storage`] writes every record in place once,
-//! and the stream loop keeps a `SliceLog` over it for the whole run.
-//!
-//! The log stands for storage that survives a reset (FRAM): a `Checkpoint`
-//! restore keeps its records, and the restored calibrator takes the log
-//! back to the checkpoint's `progress.logged` at its next sample, so that
-//! calibrator and log agree and `Finish` still runs the estimator of record.
-//! After a `Configure` or `Reset` the first sample empties it. (A log shorter
-//! than the calibrator's count is not the run's: `Finish` then answers a
-//! single pass, `LogMismatch`.)
+//! `rollcal::estimator::FlashLog`, the log in NOR flash, over [`Ssram`]
+//! (`crate::flash`: the `LOG` region of `memory.x` behind
+//! `embedded-storage`'s `NorFlash` traits, as a flight computer's HAL
+//! implements them for its flash): packed records in write-aligned slots,
+//! each with its run's epoch, its index and a CRC, sectors erased as the
+//! log enters them. It is opened at start-up from what the device holds
+//! (`FlashLog::open`: the newest run's complete records) and in the layout
+//! of each `Configure`'s configuration (with the gimbal angles for M2-ps).
+//! It stands for storage that survives a reset: a `Checkpoint` restore
+//! keeps its records, and the restored calibrator takes the log back to the
+//! checkpoint's `progress.logged` at its next sample, so that calibrator
+//! and log agree and `Finish` still runs the estimator of record (the
+//! checkpoint self-test reopens the log from the device between the
+//! `Reset` and the restore, as a device that lost its RAM would). After a
+//! `Configure` or `Reset` the first sample empties it (a new epoch). A log
+//! shorter than the calibrator's count is not the run's: `Finish` then
+//! answers a single pass, `LogMismatch`.
 
 use core::mem::MaybeUninit;
 use core::ptr::addr_of_mut;
 use core::sync::atomic::{AtomicBool, Ordering};
 
-use nalgebra::Vector3;
 use rollcal::calibrator::RejectReason;
-use rollcal::estimator::{EstimatorOptions, LogRecord, SampleLog, SliceLog};
+use rollcal::estimator::{
+    EstimatorOptions, FlashLog, LogError, LogRecord, PackedLayout, SampleLog,
+};
 use rollcal::session::{Reply, Request, Session, SessionError};
 use rollcal::wire::{
     decode_frame_into, encode, CalibratorConfig, EstimateKind, FrameDecoder, Message, MAX_FRAME_LEN,
 };
 use rollcal::Options;
 
+use crate::flash::{Ssram, LOG_BYTES};
 use crate::marks::{
     rollcal_mark_finish_end, rollcal_mark_finish_start, rollcal_mark_period_end,
     rollcal_mark_period_start,
@@ -52,33 +58,97 @@ use crate::marks::{
 use crate::uart::Uart;
 use crate::{Args, Mode, Real};
 
-/// Records in the sample log: the 5400 periods of the paper's run plus 13 %
-/// (bridged periods are logged too, one record each).
-pub const LOG_CAPACITY: usize = 6144;
+/// The sample log (see the module docs): a `FlashLog` over the SSRAM
+/// device, or none when the device could not be opened (every append then
+/// fails, and `Finish` answers a single pass).
+struct Log {
+    inner: Option<FlashLog<Ssram, Real>>,
+}
 
-/// The sample log's storage, in the `LOG` region (NOLOAD: uninitialised at
-/// reset). Only [`log_storage`] touches it.
-#[link_section = ".log"]
-static mut LOG: MaybeUninit<[LogRecord<Real>; LOG_CAPACITY]> = MaybeUninit::uninit();
-
-/// Set once [`log_storage`] has handed out [`LOG`].
-static LOG_TAKEN: AtomicBool = AtomicBool::new(false);
-
-/// The log's storage, every record initialised in place (one record at a
-/// time: no copy of the whole array on the stack). `None` on a second call.
-fn log_storage() -> Option<&'static mut [LogRecord<Real>]> {
-    if LOG_TAKEN.swap(true, Ordering::AcqRel) {
-        return None;
-    }
-    // SAFETY: the flag above makes this the only reference ever made to
-    // LOG; every element is written before the slice is formed.
-    unsafe {
-        let base = addr_of_mut!(LOG).cast::<LogRecord<Real>>();
-        for k in 0..LOG_CAPACITY {
-            base.add(k)
-                .write(LogRecord::predicted(0.0, Vector3::zeros()));
+impl Log {
+    /// The log the device holds, read in `layout`.
+    fn open(flash: Ssram, layout: PackedLayout) -> Self {
+        match FlashLog::open(flash, 0..LOG_BYTES as u32, layout) {
+            Ok(log) => {
+                defmt::info!(
+                    "sample log: FlashLog of {} slots of {} bytes ({} KiB NOR over SSRAM, {}-byte sectors, {}-byte words), {} records found, layout {}",
+                    log.capacity(),
+                    log.slot_len(),
+                    LOG_BYTES / 1024,
+                    crate::flash::ERASE_SIZE,
+                    crate::flash::WRITE_SIZE,
+                    log.len(),
+                    layout
+                );
+                Self { inner: Some(log) }
+            }
+            Err(e) => {
+                defmt::error!("the sample log cannot be opened: {}", e);
+                Self { inner: None }
+            }
         }
-        Some(core::slice::from_raw_parts_mut(base, LOG_CAPACITY))
+    }
+
+    /// Reopened from the device, in `layout`: what a device that lost its
+    /// RAM finds.
+    fn reopen(&mut self, layout: PackedLayout) {
+        if let Some(log) = self.inner.take() {
+            *self = Self::open(log.into_inner(), layout);
+        }
+    }
+
+    /// Reopened in `layout` if it is read in another one.
+    fn use_layout(&mut self, layout: PackedLayout) {
+        if self.inner.as_ref().is_some_and(|l| l.layout() != layout) {
+            self.reopen(layout);
+        }
+    }
+
+    fn layout(&self) -> PackedLayout {
+        self.inner
+            .as_ref()
+            .map_or(PackedLayout::AccelGimbal, |l| l.layout())
+    }
+
+    /// What the log asked of the device, and its last error.
+    fn report(&self) {
+        if let Some(log) = &self.inner {
+            let s = log.flash().stats();
+            defmt::info!(
+                "flash: {} records in {} segments, {} bytes a slot; {} writes ({} bytes), {} sector erases, {} reads; last error {}",
+                log.len(),
+                log.segments(),
+                log.slot_len(),
+                s.writes,
+                s.bytes_written,
+                s.erases,
+                s.reads,
+                log.last_error()
+            );
+        }
+    }
+}
+
+impl SampleLog<Real> for Log {
+    fn append(&mut self, record: &LogRecord<Real>) -> Result<(), LogError> {
+        match &mut self.inner {
+            Some(log) => log.append(record),
+            None => Err(LogError::Storage),
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.inner.as_ref().map_or(0, |l| l.len())
+    }
+
+    fn get(&mut self, k: usize) -> Option<LogRecord<Real>> {
+        self.inner.as_mut()?.get(k)
+    }
+
+    fn truncate(&mut self, len: usize) {
+        if let Some(log) = &mut self.inner {
+            log.truncate(len);
+        }
     }
 }
 
@@ -179,7 +249,7 @@ struct Stream<'a> {
     /// What the session answered to the last message
     /// (`Session::handle_into`).
     reply: &'static mut Reply,
-    log: SliceLog<'static, Real>,
+    log: Log,
     totals: Totals,
     /// The decoder's count of rejected frames, told to every calibrator.
     frame_errors: u32,
@@ -247,12 +317,17 @@ impl Stream<'_> {
         // (without a message-sized `Message::Configure` and reply here).
         match self.session.configure(c) {
             Err(e) => defmt::error!("Configure refused: {}", e),
-            Ok(()) => defmt::info!(
-                "configured {}, estimate every {} samples, second-order S {}",
-                c.config,
-                c.estimate_every,
-                c.options.second_order_covariance
-            ),
+            Ok(()) => {
+                defmt::info!(
+                    "configured {} ({} model), estimate every {} samples, second-order S {}",
+                    c.config,
+                    c.errors,
+                    c.estimate_every,
+                    c.options.second_order_covariance
+                );
+                let z = c.config.layout_with(c.errors).z();
+                self.log.use_layout(PackedLayout::for_measurements(z));
+            }
         }
         self.tell_frame_errors();
     }
@@ -386,6 +461,9 @@ impl Stream<'_> {
             logged
         );
         self.selftest_reset();
+        // A device that lost its RAM: the log as the flash holds it.
+        let layout = self.log.layout();
+        self.log.reopen(layout);
         self.selftest_restore(n, slot);
     }
 
@@ -448,16 +526,9 @@ pub fn run(args: &Args) -> Totals {
     let tx = args
         .reply_uart1
         .then(|| unsafe { Uart::new(crate::uart::UART1_BASE) });
-    let Some(storage) = log_storage() else {
-        defmt::panic!("the sample log is already in use");
+    let Some(flash) = Ssram::take() else {
+        defmt::panic!("the sample log's device is already in use");
     };
-    defmt::info!(
-        "sample log: {} records of {} bytes ({} bytes) at {=usize:#x}",
-        storage.len(),
-        core::mem::size_of::<LogRecord<Real>>(),
-        core::mem::size_of_val(storage),
-        storage.as_ptr() as usize
-    );
     let Some(State {
         session,
         decoder,
@@ -473,7 +544,7 @@ pub fn run(args: &Args) -> Totals {
         link: Link { uart, tx, out },
         session,
         reply,
-        log: SliceLog::new(storage),
+        log: Log::open(flash, PackedLayout::AccelGimbal),
         totals: Totals::default(),
         frame_errors: 0,
     };
@@ -492,6 +563,7 @@ pub fn run(args: &Args) -> Totals {
             Ok(()) => {
                 if stream.handle(message) == Flow::Exit {
                     defmt::info!("Finish answered; decoder {}", decoder.stats());
+                    stream.log.report();
                     return stream.totals;
                 }
                 if stream.selftest_due(message) {

@@ -40,8 +40,11 @@ pub fn filter_config(options: Options, noise_scale: u32) -> FilterConfig<Real> {
 
 /// The synthetic run's filter, in static memory: as large as the largest
 /// filter this image holds (an `AnyFilter`; the full M2-ps model's is 18 KB
-/// in f64, more than the firmware's stack budget). Only [`filter_slot`]
-/// touches it.
+/// in f64, more than the firmware's stack budget). In the `LOG` region of
+/// `memory.x` (NOLOAD SSRAM, beside the sample log's device), not in the
+/// 128 KiB of `RAM`: the benchmark's filter is not a flight image's static
+/// memory. Only [`filter_slot`] touches it.
+#[link_section = ".log"]
 static mut ARENA: MaybeUninit<AnyFilter<Real>> = MaybeUninit::uninit();
 
 /// Set once [`filter_slot`] has handed out [`ARENA`].

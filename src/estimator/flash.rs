@@ -358,6 +358,11 @@ impl<F: NorFlash, T: RealField + Copy, const S: usize> FlashLog<F, T, S> {
         self.last_error
     }
 
+    /// The flash device, e.g. for what its driver counts.
+    pub fn flash(&self) -> &F {
+        &self.flash
+    }
+
     /// The flash device, e.g. to reopen the log after a simulated reset.
     pub fn into_inner(self) -> F {
         self.flash

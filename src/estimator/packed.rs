@@ -189,6 +189,30 @@ impl PackedLayout {
         }
     }
 
+    /// `record` as a compact log of this layout gives it back
+    /// ([`PackedLog`], [`super::FlashLog`]): every value rounded to its
+    /// field (module docs), `dt` kept; `None` when the log would refuse it
+    /// ([`LogError::Unrepresentable`]: a value out of its field's range, or
+    /// gimbal angles in [`PackedLayout::Accel`]). A host that wants the
+    /// answer a device with such a log gives runs its passes over these
+    /// (`host-sim calibrate --log packed`).
+    ///
+    /// ```
+    /// use nalgebra::Vector3;
+    /// use rollcal::ekf::Observation;
+    /// use rollcal::estimator::{LogRecord, PackedLayout};
+    ///
+    /// let obs = Observation { accel_mean: Vector3::new(0.25, -0.5, 0.83), gimbal: None };
+    /// let r = LogRecord::measured(1.0, Vector3::new(1.2e-5, 3e-6, -1.745e-3), obs);
+    /// let back = PackedLayout::Accel.round_trip(&r).unwrap();
+    /// assert_eq!(back.dt, 1.0);
+    /// assert!((back.dtheta_cmd - r.dtheta_cmd).amax() <= 4.6e-13);
+    /// assert!((back.observation.unwrap().accel_mean - obs.accel_mean).amax() <= 3.8e-9);
+    /// ```
+    pub fn round_trip<T: RealField + Copy>(self, record: &LogRecord<T>) -> Option<LogRecord<T>> {
+        pack(self, record).map(|bits| unpack(&bits, record.dt))
+    }
+
     /// The layout a configuration with `z` measurements per period needs:
     /// gimbal angles when it measures them (`z = 6`, M2-ps).
     pub const fn for_measurements(z: usize) -> Self {

@@ -8,7 +8,9 @@
 use nalgebra::RealField;
 use rollcal::calibrator::RejectReason;
 use rollcal::ekf::{self, FilterConfig, Options};
-use rollcal::estimator::{EstimatorOptions, LogError, LogRecord, PassEvent, SampleLog};
+use rollcal::estimator::{
+    EstimatorOptions, LogError, LogRecord, PackedLayout, PassEvent, SampleLog,
+};
 use rollcal::models::{ConfigId, ErrorModel, Model};
 use rollcal::observability::Observability;
 use rollcal::session::{Covariance, PassObserver, Reply, Session};
@@ -54,12 +56,33 @@ pub fn platform_config(
     c
 }
 
+/// How the host's sample log keeps a record.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum LogStorage {
+    /// Every record as the calibrator logs it.
+    #[default]
+    Exact,
+    /// Each record rounded as a compact log stores it (the firmware's log
+    /// in flash, `rollcal::estimator::FlashLog`, and `PackedLog`: 2⁻⁴⁰ rad,
+    /// 2⁻²⁷ g, 2π/2²⁴ rad), so that the final passes are the device's to
+    /// the last bit.
+    Packed,
+}
+
 /// The host's sample log: a vector that grows as needed.
-pub struct VecLog<T: RealField + Copy = f64>(pub Vec<LogRecord<T>>);
+pub struct VecLog<T: RealField + Copy = f64> {
+    /// The records, as the final passes read them.
+    pub records: Vec<LogRecord<T>>,
+    /// How a record is kept.
+    pub storage: LogStorage,
+}
 
 impl<T: RealField + Copy> Default for VecLog<T> {
     fn default() -> Self {
-        Self(Vec::new())
+        Self {
+            records: Vec::new(),
+            storage: LogStorage::default(),
+        }
     }
 }
 
@@ -67,7 +90,7 @@ impl<T: RealField + Copy> VecLog<T> {
     /// The records in f64 (exact for f32).
     pub fn records_f64(&self) -> Vec<LogRecord<f64>> {
         let f = |v: T| v.to_subset().unwrap_or(f64::NAN);
-        self.0
+        self.records
             .iter()
             .map(|r| LogRecord {
                 dt: r.dt,
@@ -82,18 +105,28 @@ impl<T: RealField + Copy> VecLog<T> {
 }
 
 impl<T: RealField + Copy> SampleLog<T> for VecLog<T> {
+    /// With [`LogStorage::Packed`], the record as `FlashLog` gives it back
+    /// (its period length must be an `f32`, as the wire's are), or refused
+    /// as it refuses it.
     fn append(&mut self, r: &LogRecord<T>) -> Result<(), LogError> {
-        self.0.push(*r);
+        let r = match self.storage {
+            LogStorage::Exact => *r,
+            LogStorage::Packed => PackedLayout::AccelGimbal
+                .round_trip(r)
+                .filter(|_| f64::from(r.dt as f32) == r.dt)
+                .ok_or(LogError::Unrepresentable)?,
+        };
+        self.records.push(r);
         Ok(())
     }
     fn len(&self) -> usize {
-        self.0.len()
+        self.records.len()
     }
     fn truncate(&mut self, len: usize) {
-        self.0.truncate(len);
+        self.records.truncate(len);
     }
     fn get(&mut self, k: usize) -> Option<LogRecord<T>> {
-        self.0.get(k).copied()
+        self.records.get(k).copied()
     }
 }
 

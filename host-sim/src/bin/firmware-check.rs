@@ -11,7 +11,9 @@
 //!   and compares it state by state with `host-sim calibrate --json`'s final
 //!   estimates. Prints max |Δ| (rad, arcsec, and in units of the host's σ);
 //!   with `--tol`, exits non-zero when a state differs by more than `tol`
-//!   rad, when the last estimate is not the estimator of record's
+//!   rad (the installation states; a full model's instrument terms, whose
+//!   units are not radians, by more than `--tol-instrument-sigma` of the
+//!   host's σ), when the last estimate is not the estimator of record's
 //!   (`Final`) or ran another number of passes than the host, when the
 //!   calibrator rejected samples, when `--rc`
 //!   (QEMU's exit status) is not 0, or when no estimate was found. With
@@ -31,6 +33,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use rollcal::models::Group;
 use rollcal::wire::{encode, Estimate, EstimateKind, FrameDecoder, Message, MAX_FRAME_LEN};
 
 const ARCSEC: f64 = std::f64::consts::PI / 180.0 / 3600.0;
@@ -85,6 +88,10 @@ enum Cmd {
         /// host's passes (the check of an f32 build against the host's f64).
         #[arg(long)]
         tol_sigma: Option<f64>,
+        /// With `--tol`: fail when an instrument term of the full model
+        /// differs by more than this many of the host's σ.
+        #[arg(long, default_value_t = 1e-6)]
+        tol_instrument_sigma: f64,
         /// Name printed with the result.
         #[arg(long, default_value = "firmware")]
         label: String,
@@ -199,11 +206,51 @@ fn summary(run: &RunInfo, config: &str, fields: &str, ok: bool, why: &[String]) 
     ok
 }
 
+/// A host state: name, estimate and σ in the firmware's (internal) units,
+/// and whether it is an instrument term of the full model.
+struct HostState {
+    name: String,
+    estimate: f64,
+    sigma: f64,
+    instrument: bool,
+}
+
+/// The host JSON's states in state order: the installation states (rad),
+/// then the full model's instrument terms, converted from their printed
+/// units back to the internal ones.
+fn host_states(json: &serde_json::Value) -> Result<Vec<HostState>, String> {
+    let mut out = Vec::new();
+    for s in json["states"].as_array().ok_or("host JSON has no states")? {
+        out.push(HostState {
+            name: s["name"].as_str().unwrap_or("?").to_string(),
+            estimate: s["estimate_rad"]
+                .as_f64()
+                .ok_or("state without estimate_rad")?,
+            sigma: s["sigma_rad"].as_f64().ok_or("state without sigma_rad")?,
+            instrument: false,
+        });
+    }
+    for s in json["instruments"].as_array().into_iter().flatten() {
+        let group = s["group"].as_str().unwrap_or("?");
+        let (k, _) = Group::from_name(group)
+            .ok_or_else(|| format!("instrument term of unknown group {group}"))?
+            .printed_scale();
+        out.push(HostState {
+            name: s["name"].as_str().unwrap_or("?").to_string(),
+            estimate: s["estimate"].as_f64().ok_or("instrument without estimate")? / k,
+            sigma: s["sigma"].as_f64().ok_or("instrument without sigma")? / k,
+            instrument: true,
+        });
+    }
+    Ok(out)
+}
+
 fn compare(
     firmware: &Path,
     host: &Path,
     tol: Option<f64>,
     tol_sigma: Option<f64>,
+    tol_instrument_sigma: f64,
     label: &str,
     run: &RunInfo,
 ) -> Result<bool, String> {
@@ -218,7 +265,7 @@ fn compare(
             est.config.as_str()
         ));
     }
-    let states = json["states"].as_array().ok_or("host JSON has no states")?;
+    let states = host_states(&json)?;
     if states.len() != est.state.len() {
         return Err(format!(
             "{} states from the firmware, {} from the host",
@@ -226,22 +273,23 @@ fn compare(
             states.len()
         ));
     }
-    let (mut max_rad, mut max_sigma, mut worst) = (0.0f64, 0.0f64, "");
+    // Radians for the installation states; the instrument terms in units
+    // of their σ (max_sigma covers both).
+    let (mut max_rad, mut max_sigma, mut max_instr) = (0.0f64, 0.0f64, 0.0f64);
+    let mut worst = String::new();
     for (s, x) in states.iter().zip(est.state.iter()) {
-        let name = s["name"].as_str().unwrap_or("?");
-        let host_x = s["estimate_rad"]
-            .as_f64()
-            .ok_or("state without estimate_rad")?;
-        let host_sig = s["sigma_rad"].as_f64().ok_or("state without sigma_rad")?;
         // A NaN on either side counts as an infinite difference.
-        let d = (x - host_x).abs();
+        let d = (x - s.estimate).abs();
         let d = if d.is_nan() { f64::INFINITY } else { d };
-        if d > max_rad || worst.is_empty() {
+        if s.instrument {
+            max_instr = max_instr.max(d / s.sigma);
+        } else if d > max_rad || worst.is_empty() {
             max_rad = d;
-            worst = name;
+            worst.clone_from(&s.name);
         }
-        max_sigma = max_sigma.max(d / host_sig);
+        max_sigma = max_sigma.max(d / s.sigma);
     }
+    let full = states.iter().any(|s| s.instrument);
     let host_passes = json["answer"]["passes"].as_u64();
     let fw_passes = match est.kind {
         EstimateKind::Final { passes, .. } => Some(u64::from(passes)),
@@ -252,6 +300,11 @@ fn compare(
         why.push(format!(
             "max |Δ| {max_rad:.3e} rad > {:e}",
             tol.unwrap_or(0.0)
+        ));
+    }
+    if tol.is_some() && full && !(max_instr <= tol_instrument_sigma) {
+        why.push(format!(
+            "an instrument term {max_instr:.3e}σ > {tol_instrument_sigma:e}σ"
         ));
     }
     if let Some(t) = tol_sigma.filter(|t| max_sigma > *t) {
@@ -294,8 +347,19 @@ fn compare(
         (None, Some(s)) => format!("{s}sigma"),
         (None, None) => "none".to_string(),
     };
+    let instruments = if full {
+        format!(" max_dsigma_instruments={max_instr:.3e}")
+    } else {
+        String::new()
+    };
+    let limit = if full && tol.is_some() {
+        format!("{limit},{tol_instrument_sigma:e}sigma")
+    } else {
+        limit
+    };
     let fields = format!(
-        "passes={} max_dabs_rad={max_rad:.3e} max_dsigma={max_sigma:.3e} limit={limit}",
+        "errors={} passes={} max_dabs_rad={max_rad:.3e} max_dsigma={max_sigma:.3e}{instruments} limit={limit}",
+        est.errors,
         kind_str(&est.kind),
     );
     Ok(summary(run, est.config.as_str(), &fields, within, &why))
@@ -441,10 +505,19 @@ fn main() -> ExitCode {
             host,
             tol,
             tol_sigma,
+            tol_instrument_sigma,
             label,
             run,
         } => (
-            compare(firmware, host, *tol, *tol_sigma, label, run),
+            compare(
+                firmware,
+                host,
+                *tol,
+                *tol_sigma,
+                *tol_instrument_sigma,
+                label,
+                run,
+            ),
             Some(run),
         ),
         Cmd::Identical {

@@ -49,7 +49,7 @@ use super::args::{load_scenario, parse_config};
 use super::checks::print_judgement;
 use super::Error;
 use crate::analysis::calibration::{
-    bound_at_estimate, platform_config, CalibratorView, Final, Host,
+    bound_at_estimate, platform_config, CalibratorView, Final, Host, LogStorage,
 };
 use crate::analysis::checks::{self, DataVerdict, Judgement};
 use crate::analysis::runner::{self, Passes, Precision, RunResult};
@@ -107,6 +107,12 @@ pub struct CalibrateArgs {
     /// Cortex-M4F firmware; state, nominal and residuals are f64 in both).
     #[arg(long, value_enum, default_value_t = Precision::F64)]
     pub precision: Precision,
+    /// How the sample log of the final passes keeps a record: `exact`, or
+    /// `packed`, rounded as the firmware's log in flash stores it (docs/estimator.md
+    /// §The sample log): the final answer is then the firmware's to the
+    /// last bit (firmware/run-qemu.sh compares with it).
+    #[arg(long, value_enum, default_value_t = LogStorage::Exact)]
+    pub log: LogStorage,
     /// Write the final states as JSON (as `run --json`) to PATH.
     #[arg(long, value_name = "PATH")]
     pub json: Option<PathBuf>,
@@ -151,6 +157,7 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<DataVerdict
         input.source.clone(),
     );
     host.errors = args.errors;
+    host.log.storage = args.log;
     let mut decoder = FrameDecoder::new();
     let runs = input.expected.map_or_else(
         || "the stream's configuration".to_string(),
@@ -601,7 +608,7 @@ fn result<T: RealField + Copy>(
             nis,
             updates: final_pass.map(|f| f.updates.clone()).unwrap_or_default(),
             segments: crate::sim::segments::command_segments(
-                host.log.0.iter().map(|r| (r.dt, r.dtheta_cmd.into())),
+                host.log.records.iter().map(|r| (r.dt, r.dtheta_cmd.into())),
             ),
             failures,
             passes,
