@@ -29,14 +29,15 @@ ensure_tools() {
     rustup target add "$THUMB" >/dev/null 2>&1 || true
 }
 
-# Both variants, in separate target directories:
+# Both variants, in separate target directories, each with every
+# configuration, the research options and the full model:
 #   m4f: Cortex-M4F, estimator in f32 (default CPU of the target: single-precision FPU);
 #   m7:  Cortex-M7 (-C target-cpu=cortex-m7: double-precision FPU), estimator in f64.
 build_firmware() {
     log "building firmware (M4F f32, M7 f64)"
-    (cd "$FW" && DEFMT_LOG=info cargo build --release --target-dir target/m4f)
+    (cd "$FW" && DEFMT_LOG=info cargo build --release --features full-model --target-dir target/m4f)
     (cd "$FW" && DEFMT_LOG=info RUSTFLAGS="-C target-cpu=cortex-m7" \
-        cargo build --release --no-default-features --features f64,all-configs,research-options --target-dir target/m7)
+        cargo build --release --no-default-features --features f64,all-configs,research-options,installation-model,full-model --target-dir target/m7)
     # The M7 build must use the double FPU, not soft-float calls.
     local n
     n=$(arm-none-eabi-objdump -d "$M7_ELF" | grep -c 'vmul\.f64' || true)
@@ -73,14 +74,21 @@ build_plugin() {
     gcc -shared -fPIC -O2 -o "$PLUGIN" "$ROOT/tools/qemu-insnmark/insnmark.c"
 }
 
-# Records the paper scenario for CONFIG (seed 1) and appends the end-of-stream
-# frames (EstimateRequest, Finish): $OUT/<config>.bin (stream) and
-# $OUT/<config>-in.bin (firmware input).
+# record_stream CONFIG [full]: records a stream (seed 1) and appends the
+# end-of-stream frames (EstimateRequest, Finish): the paper scenario with
+# the installation model, $OUT/<config>.bin (stream) and $OUT/<config>-in.bin
+# (firmware input); with `full`, the instrumented scenario (the instruments'
+# own errors, SPEC §8) with the full model, $OUT/<config>-full.bin and
+# $OUT/<config>-full-in.bin.
 record_stream() {
-    local config=$1
-    "$HOST_SIM" record --config "$config" --seed 1 --out "$OUT/$config.bin" 2>/dev/null
-    "$FW_CHECK" end-frame >"$OUT/$config-end.bin"
-    cat "$OUT/$config.bin" "$OUT/$config-end.bin" >"$OUT/$config-in.bin"
+    local config=$1 name=$1 args=()
+    if [ "${2:-}" = full ]; then
+        name=$config-full
+        args=(--errors full --scenario "$ROOT/scenarios/instrumented.toml")
+    fi
+    "$HOST_SIM" record --config "$config" --seed 1 "${args[@]}" --out "$OUT/$name.bin" 2>/dev/null
+    "$FW_CHECK" end-frame >"$OUT/$name-end.bin"
+    cat "$OUT/$name.bin" "$OUT/$name-end.bin" >"$OUT/$name-in.bin"
 }
 
 marker() { arm-none-eabi-nm "$1" | awk -v s="$2" '$3 == s { print "0x" $1 }'; }

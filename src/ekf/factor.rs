@@ -391,10 +391,9 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         v
     }
 
-    /// `f = Uᵀ h` and `v = D Uᵀ h` for a row `h`, written into `f` and `v`
-    /// (every element).
+    /// `f = Uᵀ h` for a row `h`, written into `f` (every element).
     #[inline(always)]
-    fn project_to(&self, h: &SVector<T, N>, f: &mut [T; N], v: &mut [T; N]) {
+    fn project_f(&self, h: &SVector<T, N>, f: &mut [T; N]) {
         let a = &self.m.data.0;
         let h = h.as_slice();
         in_runs::<N>(|j| {
@@ -404,6 +403,14 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
                 .zip(h)
                 .fold(h[j], |s, (u, h_i)| s + *u * *h_i);
         });
+    }
+
+    /// `f = Uᵀ h` and `v = D Uᵀ h` for a row `h`, written into `f` and `v`
+    /// (every element).
+    #[inline(always)]
+    fn project_to(&self, h: &SVector<T, N>, f: &mut [T; N], v: &mut [T; N]) {
+        self.project_f(h, f);
+        let a = &self.m.data.0;
         for j in 0..N {
             v[j] = f[j] * a[j][j];
         }
@@ -444,17 +451,20 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
     /// the factor becomes that of `P − P hᵀ h P / α`. Returns the gain and
     /// `α`; `None` (factor untouched) if `r` is not strictly positive or the
     /// update would leave `D` non-positive or non-finite.
+    ///
+    /// Two arrays of `N` besides the gain: `f = Uᵀ h` and the running `b`;
+    /// `v_j = D_j f_j`, the `α` sequence and the new `D` are formed where
+    /// they are used, twice (a checking pass, then the update), the same
+    /// operations in the same order both times.
     pub fn update(&mut self, h: &SVector<T, N>, r: T) -> Option<ScalarUpdate<T, N>> {
         if !(r > T::zero()) {
             return None;
         }
-        let (mut f, mut v) = ([T::zero(); N], [T::zero(); N]);
-        self.project_to(h, &mut f, &mut v);
-        // The α sequence and the new D depend only on f, v and the old D:
+        let mut f = [T::zero(); N];
+        self.project_f(h, &mut f);
+        // The α sequence and the new D depend only on f and the old D:
         // check them first, so the update itself runs in place and cannot
         // fail half-way (no copy of the factor for a rollback).
-        let mut alphas = [T::zero(); N];
-        let mut new_d = [T::zero(); N];
         {
             let a = &self.m.data.0;
             let mut alpha = r;
@@ -462,7 +472,7 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
             let mut sum_d = T::zero();
             for j in 0..N {
                 let beta = alpha;
-                alpha += v[j] * f[j];
+                alpha += f[j] * a[j][j] * f[j];
                 // A NaN, non-positive or infinite α gives a D⁺ that is NaN,
                 // non-positive or infinite: one test below covers them.
                 let d = a[j][j] * (beta / alpha);
@@ -470,8 +480,6 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
                     return None;
                 }
                 sum_d += d;
-                alphas[j] = alpha;
-                new_d[j] = d;
             }
             if !sum_d.is_finite() {
                 return None;
@@ -481,12 +489,14 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         let mut b = [T::zero(); N];
         // Column j: U's column becomes U_j + λ_j b and b becomes b + v_j U_j
         // (the old U_j), λ_j = −f_j / α_{j−1} (α_{−1} = r); then b_j = v_j.
+        let mut alpha = r;
         in_runs::<N>(|j| {
-            let beta = if j == 0 { r } else { alphas[j - 1] };
-            let lambda = -f[j] / beta;
-            let v_j = v[j];
+            let beta = alpha;
             let col = &mut a[j];
-            col[j] = new_d[j];
+            let v_j = f[j] * col[j];
+            alpha += v_j * f[j];
+            let lambda = -f[j] / beta;
+            col[j] *= beta / alpha;
             for (u, b_i) in col[..j].iter_mut().zip(b.iter_mut()) {
                 let u_old = *u;
                 *u = u_old + *b_i * lambda;
@@ -495,9 +505,11 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
             b[j] = v_j;
         });
         // α after the last state (r for a factor of no states).
-        let alpha = alphas.last().copied().unwrap_or(r);
+        for b_i in b.iter_mut() {
+            *b_i /= alpha;
+        }
         Some(ScalarUpdate {
-            gain: SVector::from(b) / alpha,
+            gain: SVector::from(b),
             alpha,
         })
     }

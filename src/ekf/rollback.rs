@@ -73,7 +73,7 @@ mod tests {
 
     use crate::ekf::{Filter, FilterConfig, Observation, Options};
     use crate::geometry::{earth_rate_n, gravity_n, EARTH_RATE};
-    use crate::models::{Environment, Model, M1Pa, M2PsFull};
+    use crate::models::{Environment, M1Pa, M2PsFull, Model};
 
     fn config(options: Options) -> FilterConfig<f64> {
         let deg = core::f64::consts::PI / 180.0;
@@ -92,7 +92,11 @@ mod tests {
     /// A filter after a few steps of a roll (with or without a nominal),
     /// then predictions and a re-acquisition, rolled back: equal to the
     /// filter before, bit for bit.
-    fn rolls_back<M: Model<N, Z> + Clone + PartialEq + core::fmt::Debug, const N: usize, const Z: usize>(
+    fn rolls_back<
+        M: Model<N, Z> + Clone + PartialEq + core::fmt::Debug,
+        const N: usize,
+        const Z: usize,
+    >(
         linearised: bool,
     ) {
         let deg = core::f64::consts::PI / 180.0;

@@ -111,7 +111,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let half: T = nalgebra::convert(0.5);
         let phi_att = &self.pending.get().ok_or(Error::NoPrediction)?.prop.phi_att;
         let nu: SVector<T, Z> = to_t(nu_f64);
-        let g_att: Matrix3<T> = crate::models::attitude_rows(&noise.g);
+        let g_att: Matrix3<T> = noise.g_att;
         let h_att: SMatrix<T, Z, 3> = crate::models::attitude_columns(h);
         // H Φ in T (f64 is emulated on an FPU without it), in place. It
         // becomes the whitened rows in place below.
@@ -140,7 +140,12 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         }
         w.j_l = l_inv_m_g.transpose();
         // Time update with Φ' = Φ − J H Φ and Q' = G Gᵀ − J R_e Jᵀ.
-        w.phi_dec = phi_att - w.j_l * *h;
+        // Column by column, in place (no 3×N temporaries): the same
+        // products and differences as `phi_att − J_L H`.
+        w.phi_dec.copy_from(phi_att);
+        for (mut col, h_col) in w.phi_dec.column_iter_mut().zip(h.column_iter()) {
+            col -= w.j_l * h_col;
+        }
         let q = g_att * g_att.transpose() - w.j_l * w.j_l.transpose();
         // Factored here, before the factor is touched: a `Q'` that is not
         // positive semi-definite (garbage noise settings) is refused now,

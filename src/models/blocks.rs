@@ -32,20 +32,6 @@ pub(crate) fn attitude_columns<T: RealField + Copy, const R: usize, const N: usi
     out
 }
 
-/// The attitude rows of `m` (its first three, [`ATT`]), copied (see
-/// [`attitude_columns`]).
-pub(crate) fn attitude_rows<T: RealField + Copy, const R: usize, const C: usize>(
-    m: &SMatrix<T, R, C>,
-) -> SMatrix<T, 3, C> {
-    let mut out = SMatrix::<T, 3, C>::zeros();
-    for (dst, src) in out.data.0.iter_mut().zip(m.data.0.iter()) {
-        for (d, s) in dst.iter_mut().zip(src.iter().skip(ATT)) {
-            *d = *s;
-        }
-    }
-    out
-}
-
 pub(super) fn put3<T: RealField + Copy, const N: usize>(
     x: &mut SVector<T, N>,
     i: usize,

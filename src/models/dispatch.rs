@@ -137,6 +137,33 @@ macro_rules! __rollcal_if_m4_ps {
     ($($t:tt)*) => {};
 }
 
+// Likewise one helper per error model of the session's dispatch (cargo
+// features `installation-model`, `full-model`).
+#[cfg(feature = "installation-model")]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_installation_model {
+    ($($t:tt)*) => { $($t)* };
+}
+#[cfg(not(feature = "installation-model"))]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_installation_model {
+    ($($t:tt)*) => {};
+}
+#[cfg(feature = "full-model")]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_full_model {
+    ($($t:tt)*) => { $($t)* };
+}
+#[cfg(not(feature = "full-model"))]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __rollcal_if_full_model {
+    ($($t:tt)*) => {};
+}
+
 #[cfg(not(any(
     feature = "m1-pa",
     feature = "m1-ps",
@@ -147,6 +174,9 @@ macro_rules! __rollcal_if_m4_ps {
     feature = "m4-ps"
 )))]
 compile_error!("rollcal: enable at least one configuration feature (m1-pa, m1-ps, m2-ps, m3-pa, m3-ps, m4-pa, m4-ps; the default `all-configs` enables the seven)");
+
+#[cfg(not(any(feature = "installation-model", feature = "full-model")))]
+compile_error!("rollcal: enable at least one error model in the session's dispatch (installation-model, full-model; the default features enable both)");
 
 /// [`with_config!`] over the configurations built into this crate (cargo
 /// features `m1-pa` … `m4-ps`; the default `all-configs` has the seven):
@@ -220,10 +250,13 @@ macro_rules! with_model {
     };
 }
 
-/// [`with_model!`] over the configurations built into this crate (as
-/// [`with_built_config!`]): only their arms, installation and full, are
+/// [`with_model!`] over the configurations and error models built into
+/// this crate (cargo features `m1-pa` … `m4-ps` as [`with_built_config!`],
+/// and `installation-model`, `full-model`): only their arms are
 /// instantiated, and `fallback` is evaluated, with `other` the
-/// [`ConfigId`](crate::models::ConfigId), for a configuration left out.
+/// [`ConfigId`](crate::models::ConfigId), for a configuration or an error
+/// model left out (a flight image of the full model alone holds no
+/// installation model's code).
 ///
 /// ```
 /// use rollcal::models::{ConfigId, ErrorModel, Model};
@@ -238,17 +271,26 @@ macro_rules! with_built_model {
     ($id:expr, $errors:expr, |$m:ident, $n:ident, $z:ident| $body:expr, else |$other:ident| $fallback:expr) => {{
         let id: $crate::models::ConfigId = $id;
         match $errors {
-            $crate::models::ErrorModel::Installation => {
-                $crate::with_built_config!(id, |$m, $n, $z| $body, else |$other| $fallback)
+            $crate::models::ErrorModel::Installation => 'dispatch: {
+                $crate::__rollcal_if_installation_model! {
+                    break 'dispatch $crate::with_built_config!(id, |$m, $n, $z| $body, else |$other| $fallback);
+                }
+                #[allow(unreachable_code)]
+                {
+                    let $other = id;
+                    $fallback
+                }
             }
             $crate::models::ErrorModel::Full => 'dispatch: {
-                $crate::__rollcal_if_m1_pa! { if id == $crate::models::ConfigId::M1Pa { break 'dispatch $crate::with_config!(@arm M1PaFull, 33, 3, $m, $n, $z, $body); } }
-                $crate::__rollcal_if_m1_ps! { if id == $crate::models::ConfigId::M1Ps { break 'dispatch $crate::with_config!(@arm M1PsFull, 36, 3, $m, $n, $z, $body); } }
-                $crate::__rollcal_if_m2_ps! { if id == $crate::models::ConfigId::M2Ps { break 'dispatch $crate::with_config!(@arm M2PsFull, 39, 6, $m, $n, $z, $body); } }
-                $crate::__rollcal_if_m3_pa! { if id == $crate::models::ConfigId::M3Pa { break 'dispatch $crate::with_config!(@arm M3PaFull, 36, 3, $m, $n, $z, $body); } }
-                $crate::__rollcal_if_m3_ps! { if id == $crate::models::ConfigId::M3Ps { break 'dispatch $crate::with_config!(@arm M3PsFull, 39, 3, $m, $n, $z, $body); } }
-                $crate::__rollcal_if_m4_pa! { if id == $crate::models::ConfigId::M4Pa { break 'dispatch $crate::with_config!(@arm M4PaFull, 33, 3, $m, $n, $z, $body); } }
-                $crate::__rollcal_if_m4_ps! { if id == $crate::models::ConfigId::M4Ps { break 'dispatch $crate::with_config!(@arm M4PsFull, 36, 3, $m, $n, $z, $body); } }
+                $crate::__rollcal_if_full_model! {
+                    $crate::__rollcal_if_m1_pa! { if id == $crate::models::ConfigId::M1Pa { break 'dispatch $crate::with_config!(@arm M1PaFull, 33, 3, $m, $n, $z, $body); } }
+                    $crate::__rollcal_if_m1_ps! { if id == $crate::models::ConfigId::M1Ps { break 'dispatch $crate::with_config!(@arm M1PsFull, 36, 3, $m, $n, $z, $body); } }
+                    $crate::__rollcal_if_m2_ps! { if id == $crate::models::ConfigId::M2Ps { break 'dispatch $crate::with_config!(@arm M2PsFull, 39, 6, $m, $n, $z, $body); } }
+                    $crate::__rollcal_if_m3_pa! { if id == $crate::models::ConfigId::M3Pa { break 'dispatch $crate::with_config!(@arm M3PaFull, 36, 3, $m, $n, $z, $body); } }
+                    $crate::__rollcal_if_m3_ps! { if id == $crate::models::ConfigId::M3Ps { break 'dispatch $crate::with_config!(@arm M3PsFull, 39, 3, $m, $n, $z, $body); } }
+                    $crate::__rollcal_if_m4_pa! { if id == $crate::models::ConfigId::M4Pa { break 'dispatch $crate::with_config!(@arm M4PaFull, 33, 3, $m, $n, $z, $body); } }
+                    $crate::__rollcal_if_m4_ps! { if id == $crate::models::ConfigId::M4Ps { break 'dispatch $crate::with_config!(@arm M4PsFull, 36, 3, $m, $n, $z, $body); } }
+                }
                 #[allow(unreachable_code)]
                 {
                     let $other = id;

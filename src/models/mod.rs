@@ -84,7 +84,7 @@ mod propagation;
 mod states;
 mod transition;
 
-pub(crate) use blocks::{attitude_columns, attitude_rows};
+pub(crate) use blocks::attitude_columns;
 pub use config_id::{ConfigId, ParseConfigIdError};
 pub use error_model::{ErrorModel, ParseErrorModelError};
 pub use installation::{Installation, InstallationMatrices};

@@ -21,25 +21,25 @@ use crate::wire::{CalibratorConfig, Checkpoint, Estimate, Progress};
 #[derive(Clone, Debug, PartialEq)]
 pub enum AnyCalibrator<T: RealField + Copy> {
     /// M1-pa.
-    #[cfg(feature = "m1-pa")]
+    #[cfg(all(feature = "m1-pa", feature = "installation-model"))]
     M1Pa(Calibrator<T, M1Pa, 12, 3>),
     /// M1-ps.
-    #[cfg(feature = "m1-ps")]
+    #[cfg(all(feature = "m1-ps", feature = "installation-model"))]
     M1Ps(Calibrator<T, M1Ps, 15, 3>),
     /// M2-ps.
-    #[cfg(feature = "m2-ps")]
+    #[cfg(all(feature = "m2-ps", feature = "installation-model"))]
     M2Ps(Calibrator<T, M2Ps, 18, 6>),
     /// M3-pa.
-    #[cfg(feature = "m3-pa")]
+    #[cfg(all(feature = "m3-pa", feature = "installation-model"))]
     M3Pa(Calibrator<T, M3Pa, 15, 3>),
     /// M3-ps.
-    #[cfg(feature = "m3-ps")]
+    #[cfg(all(feature = "m3-ps", feature = "installation-model"))]
     M3Ps(Calibrator<T, M3Ps, 18, 3>),
     /// M4-pa.
-    #[cfg(feature = "m4-pa")]
+    #[cfg(all(feature = "m4-pa", feature = "installation-model"))]
     M4Pa(Calibrator<T, M4Pa, 12, 3>),
     /// M4-ps.
-    #[cfg(feature = "m4-ps")]
+    #[cfg(all(feature = "m4-ps", feature = "installation-model"))]
     M4Ps(Calibrator<T, M4Ps, 15, 3>),
     /// M1-pa, full model.
     #[cfg(all(feature = "m1-pa", feature = "full-model"))]
@@ -73,25 +73,25 @@ pub enum AnyCalibrator<T: RealField + Copy> {
 #[derive(Clone, Debug, PartialEq)]
 pub enum AnyFilter<T: RealField + Copy> {
     /// M1-pa.
-    #[cfg(feature = "m1-pa")]
+    #[cfg(all(feature = "m1-pa", feature = "installation-model"))]
     M1Pa(Filter<T, M1Pa, 12, 3>),
     /// M1-ps.
-    #[cfg(feature = "m1-ps")]
+    #[cfg(all(feature = "m1-ps", feature = "installation-model"))]
     M1Ps(Filter<T, M1Ps, 15, 3>),
     /// M2-ps.
-    #[cfg(feature = "m2-ps")]
+    #[cfg(all(feature = "m2-ps", feature = "installation-model"))]
     M2Ps(Filter<T, M2Ps, 18, 6>),
     /// M3-pa.
-    #[cfg(feature = "m3-pa")]
+    #[cfg(all(feature = "m3-pa", feature = "installation-model"))]
     M3Pa(Filter<T, M3Pa, 15, 3>),
     /// M3-ps.
-    #[cfg(feature = "m3-ps")]
+    #[cfg(all(feature = "m3-ps", feature = "installation-model"))]
     M3Ps(Filter<T, M3Ps, 18, 3>),
     /// M4-pa.
-    #[cfg(feature = "m4-pa")]
+    #[cfg(all(feature = "m4-pa", feature = "installation-model"))]
     M4Pa(Filter<T, M4Pa, 12, 3>),
     /// M4-ps.
-    #[cfg(feature = "m4-ps")]
+    #[cfg(all(feature = "m4-ps", feature = "installation-model"))]
     M4Ps(Filter<T, M4Ps, 15, 3>),
     /// M1-pa, full model.
     #[cfg(all(feature = "m1-pa", feature = "full-model"))]
@@ -140,31 +140,31 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
         settings: CalibratorConfig,
     ) -> Result<(), calibrator::Error> {
         match (settings.config, settings.errors) {
-            #[cfg(feature = "m1-pa")]
+            #[cfg(all(feature = "m1-pa", feature = "installation-model"))]
             (ConfigId::M1Pa, ErrorModel::Installation) => {
                 Self::build_one(slot, settings, Self::M1Pa)
             }
-            #[cfg(feature = "m1-ps")]
+            #[cfg(all(feature = "m1-ps", feature = "installation-model"))]
             (ConfigId::M1Ps, ErrorModel::Installation) => {
                 Self::build_one(slot, settings, Self::M1Ps)
             }
-            #[cfg(feature = "m2-ps")]
+            #[cfg(all(feature = "m2-ps", feature = "installation-model"))]
             (ConfigId::M2Ps, ErrorModel::Installation) => {
                 Self::build_one(slot, settings, Self::M2Ps)
             }
-            #[cfg(feature = "m3-pa")]
+            #[cfg(all(feature = "m3-pa", feature = "installation-model"))]
             (ConfigId::M3Pa, ErrorModel::Installation) => {
                 Self::build_one(slot, settings, Self::M3Pa)
             }
-            #[cfg(feature = "m3-ps")]
+            #[cfg(all(feature = "m3-ps", feature = "installation-model"))]
             (ConfigId::M3Ps, ErrorModel::Installation) => {
                 Self::build_one(slot, settings, Self::M3Ps)
             }
-            #[cfg(feature = "m4-pa")]
+            #[cfg(all(feature = "m4-pa", feature = "installation-model"))]
             (ConfigId::M4Pa, ErrorModel::Installation) => {
                 Self::build_one(slot, settings, Self::M4Pa)
             }
-            #[cfg(feature = "m4-ps")]
+            #[cfg(all(feature = "m4-ps", feature = "installation-model"))]
             (ConfigId::M4Ps, ErrorModel::Installation) => {
                 Self::build_one(slot, settings, Self::M4Ps)
             }
@@ -187,6 +187,14 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
             (_, ErrorModel::Full) => Err(calibrator::Error::ErrorModelMismatch {
                 expected: ErrorModel::Installation,
                 found: ErrorModel::Full,
+            }),
+            // The installation model in a build without the
+            // `installation-model` feature (a flight image of the full
+            // model alone).
+            #[cfg(not(feature = "installation-model"))]
+            (_, ErrorModel::Installation) => Err(calibrator::Error::ErrorModelMismatch {
+                expected: ErrorModel::Full,
+                found: ErrorModel::Installation,
             }),
             // A configuration left out of this build (cargo features).
             #[allow(unreachable_patterns)]

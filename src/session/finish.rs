@@ -42,19 +42,19 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
             };
         }
         match self {
-            #[cfg(feature = "m1-pa")]
+            #[cfg(all(feature = "m1-pa", feature = "installation-model"))]
             AnyCalibrator::M1Pa(c) => finish_as!(c, M1Pa),
-            #[cfg(feature = "m1-ps")]
+            #[cfg(all(feature = "m1-ps", feature = "installation-model"))]
             AnyCalibrator::M1Ps(c) => finish_as!(c, M1Ps),
-            #[cfg(feature = "m2-ps")]
+            #[cfg(all(feature = "m2-ps", feature = "installation-model"))]
             AnyCalibrator::M2Ps(c) => finish_as!(c, M2Ps),
-            #[cfg(feature = "m3-pa")]
+            #[cfg(all(feature = "m3-pa", feature = "installation-model"))]
             AnyCalibrator::M3Pa(c) => finish_as!(c, M3Pa),
-            #[cfg(feature = "m3-ps")]
+            #[cfg(all(feature = "m3-ps", feature = "installation-model"))]
             AnyCalibrator::M3Ps(c) => finish_as!(c, M3Ps),
-            #[cfg(feature = "m4-pa")]
+            #[cfg(all(feature = "m4-pa", feature = "installation-model"))]
             AnyCalibrator::M4Pa(c) => finish_as!(c, M4Pa),
-            #[cfg(feature = "m4-ps")]
+            #[cfg(all(feature = "m4-ps", feature = "installation-model"))]
             AnyCalibrator::M4Ps(c) => finish_as!(c, M4Ps),
             #[cfg(all(feature = "m1-pa", feature = "full-model"))]
             AnyCalibrator::M1PaFull(c) => finish_as!(c, M1PaFull),

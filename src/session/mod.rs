@@ -25,19 +25,19 @@
 macro_rules! each {
     ($any:expr, $c:ident => $body:expr) => {
         match $any {
-            #[cfg(feature = "m1-pa")]
+            #[cfg(all(feature = "m1-pa", feature = "installation-model"))]
             AnyCalibrator::M1Pa($c) => $body,
-            #[cfg(feature = "m1-ps")]
+            #[cfg(all(feature = "m1-ps", feature = "installation-model"))]
             AnyCalibrator::M1Ps($c) => $body,
-            #[cfg(feature = "m2-ps")]
+            #[cfg(all(feature = "m2-ps", feature = "installation-model"))]
             AnyCalibrator::M2Ps($c) => $body,
-            #[cfg(feature = "m3-pa")]
+            #[cfg(all(feature = "m3-pa", feature = "installation-model"))]
             AnyCalibrator::M3Pa($c) => $body,
-            #[cfg(feature = "m3-ps")]
+            #[cfg(all(feature = "m3-ps", feature = "installation-model"))]
             AnyCalibrator::M3Ps($c) => $body,
-            #[cfg(feature = "m4-pa")]
+            #[cfg(all(feature = "m4-pa", feature = "installation-model"))]
             AnyCalibrator::M4Pa($c) => $body,
-            #[cfg(feature = "m4-ps")]
+            #[cfg(all(feature = "m4-ps", feature = "installation-model"))]
             AnyCalibrator::M4Ps($c) => $body,
             #[cfg(all(feature = "m1-pa", feature = "full-model"))]
             AnyCalibrator::M1PaFull($c) => $body,

@@ -26,7 +26,7 @@ fn dense_gain<T: RealField + Copy, const N: usize, const Z: usize>(
     r: &SMatrix<T, Z, Z>,
     noise: &Noise<T, N, Z>,
 ) -> Result<Gain<T, N, Z>, Error> {
-    let c = noise.g * noise.d.transpose();
+    let c = noise.g() * noise.d.transpose();
     let r_eff = r + noise.d * noise.d.transpose();
     let ph = p * h.transpose() + c;
     let mut s = h * ph + h * c + r_eff;
@@ -82,10 +82,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             }
             let m = MatricesCache::new(Self::LAYOUT.installation(&x_lin));
             let nu = self.innovation_at(z, &x_lin, &lin, mean2, &m, measured);
-            let noise = Noise {
-                g: to_f64(&measured.noise.g),
-                d: to_f64(&measured.noise.d),
-            };
+            let noise = Noise::new(to_f64(&measured.noise.g_att), to_f64(&measured.noise.d));
             let gain = dense_gain(&p_prior, &to_f64(&measured.h), &r_v, &noise)?;
             x_lin = self.x + gain.k * nu;
         }
