@@ -106,6 +106,11 @@ use pending::PendingSlot;
 /// added to in f64
 /// ([`CommandFrame::period_in`](crate::command::CommandFrame::period_in),
 /// [`Layout::mean_accel_output`](crate::models::Layout::mean_accel_output)).
+/// The attitude's rate in `T` keeps the commanded rate out of its small
+/// parts and the RK4 sum is divided by 6: in f32 a rounding of the
+/// commanded rotation that every period repeats (`G`'s diagonal, 1/6) is a
+/// torquer scale factor
+/// ([`Layout::attitude_rate`](crate::models::Layout::attitude_rate)).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Filter<T: RealField + Copy, M, const N: usize, const Z: usize> {
     x: SVector<f64, N>,

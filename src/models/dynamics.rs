@@ -11,6 +11,8 @@
 //! computed frame `C^c_n` for it). An installation-only layout evaluates
 //! exactly the operations it did before the full model existed.
 
+use core::any::TypeId;
+
 use nalgebra::{Matrix3, RealField, SMatrix, Vector3};
 
 use super::blocks::set_cols;
@@ -18,7 +20,9 @@ use super::error_model::ErrorModel;
 use super::installation::InstallationMatrices;
 use super::layout::{AttitudeKind, Layout, ATT, GC, GT};
 use super::Environment;
-use crate::geometry::{d_lower_times, dcm, right_jacobian, right_jacobian_inv, skew, EulerTrig};
+use crate::geometry::{
+    d_lower_times, dcm, dcm_deviation, right_jacobian, right_jacobian_inv, skew, EulerTrig,
+};
 
 impl Layout {
     /// The attitude-state rate (rad/s) at attitude `att` under commanded rate
@@ -31,6 +35,17 @@ impl Layout {
     /// the g-sensitive drift (every other case ignores it). For the full
     /// model ([`ErrorModel::Full`]) `G ωc` is `G [(I + K_g) ωc + dg + D_g f^p]`
     /// with the instrument errors of `m.params.instruments`.
+    ///
+    /// In a precision other than f64 (f32) the commanded rate is kept out of
+    /// the rate's small parts: `G u = ωc + s`, `s = ε + (G − I) u` with
+    /// `ε = u − ωc` the gyros' errors ([`InstrumentErrors::gyro_error`](super::InstrumentErrors::gyro_error))
+    /// and [`InstallationMatrices::g_deviation`], and M1's `G u − R(ψ) ωc`
+    /// is `s − (R(ψ) − I) ωc` ([`crate::geometry::dcm_deviation`]). `G ωc`
+    /// in f32 rounds `G`'s diagonal (`1 − O(θ²)`, off by up to ≈ 7e-8, as
+    /// M1's `R(ψ) ωc` rounds `R(ψ)`'s): a relative error of the commanded
+    /// rotation that every period repeats, a torquer scale factor (the
+    /// full model's `kg`, docs/estimator.md §"The full model in single
+    /// precision"). In f64 the rate is evaluated as written above.
     pub fn attitude_rate<T: RealField + Copy>(
         &self,
         env: &Environment<T>,
@@ -39,6 +54,9 @@ impl Layout {
         omega_c: &Vector3<T>,
         c_cn: &Matrix3<T>,
     ) -> Option<Vector3<T>> {
+        if TypeId::of::<T>() != TypeId::of::<f64>() {
+            return self.attitude_rate_single(env, m, att, omega_c, c_cn);
+        }
         let w_ip = match self.errors {
             ErrorModel::Installation => m.g * omega_c,
             ErrorModel::Full => m.g * self.gyro_input(env, m, att, omega_c, c_cn),
@@ -52,6 +70,38 @@ impl Layout {
                 let t = trig.rate_inverse()?;
                 let c_pn = trig.dcm() * m.c_rn;
                 Some(t * (w_ip - c_pn * env.earth_rate_n))
+            }
+        }
+    }
+
+    /// [`Layout::attitude_rate`] in a precision other than f64: `ωc` apart,
+    /// the small parts without it (rounded to `ε_J` of themselves, not of
+    /// `ωc`).
+    fn attitude_rate_single<T: RealField + Copy>(
+        &self,
+        env: &Environment<T>,
+        m: &InstallationMatrices<T>,
+        att: &Vector3<T>,
+        omega_c: &Vector3<T>,
+        c_cn: &Matrix3<T>,
+    ) -> Option<Vector3<T>> {
+        let small = match self.errors {
+            ErrorModel::Installation => m.g_deviation * omega_c,
+            ErrorModel::Full => {
+                let f_p = self.platform_dcm(att, &m.c_rn, c_cn) * env.gravity_n;
+                let e = m.params.instruments.gyro_error(omega_c, &f_p);
+                e + m.g_deviation * (omega_c + e)
+            }
+        };
+        match self.attitude {
+            AttitudeKind::Misalignment => {
+                Some(right_jacobian_inv(att) * (small - dcm_deviation(att) * omega_c))
+            }
+            AttitudeKind::Gimbal | AttitudeKind::Attitude => {
+                let trig = EulerTrig::new(att);
+                let t = trig.rate_inverse()?;
+                let c_pn = trig.dcm() * m.c_rn;
+                Some(t * (omega_c + (small - c_pn * env.earth_rate_n)))
             }
         }
     }

@@ -7,7 +7,7 @@
 use nalgebra::{Matrix3, RealField, Vector3};
 
 use super::instrument_errors::InstrumentErrors;
-use crate::geometry::{dcm, dcm_and_right_jacobian, skew};
+use crate::geometry::{dcm, dcm_and_right_jacobian, dcm_deviation, skew};
 
 /// Installation parameters unpacked from a state vector (rad); absent ones
 /// are zero. With them the instruments' own errors of a full-model state
@@ -43,6 +43,14 @@ pub struct InstallationMatrices<T: RealField + Copy> {
     pub params: Installation<T>,
     /// `G = R(θgC)(I + L(θgT))`.
     pub g: Matrix3<T>,
+    /// `G − I = (R(θgC) − I)(I + L(θgT)) + L(θgT)`, formed without the
+    /// identity ([`crate::geometry::dcm_deviation`]): every entry to its
+    /// own relative precision. A filter that computes in single precision
+    /// takes the platform rate `G u` as `u + (G − I) u`
+    /// ([`Layout::attitude_rate`](super::Layout::attitude_rate)): `G`'s
+    /// diagonal, `1 − O(θ²)`, rounded to f32 is off by up to ≈ 7e-8, a
+    /// scale factor of the commanded rate that every period repeats.
+    pub g_deviation: Matrix3<T>,
     /// `A = (I + L(θaT)) R(−θaC)`.
     pub a: Matrix3<T>,
     /// `C^r_n = R(λ)`.
@@ -67,13 +75,15 @@ impl<T: RealField + Copy> InstallationMatrices<T> {
     /// The matrices of the installation parameters `params` (rad).
     pub fn new(params: Installation<T>) -> Self {
         let (r_g_c, jr_g_c) = dcm_and_right_jacobian(&params.theta_g_c);
-        let unit_g_t = Matrix3::identity() + crate::geometry::lower(&params.theta_g_t);
+        let lower_g_t = crate::geometry::lower(&params.theta_g_t);
+        let unit_g_t = Matrix3::identity() + lower_g_t;
         let (r_a_c, jr_a_c) = dcm_and_right_jacobian(&-params.theta_a_c);
         let unit_a_t = Matrix3::identity() + crate::geometry::lower(&params.theta_a_t);
         let (c_rn, jr_lambda) = dcm_and_right_jacobian(&params.lambda);
         Self {
             // The products of gyro_matrix and accel_matrix, on the same factors.
             g: r_g_c * unit_g_t,
+            g_deviation: dcm_deviation(&params.theta_g_c) * unit_g_t + lower_g_t,
             a: unit_a_t * r_a_c,
             c_rn,
             r_g_c,
@@ -120,6 +130,7 @@ impl InstallationMatrices<f64> {
                 instruments: p.instruments.to_precision(),
             },
             g: m(&self.g),
+            g_deviation: m(&self.g_deviation),
             a: m(&self.a),
             c_rn: m(&self.c_rn),
             r_g_c: m(&self.r_g_c),

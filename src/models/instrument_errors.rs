@@ -66,6 +66,15 @@ impl<T: RealField + Copy> InstrumentErrors<T> {
         omega_c + self.kg.component_mul(omega_c) + self.dg + self.d_g * f_p
     }
 
+    /// What the gyros add to the command `omega_c` (rad/s) under the
+    /// specific force `f_p` (g): `K_g ωc + dg + D_g f^p` (rad/s), the
+    /// [`InstrumentErrors::gyro_input`] less `ωc`, formed without it (a
+    /// single-precision filter's rate keeps the command out of its small
+    /// parts, [`Layout::attitude_rate`](super::Layout::attitude_rate)).
+    pub fn gyro_error(&self, omega_c: &Vector3<T>, f_p: &Vector3<T>) -> Vector3<T> {
+        self.kg.component_mul(omega_c) + self.dg + self.d_g * f_p
+    }
+
     /// The same errors in the pa frame from the ps ones (SPEC §8):
     /// `D_g^pa = D_g R(θaC)` (so that `D_g^pa f^pa = D_g f^ps`, with
     /// `f^ps = R(θaC) f^pa`), `dg`, `kg`, `ba`, `ka` unchanged; `theta_a_c`

@@ -5,6 +5,8 @@
 //! rows `Φ = exp(F T)` to second order and the noise map `B`
 //! ([`PeriodPropagation`]); the state at the end of a period.
 
+use core::any::TypeId;
+
 use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3};
 
 use super::blocks::put3;
@@ -91,7 +93,14 @@ impl Layout {
     /// (0.1 °/s, 1 s), exact in f32 to ≈ 3e-7 of themselves, ≈ 5e-10 rad,
     /// three orders of magnitude under the paper's gyro noise over a period
     /// (0.1 °/h · 1 s ≈ 4.8e-7 rad). On an FPU without double precision
-    /// they would otherwise be emulated f64.
+    /// they would otherwise be emulated f64. What `J` must not do is round
+    /// the commanded rotation the same way in every period: a relative
+    /// error of the commanded rate that repeats is a torquer scale factor
+    /// (the full model's `kg`; f32's 2⁻²⁴ ≈ 0.06 ppm is 0.1σ on a roll at
+    /// 1 °/s). So, for `J` other than f64, the rates' small parts are formed
+    /// without the command ([`Layout::attitude_rate`]: `G`'s rounded
+    /// diagonal) and the RK4 sum is divided by 6 (1/6 rounded to f32 is
+    /// 3e-8 of itself too large).
     pub fn propagate_into_jacobians_in<P: RealField + Copy, J: RealField + Copy, const N: usize>(
         &self,
         env_j: &Environment<J>,
@@ -149,7 +158,17 @@ impl Layout {
         let k2 = self.attitude_rate(env_j, m_j, &(a0 + k1 * (dt * half)), wm, cm)?;
         let k3 = self.attitude_rate(env_j, m_j, &(a0 + k2 * (dt * half)), wm, cm)?;
         let k4 = self.attitude_rate(env_j, m_j, &(a0 + k3 * dt), w1, c1)?;
-        let att1 = att0 + to_p((k1 + (k2 + k3) * two + k4) * (dt / six))?;
+        let sum = k1 + (k2 + k3) * two + k4;
+        // In f64 the weight T/6 as ever; in f32 its rounding (1/6 is off by
+        // 3e-8 of itself) would be a scale factor of the commanded rotation
+        // that every period repeats, so the sum is divided by 6 (each
+        // increment rounded once, period by period differently).
+        let increment = if TypeId::of::<J>() == TypeId::of::<f64>() {
+            sum * (dt / six)
+        } else {
+            sum * dt / six
+        };
+        let att1 = att0 + to_p(increment)?;
         let f1 = self.attitude_rate(env_j, m_j, &to_j(&att1)?, w1, c1)?;
         let att_mid =
             (att0 + att1) * nalgebra::convert::<f64, P>(0.5) + to_p((k1 - f1) * (dt / eight))?;

@@ -102,6 +102,18 @@ fn installation_matrices_equal_their_definitions() {
         let m32: InstallationMatrices<f32> = m.to_precision();
         assert_eq!(m32.a, m.a.map(|e| e as f32));
         assert_eq!(m32.params.lambda, p.lambda.map(|e| e as f32));
+        // G − I, formed without the identity: G less I to f64's rounding,
+        // and computed in f32 to a few of f32's roundings of |G − I|
+        // itself, where G in f32 less I keeps only ε_f32 of 1.
+        let dev = m.g - Matrix3::identity();
+        assert!((m.g_deviation - dev).amax() < 4.0 * f64::EPSILON);
+        let g32 = InstallationMatrices::new(m32.params);
+        let err = (g32.g_deviation.map(f64::from) - dev).amax();
+        assert!(
+            err < 8.0 * f64::from(f32::EPSILON) * dev.amax(),
+            "f32's G − I off by {err:e} (|G − I| {:e})",
+            dev.amax()
+        );
     }
 }
 
