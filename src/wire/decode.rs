@@ -1,41 +1,9 @@
-//! Decoding one frame given without its delimiter: COBS decoded in place,
-//! the length, CRC and version checked, and the postcard payload read as
-//! one [`Message`] with nothing left over.
+//! Decoding one frame given without its delimiter: COBS decoded in place
+//! (the `cobs` crate), the length, CRC and version checked, and the
+//! postcard payload read as one [`Message`] with nothing left over.
 
 use super::crc::crc32;
 use super::{FrameError, Message, CRC_LEN, MIN_DECODED_LEN, VERSION};
-
-/// Decodes COBS in place; returns the decoded length, or `None` when a block
-/// runs past the end (or holds a zero, which a split at delimiters excludes).
-fn cobs_decode_in_place(buf: &mut [u8]) -> Option<usize> {
-    let n = buf.len();
-    let (mut read, mut write) = (0usize, 0usize);
-    while read < n {
-        let code = *buf.get(read)?;
-        read += 1;
-        if code == 0 {
-            return None;
-        }
-        let run = usize::from(code - 1);
-        if read.checked_add(run)? > n {
-            return None;
-        }
-        for _ in 0..run {
-            let b = *buf.get(read)?;
-            if b == 0 {
-                return None;
-            }
-            *buf.get_mut(write)? = b;
-            read += 1;
-            write += 1;
-        }
-        if code != 0xFF && read < n {
-            *buf.get_mut(write)? = 0;
-            write += 1;
-        }
-    }
-    Some(write)
-}
 
 /// Decodes one frame given without its delimiter, in place (the buffer is
 /// overwritten).
@@ -69,7 +37,10 @@ pub fn decode_frame_into(frame: &mut [u8], msg: &mut Message) -> Result<(), Fram
 /// The postcard payload of a frame (COBS decoded in place; length, CRC and
 /// version checked).
 fn frame_payload(frame: &mut [u8]) -> Result<&[u8], FrameError> {
-    let n = cobs_decode_in_place(frame).ok_or(FrameError::Truncated)?;
+    // A frame split at its delimiter holds no zero; `decode_in_place`
+    // fails only when a code points past its end (or on an empty frame,
+    // which the decoder counts as `empty` before this).
+    let n = cobs::decode_in_place(frame).map_err(|_| FrameError::Truncated)?;
     let raw = frame.get(..n).ok_or(FrameError::Truncated)?;
     if n < MIN_DECODED_LEN {
         return Err(FrameError::Truncated);
