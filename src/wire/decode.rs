@@ -26,6 +26,17 @@ pub fn decode_frame(frame: &mut [u8]) -> Result<Message, FrameError> {
     message_of(frame_payload(frame)?)
 }
 
+/// [`decode_frame`] of a frame already COBS-decoded (the streaming
+/// decoder's).
+pub(super) fn decode_raw(raw: &[u8]) -> Result<Message, FrameError> {
+    message_of(raw_payload(raw)?)
+}
+
+/// [`decode_frame_into`] of a frame already COBS-decoded.
+pub(super) fn decode_raw_into(raw: &[u8], msg: &mut Message) -> Result<(), FrameError> {
+    message_into(raw_payload(raw)?, msg)
+}
+
 /// [`decode_frame`] with the message written into `msg` (what it held is
 /// replaced; untouched on error). A message is a checkpoint's size whatever it
 /// holds (≈ 3 KB, ≈ 12.5 KB with the `full-model` feature): a firmware that keeps `msg` in static memory has no
@@ -41,7 +52,13 @@ fn frame_payload(frame: &mut [u8]) -> Result<&[u8], FrameError> {
     // fails only when a code points past its end (or on an empty frame,
     // which the decoder counts as `empty` before this).
     let n = cobs::decode_in_place(frame).map_err(|_| FrameError::Truncated)?;
-    let raw = frame.get(..n).ok_or(FrameError::Truncated)?;
+    raw_payload(frame.get(..n).ok_or(FrameError::Truncated)?)
+}
+
+/// The postcard payload of a COBS-decoded frame (length, CRC and version
+/// checked).
+fn raw_payload(raw: &[u8]) -> Result<&[u8], FrameError> {
+    let n = raw.len();
     if n < MIN_DECODED_LEN {
         return Err(FrameError::Truncated);
     }
