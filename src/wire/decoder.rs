@@ -3,10 +3,9 @@
 //! outcome in [`DecoderStats`]; [`FrameDecoder`] is the one whose capacity
 //! accepts every message.
 
-use cobs::{DecodeResult, DecoderState};
 use serde::{Deserialize, Serialize};
 
-use super::decode::{decode_raw, decode_raw_into};
+use super::decode::{decode_frame, decode_frame_into};
 use super::{FrameError, Message, MAX_FRAME_LEN};
 
 /// Recommended decoder capacity: [`MAX_FRAME_LEN`].
@@ -91,35 +90,12 @@ impl DecoderStats {
 /// assert_eq!((decoder.stats().ok, decoder.stats().corrupt), (2, 1));
 /// assert_eq!(decoder.stats().errors(), 1);
 /// ```
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct Decoder<const CAP: usize> {
-    /// The frame's bytes so far, COBS-decoded as they arrive.
     buf: [u8; CAP],
-    /// Decoded bytes in `buf`.
     len: usize,
-    /// Encoded bytes of the frame so far (at most `CAP`).
-    raw: usize,
-    /// The `cobs` crate's streaming decoder.
-    cobs: DecoderState,
     overflow: bool,
     stats: DecoderStats,
-}
-
-impl<const CAP: usize> Clone for Decoder<CAP> {
-    fn clone(&self) -> Self {
-        Self {
-            buf: self.buf,
-            len: self.len,
-            raw: self.raw,
-            cobs: match self.cobs {
-                DecoderState::Idle => DecoderState::Idle,
-                DecoderState::Grab(n) => DecoderState::Grab(n),
-                DecoderState::GrabChain(n) => DecoderState::GrabChain(n),
-            },
-            overflow: self.overflow,
-            stats: self.stats,
-        }
-    }
 }
 
 impl<const CAP: usize> Default for Decoder<CAP> {
@@ -134,8 +110,6 @@ impl<const CAP: usize> Decoder<CAP> {
         Self {
             buf: [0; CAP],
             len: 0,
-            raw: 0,
-            cobs: DecoderState::Idle,
             overflow: false,
             stats: DecoderStats {
                 ok: 0,
@@ -156,14 +130,12 @@ impl<const CAP: usize> Decoder<CAP> {
 
     /// Bytes of an unfinished frame held in the buffer.
     pub fn pending(&self) -> usize {
-        self.raw
+        self.len
     }
 
     /// Drops any unfinished frame (counters are kept).
     pub fn clear(&mut self) {
         self.len = 0;
-        self.raw = 0;
-        self.cobs = DecoderState::Idle;
         self.overflow = false;
     }
 
@@ -174,7 +146,7 @@ impl<const CAP: usize> Decoder<CAP> {
     // stack is small, uses `push_byte_into` and a static slot).
     #[inline(never)]
     pub fn push_byte(&mut self, byte: u8) -> Option<Result<Message, FrameError>> {
-        self.push_byte_with(byte, decode_raw)
+        self.push_byte_with(byte, decode_frame)
     }
 
     /// [`Decoder::push_byte`] with a decoded message written into `msg`
@@ -190,7 +162,7 @@ impl<const CAP: usize> Decoder<CAP> {
         byte: u8,
         msg: &mut Message,
     ) -> Option<Result<(), FrameError>> {
-        self.push_byte_with(byte, |frame| decode_raw_into(frame, msg))
+        self.push_byte_with(byte, |frame| decode_frame_into(frame, msg))
     }
 
     /// Accepts one byte; at a delimiter decodes the frame with `decode`
@@ -198,41 +170,32 @@ impl<const CAP: usize> Decoder<CAP> {
     fn push_byte_with<R>(
         &mut self,
         byte: u8,
-        decode: impl FnOnce(&[u8]) -> Result<R, FrameError>,
+        decode: impl FnOnce(&mut [u8]) -> Result<R, FrameError>,
     ) -> Option<Result<R, FrameError>> {
         if byte != 0 {
             if self.overflow {
                 return None;
             }
-            if self.raw >= CAP {
-                self.overflow = true;
-                return None;
-            }
-            self.raw += 1;
-            // A non-zero byte is never an error nor the end of a frame.
-            if let Ok(DecodeResult::DataContinue(b)) = self.cobs.feed(byte) {
-                // Fewer decoded bytes than encoded ones: always in `buf`.
-                if let Some(slot) = self.buf.get_mut(self.len) {
-                    *slot = b;
+            match self.buf.get_mut(self.len) {
+                Some(slot) => {
+                    *slot = byte;
                     self.len += 1;
                 }
+                None => self.overflow = true,
             }
             return None;
         }
-        let end = self.cobs.feed(0);
         let (len, overflow) = (self.len, self.overflow);
-        let empty = self.raw == 0;
         self.clear();
         let result = if overflow {
             Err(FrameError::Oversized)
-        } else if empty {
+        } else if len == 0 {
             self.stats.empty = self.stats.empty.saturating_add(1);
             return None;
         } else {
-            match (end, self.buf.get(..len)) {
-                (Ok(DecodeResult::DataComplete), Some(frame)) => decode(frame),
-                // A COBS code that points past the delimiter.
-                _ => Err(FrameError::Truncated),
+            match self.buf.get_mut(..len) {
+                Some(frame) => decode(frame),
+                None => Err(FrameError::Oversized),
             }
         };
         self.stats.count(&result);

@@ -26,7 +26,7 @@
 //! radians, seconds, specific force in g, navigation frame North–Up–East.
 
 //! The module by concern: `messages` (the schema: [`Message`] and what it
-//! carries), `crc` ([`crc32`], the `crc` crate), `encode` ([`encode`], COBS on the fly by the `cobs` crate),
+//! carries), `crc` ([`crc32`]), `encode` ([`encode`], COBS on the fly),
 //! `decode` (one frame: [`decode_frame`]), `decoder` (the stream:
 //! [`Decoder`], [`DecoderStats`]) and `error` ([`EncodeError`],
 //! [`FrameError`]).
