@@ -291,7 +291,7 @@ fn a_full_block_at_the_end_of_the_data_is_closed_by_a_final_0x01() {
                     updates: 4320,
                     state: values(n_state, 1e-4),
                     sigma: values(n_sigma, 1e-6),
-                    progress: nonzero_progress.clone(),
+                    progress: nonzero_progress,
                     frame_errors: 2,
                     kind: EstimateKind::SinglePass {
                         reason: SinglePassReason::Reacquired,
