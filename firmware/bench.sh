@@ -13,6 +13,8 @@
 #   - the flash of one-configuration images (M2-ps, M1-pa; cargo features
 #     config-*) and the panicking calls reachable from the estimator
 #     (tools/panic-check.py);
+#   - the frame layer's instructions per frame (firmware/frames.sh: encode
+#     and decode of a Sample, an Estimate and a Checkpoint);
 #   - (full run) the instructions of Finish on both targets and the host
 #     criterion figures of one period;
 # and ends with one line per goal: `goal <name> measured <value> limit
@@ -95,6 +97,11 @@ for feature in config-m2ps config-m1pa; do
         goal "panic-calls-$v-${feature#config-}" "${n:-999}" 0
     done
 done
+
+echo
+echo "## The frame layer (firmware/frames.sh): flash of the one-configuration M2-ps images, instructions per frame"
+"$FW/frames.sh" | tee "$OUT/frames.txt" | sed 's/^/    /'
+grep '^figure ' "$OUT/frames.txt" >>"$GOALS"
 
 echo
 echo "## The floor: the M1-pa M4F image at the size-optimised profile (opt-level = \"z\")"

@@ -21,6 +21,7 @@
 #![no_main]
 
 mod flash;
+mod frames;
 mod marks;
 mod stack;
 mod stream;
@@ -62,12 +63,15 @@ pub enum Source {
     Uart,
     /// `source=synthetic`: the built-in synthetic motion (no input).
     Synthetic,
+    /// `source=frames`: the frame layer's self-measurement (no input;
+    /// [`frames`]).
+    Frames,
 }
 
 /// Run arguments from the semihosting command line.
 #[derive(Clone, Copy, defmt::Format)]
 pub struct Args {
-    /// `source=uart|synthetic`.
+    /// `source=uart|synthetic|frames`.
     pub source: Source,
     /// `exit=request`: end the run after answering a `Finish` (default
     /// `exit=never`, as on a device).
@@ -121,6 +125,7 @@ impl Args {
             match (k, v) {
                 (b"source", b"uart") => a.source = Source::Uart,
                 (b"source", b"synthetic") => a.source = Source::Synthetic,
+                (b"source", b"frames") => a.source = Source::Frames,
                 (b"exit", b"request") => a.exit_on_request = true,
                 (b"exit", b"never") => a.exit_on_request = false,
                 (b"reply", b"uart0") => a.reply_uart1 = false,
@@ -227,6 +232,13 @@ fn main() -> ! {
     let code = match args.source {
         Source::Synthetic => {
             if synthetic::run(&args) {
+                EXIT_OK
+            } else {
+                EXIT_REJECTS
+            }
+        }
+        Source::Frames => {
+            if frames::run() {
                 EXIT_OK
             } else {
                 EXIT_REJECTS

@@ -26,3 +26,5 @@ marker!(rollcal_mark_period_start, 1);
 marker!(rollcal_mark_period_end, 2);
 marker!(rollcal_mark_finish_start, 3);
 marker!(rollcal_mark_finish_end, 4);
+marker!(rollcal_mark_frame_start, 5);
+marker!(rollcal_mark_frame_end, 6);

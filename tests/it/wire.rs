@@ -235,6 +235,97 @@ fn every_single_bit_flip_is_detected_and_resynchronised() {
     }
 }
 
+/// A frame whose data ends with a full block of 254 non-zero bytes: the
+/// encoder closes it with the code `0xFF` and then sends a final `0x01`
+/// (docs/wire.md §Frame, 4), byte for byte as the reference encoder, and the
+/// decoder reads it. (The `cobs` crate's slice encoder would leave out the
+/// `0x01`; the wire's encoder uses its state machine.) Such frames are found
+/// by search: `Estimate`s with no zero byte after their `Progress`, of every
+/// pair of vector lengths and a few varint lengths.
+#[test]
+fn a_full_block_at_the_end_of_the_data_is_closed_by_a_final_0x01() {
+    let nonzero_progress = Progress {
+        last_seq: Some(4321),
+        last_t_us: Some(4_321_000_123),
+        last_increment: [1.234_567e-3, -2.345_678e-7, 3.456_789e-6],
+        clock_candidate: Some((17, 17_000_123)),
+        last_nis: 1.234_5,
+        accepted: 4321,
+        bridged: 3,
+        reacquired: 1,
+        reacquired_periods: 2,
+        clock_steps: 1,
+        logged: 4321,
+        log_incomplete: Some(SinglePassReason::Reacquired),
+        gated: 5,
+        since_estimate: 1,
+        rejects: RejectCounts {
+            non_finite: 1,
+            period: 1,
+            accel_range: 1,
+            increment_range: 1,
+            gimbal_range: 1,
+            missing_gimbal: 1,
+            duplicate: 1,
+            out_of_order: 1,
+            time_backwards: 1,
+            time_mismatch: 1,
+            frame_attitude: 1,
+            filter: 1,
+        },
+    };
+    let values = |n: usize, scale: f64| -> heapless::Vec<f64, MAX_STATES> {
+        (0..n)
+            .map(|i| scale * (1.234_567_891_234_5 + 0.111_111_111_111_1 * i as f64))
+            .collect()
+    };
+    let mut dec = FrameDecoder::new();
+    let mut found = 0;
+    for n_state in 0..=18 {
+        for n_sigma in 0..=18 {
+            for logged in [7u32, 1_000, 100_000, 20_000_000, u32::MAX] {
+                let m = Message::Estimate(Estimate {
+                    config: ConfigId::M2Ps,
+                    errors: rollcal::models::ErrorModel::Installation,
+                    seq: 4321,
+                    updates: 4320,
+                    state: values(n_state, 1e-4),
+                    sigma: values(n_sigma, 1e-6),
+                    progress: nonzero_progress,
+                    frame_errors: 2,
+                    kind: EstimateKind::SinglePass {
+                        reason: SinglePassReason::Reacquired,
+                        logged,
+                    },
+                });
+                let mut payload = vec![0u8; MAX_FRAME_LEN];
+                let p = postcard::to_slice(&m, &mut payload).unwrap();
+                let mut raw = vec![VERSION];
+                raw.extend_from_slice(p);
+                raw.extend_from_slice(&crc32(&raw).to_le_bytes());
+                let tail = raw.iter().rev().take_while(|b| **b != 0).count();
+                if tail == 0 || tail % 254 != 0 {
+                    continue;
+                }
+                found += 1;
+                let f = frame(&m);
+                assert_eq!(f, reference_frame(VERSION, p), "{m:?}");
+                let n = f.len();
+                assert_eq!(f[n - 2..], [0x01, 0x00]);
+                assert_eq!(f[n - 2 - 255], 0xFF);
+                assert_eq!(decode_all(&mut dec, &f), vec![Ok(m)]);
+                // The variant without the final 0x01 decodes too.
+                let mut short = f[..n - 2].to_vec();
+                short.push(0);
+                assert_eq!(decode_all(&mut dec, &short).len(), 1);
+            }
+        }
+    }
+    assert!(found >= 3, "{found} frames found");
+    assert_eq!(dec.stats().errors(), 0);
+    assert_eq!(dec.stats().ok, 2 * found);
+}
+
 /// Decoding into a slot (`push_byte_into`, `decode_frame_into`, the
 /// firmware's way) gives the messages, errors and counts of decoding by
 /// value, and leaves the slot as it was on every rejected frame.
