@@ -45,7 +45,9 @@ pub struct Ud<T: RealField + Copy, const N: usize> {
     m: SMatrix<T, N, N>,
 }
 
-/// Gain and innovation variance of one scalar update.
+/// Gain and innovation variance of one scalar update (the tests' view of
+/// [`Ud::update_into`]).
+#[cfg(test)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ScalarUpdate<T: RealField + Copy, const N: usize> {
     /// Kalman gain `K = P hᵀ / α` (state units per measurement unit).
@@ -67,15 +69,15 @@ const _ATTITUDE_FIRST: () = assert!(ATT == 0);
 /// site; `firmware/bench.sh` counts the periods).
 ///
 /// Above [`UNROLLED_UP_TO`] states (the full model's 33 to 39) the
-/// triangle is one loop whose length the compiler is not told, so that it
-/// is not unrolled whole: unrolled, the 780 products of `N = 39` made one
+/// triangle is one loop of `N` columns, which is too long for the compiler
+/// to unroll whole (it unrolls runs of up to 19): unrolled, the 780 products of `N = 39` made one
 /// scalar update 40 KB of code and 5 KB of stack (Cortex-M7), a flight
 /// image's whole budget. The columns and the products are the same, in
 /// the same order, so the results are the same bits.
 #[inline(always)]
 fn in_runs<const N: usize>(mut column: impl FnMut(usize)) {
     if N > UNROLLED_UP_TO {
-        for j in 0..core::hint::black_box(N).min(N) {
+        for j in 0..N {
             column(j);
         }
         return;
@@ -97,6 +99,25 @@ fn in_runs<const N: usize>(mut column: impl FnMut(usize)) {
 /// The most states whose triangles [`in_runs`] lets the compiler unroll:
 /// the installation models' (12 to 18).
 const UNROLLED_UP_TO: usize = 18;
+
+/// The new attitude rows of column `j ≥ 3` of the factor after the time
+/// update (`U₁₂ ← A U₁₂ + B U₂₂`, U₂₂ unit upper): row `r` is
+/// `Φ_rj + Σ_{k<j} Φ_rk U_kj`, summed in order of `k`, the three rows
+/// together; `u` is the column above its diagonal (`U_kj`, `k < j`).
+#[inline(always)]
+fn attitude_column<T: RealField + Copy, const N: usize>(
+    phi: &[[T; 3]; N],
+    u: &[T],
+    j: usize,
+) -> [T; 3] {
+    let mut s = phi[j];
+    for (phi_k, u_kj) in phi.iter().zip(u) {
+        for (s_r, phi_rk) in s.iter_mut().zip(phi_k) {
+            *s_r += *phi_rk * *u_kj;
+        }
+    }
+    s
+}
 
 /// Process noise on the three attitude states (rad²) in the form the time
 /// update reads: `Q = B diag(w) Bᵀ`, `w ≥ 0` (3×3 each).
@@ -447,16 +468,32 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         out
     }
 
-    /// Bierman's scalar measurement update for `z = h x + v`, `var v = r`:
-    /// the factor becomes that of `P − P hᵀ h P / α`. Returns the gain and
-    /// `α`; `None` (factor untouched) if `r` is not strictly positive or the
-    /// update would leave `D` non-positive or non-finite.
-    ///
-    /// Two arrays of `N` besides the gain: `f = Uᵀ h` and the running `b`;
-    /// `v_j = D_j f_j`, the `α` sequence and the new `D` are formed where
-    /// they are used, twice (a checking pass, then the update), the same
-    /// operations in the same order both times.
+    /// [`Ud::update_into`] with the gain returned (the tests' form).
+    #[cfg(test)]
     pub fn update(&mut self, h: &SVector<T, N>, r: T) -> Option<ScalarUpdate<T, N>> {
+        let mut gain = [T::zero(); N];
+        let alpha = self.update_into(h, r, &mut gain)?;
+        Some(ScalarUpdate {
+            gain: SVector::from(gain),
+            alpha,
+        })
+    }
+
+    /// Bierman's scalar measurement update for `z = h x + v`, `var v = r`:
+    /// the factor becomes that of `P − P hᵀ h P / α`. Writes the gain
+    /// `K = P hᵀ / α` into `b` (every element; its old values do not
+    /// matter) and returns `α`; `None` (factor untouched) if `r` is not
+    /// strictly positive or the update would leave `D` non-positive or
+    /// non-finite.
+    ///
+    /// Two arrays of `N`: `f = Uᵀ h` and the running `b`, which becomes the
+    /// gain; `v_j = D_j f_j`, the `α` sequence and the new `D` are formed
+    /// where they are used, twice (a checking pass, then the update), the
+    /// same operations in the same order both times. No gain-sized value is
+    /// returned by value (0.3 KB of f64 on a Cortex-M's stack for 39
+    /// states).
+    #[inline(always)]
+    pub fn update_into(&mut self, h: &SVector<T, N>, r: T, b: &mut [T; N]) -> Option<T> {
         if !(r > T::zero()) {
             return None;
         }
@@ -486,7 +523,7 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
             }
         }
         let a = &mut self.m.data.0;
-        let mut b = [T::zero(); N];
+        b.fill(T::zero());
         // Column j: U's column becomes U_j + λ_j b and b becomes b + v_j U_j
         // (the old U_j), λ_j = −f_j / α_{j−1} (α_{−1} = r); then b_j = v_j.
         let mut alpha = r;
@@ -508,29 +545,66 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         for b_i in b.iter_mut() {
             *b_i /= alpha;
         }
-        Some(ScalarUpdate {
-            gain: SVector::from(b),
-            alpha,
-        })
+        Some(alpha)
     }
 
     /// The time update `P ← Φ P Φᵀ + Q` of a transition `Φ` that is the
     /// identity but for its first three (attitude) rows `phi_att` (3×N), with
     /// process noise `q` (rad², [`AttitudeNoise`]) on the attitude states only. `None`
     /// (factor untouched) if the new attitude block is not positive definite.
+    ///
+    /// In place, column by column: each column's new attitude rows read its
+    /// old ones and no other column's, and the new attitude block, formed
+    /// from the old one first, is written last (no 3×N temporary: 0.9 KB
+    /// of f64 for 39 states on a Cortex-M's stack). The same values as
+    /// [`Ud::predicted_attitude_rows`], bit for bit.
+    // Out of line: called once a period, from the update's frame.
+    #[inline(never)]
     pub fn predict_attitude(
         &mut self,
         phi_att: &SMatrix<T, 3, N>,
         q: &AttitudeNoise<T>,
     ) -> Option<()> {
-        let rows = self.predicted_attitude_rows(phi_att, q)?;
+        let phi = &phi_att.data.0; // phi[col][row]
+        let blk = self.predicted_attitude_block(phi_att, q)?;
         let a = &mut self.m.data.0;
-        for (c, col) in a.iter_mut().enumerate() {
-            for r in 0..3.min(c + 1) {
-                col[r] = rows[(r, c)];
+        in_runs::<N>(|j| {
+            if j >= 3 {
+                let new = attitude_column(phi, &a[j][..j], j);
+                a[j][..3].copy_from_slice(&new);
+            }
+        });
+        let b = &blk.m.data.0;
+        for c in 0..3 {
+            for r in 0..=c {
+                a[c][r] = b[c][r];
             }
         }
         Some(())
+    }
+
+    /// The factor of the attitude block after [`Ud::predict_attitude`],
+    /// from the old `U₁₁`, `D₁` only: `W = A U₁₁` (U₁₁ unit upper), then
+    /// the factor of `W D₁ Wᵀ + Q`, without forming that block
+    /// (`attitude_block`). `None` if it is not positive definite.
+    fn predicted_attitude_block(
+        &self,
+        phi_att: &SMatrix<T, 3, N>,
+        q: &AttitudeNoise<T>,
+    ) -> Option<Ud<T, 3>> {
+        let phi = &phi_att.data.0; // phi[col][row]
+        let a = &self.m.data.0;
+        let mut w = Matrix3::<T>::zeros();
+        for c in 0..3 {
+            for r in 0..3 {
+                let mut s = if c < N { phi[c][r] } else { T::zero() };
+                for k in 0..c {
+                    s += phi[k][r] * a[c][k];
+                }
+                w[(r, c)] = s;
+            }
+        }
+        attitude_block(&w, [a[0][0], a[1][1], a[2][2]], q)
     }
 
     /// The first three rows of the factor after [`Ud::predict_attitude`]
@@ -544,37 +618,12 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
     ) -> Option<SMatrix<T, 3, N>> {
         let phi = &phi_att.data.0; // phi[col][row]
         let a = &self.m.data.0;
-        // The new attitude block first: W = A U₁₁ (U₁₁ unit upper), then
-        // the factor of W D₁ Wᵀ + Q (from the old U₁₁, D₁ only), without
-        // forming that block (`attitude_block`).
-        let blk = {
-            let mut w = Matrix3::<T>::zeros();
-            for c in 0..3 {
-                for r in 0..3 {
-                    let mut s = if c < N { phi[c][r] } else { T::zero() };
-                    for k in 0..c {
-                        s += phi[k][r] * a[c][k];
-                    }
-                    w[(r, c)] = s;
-                }
-            }
-            attitude_block(&w, [a[0][0], a[1][1], a[2][2]], q)?
-        };
+        let blk = self.predicted_attitude_block(phi_att, q)?;
         let mut rows = SMatrix::<T, 3, N>::zeros();
-        // U₁₂ ← A U₁₂ + B U₂₂, column by column (U₂₂ unit upper): row r of
-        // column j is Φ_rj + Σ_{k<j} Φ_rk U_kj, summed in order of k, the
-        // three rows together.
         in_runs::<N>(|j| {
-            if j < 3 {
-                return;
+            if j >= 3 {
+                rows.data.0[j] = attitude_column(phi, &a[j][..j], j);
             }
-            let mut s = phi[j];
-            for (phi_k, u_kj) in phi.iter().zip(&a[j][..j]) {
-                for (s_r, phi_rk) in s.iter_mut().zip(phi_k) {
-                    *s_r += *phi_rk * *u_kj;
-                }
-            }
-            rows.data.0[j] = s;
         });
         let b = &blk.m.data.0;
         for c in 0..3 {

@@ -73,6 +73,7 @@
 //! [`LogError::Unrepresentable`].
 
 use core::marker::PhantomData;
+use core::num::NonZeroU32;
 use core::ops::Range;
 
 use embedded_storage::nor_flash::{NorFlash, NorFlashError, NorFlashErrorKind};
@@ -235,8 +236,9 @@ pub struct FlashLog<F, T, const S: usize = DEFAULT_SEGMENTS> {
     sectors: u32,
     /// Slot length (bytes).
     slot: u32,
-    /// Slots per sector.
-    per_sector: u32,
+    /// Slots per sector (at least one: `open` checks the slot fits in a
+    /// sector; non-zero by type, so that no division can panic).
+    per_sector: NonZeroU32,
     /// Epoch of the records of this run.
     epoch: u32,
     /// Epoch of the next run: above every epoch in the region.
@@ -302,8 +304,10 @@ impl<F: NorFlash, T: RealField + Copy, const S: usize> FlashLog<F, T, S> {
             return Err(FlashLogError::Region);
         }
         let sectors = (region.end - region.start) / erase32;
-        let per_sector = erase32 / slot32;
-        if sectors.checked_mul(per_sector).is_none() {
+        let Some(per_sector) = NonZeroU32::new(erase32 / slot32) else {
+            return Err(FlashLogError::Geometry);
+        };
+        if sectors.checked_mul(per_sector.get()).is_none() {
             return Err(FlashLogError::Region);
         }
         let mut log = Self {
@@ -391,7 +395,7 @@ impl<F: NorFlash, T: RealField + Copy, const S: usize> FlashLog<F, T, S> {
     }
 
     fn total(&self) -> u32 {
-        self.sectors.saturating_mul(self.per_sector)
+        self.sectors.saturating_mul(self.per_sector.get())
     }
 
     fn erase_size(&self) -> u32 {
@@ -530,10 +534,10 @@ impl<F: NorFlash, T: RealField + Copy, const S: usize> FlashLog<F, T, S> {
         };
         self.epoch = epoch;
         let mut head = last_of_run.map_or(0, |p| p + 1);
-        if !head.is_multiple_of(self.per_sector) {
+        if !head.is_multiple_of(self.per_sector.get()) {
             // Inside a sector: skip a torn slot after the run's last
             // record (and anything else written in the sector's rest).
-            let (from, end) = (head, (head / self.per_sector + 1) * self.per_sector);
+            let (from, end) = (head, (head / self.per_sector + 1) * self.per_sector.get());
             for p in from..end {
                 if !matches!(self.read_slot(p, &mut buf)?, Slot::Erased) {
                     head = p + 1;
@@ -542,7 +546,7 @@ impl<F: NorFlash, T: RealField + Copy, const S: usize> FlashLog<F, T, S> {
         }
         self.head = head;
         let sector = head / self.per_sector;
-        self.erased_to = if !head.is_multiple_of(self.per_sector) {
+        self.erased_to = if !head.is_multiple_of(self.per_sector.get()) {
             sector + 1
         } else {
             sector
@@ -573,10 +577,10 @@ impl<F: NorFlash, T: RealField + Copy, const S: usize> SampleLog<T> for FlashLog
         }
         let mut p = self.head;
         let mut sector = p / self.per_sector;
-        if !p.is_multiple_of(self.per_sector) && self.erased_to <= sector {
+        if !p.is_multiple_of(self.per_sector.get()) && self.erased_to <= sector {
             // The rest of this sector is not known to be erased (it cannot
             // be, by construction): go on in the next one.
-            p = (sector + 1) * self.per_sector;
+            p = (sector + 1) * self.per_sector.get();
             sector += 1;
             self.head = p;
         }

@@ -365,8 +365,6 @@ where
         return Err(EstimatorError::InvalidTolerance);
     }
     let max = passes.max_passes.max(1);
-    let tolerance = passes.tolerance;
-    let env = config.env;
     let mut nominal: Option<SVector<f64, N>> = None;
     let mut previous: Option<SVector<f64, N>> = None;
     // C^c_n at the end of the run, integrated during pass 1.
@@ -375,40 +373,8 @@ where
     loop {
         filter.restart(*config, *x0, *sigma0)?;
         filter.set_nominal(nominal);
-        let mut frame = CommandFrame::aligned(env.earth_rate_n);
-        let mut tally = Tally::default();
-        for index in 0..records {
-            let record = log.get(index).ok_or(EstimatorError::Read { index })?;
-            let result = match &record.observation {
-                Some(obs) => filter.step(&record.dtheta_cmd, record.dt, obs).map(Some),
-                None => filter.predict(&record.dtheta_cmd, record.dt).map(|()| None),
-            };
-            if let Err(e) = result {
-                tally.fail(index, e);
-            }
-            if end_frame.is_none() && record.has_valid_period() {
-                let p = frame.period(&record.dtheta_cmd, record.dt);
-                frame.advance(&p);
-            }
-            observer(&PassEvent {
-                pass,
-                index,
-                record: &record,
-                result,
-                filter,
-            });
-        }
-        let end = *end_frame.get_or_insert(frame);
-        let x = *filter.state();
-        let sigma = filter.sigma();
-        let converged = previous.is_some_and(|prev| {
-            x.iter()
-                .zip(prev.iter())
-                .zip(sigma.iter())
-                .all(|((a, b), s)| {
-                    wrap_angle(*a - *b).abs() < tolerance * s.to_subset().unwrap_or(f64::NAN)
-                })
-        });
+        let tally = run_pass(filter, log, pass, &mut end_frame, &mut observer)?;
+        let converged = converged(filter, previous.as_ref(), passes.tolerance);
         if converged || pass >= max {
             return Ok(PassReport {
                 passes: pass,
@@ -419,11 +385,106 @@ where
                 first_failure: tally.first,
             });
         }
-        let (x_start, _) = back_propagate(M::LAYOUT, &env, &x, &end, log)?;
+        let x = *filter.state();
+        let end = end_frame.unwrap_or_else(|| CommandFrame::aligned(config.env.earth_rate_n));
+        let (x_start, _) = back_propagate_out_of_line(M::LAYOUT, &config.env, &x, &end, log)?;
         nominal = Some(x_start);
         previous = Some(x);
         pass = pass.saturating_add(1);
     }
+}
+
+/// One pass of [`estimate_in`] over every record of `log` in `filter`
+/// (restarted), the computed frame of pass 1 integrated into `end_frame`
+/// on the way. Out of line, as are the steps between passes: the frame
+/// above every filter step of `Finish` is this one's (a record, the
+/// step's result), not the passes' bookkeeping (a firmware's stack; the
+/// full model's vectors are 0.3 KB each in f64).
+#[inline(never)]
+fn run_pass<T, M, const N: usize, const Z: usize, L, F>(
+    filter: &mut Filter<T, M, N, Z>,
+    log: &mut L,
+    pass: u8,
+    end_frame: &mut Option<CommandFrame<f64>>,
+    observer: &mut F,
+) -> Result<Tally, EstimatorError>
+where
+    T: RealField + Copy,
+    M: Model<N, Z>,
+    L: SampleLog<T> + ?Sized,
+    F: FnMut(&PassEvent<'_, T, M, N, Z>),
+{
+    let mut frame = match end_frame {
+        Some(_) => None,
+        None => Some(CommandFrame::aligned(filter.config().env.earth_rate_n)),
+    };
+    let mut tally = Tally::default();
+    for index in 0..log.len() {
+        let record = log.get(index).ok_or(EstimatorError::Read { index })?;
+        let result = match &record.observation {
+            Some(obs) => filter.step(&record.dtheta_cmd, record.dt, obs).map(Some),
+            None => filter.predict(&record.dtheta_cmd, record.dt).map(|()| None),
+        };
+        if let Err(e) = result {
+            tally.fail(index, e);
+        }
+        if let Some(frame) = frame.as_mut().filter(|_| record.has_valid_period()) {
+            let p = frame.period(&record.dtheta_cmd, record.dt);
+            frame.advance(&p);
+        }
+        observer(&PassEvent {
+            pass,
+            index,
+            record: &record,
+            result,
+            filter,
+        });
+    }
+    if let Some(frame) = frame {
+        *end_frame = Some(frame);
+    }
+    Ok(tally)
+}
+
+/// Whether no state of `filter` moved by `tolerance` σ or more from
+/// `previous`, the last pass's estimate (`false` after pass 1). Out of
+/// line (see [`run_pass`]).
+#[inline(never)]
+fn converged<T, M, const N: usize, const Z: usize>(
+    filter: &Filter<T, M, N, Z>,
+    previous: Option<&SVector<f64, N>>,
+    tolerance: f64,
+) -> bool
+where
+    T: RealField + Copy,
+    M: Model<N, Z>,
+{
+    let x = filter.state();
+    let sigma = filter.sigma();
+    previous.is_some_and(|prev| {
+        x.iter()
+            .zip(prev.iter())
+            .zip(sigma.iter())
+            .all(|((a, b), s)| {
+                wrap_angle(*a - *b).abs() < tolerance * s.to_subset().unwrap_or(f64::NAN)
+            })
+    })
+}
+
+/// [`back_propagate`] out of line (see [`run_pass`]).
+#[inline(never)]
+fn back_propagate_out_of_line<T, const N: usize, L>(
+    layout: Layout,
+    env: &Environment<f64>,
+    x_end: &SVector<f64, N>,
+    frame_end: &CommandFrame<f64>,
+    log: &mut L,
+) -> Result<(SVector<f64, N>, CommandFrame<f64>), EstimatorError>
+where
+    T: RealField + Copy,
+    L: SampleLog<T> + ?Sized,
+{
+    back_propagate(layout, env, x_end, frame_end, log)
 }
 
 /// The state `x_end` at the end of the run recorded in `log`, integrated

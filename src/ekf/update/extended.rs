@@ -7,6 +7,7 @@
 use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3};
 
 use crate::ekf::cache::MatricesCache;
+use crate::ekf::factored::Base;
 use crate::ekf::measure::Measured;
 use crate::ekf::options::RESEARCH_OPTIONS;
 use crate::ekf::pending::Pending;
@@ -134,7 +135,14 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let mut measured = Measured::zeros();
         let nu = self.innovation_at(z, &self.x, pending, mean2, &self.matrices, &mut measured);
         let r_v = self.extended_noise(cov2);
-        self.factored(&mut measured.h, &nu, &r_v, &measured.noise, true, None)
+        self.factored(
+            &mut measured.h,
+            &nu,
+            &r_v,
+            &measured.noise,
+            true,
+            Base::Estimate,
+        )
     }
 
     /// The innovation `ν = z − h(x_i) − H (x̂ − x_i)` of the EKF update

@@ -5,6 +5,7 @@
 use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3};
 
 use crate::ekf::cache::MatricesCache;
+use crate::ekf::factored::Base;
 use crate::ekf::measure::{Measured, Noise};
 use crate::ekf::pending::Pending;
 use crate::ekf::{Error, Filter, Innovation};
@@ -53,7 +54,14 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let r_v = self.extended_noise(cov2);
         let mut measured = Measured::zeros();
         let nu = self.iterated_innovation(z, pending, &r_v, mean2, iterations, &mut measured)?;
-        self.factored(&mut measured.h, &nu, &r_v, &measured.noise, true, None)
+        self.factored(
+            &mut measured.h,
+            &nu,
+            &r_v,
+            &measured.noise,
+            true,
+            Base::Estimate,
+        )
     }
 
     /// [`Filter::innovation_at`] the iterated EKF's relinearisation point:

@@ -5,6 +5,7 @@
 use nalgebra::RealField;
 use nalgebra::SVector;
 
+use crate::ekf::factored::Base;
 use crate::ekf::measure::Measured;
 use crate::ekf::{linear_term, Error, Filter, Innovation};
 use crate::geometry::wrap_angle;
@@ -41,7 +42,6 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 *v = wrap_angle(*v);
             }
         }
-        let x_base = x_nom + delta;
         let r = self.measurement_noise();
         self.factored(
             &mut measured.h,
@@ -49,7 +49,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             &r,
             &measured.noise,
             z.is_some(),
-            Some(&x_base),
+            Base::Nominal { delta: &delta },
         )
     }
 }
