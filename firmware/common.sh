@@ -47,19 +47,26 @@ build_firmware() {
     fi
 }
 
-# build_firmware_one FEATURE (e.g. config-m2ps): both variants with that one
-# configuration (cargo feature of firmware/Cargo.toml), in target/m4f-one and
-# target/m7-one; prints the two ELF paths (M4F, then M7).
+# build_firmware_one FEATURES [OPT_LEVEL]: both variants with one
+# configuration, FEATURES the cargo features of firmware/Cargo.toml besides
+# the scalar (e.g. config-m2ps,installation-model: a flight image of the
+# installation model; config-m2ps,full-model: of the full model alone), at
+# the release profile (opt-level 3) or at OPT_LEVEL (e.g. s); in
+# target/{m4f,m7}-one-TAG; prints the two ELF paths (M4F, then M7), copied
+# to $OUT/{m4f,m7}-TAG.elf.
 build_firmware_one() {
-    local feature=$1
-    log "building firmware with one configuration ($feature)"
-    (cd "$FW" && DEFMT_LOG=info cargo build --release --no-default-features \
-        --features "f32,$feature" --target-dir target/m4f-one) >&2
-    cp "$FW/target/m4f-one/$THUMB/release/rollcal-firmware" "$OUT/m4f-$feature.elf"
-    (cd "$FW" && DEFMT_LOG=info RUSTFLAGS="-C target-cpu=cortex-m7" cargo build --release \
-        --no-default-features --features "f64,$feature" --target-dir target/m7-one) >&2
-    cp "$FW/target/m7-one/$THUMB/release/rollcal-firmware" "$OUT/m7-$feature.elf"
-    echo "$OUT/m4f-$feature.elf" "$OUT/m7-$feature.elf"
+    local features=$1 opt=${2:-} tag
+    tag=$(echo "$features" | tr ',' '+')${opt:+-opt-$opt}
+    local env=(DEFMT_LOG=info)
+    [ -n "$opt" ] && env+=(CARGO_PROFILE_RELEASE_OPT_LEVEL="$opt")
+    log "building firmware with one configuration ($features${opt:+, opt-level $opt})"
+    (cd "$FW" && env "${env[@]}" cargo build --release --no-default-features \
+        --features "f32,$features" --target-dir "target/m4f-one-$tag") >&2
+    cp "$FW/target/m4f-one-$tag/$THUMB/release/rollcal-firmware" "$OUT/m4f-$tag.elf"
+    (cd "$FW" && env "${env[@]}" RUSTFLAGS="-C target-cpu=cortex-m7" cargo build --release \
+        --no-default-features --features "f64,$features" --target-dir "target/m7-one-$tag") >&2
+    cp "$FW/target/m7-one-$tag/$THUMB/release/rollcal-firmware" "$OUT/m7-$tag.elf"
+    echo "$OUT/m4f-$tag.elf" "$OUT/m7-$tag.elf"
 }
 
 # flash_bytes ELF: text + data (what the image puts in flash).

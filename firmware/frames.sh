@@ -15,11 +15,11 @@ source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 
 ensure_tools
 build_plugin
-read -r FLIGHT_M4F FLIGHT_M7 < <(build_firmware_one config-m2ps)
+read -r FLIGHT_M4F FLIGHT_M7 < <(build_firmware_one config-m2ps,installation-model)
 echo "figure frame-flash-m4f-m2ps $(flash_bytes "$FLIGHT_M4F") bytes"
 echo "figure frame-flash-m7-m2ps $(flash_bytes "$FLIGHT_M7") bytes"
 # run_qemu runs $M4F_ELF / $M7_ELF: here the images with the self-measurement.
-read -r M4F_ELF M7_ELF < <(build_firmware_one config-m2ps,frame-bench)
+read -r M4F_ELF M7_ELF < <(build_firmware_one config-m2ps,installation-model,frame-bench)
 
 for v in m4f m7; do
     elf=$M4F_ELF

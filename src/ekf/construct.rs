@@ -8,6 +8,7 @@ use nalgebra::{RealField, SVector};
 use super::cache::MatricesCache;
 use super::factor::Ud;
 use super::pending::PendingSlot;
+use super::scratch::Scratch;
 use super::{all_finite, env_t, Error, Filter, FilterConfig};
 use crate::command::CommandFrame;
 use crate::models::Model;
@@ -125,6 +126,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             gate_open: false,
             matrices: MatricesCache::new(Self::LAYOUT.installation(&x0)),
             env_t: env_t(&config.env),
+            scratch: Scratch::zeros(),
             _model: PhantomData,
         }
     }

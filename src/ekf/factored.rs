@@ -6,7 +6,7 @@
 use nalgebra::{RealField, SMatrix, SVector, Vector3};
 
 use super::measure::Noise;
-use super::whiten::{Gate, Whitened};
+use super::whiten::Gate;
 use super::{all_finite, Error, Filter, Innovation};
 use crate::geometry::wrap_angle;
 use crate::models::{Model, ATT};
@@ -85,29 +85,33 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         measured: bool,
         base: Base<'_, N>,
     ) -> Result<Innovation<T, Z>, Error> {
-        let mut w = Whitened::zeros();
-        if let Gate::Refuse = self.whiten(h, nu_f64, r_v, noise, measured, &mut w)? {
+        // The whitened update goes into the filter's working memory
+        // (`Scratch`), not this frame.
+        if let Gate::Refuse = self.whiten(h, nu_f64, r_v, noise, measured)? {
             // Predicted only: the time update without the measurement.
             self.settle()?;
             self.gated_run += 1;
             self.pending.clear();
             return Err(Error::Gated);
         }
-        self.apply_whitened(h, &w, measured, base)
+        self.apply_whitened(h, measured, base)
     }
 
     /// The second half of [`Filter::factored`]: Bierman's scalar updates of
-    /// the whitened rows `h_w`, the decorrelated time update, the new state.
+    /// the whitened rows `h_w`, the decorrelated time update, the new state,
+    /// from the whitened update [`Filter::whiten`] left in the filter's
+    /// working memory.
     #[inline(never)]
     fn apply_whitened(
         &mut self,
         h_w: &SMatrix<T, Z, N>,
-        w: &Whitened<T, N, Z>,
         measured: bool,
         base: Base<'_, N>,
     ) -> Result<Innovation<T, Z>, Error> {
         let mut dx = SVector::<T, N>::zeros();
-        let nis = self.scalar_updates(h_w, &w.nu_w, &mut dx)?;
+        let nu_w = self.scratch.whitened.nu_w;
+        let nis = self.scalar_updates(h_w, &nu_w, &mut dx)?;
+        let w = &self.scratch.whitened;
         self.ud
             .predict_attitude(&w.phi_dec, &w.q)
             .ok_or(Error::CovarianceNotPositiveDefinite)?;
@@ -141,9 +145,10 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         self.updates = self.updates.saturating_add(1);
         self.gated_run = 0;
         self.gate_open = above;
+        let innovation = &self.scratch.whitened.innovation;
         Ok(Innovation {
-            nu: w.innovation.nu,
-            s: w.innovation.s,
+            nu: innovation.nu,
+            s: innovation.s,
             nis,
         })
     }

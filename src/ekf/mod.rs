@@ -63,6 +63,7 @@ mod pending;
 mod predict;
 mod reacquire;
 mod rollback;
+mod scratch;
 mod second_order;
 mod step;
 mod update;
@@ -84,6 +85,7 @@ use crate::precision::{to_f64, to_t};
 use cache::MatricesCache;
 use factor::Ud;
 use pending::PendingSlot;
+use scratch::Scratch;
 
 /// The estimator of configuration `M` with `N` states and `Z` measurement
 /// components per period, its covariance arithmetic in precision `T`.
@@ -132,6 +134,8 @@ pub struct Filter<T: RealField + Copy, M, const N: usize, const Z: usize> {
     /// `config.env` rounded to `T` (for the Jacobians and the attitude's
     /// increments), rounded once with the configuration, not every period.
     env_t: Environment<T>,
+    /// The update's working memory (`scratch`: not state, not compared).
+    scratch: Scratch<T, N, Z>,
     _model: PhantomData<M>,
 }
 

@@ -17,6 +17,7 @@ use crate::precision::to_t;
 /// checked before the factor is touched ([`Filter::apply_whitened`]).
 /// The whitened rows `L⁻¹ H Φ` (`L = chol(R_e)`) take the place of the
 /// measurement's `H`.
+#[derive(Clone, Copy)]
 pub(super) struct Whitened<T: RealField + Copy, const N: usize, const Z: usize> {
     /// The whitened innovation `L⁻¹ ν`.
     pub(super) nu_w: SVector<T, Z>,
@@ -100,14 +101,14 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// (the Choleskys, `R_e`, `M`) are not below the factor's updates.
     #[inline(never)]
     pub(super) fn whiten(
-        &self,
+        &mut self,
         h: &mut SMatrix<T, Z, N>,
         nu_f64: &SVector<f64, Z>,
         r_v: &SMatrix<T, Z, Z>,
         noise: &Noise<T, N, Z>,
         measured: bool,
-        w: &mut Whitened<T, N, Z>,
     ) -> Result<Gate, Error> {
+        let w = &mut self.scratch.whitened;
         let half: T = nalgebra::convert(0.5);
         let phi_att = &self.pending.get().ok_or(Error::NoPrediction)?.prop.phi_att;
         let nu: SVector<T, Z> = to_t(nu_f64);
@@ -121,7 +122,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         r_e = (r_e + r_e.transpose()) * half;
         // S = H Φ P Φᵀ Hᵀ + R_e, for the innovation report and the gate.
         let s = if measured {
-            r_e + self.ud.congruence(h)
+            r_e + self.ud.congruence_into(h, &mut self.scratch.projections)
         } else {
             r_e
         };

@@ -513,6 +513,8 @@ where
 {
     let mut x = *x_end;
     let mut frame = *frame_end;
+    // The parameters are constant: their matrices once.
+    let matrices = layout.matrices(x_end);
     for index in (0..log.len()).rev() {
         let record = log.get(index).ok_or(EstimatorError::Read { index })?;
         if !record.has_valid_period() {
@@ -520,7 +522,7 @@ where
         }
         let period: Period<f64> = frame.period_before(&record.dtheta_cmd, record.dt);
         x = layout
-            .propagate_state(env, &x, &period.reversed())
+            .propagate_state_with(env, &matrices, &x, &period.reversed())
             .filter(|v| v.iter().all(|c| c.is_finite()))
             .ok_or(EstimatorError::BackPropagation { index })?;
         frame.retreat(&period);

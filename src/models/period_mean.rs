@@ -13,7 +13,7 @@ use super::installation::InstallationMatrices;
 use super::instrument_errors::InstrumentErrors;
 use super::layout::{AttitudeKind, Layout, ATT};
 use super::propagation::PeriodPropagation;
-use super::transition::apply_transition_of;
+use super::transition::{apply_transition_of, apply_transition_of_mean};
 use super::Environment;
 use crate::command::Period;
 use crate::geometry::{dcm_deviation, EulerTrig};
@@ -49,24 +49,27 @@ impl Layout {
         let mut d = Matrix3::zeros();
         let back = [-period.dt, -period.dt * half, T::zero()];
         // F over [t_j, t_{k+1}]: the midpoint F for the whole period, the mean
-        // of the midpoint and end F (centred at 3T/4) for its second half
-        // (by reference: no copies of the 3×N matrices in this frame).
-        let f_late = (prop.f_mid + prop.f_end) * half;
-        let f_nodes = [&prop.f_mid, &f_late, &prop.f_end];
+        // of the midpoint and end F (centred at 3T/4) for its second half,
+        // formed column by column (`apply_transition_of_mean`: no 3×N
+        // matrix in this frame).
         let mut hj = SMatrix::<T, 3, N>::zeros();
-        for ((((att, c_cn), w), tau), f) in prop
+        for (node, (((att, c_cn), w), tau)) in prop
             .att
             .iter()
             .zip(period.c_cn.iter())
             .zip(weights)
             .zip(back)
-            .zip(f_nodes.iter())
+            .enumerate()
         {
             let zj = self.accel_output_and_jacobian_into(env, m, att, c_cn, &mut hj);
             z += zj * w;
             if tau != T::zero() {
                 d += hj.fixed_columns::<3>(ATT) * prop.noise_map * (w * tau);
-                apply_transition_of(&mut hj, f, tau);
+                if node == 0 {
+                    apply_transition_of(&mut hj, &prop.f_mid, tau);
+                } else {
+                    apply_transition_of_mean(&mut hj, &prop.f_mid, &prop.f_end, tau);
+                }
             }
             // The end node: Φ(t_{k+1} ← t_{k+1}) = I, and no noise
             // accumulated after it. In place (no 3×N temporaries).

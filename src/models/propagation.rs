@@ -145,10 +145,31 @@ impl Layout {
         let to_j = vector_in::<P, J>;
         let to_p = |v: Vector3<J>| vector_in::<J, P>(&v);
         let dt = period.dt;
+        let eight: J = nalgebra::convert(8.0);
+        let [_, _, w1] = &period.omega_c;
+        let [_, _, c1] = &period.c_cn;
+        let (att1, k1) = self.rk4_end(env_j, m_j, att0, period)?;
+        let f1 = self.attitude_rate(env_j, m_j, &to_j(&att1)?, w1, c1)?;
+        let att_mid =
+            (att0 + att1) * nalgebra::convert::<f64, P>(0.5) + to_p((k1 - f1) * (dt / eight))?;
+        Some([*att0, att_mid, att1])
+    }
+
+    /// The attitude at the end of `period` by one RK4 step from `att0`,
+    /// and the rate at its start (`k1`): [`Layout::trajectory`]'s end node.
+    fn rk4_end<P: RealField + Copy, J: RealField + Copy>(
+        &self,
+        env_j: &Environment<J>,
+        m_j: &InstallationMatrices<J>,
+        att0: &Vector3<P>,
+        period: &Period<J>,
+    ) -> Option<(Vector3<P>, Vector3<J>)> {
+        let to_j = vector_in::<P, J>;
+        let to_p = |v: Vector3<J>| vector_in::<J, P>(&v);
+        let dt = period.dt;
         let half: J = nalgebra::convert(0.5);
         let two: J = nalgebra::convert(2.0);
         let six: J = nalgebra::convert(6.0);
-        let eight: J = nalgebra::convert(8.0);
         let [w0, wm, w1] = &period.omega_c;
         // C^c_n at the nodes: read by the full model's M1 only (f^p of
         // the g-sensitive drift).
@@ -168,11 +189,7 @@ impl Layout {
         } else {
             sum * dt / six
         };
-        let att1 = att0 + to_p(increment)?;
-        let f1 = self.attitude_rate(env_j, m_j, &to_j(&att1)?, w1, c1)?;
-        let att_mid =
-            (att0 + att1) * nalgebra::convert::<f64, P>(0.5) + to_p((k1 - f1) * (dt / eight))?;
-        Some([*att0, att_mid, att1])
+        Some((att0 + to_p(increment)?, k1))
     }
 
     /// `B = ∂(attitude rate)/∂(platform rate noise)` at attitude `att`
@@ -193,9 +210,28 @@ impl Layout {
         x: &SVector<T, N>,
         period: &Period<T>,
     ) -> Option<SVector<T, N>> {
-        let prop: PeriodPropagation<T, N> =
-            self.propagate(env, &self.matrices(x), &self.attitude(x), period)?;
-        let [_, _, end] = prop.att;
+        self.propagate_state_with(env, &self.matrices(x), x, period)
+    }
+
+    /// [`Layout::propagate_state`] with the installation matrices of `x`'s
+    /// parameters given (`m = self.matrices(x)`, the same bits): a caller
+    /// that integrates many periods with the same parameters forms them
+    /// once. Only the attitude is integrated (the RK4 step of
+    /// [`Layout::propagate`], without the Jacobians, the midpoint node or
+    /// the noise map, which a state alone does not need: on an FPU
+    /// without f64 the estimator's back-propagation cost 4 times a
+    /// forward pass). `None` at gimbal lock or for a non-finite attitude.
+    pub fn propagate_state_with<T: RealField + Copy, const N: usize>(
+        &self,
+        env: &Environment<T>,
+        m: &InstallationMatrices<T>,
+        x: &SVector<T, N>,
+        period: &Period<T>,
+    ) -> Option<SVector<T, N>> {
+        let (end, _) = self.rk4_end(env, m, &self.attitude(x), period)?;
+        if !end.iter().all(|v| v.is_finite()) {
+            return None;
+        }
         let mut out = *x;
         put3(&mut out, ATT, &end);
         Some(out)

@@ -43,9 +43,14 @@ struct TransitionPieces<T> {
 
 impl<T: RealField + Copy> TransitionPieces<T> {
     fn new<const N: usize>(f: &SMatrix<T, 3, N>, tau: T) -> Self {
+        Self::of_attitude_block(attitude_columns(f), tau)
+    }
+
+    /// From `F`'s attitude columns `f_att` (3×3).
+    fn of_attitude_block(f_att: Matrix3<T>, tau: T) -> Self {
         let half: T = nalgebra::convert(0.5);
         let sixth: T = nalgebra::convert(1.0 / 6.0);
-        let fa = attitude_columns(f) * tau;
+        let fa = f_att * tau;
         let fa2 = fa * fa;
         Self {
             mix: fa * half + fa2 * sixth,
@@ -81,7 +86,39 @@ pub fn apply_transition_of<T: RealField + Copy, const R: usize, const N: usize>(
     tau: T,
 ) {
     let pieces = TransitionPieces::new(f, tau);
-    mix_columns(h, f, |j, f_col| pieces.column(j, f_col, tau));
+    let columns = f.data.0.iter().enumerate();
+    mix_columns(h, columns.map(|(j, f_col)| pieces.column(j, f_col, tau)));
+}
+
+/// [`apply_transition_of`] for `F = (F_a + F_b) / 2`, each column of which
+/// is formed where it is used (the same values as the sum halved, without
+/// its 3×N temporary: the accelerometer model's late node, whose 0.9 KB of
+/// f64 for the full model's 39 states were on a Cortex-M's stack).
+pub fn apply_transition_of_mean<T: RealField + Copy, const R: usize, const N: usize>(
+    h: &mut SMatrix<T, R, N>,
+    f_a: &SMatrix<T, 3, N>,
+    f_b: &SMatrix<T, 3, N>,
+    tau: T,
+) {
+    let half: T = nalgebra::convert(0.5);
+    let mean = |a: &[T; 3], b: &[T; 3]| -> [T; 3] {
+        [(a[0] + b[0]) * half, (a[1] + b[1]) * half, (a[2] + b[2]) * half]
+    };
+    let mut f_att = Matrix3::zeros();
+    for (dst, (a, b)) in f_att
+        .data
+        .0
+        .iter_mut()
+        .zip(f_a.data.0.iter().skip(ATT).zip(f_b.data.0.iter().skip(ATT)))
+    {
+        *dst = mean(a, b);
+    }
+    let pieces = TransitionPieces::of_attitude_block(f_att, tau);
+    let columns = f_a.data.0.iter().zip(f_b.data.0.iter()).enumerate();
+    mix_columns(
+        h,
+        columns.map(|(j, (a, b))| pieces.column(j, &mean(a, b), tau)),
+    );
 }
 
 /// `H ← H Φ` for a Φ whose parameter rows are the identity: only the
@@ -91,20 +128,19 @@ pub fn apply_transition<T: RealField + Copy, const R: usize, const N: usize>(
     h: &mut SMatrix<T, R, N>,
     phi_att: &SMatrix<T, 3, N>,
 ) {
-    mix_columns(h, phi_att, |_, phi_col| Vector3::from(*phi_col));
+    mix_columns(h, phi_att.data.0.iter().map(|c| Vector3::from(*c)));
 }
 
-/// `H ← H Φ` for a Φ whose parameter rows are the identity, column `j` of
-/// Φ's attitude rows being `phi_column(j, &source[j])`: the attitude
-/// columns become `H_a Φ_aa`, the parameter columns `H_p + H_a Φ_ap`.
+/// `H ← H Φ` for a Φ whose parameter rows are the identity, the columns of
+/// Φ's attitude rows given in order by `phi_columns`: the attitude columns
+/// become `H_a Φ_aa`, the parameter columns `H_p + H_a Φ_ap`.
 fn mix_columns<T: RealField + Copy, const R: usize, const N: usize>(
     h: &mut SMatrix<T, R, N>,
-    source: &SMatrix<T, 3, N>,
-    phi_column: impl Fn(usize, &[T; 3]) -> Vector3<T>,
+    phi_columns: impl Iterator<Item = Vector3<T>>,
 ) {
     let h_att = attitude_columns(h);
-    for (j, (mut col, src)) in h.column_iter_mut().zip(source.data.0.iter()).enumerate() {
-        let mixed = h_att * phi_column(j, src);
+    for (j, (mut col, phi_col)) in h.column_iter_mut().zip(phi_columns).enumerate() {
+        let mixed = h_att * phi_col;
         if j < ATT + 3 {
             col.copy_from(&mixed);
         } else {

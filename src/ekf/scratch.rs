@@ -1,0 +1,50 @@
+//! The update's working memory, kept in the filter ([`Scratch`]): the
+//! measurement rows' projections of the congruence `H P Hᵀ` and the
+//! whitened update ([`Whitened`]), which are `Z×N` and `3×N` of the
+//! filter's precision. On a firmware's stack they were 3.5 KB of f64 for
+//! the full M2-ps model (39 states, 6 measurements), a step's stack budget
+//! being 8 KB; in the filter, which a firmware keeps in static memory, they
+//! cost that much static memory once per filter instead.
+//!
+//! Nothing in it outlives the period that writes it: every value is written
+//! before it is read, in [`Filter::whiten`](super::Filter) and then read by
+//! the scalar updates and the time update of the same period. So it is not
+//! part of the filter's state: two filters whose scratch differs are equal
+//! (`==`), and a checkpoint does not carry it.
+
+use core::fmt;
+
+use nalgebra::RealField;
+
+use super::whiten::Whitened;
+
+/// The update's working memory (see the [module docs](self)).
+#[derive(Clone, Copy)]
+pub(super) struct Scratch<T: RealField + Copy, const N: usize, const Z: usize> {
+    /// `v = D Uᵀ hᵀ` of each measurement row (the congruence's).
+    pub(super) projections: [[T; N]; Z],
+    /// The whitened update of the period.
+    pub(super) whitened: Whitened<T, N, Z>,
+}
+
+impl<T: RealField + Copy, const N: usize, const Z: usize> Scratch<T, N, Z> {
+    pub(super) fn zeros() -> Self {
+        Self {
+            projections: [[T::zero(); N]; Z],
+            whitened: Whitened::zeros(),
+        }
+    }
+}
+
+/// Working memory, not state: always equal.
+impl<T: RealField + Copy, const N: usize, const Z: usize> PartialEq for Scratch<T, N, Z> {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
+impl<T: RealField + Copy, const N: usize, const Z: usize> fmt::Debug for Scratch<T, N, Z> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("Scratch { .. }")
+    }
+}
