@@ -7,7 +7,6 @@ use core::any::Any;
 use nalgebra::{Matrix3, RealField, SVector};
 
 use crate::models::{ErrorModel, Installation, InstallationMatrices, Layout};
-use crate::precision::to_t;
 
 /// The installation matrices of one parameter value as the filter uses
 /// them: all of them in `T` (the Jacobians' and the attitude increments',
@@ -73,14 +72,7 @@ impl<T: RealField + Copy> MatricesCache<T> {
     /// increments' few digits; for `T = f64`, `InstallationMatrices::new`
     /// of `params` itself).
     fn in_t(params: &Installation<f64>) -> InstallationMatrices<T> {
-        InstallationMatrices::new(Installation {
-            theta_g_c: to_t(&params.theta_g_c),
-            theta_g_t: to_t(&params.theta_g_t),
-            theta_a_c: to_t(&params.theta_a_c),
-            theta_a_t: to_t(&params.theta_a_t),
-            lambda: to_t(&params.lambda),
-            instruments: params.instruments.to_precision(),
-        })
+        InstallationMatrices::new(params.to_precision())
     }
 
     /// Makes the cache hold the matrices of the parameters of `x`. The

@@ -76,7 +76,7 @@ use nalgebra::{RealField, SVector};
 use crate::command::{CommandFrame, Period};
 use crate::ekf::{self, Filter, FilterConfig, Innovation};
 use crate::geometry::wrap_angle;
-use crate::models::{Environment, Layout, Model};
+use crate::models::{Environment, InstallationMatrices, Layout, Model};
 
 /// Default [`EstimatorOptions::max_passes`].
 pub const DEFAULT_MAX_PASSES: u8 = 4;
@@ -513,8 +513,11 @@ where
 {
     let mut x = *x_end;
     let mut frame = *frame_end;
-    // The parameters are constant: their matrices once.
-    let matrices = layout.matrices(x_end);
+    // The parameters are constant: their matrices once, in `T` (from the
+    // parameters rounded to `T`), with the environment in `T`, as the
+    // filter's propagation forms the attitude's increments.
+    let matrices = InstallationMatrices::new(layout.installation(x_end).to_precision::<T>());
+    let env_t = env.to_precision::<T>();
     for index in (0..log.len()).rev() {
         let record = log.get(index).ok_or(EstimatorError::Read { index })?;
         if !record.has_valid_period() {
@@ -522,7 +525,12 @@ where
         }
         let period: Period<f64> = frame.period_before(&record.dtheta_cmd, record.dt);
         x = layout
-            .propagate_state_with(env, &matrices, &x, &period.reversed())
+            .propagate_state_in(
+                &env_t,
+                &matrices,
+                &x,
+                &period.reversed().to_precision::<T>(),
+            )
             .filter(|v| v.iter().all(|c| c.is_finite()))
             .ok_or(EstimatorError::BackPropagation { index })?;
         frame.retreat(&period);

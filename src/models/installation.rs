@@ -30,6 +30,21 @@ pub struct Installation<T: RealField + Copy> {
     pub instruments: InstrumentErrors<T>,
 }
 
+impl Installation<f64> {
+    /// The same parameters in precision `U`, each rounded once.
+    pub fn to_precision<U: RealField + Copy>(&self) -> Installation<U> {
+        let v = |x: &Vector3<f64>| x.map(nalgebra::convert::<f64, U>);
+        Installation {
+            theta_g_c: v(&self.theta_g_c),
+            theta_g_t: v(&self.theta_g_t),
+            theta_a_c: v(&self.theta_a_c),
+            theta_a_t: v(&self.theta_a_t),
+            lambda: v(&self.lambda),
+            instruments: self.instruments.to_precision(),
+        }
+    }
+}
+
 /// The per-period constant matrices of an installation: `G`, `A`, `R(λ)`,
 /// and the rotations and right Jacobians of the installation angles that
 /// the Jacobians of the model need (so that a period evaluates no

@@ -217,3 +217,13 @@ pub struct Environment<T: RealField + Copy> {
     /// Specific force at rest in the navigation frame, `f^n` (g).
     pub gravity_n: Vector3<T>,
 }
+
+impl Environment<f64> {
+    /// The same environment in precision `U`, each value rounded once.
+    pub fn to_precision<U: RealField + Copy>(&self) -> Environment<U> {
+        Environment {
+            earth_rate_n: self.earth_rate_n.map(nalgebra::convert::<f64, U>),
+            gravity_n: self.gravity_n.map(nalgebra::convert::<f64, U>),
+        }
+    }
+}

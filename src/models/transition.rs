@@ -102,7 +102,11 @@ pub fn apply_transition_of_mean<T: RealField + Copy, const R: usize, const N: us
 ) {
     let half: T = nalgebra::convert(0.5);
     let mean = |a: &[T; 3], b: &[T; 3]| -> [T; 3] {
-        [(a[0] + b[0]) * half, (a[1] + b[1]) * half, (a[2] + b[2]) * half]
+        [
+            (a[0] + b[0]) * half,
+            (a[1] + b[1]) * half,
+            (a[2] + b[2]) * half,
+        ]
     };
     let mut f_att = Matrix3::zeros();
     for (dst, (a, b)) in f_att
