@@ -446,17 +446,10 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
     }
 
     /// `H P Hᵀ` for the `R` rows of `h` (one projection `Uᵀ hᵢᵀ` per row,
-    /// then `Fᵀ D F`).
-    #[cfg(test)]
-    pub fn congruence<const R: usize>(&self, h: &SMatrix<T, R, N>) -> SMatrix<T, R, R> {
-        let mut earlier = [[T::zero(); N]; R];
-        self.congruence_into(h, &mut earlier)
-    }
-
-    /// [`Ud::congruence`] with the rows' projections kept in `earlier`
-    /// (`R×N`, whatever it held): the caller's memory (the filter's, so
-    /// that they are not on a Cortex-M's stack: 1.9 KB of f64 for the full
-    /// model's 6 rows of 39 states).
+    /// then `Fᵀ D F`), the rows' projections kept in `earlier` (`R×N`,
+    /// whatever it held): the caller's memory (the filter's, so that they
+    /// are not on a Cortex-M's stack: 1.9 KB of f64 for the full model's 6
+    /// rows of 39 states).
     pub fn congruence_into<const R: usize>(
         &self,
         h: &SMatrix<T, R, N>,
