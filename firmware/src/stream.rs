@@ -153,13 +153,15 @@ impl SampleLog<Real> for Log {
 }
 
 /// The stream's large state: the session (its calibrator and the filter
-/// `Finish` runs the estimator of record in, ≈ 6 KB each on the M7), the
-/// frame decoder's buffer and the reply buffer (4 KB each), the last
-/// decoded message and the session's reply to it (≈ 3 KB each, the size of
-/// a checkpoint). A static, not `run`'s locals: `main`'s frame, which every
-/// path of the firmware pays, would otherwise hold them (27 KB of frame on
-/// the M7 before), and the message and the reply would be in the frames
-/// below which the estimator of record runs. Only [`state`] touches it.
+/// `Finish` runs the estimator of record in: ≈ 8 KB each for M2-ps on the
+/// M7, ≈ 22 KB with the full model's 39 states), the frame decoder's buffer
+/// and the reply buffer (`MAX_FRAME_LEN` each: 4 KB, 16 KB with the
+/// `full-model` feature), the last decoded message and the session's reply
+/// to it (each the size of a checkpoint: ≈ 3 KB, 12.8 KB with the full
+/// model). A static, not `run`'s locals: `main`'s frame, which every path
+/// of the firmware pays, would otherwise hold them, and the message and the
+/// reply would be in the frames below which the estimator of record runs.
+/// Only [`state`] touches it.
 struct State {
     session: Session<Real>,
     decoder: FrameDecoder,
