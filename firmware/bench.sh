@@ -342,7 +342,10 @@ for v in m7 m4f; do
         # for the run's records, as the firmware reported them.
         show_defmt "$(elf_of $v)" "$OUT/bench.defmt" | sed -nE 's/.*flash: ([0-9]+) records in [0-9]+ segments, ([0-9]+) bytes a slot.*/\1 \2/p' | tail -1 |
             while read -r records slot; do
-                [ "$v" = m7 ] && figure "flash-log-$tag$cc" "$slot bytes per period, $records records = $((records * slot)) bytes of slots ($(((records * slot + 4095) / 4096)) sectors of 4 KiB at least)"
+                per=$((4096 / slot))
+                if [ "$v" = m7 ]; then
+                    figure "flash-log-$tag$cc" "$slot bytes per period, $records records in $(((records + per - 1) / per)) sectors of 4 KiB ($per slots a sector) = $(((records + per - 1) / per * 4)) KiB"
+                fi
             done
     done
 done
