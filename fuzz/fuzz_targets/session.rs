@@ -108,7 +108,13 @@ fn settings(u: &mut Unstructured, id: ConfigId) -> Result<CalibratorConfig> {
         }
         s.prior_sigma_rad = value(u, s.prior_sigma_rad)?;
         let p = &mut s.instrument_prior;
-        for v in [&mut p.dg_rad_s, &mut p.d_g_rad_s_g, &mut p.kg, &mut p.ba_g, &mut p.ka] {
+        for v in [
+            &mut p.dg_rad_s,
+            &mut p.d_g_rad_s_g,
+            &mut p.kg,
+            &mut p.ba_g,
+            &mut p.ka,
+        ] {
             *v = value(u, *v)?;
         }
         let l = &mut s.limits;
@@ -210,7 +216,9 @@ impl Platform {
             .propagate::<f64, 18>(&self.env, &m, &att, &period)
         {
             let mut h = SMatrix::<f64, 3, 18>::zeros();
-            let (z, _) = self.layout.mean_accel(&self.env, &m, &prop, &period, &mut h);
+            let (z, _) = self
+                .layout
+                .mean_accel(&self.env, &m, &prop, &period, &mut h);
             let [_, _, end] = prop.att;
             self.x.fixed_rows_mut::<3>(0).copy_from(&end);
             self.accel = [z.x as f32, z.y as f32, z.z as f32];
@@ -547,9 +555,7 @@ fn run<T: RealField + Copy>(u: &mut Unstructured) -> Result<()> {
                         0 => h.log.clear(),
                         1 => h.log.truncate(usize::from(u.arbitrary::<u8>()?)),
                         _ => {
-                            let _ = h
-                                .log
-                                .append(&LogRecord::predicted(1.0, Vector3::zeros()));
+                            let _ = h.log.append(&LogRecord::predicted(1.0, Vector3::zeros()));
                         }
                     }
                     continue;
@@ -715,7 +721,10 @@ impl<T: RealField + Copy> Harness<'_, T> {
                     panic!("{reply:?}")
                 };
                 let n = c.settings().config.layout_with(c.settings().errors).n();
-                assert_eq!((cp.config, cp.errors), (c.settings().config, c.settings().errors));
+                assert_eq!(
+                    (cp.config, cp.errors),
+                    (c.settings().config, c.settings().errors)
+                );
                 assert_eq!((cp.state.len(), cp.factor.len()), (n, n * n));
                 assert!(same_progress(&cp.progress, c.progress()));
                 // Its own checkpoint restores, bit-identically — except
@@ -831,7 +840,10 @@ impl<T: RealField + Copy> Harness<'_, T> {
     /// the frame-error count the harness gave it.
     fn check_estimate(&self, c: &AnyCalibrator<T>, e: &Estimate) {
         let n = c.settings().config.layout_with(c.settings().errors).n();
-        assert_eq!((e.config, e.errors), (c.settings().config, c.settings().errors));
+        assert_eq!(
+            (e.config, e.errors),
+            (c.settings().config, c.settings().errors)
+        );
         assert_eq!((e.state.len(), e.sigma.len()), (n, n));
         assert!(same_progress(&e.progress, c.progress()));
         assert_eq!(e.seq, c.progress().last_seq.unwrap_or(0));

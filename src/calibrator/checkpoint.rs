@@ -100,11 +100,14 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         if cp.factor.len() != N * N {
             return Err(Error::CheckpointDimension);
         }
+        let c_cn = Matrix3::from_row_iterator(cp.c_cn.iter().copied());
+        if !lower_triangle_zero(&cp.factor, N) || !is_rotation(&c_cn) {
+            return Err(Error::CheckpointInvalid);
+        }
         let nominal = match &cp.nominal {
             Some(v) => Some(vector(v)?),
             None => None,
         };
-        let c_cn = Matrix3::from_row_iterator(cp.c_cn.iter().copied());
         self.filter.set_parts(
             FilterConfig::from(&settings),
             &Parts {
@@ -121,4 +124,23 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         self.frame_errors = 0;
         Ok(())
     }
+}
+
+/// Whether every entry of the `n×n` factor `rows` (row by row) below its
+/// diagonal is `+0.0`, bit for bit: the packed factor a checkpoint carries
+/// has nothing there, and a restored filter would drop any value, so a
+/// checkpoint with one could not be written back as it was read.
+fn lower_triangle_zero(rows: &[f64], n: usize) -> bool {
+    rows.chunks_exact(n)
+        .enumerate()
+        .all(|(r, row)| row.iter().take(r).all(|v| v.to_bits() == 0))
+}
+
+/// Whether `c` is a rotation: `CᵀC = I` within 1e-9 in every entry and
+/// `det C > 0` (the filter keeps its computed frame orthonormal to
+/// rounding; a checkpoint's frame far from one is not a filter's). False
+/// for a non-finite `c`.
+fn is_rotation(c: &Matrix3<f64>) -> bool {
+    let e = c.transpose() * c - Matrix3::identity();
+    e.iter().all(|v| v.abs() <= 1e-9) && c.determinant() > 0.0
 }

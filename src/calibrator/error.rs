@@ -26,6 +26,12 @@ pub enum Error {
     },
     /// A checkpoint vector has the wrong length for the configuration.
     CheckpointDimension,
+    /// A checkpoint's values are not a filter's: an entry of the factor
+    /// below its diagonal that is not `+0.0` (a checkpoint carries the
+    /// packed factor, whose lower triangle is zero), or a computed frame
+    /// `C_cn` that is not a rotation (orthonormal within 1e-9, determinant
+    /// +1).
+    CheckpointInvalid,
     /// The filter refused the settings or the checkpoint's values.
     Filter(ekf::Error),
 }
@@ -46,6 +52,9 @@ impl core::fmt::Display for Error {
                 expected.as_str()
             ),
             Error::CheckpointDimension => f.write_str("checkpoint dimensions do not match"),
+            Error::CheckpointInvalid => f.write_str(
+                "checkpoint is not a filter's (factor not upper triangular or frame not a rotation)",
+            ),
             Error::Filter(e) => write!(f, "filter: {e}"),
         }
     }

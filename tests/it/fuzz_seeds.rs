@@ -105,6 +105,26 @@ fn seeds() -> Vec<(String, Vec<u8>)> {
             frame(&Message::Configure(CalibratorConfig::paper(id))),
         ));
     }
+    for id in ConfigId::ALL {
+        messages.push(("configure", Message::Configure(CalibratorConfig::paper(id))));
+    }
+    // The payload mode's seeds: a 0 byte, then a message's postcard payload
+    // (the target frames it), one of each kind.
+    let mut payloads = Vec::new();
+    for (name, m) in &messages {
+        if *name != "configure"
+            || payloads
+                .iter()
+                .all(|(n, _): &(String, _)| n != "payload-configure")
+        {
+            let mut buf = vec![0u8; MAX_FRAME_LEN];
+            let n = postcard::to_slice(m, &mut buf).unwrap().len();
+            let mut input = vec![0u8];
+            input.extend_from_slice(&buf[..n]);
+            payloads.push((format!("payload-{name}"), input));
+        }
+    }
+    messages.retain(|(name, _)| *name != "configure");
     for (name, m) in messages.drain(..) {
         out.push((name.to_string(), frame(&m)));
     }
@@ -116,6 +136,7 @@ fn seeds() -> Vec<(String, Vec<u8>)> {
             input.extend(f);
             (name, input)
         })
+        .chain(payloads)
         .collect();
     // A stream of several frames, fed in small chunks, with a partial frame
     // before it (the receiver joining mid-stream) and an empty frame.
@@ -156,6 +177,15 @@ fn decoder_seeds_are_current_valid_frames() {
     let seeds = seeds();
     // Every seed but the deliberately invalid ones decodes to messages only.
     for (name, input) in &seeds {
+        if let Some(payload) = input.strip_prefix(&[0u8][..]) {
+            let message: Message = postcard::from_bytes(payload).unwrap();
+            assert_eq!(
+                frame(&message),
+                raw_frame(VERSION, payload),
+                "{name}: the payload of a message"
+            );
+            continue;
+        }
         let mut d = FrameDecoder::new();
         let mut n = 0;
         d.feed(&input[1..], |_| n += 1);
