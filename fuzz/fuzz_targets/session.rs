@@ -14,11 +14,17 @@
 //! `check_lineage` and `check_session`).
 #![no_main]
 
+use std::cell::Cell;
+use std::rc::Rc;
+
+use embedded_storage::nor_flash::{ErrorType, NorFlash, NorFlashErrorKind, ReadNorFlash};
 use libfuzzer_sys::arbitrary::{Result, Unstructured};
 use libfuzzer_sys::fuzz_target;
 use nalgebra::{RealField, SMatrix, SVector, Vector3};
 use rollcal::command::CommandFrame;
-use rollcal::estimator::{EstimatorOptions, LogRecord, SampleLog, SliceLog};
+use rollcal::estimator::{
+    EstimatorOptions, FlashLog, LogError, LogRecord, PackedLayout, SampleLog, SliceLog,
+};
 use rollcal::geometry::{quaternion_from_dcm, wrap_angles};
 use rollcal::models::{ConfigId, Environment, ErrorModel, Layout};
 use rollcal::session::{AnyCalibrator, Reply, Session, SessionError};
@@ -29,7 +35,7 @@ use rollcal::wire::{
 use rollcal::{Options, RejectReason};
 
 /// Messages per input (keeps one run cheap).
-const MAX_MESSAGES: usize = 200;
+const MAX_MESSAGES: usize = 128;
 /// `Finish` messages per input (each runs the multi-pass estimator).
 const MAX_FINISH: u32 = 4;
 /// Capacity of the sample log (records).
@@ -377,8 +383,40 @@ fn wire(m: &Message) -> Message {
 
 /// A checkpoint's bytes (NaN-safe comparison; postcard without the
 /// frame's CRC and COBS, which would dominate the run time).
-fn cp_bytes(c: &Checkpoint) -> Vec<u8> {
-    postcard::to_allocvec(c).expect("checkpoint serialises")
+fn cp_bytes(c: &Checkpoint) -> CpBytes {
+    CpBytes(
+        postcard::to_allocvec(c).expect("checkpoint serialises"),
+        c.clone(),
+    )
+}
+
+/// A checkpoint compared by its bytes (NaN-safe), shown by its values (a
+/// failed comparison prints what differs, not 12 KB of bytes).
+struct CpBytes(Vec<u8>, Checkpoint);
+
+impl PartialEq for CpBytes {
+    fn eq(&self, other: &Self) -> bool {
+        self.0 == other.0
+    }
+}
+
+impl core::fmt::Debug for CpBytes {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let c = &self.1;
+        let n = c.state.len();
+        let diagonal: Vec<f64> = (0..n)
+            .map(|i| c.factor.get(i * n + i).copied().unwrap_or(f64::NAN))
+            .collect();
+        let non_finite = c.factor.iter().filter(|v| !v.is_finite()).count();
+        let below = (0..n * n)
+            .filter(|k| k % n < k / n && c.factor[*k].to_bits() != 0)
+            .count();
+        write!(
+            f,
+            "{:?}/{:?} state {:?} D {:?} ({non_finite} non-finite factor entries, {below} not +0.0 below the diagonal) c_cn {:?} updates {} gate ({}, {}) progress {:?}",
+            c.config, c.errors, c.state, diagonal, c.c_cn, c.updates, c.gated_run, c.gate_open, c.progress
+        )
+    }
 }
 
 /// The bookkeeping's bytes (NaN-safe comparison).
@@ -388,6 +426,245 @@ fn progress_bytes(p: &Progress) -> Vec<u8> {
 
 fn same_progress(a: &Progress, b: &Progress) -> bool {
     progress_bytes(a) == progress_bytes(b)
+}
+
+/// Bytes of a NOR flash sector in the model (small, so that a short run
+/// crosses sectors and wraps nothing: the log's region is a few of them).
+const SECTOR: usize = 512;
+/// Bytes of a programmed word.
+const WORD: usize = 4;
+/// Sectors of the flash log's region.
+const LOG_SECTORS: usize = 4;
+
+/// A NOR flash in RAM with the semantics `FlashLog` relies on (erase to
+/// `0xFF` by sector, programming only clears bits, no word programmed twice
+/// between erases: both asserted, a violation is a crash), and faults the
+/// input arms: the next write or erase fails having landed part of itself,
+/// then the device works again (a transient error) or stays dead until the
+/// harness "restores power" by reopening the log (a power cut).
+#[derive(Debug)]
+struct Nor {
+    mem: Vec<u8>,
+    /// Per word: programmed since its sector's last erase.
+    written: Vec<bool>,
+    /// Shared with the harness, which arms faults while the log owns the
+    /// device.
+    fault: Rc<Cell<Fault>>,
+}
+
+/// A fault the harness arms.
+#[derive(Clone, Copy, Debug, Default)]
+struct Fault {
+    /// Write or erase operations until the fault (1 = the next one; 0 =
+    /// none armed).
+    in_ops: u16,
+    /// Words of the faulted operation that land (modulo its length).
+    lands: u16,
+    /// The fault is a power cut: every later operation fails.
+    cuts: bool,
+    /// Power is off.
+    dead: bool,
+}
+
+impl Nor {
+    /// A device as shipped: every bit programmed, so nothing is taken for
+    /// erased before the log erases it.
+    fn new(fault: Rc<Cell<Fault>>) -> Self {
+        Self {
+            mem: vec![0; LOG_SECTORS * SECTOR],
+            written: vec![true; LOG_SECTORS * SECTOR / WORD],
+            fault,
+        }
+    }
+
+    fn dead(&self) -> bool {
+        self.fault.get().dead
+    }
+
+    /// Whether this operation (of `len` bytes) faults: `Some(bytes landed)`.
+    fn fault_now(&mut self, len: usize) -> Option<usize> {
+        let mut f = self.fault.get();
+        match f.in_ops {
+            0 => return None,
+            1 => {}
+            _ => {
+                f.in_ops -= 1;
+                self.fault.set(f);
+                return None;
+            }
+        }
+        f.in_ops = 0;
+        f.dead = f.cuts;
+        self.fault.set(f);
+        let words = len / WORD;
+        Some(usize::from(f.lands) % words.max(1) * WORD)
+    }
+
+    fn range(&self, offset: u32, len: usize, align: usize) -> Result<usize, NorFlashErrorKind> {
+        let at = offset as usize;
+        if at % align != 0 || len % align != 0 {
+            return Err(NorFlashErrorKind::NotAligned);
+        }
+        if at.checked_add(len).is_none_or(|e| e > self.mem.len()) {
+            return Err(NorFlashErrorKind::OutOfBounds);
+        }
+        Ok(at)
+    }
+}
+
+impl ErrorType for Nor {
+    type Error = NorFlashErrorKind;
+}
+
+impl ReadNorFlash for Nor {
+    const READ_SIZE: usize = 1;
+
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> core::result::Result<(), Self::Error> {
+        if self.dead() {
+            return Err(NorFlashErrorKind::Other);
+        }
+        let at = self.range(offset, bytes.len(), 1)?;
+        bytes.copy_from_slice(&self.mem[at..at + bytes.len()]);
+        Ok(())
+    }
+
+    fn capacity(&self) -> usize {
+        self.mem.len()
+    }
+}
+
+impl NorFlash for Nor {
+    const WRITE_SIZE: usize = WORD;
+    const ERASE_SIZE: usize = SECTOR;
+
+    fn erase(&mut self, from: u32, to: u32) -> core::result::Result<(), Self::Error> {
+        if self.dead() {
+            return Err(NorFlashErrorKind::Other);
+        }
+        let len = (to as usize)
+            .checked_sub(from as usize)
+            .ok_or(NorFlashErrorKind::OutOfBounds)?;
+        let at = self.range(from, len, SECTOR)?;
+        let landed = self.fault_now(len);
+        let end = at + landed.unwrap_or(len);
+        self.mem[at..end].fill(0xFF);
+        self.written[at / WORD..end / WORD].fill(false);
+        match landed {
+            Some(_) => Err(NorFlashErrorKind::Other),
+            None => Ok(()),
+        }
+    }
+
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> core::result::Result<(), Self::Error> {
+        if self.dead() {
+            return Err(NorFlashErrorKind::Other);
+        }
+        let at = self.range(offset, bytes.len(), WORD)?;
+        for w in at / WORD..(at + bytes.len()) / WORD {
+            assert!(
+                !self.written[w],
+                "word {w} programmed twice without an erase"
+            );
+        }
+        let landed = self.fault_now(bytes.len());
+        let n = landed.unwrap_or(bytes.len());
+        for (i, b) in bytes[..n].iter().enumerate() {
+            assert_eq!(
+                self.mem[at + i] & b,
+                *b,
+                "byte {} programmed from 0 to 1",
+                at + i
+            );
+            self.mem[at + i] = *b;
+        }
+        self.written[at / WORD..(at + n) / WORD].fill(true);
+        match landed {
+            Some(_) => Err(NorFlashErrorKind::Other),
+            None => Ok(()),
+        }
+    }
+}
+
+/// The session's sample log: a small `SliceLog` in RAM, or a `FlashLog`
+/// over the NOR model (`None` when the device could not be opened: every
+/// append then fails, as in the firmware).
+enum Log<'a, T: RealField + Copy> {
+    Ram(SliceLog<'a, T>),
+    Flash(Option<FlashLog<Nor, T>>),
+}
+
+impl<T: RealField + Copy> Log<'_, T> {
+    /// The flash log over `nor`, read in `layout` (what a device that lost
+    /// its RAM, or one told another configuration, finds).
+    fn open_flash(nor: Nor, layout: PackedLayout) -> Self {
+        let region = 0..(LOG_SECTORS * SECTOR) as u32;
+        Log::Flash(FlashLog::open(nor, region, layout).ok())
+    }
+
+    /// Power off and on: the device back, the log reopened from what it
+    /// holds, in the layout it was read in (the firmware's start-up reads
+    /// it in the layout of the gimbal angles; the harness keeps the last
+    /// one, as a restore into the same configuration needs).
+    fn power_cycle(&mut self) {
+        if let Log::Flash(slot) = self {
+            if let Some(log) = slot.take() {
+                let layout = log.layout();
+                let nor = log.into_inner();
+                nor.fault.set(Fault::default());
+                *self = Self::open_flash(nor, layout);
+            }
+        }
+    }
+
+    /// As the firmware does after a `Configure`: the log read in the layout
+    /// of `z` measurements a period, reopened from the device if it was
+    /// read in another (the records of an earlier run in that layout come
+    /// back; the calibrator's first sample empties the log, a restore
+    /// takes it back to the checkpoint's records).
+    fn use_layout(&mut self, z: usize) {
+        let layout = PackedLayout::for_measurements(z);
+        if let Log::Flash(slot) = self {
+            if slot.as_ref().is_some_and(|l| l.layout() != layout) {
+                if let Some(log) = slot.take() {
+                    *self = Self::open_flash(log.into_inner(), layout);
+                }
+            }
+        }
+    }
+}
+
+impl<T: RealField + Copy> SampleLog<T> for Log<'_, T> {
+    fn append(&mut self, record: &LogRecord<T>) -> core::result::Result<(), LogError> {
+        match self {
+            Log::Ram(l) => l.append(record),
+            Log::Flash(Some(l)) => l.append(record),
+            Log::Flash(None) => Err(LogError::Storage),
+        }
+    }
+
+    fn len(&self) -> usize {
+        match self {
+            Log::Ram(l) => l.len(),
+            Log::Flash(Some(l)) => l.len(),
+            Log::Flash(None) => 0,
+        }
+    }
+
+    fn get(&mut self, k: usize) -> Option<LogRecord<T>> {
+        match self {
+            Log::Ram(l) => l.get(k),
+            Log::Flash(Some(l)) => l.get(k),
+            Log::Flash(None) => None,
+        }
+    }
+
+    fn truncate(&mut self, len: usize) {
+        match self {
+            Log::Ram(l) => l.truncate(len),
+            Log::Flash(Some(l)) => l.truncate(len),
+            Log::Flash(None) => {}
+        }
+    }
 }
 
 /// What the harness knows of the calibrator's history since its progress
@@ -409,7 +686,7 @@ impl Lineage {
 }
 
 /// Harness tallies of what the session should have counted.
-#[derive(Default, Debug)]
+#[derive(Default, Debug, Clone, Copy)]
 struct Tally {
     unconfigured: u32,
     restarts: u32,
@@ -423,8 +700,13 @@ struct Harness<'a, T: RealField + Copy> {
     session: Session<T>,
     /// The configuration the session was told to run.
     expected: Option<ConfigId>,
-    log: SliceLog<'a, T>,
+    log: Log<'a, T>,
+    /// The log's capacity (records; the flash log's in its larger layout).
     cap: usize,
+    /// The flash device's faults, armed by the input.
+    fault: Rc<Cell<Fault>>,
+    /// Estimator options the session was built with.
+    passes: EstimatorOptions,
     tally: Tally,
     lineage: Lineage,
     frame_errors: u32,
@@ -442,17 +724,31 @@ fn run<T: RealField + Copy>(u: &mut Unstructured) -> Result<()> {
         max_passes: u.int_in_range(0..=4u8)?,
         tolerance: value(u, 0.1)?,
     };
-    let cap = if rare(u, 4) {
+    // The log: one input in two a flash log over the NOR model (read in
+    // the gimbal angles' layout at start, as the firmware does), else a
+    // small RAM log.
+    let fault = Rc::new(Cell::new(Fault::default()));
+    let flash = rare(u, 2);
+    let cap = if flash {
+        LOG_SECTORS * (SECTOR / FlashLog::<Nor, T>::slot_len_of(PackedLayout::Accel))
+    } else if rare(u, 4) {
         usize::from(u.int_in_range(0..=LOG_CAP as u8)?)
     } else {
         LOG_CAP
     };
     let mut buf = vec![LogRecord::<T>::predicted(1.0, Vector3::zeros()); cap];
+    let log = if flash {
+        Log::open_flash(Nor::new(fault.clone()), PackedLayout::AccelGimbal)
+    } else {
+        Log::Ram(SliceLog::new(&mut buf))
+    };
     let mut h = Harness {
         session: Session::<T>::new(expected, passes),
         expected,
-        log: SliceLog::new(&mut buf),
+        log,
         cap,
+        fault,
+        passes,
         tally: Tally::default(),
         lineage: Lineage::FRESH,
         frame_errors: 0,
@@ -551,9 +847,20 @@ fn run<T: RealField + Copy>(u: &mut Unstructured) -> Result<()> {
                 240..=247 => {
                     // The log outside the calibrator's control: lost
                     // (cleared), cut short, or holding a foreign record.
-                    match u.int_in_range(0..=2u8)? {
-                        0 => h.log.clear(),
+                    // On flash also: a device reset (the session lost,
+                    // the log reopened from the device), or a write or
+                    // erase that fails part-way (then the device works
+                    // again, or has lost power until the next reset).
+                    match u.int_in_range(0..=4u8)? {
+                        0 => h.log.truncate(0),
                         1 => h.log.truncate(usize::from(u.arbitrary::<u8>()?)),
+                        3 if matches!(h.log, Log::Flash(_)) => h.power_cycle(),
+                        4 if matches!(h.log, Log::Flash(_)) => h.fault.set(Fault {
+                            in_ops: u.int_in_range(1..=8u16)?,
+                            lands: u.arbitrary()?,
+                            cuts: u.arbitrary()?,
+                            dead: h.fault.get().dead,
+                        }),
                         _ => {
                             let _ = h.log.append(&LogRecord::predicted(1.0, Vector3::zeros()));
                         }
@@ -636,11 +943,29 @@ fn settings_bytes(s: &CalibratorConfig) -> Vec<u8> {
 }
 
 impl<T: RealField + Copy> Harness<'_, T> {
+    /// A device reset: the session (RAM) lost, a new one built as at start,
+    /// the flash log reopened from the device.
+    fn power_cycle(&mut self) {
+        self.session = Session::<T>::new(self.expected, self.passes);
+        self.tally = Tally {
+            finishes: self.tally.finishes,
+            ..Tally::default()
+        };
+        self.lineage = Lineage::FRESH;
+        self.frame_errors = 0;
+        self.log.power_cycle();
+    }
+
     fn handle(&mut self, msg: &Message, restored: Option<Lineage>) {
         let before = self.session.calibrator().cloned();
-        let before_cp = before.as_ref().map(|c| cp_bytes(&c.checkpoint()));
+        // The checkpoints' bytes, formed only where compared (a full-model
+        // checkpoint is 1 600 values).
+        let before_cp = || before.as_ref().map(|c| cp_bytes(&c.checkpoint()));
         let log_before = self.log.len();
         let reply = self.session.handle(msg, &mut self.log);
+        if let (Message::Configure(s), Reply::Nothing) = (msg, &reply) {
+            self.log.use_layout(s.config.layout_with(s.errors).z());
+        }
         // Every reply goes out through the wire.
         if let Reply::Send(m) = &reply {
             wire(m);
@@ -649,9 +974,9 @@ impl<T: RealField + Copy> Harness<'_, T> {
             self.tally.errors += 1;
         }
         let after = self.session.calibrator().cloned();
-        let after_cp = after.as_ref().map(|c| cp_bytes(&c.checkpoint()));
+        let after_cp = || after.as_ref().map(|c| cp_bytes(&c.checkpoint()));
         let unchanged = || {
-            assert_eq!(before_cp, after_cp, "{msg:?} changed the calibrator");
+            assert_eq!(before_cp(), after_cp(), "{msg:?} changed the calibrator");
             if let (Some(b), Some(a)) = (&before, &after) {
                 assert_eq!(settings_bytes(b.settings()), settings_bytes(a.settings()));
             }
@@ -742,7 +1067,12 @@ impl<T: RealField + Copy> Harness<'_, T> {
                         ))
                     );
                 } else {
-                    restored.expect("a calibrator's own checkpoint restores");
+                    if let Err(e) = restored {
+                        panic!(
+                            "a calibrator's own checkpoint refused: {e}; {:?}",
+                            cp_bytes(cp)
+                        );
+                    }
                     assert_eq!(cp_bytes(&again.checkpoint()), cp_bytes(cp));
                 }
                 if self.checkpoints.len() >= 8 {
@@ -756,7 +1086,7 @@ impl<T: RealField + Copy> Harness<'_, T> {
                     Ok(()) => {
                         assert_eq!(reply, Reply::Nothing);
                         let a = after.as_ref().unwrap();
-                        assert_eq!(after_cp.as_ref(), Some(&cp_bytes(&expect.checkpoint())));
+                        assert_eq!(after_cp(), Some(cp_bytes(&expect.checkpoint())));
                         let lineage = restored.unwrap_or(Lineage {
                             pushes: 0,
                             legit: false,
@@ -933,7 +1263,12 @@ impl<T: RealField + Copy> Harness<'_, T> {
                         p.log_incomplete = None;
                         p.logged = pb.logged;
                     }
-                    assert_eq!(cp_bytes(&cp), cp_bytes(&b.checkpoint()), "{r:?}");
+                    assert_eq!(
+                        cp_bytes(&cp),
+                        cp_bytes(&b.checkpoint()),
+                        "{r:?} changed the calibrator; settings {:?}",
+                        b.settings()
+                    );
                 }
             }
             other => panic!("a sample answered {other:?}"),

@@ -29,7 +29,7 @@ pub enum Error {
     /// A checkpoint's values are not a filter's: an entry of the factor
     /// below its diagonal that is not `+0.0` (a checkpoint carries the
     /// packed factor, whose lower triangle is zero), or a computed frame
-    /// `C_cn` that is not a rotation (orthonormal within 1e-9, determinant
+    /// `C_cn` that is not a rotation (orthonormal within 1e-4, determinant
     /// +1).
     CheckpointInvalid,
     /// The filter refused the settings or the checkpoint's values.

@@ -7,6 +7,7 @@ use nalgebra::{RealField, SVector};
 
 use super::cache::MatricesCache;
 use super::factor::Ud;
+use super::options::{GRAVITY_RANGE, MAX_EARTH_RATE};
 use super::pending::PendingSlot;
 use super::scratch::Scratch;
 use super::{all_finite, env_t, Error, Filter, FilterConfig};
@@ -228,6 +229,33 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         }
         if Self::LAYOUT.gimbal_obs && config.sigma_gimbal <= T::zero() {
             return Err(Error::CovarianceNotPositiveDefinite);
+        }
+        // Bounds that keep the update's arithmetic in range: with an Earth
+        // rate of 4e71 rad/s (found by the session fuzz target) the
+        // factored update overflowed after its scalar updates had been
+        // applied, leaving a refused period's covariance changed.
+        let env = &config.env;
+        let gravity = env.gravity_n.norm();
+        if env.earth_rate_n.norm() > MAX_EARTH_RATE
+            || !(GRAVITY_RANGE.0..=GRAVITY_RANGE.1).contains(&gravity)
+        {
+            return Err(Error::OutOfRange);
+        }
+        // A noise level whose variance is subnormal, zero or infinite in T
+        // (σ_gyro may be zero: no process noise).
+        let min_normal = if core::mem::size_of::<T>() <= 4 {
+            f64::from(f32::MIN_POSITIVE)
+        } else {
+            f64::MIN_POSITIVE
+        };
+        let normal = |s: T| {
+            let v = s * s;
+            v.is_finite() && v >= nalgebra::convert(min_normal)
+        };
+        let gimbal_ok = !Self::LAYOUT.gimbal_obs || normal(config.sigma_gimbal);
+        let gyro_ok = config.sigma_gyro == T::zero() || normal(config.sigma_gyro);
+        if !normal(config.sigma_accel) || !gyro_ok || !gimbal_ok {
+            return Err(Error::OutOfRange);
         }
         Ok(variance)
     }

@@ -24,6 +24,12 @@ pub enum Error {
     Gated,
     /// `update` was called without a preceding `predict`.
     NoPrediction,
+    /// The environment is not one the filter's arithmetic is bounded for:
+    /// an Earth rate above [`MAX_EARTH_RATE`](super::MAX_EARTH_RATE)
+    /// (rad/s), or a gravity outside [`GRAVITY_RANGE`](super::GRAVITY_RANGE)
+    /// (g); or a noise level whose square is not a normal number of the
+    /// filter's precision (it would underflow or overflow in the update).
+    OutOfRange,
     /// The options ask for a branch this build leaves out: the second-order
     /// dynamics or the iterated update without the cargo feature
     /// `research-options` (a lean firmware image; [`Options::is_built`](super::Options::is_built)).
@@ -44,6 +50,9 @@ impl core::fmt::Display for Error {
             Error::NonFiniteState => "state is not finite",
             Error::Gated => "innovation rejected by the NIS gate",
             Error::NoPrediction => "update without a preceding predict",
+            Error::OutOfRange => {
+                "environment or noise level out of range (Earth rate above 1e-3 rad/s, gravity outside 0.5..2 g, or a noise variance not a normal number)"
+            }
             Error::UnsupportedOption => {
                 "option not in this build (second-order dynamics or iterated update: cargo feature research-options)"
             }

@@ -100,9 +100,28 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// The second half of [`Filter::factored`]: Bierman's scalar updates of
     /// the whitened rows `h_w`, the decorrelated time update, the new state,
     /// from the whitened update [`Filter::whiten`] left in the filter's
-    /// working memory.
+    /// working memory. On error the factor is returned to what it was
+    /// before (saved in the working memory), so a refused period leaves
+    /// the covariance untouched.
     #[inline(never)]
     fn apply_whitened(
+        &mut self,
+        h_w: &SMatrix<T, Z, N>,
+        measured: bool,
+        base: Base<'_, N>,
+    ) -> Result<Innovation<T, Z>, Error> {
+        self.scratch.factor = self.ud;
+        let applied = self.apply_whitened_in_place(h_w, measured, base);
+        if applied.is_err() {
+            self.ud = self.scratch.factor;
+        }
+        applied
+    }
+
+    /// [`Filter::apply_whitened`] without the rollback: on error the
+    /// factor may keep some of the scalar updates.
+    #[inline(always)]
+    fn apply_whitened_in_place(
         &mut self,
         h_w: &SMatrix<T, Z, N>,
         measured: bool,

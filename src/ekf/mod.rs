@@ -71,7 +71,10 @@ mod whiten;
 
 pub use error::Error;
 pub use observation::{Innovation, Observation};
-pub use options::{FilterConfig, Options, DEFAULT_NIS_GATE, MAX_GATED_RUN, RESEARCH_OPTIONS};
+pub use options::{
+    FilterConfig, Options, DEFAULT_NIS_GATE, GRAVITY_RANGE, MAX_EARTH_RATE, MAX_GATED_RUN,
+    RESEARCH_OPTIONS,
+};
 pub use parts::Parts;
 pub use second_order::{AccelCovariance, AccelSecondOrder, Elements};
 

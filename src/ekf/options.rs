@@ -168,3 +168,11 @@ impl FilterConfig<f64> {
         }
     }
 }
+
+/// The largest Earth rate `|ω^n_ie|` a filter accepts (rad/s): 1e-3, about
+/// 14 times the Earth's (7.292e-5). Beyond it [`Filter::new`](super::Filter::new)
+/// refuses the configuration ([`Error::OutOfRange`](super::Error::OutOfRange)).
+pub const MAX_EARTH_RATE: f64 = 1e-3;
+
+/// The range of `|g^n|` a filter accepts (g): 0.5 to 2.
+pub const GRAVITY_RANGE: (f64, f64) = (0.5, 2.0);

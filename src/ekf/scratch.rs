@@ -1,14 +1,17 @@
 //! The update's working memory, kept in the filter ([`Scratch`]): the
 //! measurement rows' projections of the congruence `H P Hᵀ` and the
 //! whitened update ([`Whitened`]), which are `Z×N` and `3×N` of the
-//! filter's precision. On a firmware's stack they were 3.5 KB of f64 for
+//! filter's precision, and the factor as it was before the update (`N×N`),
+//! to which a failed update returns. On a firmware's stack they were 3.5 KB of f64 for
 //! the full M2-ps model (39 states, 6 measurements), a step's stack budget
 //! being 8 KB; in the filter, which a firmware keeps in static memory, they
 //! cost that much static memory once per filter instead.
 //!
 //! Nothing in it outlives the period that writes it: every value is written
 //! before it is read, in [`Filter::whiten`](super::Filter) and then read by
-//! the scalar updates and the time update of the same period. So it is not
+//! the scalar updates and the time update of the same period; the saved
+//! factor is written before the scalar updates and read only when the
+//! update fails after them. So it is not
 //! part of the filter's state: two filters whose scratch differs are equal
 //! (`==`), and a checkpoint does not carry it.
 
@@ -16,6 +19,9 @@ use core::fmt;
 
 use nalgebra::RealField;
 
+use nalgebra::SVector;
+
+use super::factor::Ud;
 use super::whiten::Whitened;
 
 /// The update's working memory (see the [module docs](self)).
@@ -25,6 +31,12 @@ pub(super) struct Scratch<T: RealField + Copy, const N: usize, const Z: usize> {
     pub(super) projections: [[T; N]; Z],
     /// The whitened update of the period.
     pub(super) whitened: Whitened<T, N, Z>,
+    /// The factor before the period's scalar updates: Bierman's updates
+    /// and the time update after them change the factor in place, and an
+    /// update that fails after them (an overflow, an attitude block that
+    /// is no longer positive definite) returns the factor to this, so that
+    /// a refused period leaves the covariance as it was.
+    pub(super) factor: Ud<T, N>,
 }
 
 impl<T: RealField + Copy, const N: usize, const Z: usize> Scratch<T, N, Z> {
@@ -32,6 +44,7 @@ impl<T: RealField + Copy, const N: usize, const Z: usize> Scratch<T, N, Z> {
         Self {
             projections: [[T::zero(); N]; Z],
             whitened: Whitened::zeros(),
+            factor: Ud::diagonal(&SVector::repeat(T::one())),
         }
     }
 }

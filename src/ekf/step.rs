@@ -84,8 +84,9 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             self.pending.clear();
         }
         // `predict` and `update` leave the factor untouched on error (every
-        // input of the in-place update is checked before it is touched; see
-        // `update` for the one exception), so only the state is saved: the
+        // input of the in-place update is checked before it is touched, and
+        // a failure after the scalar updates restores the factor saved
+        // before them), so only the state is saved here: the
         // estimate, the computed frame, and the nominal's attitude (`predict`
         // moves only the attitude of the nominal).
         let layout = Self::LAYOUT;

@@ -19,14 +19,11 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// Processes the measurement of the period that [`Filter::predict`] just
     /// propagated over.
     ///
-    /// On error the state is left untouched. So is the covariance, with one
-    /// exception: the factor is updated in place (no copy of it on the hot
-    /// path), so when the factored update itself fails part-way
-    /// ([`Error::CovarianceNotPositiveDefinite`], or
-    /// [`Error::NonFiniteState`] for a non-finite result) the factor keeps
-    /// the part already applied. Every input of the update is checked
-    /// before the factor is touched, so this takes a covariance that has
-    /// already lost its numerical positive definiteness; no test reaches it.
+    /// On error the state and the covariance are left untouched: the
+    /// factor is updated in place, and an update that fails after Bierman's
+    /// scalar updates began ([`Error::CovarianceNotPositiveDefinite`], or
+    /// [`Error::NonFiniteState`] for a non-finite result) returns it to
+    /// the copy saved before them in the filter's working memory.
     ///
     /// # Examples
     ///
