@@ -271,6 +271,21 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         }
     }
 
+    /// Copies the factor's storage (column by column) into `out`, in place.
+    pub(crate) fn save_into(&self, out: &mut [[T; N]; N]) {
+        for (o, c) in out.iter_mut().zip(self.m.data.0.iter()) {
+            o.copy_from_slice(c);
+        }
+    }
+
+    /// Makes this factor the one [`Ud::save_into`] saved in `saved`, in
+    /// place.
+    pub(crate) fn restore_from(&mut self, saved: &[[T; N]; N]) {
+        for (c, s) in self.m.data.0.iter_mut().zip(saved.iter()) {
+            c.copy_from_slice(s);
+        }
+    }
+
     /// Makes this factor [`Ud::diagonal`]'s of `variances`, in
     /// place; `false` (and the factor unchanged) unless every variance is
     /// finite and strictly positive.

@@ -110,10 +110,10 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         measured: bool,
         base: Base<'_, N>,
     ) -> Result<Innovation<T, Z>, Error> {
-        self.scratch.factor = self.ud;
+        self.ud.save_into(&mut self.scratch.factor);
         let applied = self.apply_whitened_in_place(h_w, measured, base);
         if applied.is_err() {
-            self.ud = self.scratch.factor;
+            self.ud.restore_from(&self.scratch.factor);
         }
         applied
     }

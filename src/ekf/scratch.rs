@@ -19,9 +19,6 @@ use core::fmt;
 
 use nalgebra::RealField;
 
-use nalgebra::SVector;
-
-use super::factor::Ud;
 use super::whiten::Whitened;
 
 /// The update's working memory (see the [module docs](self)).
@@ -36,15 +33,19 @@ pub(super) struct Scratch<T: RealField + Copy, const N: usize, const Z: usize> {
     /// update that fails after them (an overflow, an attitude block that
     /// is no longer positive definite) returns the factor to this, so that
     /// a refused period leaves the covariance as it was.
-    pub(super) factor: Ud<T, N>,
+    /// A plain array (the factor's storage, column by column), zeroed in
+    /// place when a filter is built in its slot: no `N×N` temporary on a
+    /// firmware's stack.
+    pub(super) factor: [[T; N]; N],
 }
 
 impl<T: RealField + Copy, const N: usize, const Z: usize> Scratch<T, N, Z> {
+    #[inline(always)]
     pub(super) fn zeros() -> Self {
         Self {
             projections: [[T::zero(); N]; Z],
             whitened: Whitened::zeros(),
-            factor: Ud::diagonal(&SVector::repeat(T::one())),
+            factor: [[T::zero(); N]; N],
         }
     }
 }
