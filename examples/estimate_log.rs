@@ -57,6 +57,7 @@ fn run() -> Result<(), String> {
         sigma_gyro: settings.sigma_gyro_rad_s,
         sigma_gimbal: settings.sigma_gimbal_rad,
         options: Options::default(),
+        wander: rollcal::models::Wander::none(),
     };
 
     // The log: a buffer the caller owns (a firmware's static array), filled

@@ -34,6 +34,7 @@ fn config() -> FilterConfig<f64> {
         sigma_gyro: 0.1 * ARCSEC,
         sigma_gimbal: 10.0 * ARCSEC,
         options: Options::plain(),
+        wander: rollcal::models::Wander::none(),
     }
 }
 

@@ -41,6 +41,7 @@ fn filter_config(c: &CalibratorConfig) -> FilterConfig<f64> {
         sigma_gyro: c.sigma_gyro_rad_s,
         sigma_gimbal: c.sigma_gimbal_rad,
         options: Options::default(),
+        wander: rollcal::models::Wander::none(),
     }
 }
 

@@ -240,12 +240,16 @@ pub fn expected_observable(id: ConfigId, name: &str, group: Group) -> bool {
         Group::Lambda => id == M2Ps && (name == "lam_x" || name == "lam_z"),
         Group::Attitude => false,
         // The paper takes the instruments' own errors as calibrated: it
-        // has no verdict on them (SPEC §8 asks the analysis for one).
+        // has no verdict on them (the analysis gives one,
+        // docs/observability.md).
         Group::GyroDrift
         | Group::GyroGDrift
         | Group::GyroScale
         | Group::AccelBias
-        | Group::AccelScale => false,
+        | Group::AccelScale
+        | Group::AccelSecondOrder
+        | Group::GyroMarkov
+        | Group::AccelMarkov => false,
     }
 }
 
@@ -532,7 +536,10 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize, const 
             .propagate(&env, &m, &layout.attitude(&self.x_true), &period)
             .ok_or(Error::GimbalLock)?;
 
-        // Φ_k: identity with the attitude rows from the propagation.
+        // Φ_k: identity with the attitude rows from the propagation; the
+        // period's measurement sees the state before the end-of-period
+        // decay of the Gauss–Markov states (docs/model.md §Errors that
+        // wander), which Φ(k+1,0) then takes (`decayed`).
         let mut phi_k = SMatrix::<T, N, N>::identity();
         phi_k
             .fixed_rows_mut::<3>(crate::models::ATT)
@@ -541,8 +548,23 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize, const 
         if !phi.iter().all(|v| v.is_finite()) {
             return Err(Error::NonFiniteState);
         }
+        let step = self.crlb.config().wander.step(dt);
+        let decayed = |mut phi: SMatrix<T, N, N>| {
+            let rows = [
+                (layout.dg_gm(), step.gyro_phi),
+                (layout.ba_gm(), step.accel_phi),
+            ];
+            for (first, s) in rows {
+                for r in first.into_iter().flat_map(|i| i..i + 3) {
+                    if let Some(mut row) = phi.row_iter_mut().nth(r) {
+                        row *= s;
+                    }
+                }
+            }
+            phi
+        };
         if !measured {
-            return Ok((phi, self.info));
+            return Ok((decayed(phi), self.info));
         }
         let mut h_accel = SMatrix::<f64, 3, N>::zeros();
         layout.mean_accel(&env, &m, &prop, &period, &mut h_accel);
@@ -571,7 +593,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize, const 
         if !info.iter().all(|v| v.is_finite()) {
             return Err(Error::NonFiniteState);
         }
-        Ok((phi, info))
+        Ok((decayed(phi), info))
     }
 
     /// Periods processed (measured or predicted only).
@@ -704,7 +726,10 @@ mod tests {
                     | Group::GyroGDrift
                     | Group::GyroScale
                     | Group::AccelBias
-                    | Group::AccelScale => false,
+                    | Group::AccelScale
+                    | Group::AccelSecondOrder
+                    | Group::GyroMarkov
+                    | Group::AccelMarkov => false,
                     Group::ThetaGT | Group::ThetaAT => true,
                     Group::ThetaGC | Group::ThetaAC => rotations(id),
                     Group::Lambda => id == M2Ps && s.name != "lam_y",

@@ -9,8 +9,9 @@ use crate::models::{ConfigId, Environment, ErrorModel, Model};
 use crate::wire::{CalibratorConfig, MAX_STATES};
 
 /// The filter settings of a calibrator's settings: the environment as it
-/// is (f64), the noise levels in the filter's scalar `T`, the options as
-/// they are. What every calibrator runs its filter with.
+/// is (f64), the noise levels and the wandering errors in the filter's
+/// scalar `T` (the latter for the full model only), the options as they
+/// are. What every calibrator runs its filter with.
 ///
 /// # Examples
 ///
@@ -38,6 +39,10 @@ impl<T: RealField + Copy> From<&CalibratorConfig> for FilterConfig<T> {
             sigma_gyro: to_t(s.sigma_gyro_rad_s),
             sigma_gimbal: to_t(s.sigma_gimbal_rad),
             options: s.options,
+            wander: match s.errors {
+                ErrorModel::Installation => crate::models::Wander::none(),
+                ErrorModel::Full => s.wander.to_precision(),
+            },
         }
     }
 }
@@ -73,11 +78,12 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     /// The filter's start of `s`: its settings, the zero estimate and the
     /// prior σ of every state (`prior_sigma_rad` on the installation
     /// states, `instrument_prior` on the instrument errors of the full
-    /// model): what a new calibrator, a reset and every pass of the
+    /// model and the stationary σ of `wander` on their Gauss–Markov parts):
+    /// what a new calibrator, a reset and every pass of the
     /// estimator of record start from.
     pub(super) fn prior(s: &CalibratorConfig) -> (FilterConfig<T>, SVector<f64, N>, SVector<T, N>) {
         let installation = M::LAYOUT.installation_n();
-        let instruments = s.instrument_prior.sigma();
+        let instruments = s.instrument_prior.sigma(&s.wander);
         let sigma0 = SVector::from_fn(|i, _| {
             let sigma = match i.checked_sub(installation) {
                 None => s.prior_sigma_rad,

@@ -14,7 +14,9 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// the model's own dynamics; `None` returns to the extended filter.
     ///
     /// Jacobians are then evaluated on the nominal trajectory and the
-    /// innovation is `z − h(x_nom) − H (x̂ − x_nom)`. This is each later pass
+    /// innovation is `z − h(x_nom) − H (x̂ − x_nom)`. The full model's
+    /// Gauss–Markov states of the nominal are set to zero (their mean
+    /// decays to zero). This is each later pass
     /// of the multi-pass estimator (the nominal is the previous pass's estimate
     /// propagated back to the start), and, with the true initial state as
     /// nominal, the Riccati recursion of the posterior Cramér–Rao bound.
@@ -34,6 +36,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// #     sigma_gyro: 0.1 * deg / 3600.0,
     /// #     sigma_gimbal: 10.0 * deg / 3600.0,
     /// #     options: Options::default(),
+    /// #     wander: rollcal::models::Wander::none(),
     /// # };
     /// # let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
     /// # // Holding still with the computed frame on n: the commanded increment is
@@ -50,7 +53,23 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// # Ok::<(), rollcal::Error>(())
     /// ```
     pub fn set_nominal(&mut self, x_nominal: Option<SVector<f64, N>>) {
-        self.reference = x_nominal;
+        self.reference = x_nominal.map(|mut x| {
+            // The full model's Gauss–Markov parts enter the model linearly and
+            // decay towards zero: the nominal holds them at zero, the one
+            // value the decay leaves in place, so that the linearised filter
+            // moves its offsets from it exactly as the model moves the state
+            // (docs/model.md §Errors that wander).
+            for i in [Self::LAYOUT.dg_gm(), Self::LAYOUT.ba_gm()]
+                .into_iter()
+                .flatten()
+                .flat_map(|i| i..i + 3)
+            {
+                if let Some(v) = x.get_mut(i) {
+                    *v = 0.0;
+                }
+            }
+            x
+        });
     }
 
     /// The nominal state at the current time, in linearised mode.
@@ -76,6 +95,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// #     sigma_gyro: 0.1 * deg / 3600.0,
     /// #     sigma_gimbal: 10.0 * deg / 3600.0,
     /// #     options: Options::default(),
+    /// #     wander: rollcal::models::Wander::none(),
     /// # };
     /// # let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
     /// # // Holding still with the computed frame on n: the commanded increment is
@@ -118,6 +138,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// #     sigma_gyro: 0.1 * deg / 3600.0,
     /// #     sigma_gimbal: 10.0 * deg / 3600.0,
     /// #     options: Options::default(),
+    /// #     wander: rollcal::models::Wander::none(),
     /// # };
     /// # let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
     /// # // Holding still with the computed frame on n: the commanded increment is

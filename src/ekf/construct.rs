@@ -15,8 +15,11 @@ use crate::command::CommandFrame;
 use crate::models::Model;
 
 impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter<T, M, N, Z> {
-    /// A filter with initial estimate `x0` (rad) and prior standard
-    /// deviations `sigma0` (rad), the computed frame aligned with n.
+    /// A filter with initial estimate `x0` (rad; the full model's
+    /// instrument terms in their internal units) and prior standard
+    /// deviations `sigma0` (the same units), the computed frame aligned
+    /// with n. An instrument state's σ may be zero: the model does not
+    /// estimate it (its variance stays zero and its estimate `x0`).
     ///
     /// # Examples
     ///
@@ -33,6 +36,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// #     sigma_gyro: 0.1 * deg / 3600.0,
     /// #     sigma_gimbal: 10.0 * deg / 3600.0,
     /// #     options: Options::default(),
+    /// #     wander: rollcal::models::Wander::none(),
     /// # };
     /// # let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
     /// # // Holding still with the computed frame on n: the commanded increment is
@@ -45,7 +49,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// assert_eq!(f.state().len(), 12);
     /// assert_eq!(f.sigma(), SVector::<f64, 12>::repeat(deg));
     /// assert_eq!(f.updates(), 0);
-    /// // A prior σ that is not strictly positive is refused.
+    /// // A prior σ that is not strictly positive is refused (only the full
+    /// // model's instrument terms may have a zero σ: not estimated).
     /// assert_eq!(
     ///     M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::zeros()).unwrap_err(),
     ///     rollcal::Error::CovarianceNotPositiveDefinite
@@ -85,6 +90,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// #     sigma_gyro: 0.1 * deg / 3600.0,
     /// #     sigma_gimbal: 10.0 * deg / 3600.0,
     /// #     options: Options::default(),
+    /// #     wander: rollcal::models::Wander::none(),
     /// # };
     /// // In a firmware: `static mut SLOT: Option<M2PsFullFilter<f64>> = None;`
     /// let mut slot: Option<M2PsFullFilter<f64>> = None;
@@ -152,6 +158,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// #     sigma_gyro: 0.1 * deg / 3600.0,
     /// #     sigma_gimbal: 10.0 * deg / 3600.0,
     /// #     options: Options::default(),
+    /// #     wander: rollcal::models::Wander::none(),
     /// # };
     /// # let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
     /// # // Holding still with the computed frame on n: the commanded increment is
@@ -216,16 +223,39 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         if !config.options.is_built() {
             return Err(Error::UnsupportedOption);
         }
-        if sigma0.iter().any(|s| *s <= T::zero()) || config.sigma_accel <= T::zero() {
+        // An instrument state may have a zero prior σ: the model does not
+        // estimate it (its variance stays zero, its estimate at x0).
+        let first_instrument = Self::LAYOUT.instruments().unwrap_or(N);
+        let may_be_zero = |i: usize| i >= first_instrument;
+        if sigma0
+            .iter()
+            .enumerate()
+            .any(|(i, s)| *s < T::zero() || (*s == T::zero() && !may_be_zero(i)))
+            || config.sigma_accel <= T::zero()
+        {
             return Err(Error::CovarianceNotPositiveDefinite);
         }
         // A finite prior σ whose variance overflows (σ > 1.3e154 in f64,
         // 1.8e19 in f32) would give an infinite covariance, from which no
         // checkpoint of the filter could be restored (`from_parts`).
         let variance = sigma0.component_mul(sigma0);
-        // (Also one that underflows to zero: no factor has a zero variance.)
-        if !all_finite(variance.iter().copied()) || variance.iter().any(|v| *v <= T::zero()) {
+        // (Also one that underflows to zero: only a zero σ gives a zero
+        // variance.)
+        if !all_finite(variance.iter().copied())
+            || variance
+                .iter()
+                .zip(sigma0.iter())
+                .any(|(v, s)| *v <= T::zero() && *s != T::zero())
+        {
             return Err(Error::NonFiniteInput);
+        }
+        // The errors that wander: valid figures, and states to carry them.
+        let wander = &config.wander;
+        if !wander.is_valid() {
+            return Err(Error::NonFiniteInput);
+        }
+        if !wander.is_none() && Self::LAYOUT.dg_gm().is_none() {
+            return Err(Error::OutOfRange);
         }
         if Self::LAYOUT.gimbal_obs && config.sigma_gimbal <= T::zero() {
             return Err(Error::CovarianceNotPositiveDefinite);
@@ -253,8 +283,23 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             v.is_finite() && v >= nalgebra::convert(min_normal)
         };
         let gimbal_ok = !Self::LAYOUT.gimbal_obs || normal(config.sigma_gimbal);
-        let gyro_ok = config.sigma_gyro == T::zero() || normal(config.sigma_gyro);
-        if !normal(config.sigma_accel) || !gyro_ok || !gimbal_ok {
+        let zero_or_normal = |s: T| s == T::zero() || normal(s);
+        let gyro_ok = zero_or_normal(config.sigma_gyro);
+        // The wandering figures' variances too (a period's increment is of
+        // their order), and correlation times whose period decay is
+        // computable (τ ≥ 1e-3 s; a period beyond 20 τ is held at exp(−20)).
+        let tau_ok = |sigma: T, tau: T| sigma == T::zero() || tau >= nalgebra::convert(1e-3);
+        let wander_ok = [
+            wander.gyro_markov_sigma,
+            wander.gyro_random_walk,
+            wander.accel_markov_sigma,
+            wander.accel_random_walk,
+        ]
+        .into_iter()
+        .all(zero_or_normal)
+            && tau_ok(wander.gyro_markov_sigma, wander.gyro_markov_tau_s)
+            && tau_ok(wander.accel_markov_sigma, wander.accel_markov_tau_s);
+        if !normal(config.sigma_accel) || !gyro_ok || !gimbal_ok || !wander_ok {
             return Err(Error::OutOfRange);
         }
         Ok(variance)

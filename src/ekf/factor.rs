@@ -288,9 +288,10 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
 
     /// Makes this factor [`Ud::diagonal`]'s of `variances`, in
     /// place; `false` (and the factor unchanged) unless every variance is
-    /// finite and strictly positive.
+    /// finite and not negative (zero: a state the model does not
+    /// estimate).
     pub fn set_diagonal(&mut self, variances: &SVector<T, N>) -> bool {
-        if variances.iter().any(|v| !v.is_finite() || *v <= T::zero()) {
+        if variances.iter().any(|v| !v.is_finite() || *v < T::zero()) {
             return false;
         }
         self.m.fill(T::zero());
@@ -304,13 +305,23 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
 
     /// Makes this factor the one whose packed form ([`Ud::packed`]; the
     /// part below the diagonal ignored) is given by its `N·N` entries row
-    /// by row in f64 (a checkpoint's layout), rounded to `T`, in place; `false` (and the factor unchanged) unless there
-    /// are `N·N` entries, all finite in `T`, and `D` is strictly positive.
+    /// by row in f64 (a checkpoint's layout), rounded to `T`, in place;
+    /// `false` (and the factor unchanged) unless there are `N·N` entries,
+    /// all finite in `T`, every `D` is positive or zero, and the column of
+    /// `U` above a zero `D` and its row to the right are zero (a state the
+    /// model does not estimate, as the filter keeps it).
     pub fn set_packed_rows(&mut self, rows: &[f64]) -> bool {
         let t = |v: f64| -> T { nalgebra::convert(v) };
-        let diagonal_positive =
-            (0..N).all(|i| rows.get(i * N + i).is_some_and(|d| t(*d) > T::zero()));
-        if rows.len() != N * N || !diagonal_positive || rows.iter().any(|v| !t(*v).is_finite()) {
+        let at = |r: usize, c: usize| rows.get(r * N + c).map(|v| t(*v));
+        let diagonal_valid = (0..N).all(|i| match at(i, i) {
+            Some(d) if d > T::zero() => true,
+            Some(d) if d == T::zero() => {
+                (0..i).all(|r| at(r, i) == Some(T::zero()))
+                    && (i + 1..N).all(|c| at(i, c) == Some(T::zero()))
+            }
+            _ => false,
+        });
+        if rows.len() != N * N || !diagonal_valid || rows.iter().any(|v| !t(*v).is_finite()) {
             return false;
         }
         for (r, row) in rows.chunks_exact(N).enumerate() {
@@ -532,9 +543,10 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
                 let beta = alpha;
                 alpha += f[j] * a[j][j] * f[j];
                 // A NaN, non-positive or infinite α gives a D⁺ that is NaN,
-                // non-positive or infinite: one test below covers them.
+                // non-positive or infinite: one test below covers them. A
+                // state of zero variance (not estimated) stays at zero.
                 let d = a[j][j] * (beta / alpha);
-                if !(d > T::zero()) {
+                if !(d > T::zero()) && !(a[j][j] == T::zero() && alpha.is_finite()) {
                     return None;
                 }
                 sum_d += d;
@@ -551,6 +563,12 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         in_runs::<N>(|j| {
             let beta = alpha;
             let col = &mut a[j];
+            if col[j] == T::zero() {
+                // A state of zero variance (not estimated): its column of U
+                // stays zero (it multiplies D_j = 0), its gain is zero.
+                b[j] = T::zero();
+                return;
+            }
             let v_j = f[j] * col[j];
             alpha += v_j * f[j];
             let lambda = -f[j] / beta;
@@ -591,7 +609,12 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         let a = &mut self.m.data.0;
         in_runs::<N>(|j| {
             if j >= 3 {
-                let new = attitude_column(phi, &a[j][..j], j);
+                let new = if a[j][j] == T::zero() {
+                    // A state of zero variance: its column stays zero.
+                    [T::zero(); 3]
+                } else {
+                    attitude_column(phi, &a[j][..j], j)
+                };
                 a[j][..3].copy_from_slice(&new);
             }
         });
@@ -642,7 +665,7 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         let blk = self.predicted_attitude_block(phi_att, q)?;
         let mut rows = SMatrix::<T, 3, N>::zeros();
         in_runs::<N>(|j| {
-            if j >= 3 {
+            if j >= 3 && a[j][j] != T::zero() {
                 rows.data.0[j] = attitude_column(phi, &a[j][..j], j);
             }
         });
@@ -655,15 +678,64 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         Some(rows)
     }
 
-    /// The first three (attitude) rows of the packed factor: all that
-    /// [`Ud::predict_attitude`] and [`Ud::reset_attitude`] change.
-    pub fn attitude_rows(&self) -> SMatrix<T, 3, N> {
-        self.m.fixed_rows::<3>(0).into_owned()
+    /// `P ← S P S` for `S` the identity but `s` at state `j` (a
+    /// Gauss–Markov state's decay over a period, `0 < s ≤ 1`): row `j` of
+    /// `U` times `s`, column `j` divided by it, `D_j` times `s²`
+    /// (`U' = S U S⁻¹`, `D' = S D S`). O(N); nothing for `j ≥ N`.
+    pub fn scale_state(&mut self, j: usize, s: T) {
+        if j >= N {
+            return;
+        }
+        let a = &mut self.m.data.0; // a[col][row]
+        a[j][j] *= s * s;
+        for col in a.iter_mut().skip(j + 1) {
+            col[j] *= s;
+        }
+        let inv = T::one() / s;
+        for u in a[j][..j].iter_mut() {
+            *u *= inv;
+        }
     }
 
-    /// Puts back rows saved by [`Ud::attitude_rows`].
-    pub fn set_attitude_rows(&mut self, rows: &SMatrix<T, 3, N>) {
-        self.m.fixed_rows_mut::<3>(0).copy_from(rows);
+    /// `P ← P + q e_j e_jᵀ` (process noise of variance `q ≥ 0` on state
+    /// `j`) by the Agee–Turner rank-one update (Bierman 1977, §V.3; its
+    /// positive-weight form, which is stable): only columns `0..=j` of the
+    /// factor change, O(j²). The work vector `a` is the caller's (`N`
+    /// elements, whatever they held). `false` (factor untouched) unless `q`
+    /// is finite and not negative; nothing for `q = 0` or `j ≥ N`.
+    ///
+    /// A state whose variance is zero (`D_j = 0`, its column of `U` and its
+    /// row to the right zero: a term the model does not estimate) gains
+    /// `D_j = q` and no correlation.
+    pub fn add_variance(&mut self, j: usize, q: T, a: &mut [T; N]) -> bool {
+        if !(q >= T::zero()) || !q.is_finite() {
+            return false;
+        }
+        if q == T::zero() || j >= N {
+            return true;
+        }
+        let m = &mut self.m.data.0; // m[col][row]
+        a.fill(T::zero());
+        a[j] = T::one();
+        let mut c = q;
+        for k in (0..=j).rev() {
+            let p = a[k];
+            if p == T::zero() || c == T::zero() {
+                // No change to column k, and c stays (a_i −= 0).
+                continue;
+            }
+            let d_old = m[k][k];
+            let d_new = d_old + c * p * p;
+            let beta = c * p / d_new;
+            c = c * d_old / d_new;
+            m[k][k] = d_new;
+            let (col, a_head) = (&mut m[k][..k], &mut a[..k]);
+            for (u, a_i) in col.iter_mut().zip(a_head.iter_mut()) {
+                *a_i -= p * *u;
+                *u += beta * *a_i;
+            }
+        }
+        true
     }
 
     /// Re-opens the attitude: its covariance becomes `variance · I` (rad²)

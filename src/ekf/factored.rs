@@ -159,7 +159,10 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 *v = wrap_angle(*v);
             }
         }
+        // The end of the period for the errors that wander (cannot fail).
+        let dt = self.pending.get().map_or(0.0, |p| p.period.dt);
         self.x = x;
+        self.wander_jump(dt);
         self.pending.clear();
         self.updates = self.updates.saturating_add(1);
         self.gated_run = 0;

@@ -4,7 +4,7 @@
 
 use nalgebra::RealField;
 
-use crate::models::Environment;
+use crate::models::{Environment, Wander};
 
 #[cfg(doc)]
 use super::Error;
@@ -122,6 +122,7 @@ impl Options {
 /// #     sigma_gyro: 0.1 * deg / 3600.0,
 /// #     sigma_gimbal: 10.0 * deg / 3600.0,
 /// #     options: Options::default(),
+/// #     wander: rollcal::models::Wander::none(),
 /// # };
 /// # let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
 /// # // Holding still with the computed frame on n: the commanded increment is
@@ -153,6 +154,13 @@ pub struct FilterConfig<T: RealField + Copy> {
     pub sigma_gimbal: T,
     /// Cold-start remedy and gate.
     pub options: Options,
+    /// The instruments' errors that wander (docs/model.md §Errors that
+    /// wander): process noise on the full model's drift and bias and the
+    /// decay of their Gauss–Markov parts. [`Wander::none`] for constant
+    /// errors; a model without those states
+    /// ([`ErrorModel::Installation`](crate::models::ErrorModel::Installation))
+    /// refuses any other ([`Error::OutOfRange`](super::Error::OutOfRange)).
+    pub wander: Wander<T>,
 }
 
 impl FilterConfig<f64> {
@@ -165,6 +173,7 @@ impl FilterConfig<f64> {
             sigma_gyro: nalgebra::convert(self.sigma_gyro),
             sigma_gimbal: nalgebra::convert(self.sigma_gimbal),
             options: self.options,
+            wander: self.wander.to_precision(),
         }
     }
 }

@@ -102,22 +102,28 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     }
 
     /// Applies the pending period's time update without a measurement, in
-    /// place (the pending period stays recorded; callers clear it). On error
-    /// the factor is untouched.
+    /// place (the pending period stays recorded; callers clear it), and
+    /// the end of the period for the errors that wander (the factor and the
+    /// estimate's Gauss–Markov states, [`Filter::wander_jump`]). On error
+    /// the factor and the estimate are untouched.
     pub(super) fn settle(&mut self) -> Result<(), Error> {
         if let Some(pending) = self.pending.get() {
             let q = self
                 .process_noise(pending)
                 .ok_or(Error::CovarianceNotPositiveDefinite)?;
+            let dt = pending.period.dt;
             self.ud
                 .predict_attitude(&pending.prop.phi_att, &q)
                 .ok_or(Error::CovarianceNotPositiveDefinite)?;
+            self.wander_jump(dt);
         }
         Ok(())
     }
 
     /// The factor at the current time: the pending time update applied
-    /// without a measurement.
+    /// without a measurement (the covariance of the predicted state, whose
+    /// wandering parts still hold the period's values: their move at the
+    /// period's end, [`Filter::wander_jump`], is not in it).
     pub(super) fn propagated_factor(&self) -> Result<Ud<T, N>, Error> {
         let mut ud = self.ud;
         if let Some(pending) = self.pending.get() {

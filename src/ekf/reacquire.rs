@@ -37,6 +37,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// #     sigma_gyro: 0.1 * deg / 3600.0,
     /// #     sigma_gimbal: 10.0 * deg / 3600.0,
     /// #     options: Options::default(),
+    /// #     wander: rollcal::models::Wander::none(),
     /// # };
     /// # let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
     /// # // Holding still with the computed frame on n: the commanded increment is

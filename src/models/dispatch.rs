@@ -238,13 +238,13 @@ macro_rules! with_model {
         match $errors {
             $crate::models::ErrorModel::Installation => $crate::with_config!($id, |$m, $n, $z| $body),
             $crate::models::ErrorModel::Full => match $id {
-                $crate::models::ConfigId::M1Pa => $crate::with_config!(@arm M1PaFull, 33, 3, $m, $n, $z, $body),
-                $crate::models::ConfigId::M1Ps => $crate::with_config!(@arm M1PsFull, 36, 3, $m, $n, $z, $body),
-                $crate::models::ConfigId::M2Ps => $crate::with_config!(@arm M2PsFull, 39, 6, $m, $n, $z, $body),
-                $crate::models::ConfigId::M3Pa => $crate::with_config!(@arm M3PaFull, 36, 3, $m, $n, $z, $body),
-                $crate::models::ConfigId::M3Ps => $crate::with_config!(@arm M3PsFull, 39, 3, $m, $n, $z, $body),
-                $crate::models::ConfigId::M4Pa => $crate::with_config!(@arm M4PaFull, 33, 3, $m, $n, $z, $body),
-                $crate::models::ConfigId::M4Ps => $crate::with_config!(@arm M4PsFull, 36, 3, $m, $n, $z, $body),
+                $crate::models::ConfigId::M1Pa => $crate::with_config!(@arm M1PaFull, 42, 3, $m, $n, $z, $body),
+                $crate::models::ConfigId::M1Ps => $crate::with_config!(@arm M1PsFull, 45, 3, $m, $n, $z, $body),
+                $crate::models::ConfigId::M2Ps => $crate::with_config!(@arm M2PsFull, 48, 6, $m, $n, $z, $body),
+                $crate::models::ConfigId::M3Pa => $crate::with_config!(@arm M3PaFull, 45, 3, $m, $n, $z, $body),
+                $crate::models::ConfigId::M3Ps => $crate::with_config!(@arm M3PsFull, 48, 3, $m, $n, $z, $body),
+                $crate::models::ConfigId::M4Pa => $crate::with_config!(@arm M4PaFull, 42, 3, $m, $n, $z, $body),
+                $crate::models::ConfigId::M4Ps => $crate::with_config!(@arm M4PsFull, 45, 3, $m, $n, $z, $body),
             },
         }
     };
@@ -283,13 +283,13 @@ macro_rules! with_built_model {
             }
             $crate::models::ErrorModel::Full => 'dispatch: {
                 $crate::__rollcal_if_full_model! {
-                    $crate::__rollcal_if_m1_pa! { if id == $crate::models::ConfigId::M1Pa { break 'dispatch $crate::with_config!(@arm M1PaFull, 33, 3, $m, $n, $z, $body); } }
-                    $crate::__rollcal_if_m1_ps! { if id == $crate::models::ConfigId::M1Ps { break 'dispatch $crate::with_config!(@arm M1PsFull, 36, 3, $m, $n, $z, $body); } }
-                    $crate::__rollcal_if_m2_ps! { if id == $crate::models::ConfigId::M2Ps { break 'dispatch $crate::with_config!(@arm M2PsFull, 39, 6, $m, $n, $z, $body); } }
-                    $crate::__rollcal_if_m3_pa! { if id == $crate::models::ConfigId::M3Pa { break 'dispatch $crate::with_config!(@arm M3PaFull, 36, 3, $m, $n, $z, $body); } }
-                    $crate::__rollcal_if_m3_ps! { if id == $crate::models::ConfigId::M3Ps { break 'dispatch $crate::with_config!(@arm M3PsFull, 39, 3, $m, $n, $z, $body); } }
-                    $crate::__rollcal_if_m4_pa! { if id == $crate::models::ConfigId::M4Pa { break 'dispatch $crate::with_config!(@arm M4PaFull, 33, 3, $m, $n, $z, $body); } }
-                    $crate::__rollcal_if_m4_ps! { if id == $crate::models::ConfigId::M4Ps { break 'dispatch $crate::with_config!(@arm M4PsFull, 36, 3, $m, $n, $z, $body); } }
+                    $crate::__rollcal_if_m1_pa! { if id == $crate::models::ConfigId::M1Pa { break 'dispatch $crate::with_config!(@arm M1PaFull, 42, 3, $m, $n, $z, $body); } }
+                    $crate::__rollcal_if_m1_ps! { if id == $crate::models::ConfigId::M1Ps { break 'dispatch $crate::with_config!(@arm M1PsFull, 45, 3, $m, $n, $z, $body); } }
+                    $crate::__rollcal_if_m2_ps! { if id == $crate::models::ConfigId::M2Ps { break 'dispatch $crate::with_config!(@arm M2PsFull, 48, 6, $m, $n, $z, $body); } }
+                    $crate::__rollcal_if_m3_pa! { if id == $crate::models::ConfigId::M3Pa { break 'dispatch $crate::with_config!(@arm M3PaFull, 45, 3, $m, $n, $z, $body); } }
+                    $crate::__rollcal_if_m3_ps! { if id == $crate::models::ConfigId::M3Ps { break 'dispatch $crate::with_config!(@arm M3PsFull, 48, 3, $m, $n, $z, $body); } }
+                    $crate::__rollcal_if_m4_pa! { if id == $crate::models::ConfigId::M4Pa { break 'dispatch $crate::with_config!(@arm M4PaFull, 42, 3, $m, $n, $z, $body); } }
+                    $crate::__rollcal_if_m4_ps! { if id == $crate::models::ConfigId::M4Ps { break 'dispatch $crate::with_config!(@arm M4PsFull, 45, 3, $m, $n, $z, $body); } }
                 }
                 #[allow(unreachable_code)]
                 {

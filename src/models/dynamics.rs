@@ -5,7 +5,7 @@
 //! The installation parameters are constant: only the attitude rows of the
 //! system matrix `F` are not zero.
 //!
-//! The full model (SPEC §8, [`ErrorModel::Full`]) takes
+//! The full model ([`ErrorModel::Full`], docs/model.md §Instrument errors) takes
 //! `G [(I + K_g) ωc + dg + D_g f^p]` for `G ωc`, with `f^p = C^p_n f^n`
 //! from the attitude state ([`Layout::platform_dcm`]; M1 needs the
 //! computed frame `C^c_n` for it). An installation-only layout evaluates
@@ -244,7 +244,7 @@ impl Layout {
 
     /// The full model's instrument columns of `F` (nothing, and no
     /// arithmetic, for an installation-only layout): with `jmap` the rate's
-    /// map `J` (`J_r⁻¹(ψ)` or `T(θ)`), `∂/∂dg = J G`,
+    /// map `J` (`J_r⁻¹(ψ)` or `T(θ)`), `∂/∂dg = ∂/∂δ_g = J G`,
     /// `∂/∂D_g[i][j] = (J G)_i f^p_j` (row-major), `∂/∂kg_i = (J G)_i ωc_i`.
     #[allow(clippy::too_many_arguments)]
     fn instrument_rate_columns<T: RealField + Copy, const N: usize>(
@@ -257,12 +257,15 @@ impl Layout {
         c_cn: &Matrix3<T>,
         f: &mut SMatrix<T, 3, N>,
     ) {
-        let (Some(idg), Some(id), Some(ikg)) = (self.dg(), self.d_g(), self.kg()) else {
+        let (Some(idg), Some(id), Some(ikg), Some(idg_gm)) =
+            (self.dg(), self.d_g(), self.kg(), self.dg_gm())
+        else {
             return;
         };
         let jg = jmap * m.g;
         let f_p = self.platform_dcm(att, &m.c_rn, c_cn) * env.gravity_n;
         set_cols(f, idg, &jg);
+        set_cols(f, idg_gm, &jg);
         for (i, col) in jg.column_iter().enumerate() {
             let col = col.into_owned();
             let per_force = Matrix3::from_columns(&[col * f_p.x, col * f_p.y, col * f_p.z]);

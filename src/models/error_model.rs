@@ -19,13 +19,13 @@ use core::fmt;
 /// let full: ErrorModel = "full".parse().unwrap();
 /// assert_eq!(full, ErrorModel::Full);
 /// assert_eq!(full.as_str(), "full");
-/// assert_eq!(full.extra_states(), 21);
+/// assert_eq!(full.extra_states(), 30);
 /// let err: ParseErrorModelError = "bias".parse::<ErrorModel>().unwrap_err();
 /// assert_eq!(err.to_string(), "unknown error model (expected installation or full)");
 ///
-/// // M2-ps: 18 installation states, 39 with the instrument errors.
+/// // M2-ps: 18 installation states, 48 with the instrument errors.
 /// assert_eq!(ConfigId::M2Ps.layout().n(), 18);
-/// assert_eq!(ConfigId::M2Ps.layout_with(full).n(), 39);
+/// assert_eq!(ConfigId::M2Ps.layout_with(full).n(), 48);
 /// ```
 // Serialised as its index (postcard: a varint): `Installation` 0, `Full` 1.
 #[derive(
@@ -38,7 +38,9 @@ pub enum ErrorModel {
     #[default]
     Installation,
     /// The installation errors followed by
-    /// `[dg (3), D_g (9), kg (3), ba (3), ka (3)]` (SPEC §8).
+    /// `[dg (3), D_g (9), kg (3), ba (3), ka (3), k2 (3)]` and the
+    /// Gauss–Markov parts of the drift and the bias `[δ_g (3), δ_a (3)]`
+    /// (docs/model.md §Instrument errors, §Errors that wander).
     Full,
 }
 
@@ -56,11 +58,12 @@ impl ErrorModel {
     }
 
     /// The number of states this error model adds after the installation
-    /// states: 0 or 21.
+    /// states: 0 or 30 (24 instrument terms and 6 Gauss–Markov
+    /// nuisances).
     pub const fn extra_states(self) -> usize {
         match self {
             ErrorModel::Installation => 0,
-            ErrorModel::Full => 21,
+            ErrorModel::Full => 30,
         }
     }
 

@@ -1,9 +1,9 @@
-//! The instruments' own errors of the full model (SPEC §8,
-//! docs/model.md §Full model): [`InstrumentErrors`], unpacked from a state
-//! vector by [`Layout::instrument_errors`](super::Layout::instrument_errors),
-//! and the two places they act: the gyro input
-//! `(I + K_g) ωc + dg + D_g f^p` ([`InstrumentErrors::gyro_input`]) and the
-//! accelerometer output `ba + (I + K_a) A f^p`
+//! The instruments' own errors of the full model (docs/model.md
+//! §Instrument errors): [`InstrumentErrors`], unpacked from a state vector
+//! by [`Layout::instrument_errors`](super::Layout::instrument_errors), and
+//! the two places they act: the gyro input `(I + K_g) ωc + dg + D_g f^p`
+//! ([`InstrumentErrors::gyro_input`]) and the accelerometer output
+//! `ba + (I + K_a) u + K2 (u ∘ u)`, `u = A f^p`
 //! ([`InstrumentErrors::accel`]).
 
 use nalgebra::{Matrix3, RealField, Vector3};
@@ -28,6 +28,8 @@ use nalgebra::{Matrix3, RealField, Vector3};
 /// e.ba = Vector3::new(1e-5, 0.0, 0.0); // g
 /// e.ka = Vector3::new(0.0, 2e-4, 0.0);
 /// assert_eq!(e.accel(&f), Vector3::new(1e-5, 1.0 + 2e-4, 0.0));
+/// e.k2 = Vector3::new(0.0, 1.5e-5, 0.0); // g/g²: 15 µg at 1 g
+/// assert_eq!(e.accel(&f), Vector3::new(1e-5, 1.0 + 2e-4 + 1.5e-5, 0.0));
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct InstrumentErrors<T: RealField + Copy> {
@@ -44,6 +46,9 @@ pub struct InstrumentErrors<T: RealField + Copy> {
     /// Accelerometer scale-factor errors `ka` (dimensionless),
     /// `K_a = diag(ka)`.
     pub ka: Vector3<T>,
+    /// Accelerometer second-order coefficients `k2` (g per g²),
+    /// `K2 = diag(k2)`: the output gains `k2_i u_i²`.
+    pub k2: Vector3<T>,
 }
 
 impl<T: RealField + Copy> InstrumentErrors<T> {
@@ -55,6 +60,7 @@ impl<T: RealField + Copy> InstrumentErrors<T> {
             kg: Vector3::zeros(),
             ba: Vector3::zeros(),
             ka: Vector3::zeros(),
+            k2: Vector3::zeros(),
         }
     }
 
@@ -75,10 +81,11 @@ impl<T: RealField + Copy> InstrumentErrors<T> {
         self.kg.component_mul(omega_c) + self.dg + self.d_g * f_p
     }
 
-    /// The same errors in the pa frame from the ps ones (SPEC §8):
-    /// `D_g^pa = D_g R(θaC)` (so that `D_g^pa f^pa = D_g f^ps`, with
-    /// `f^ps = R(θaC) f^pa`), `dg`, `kg`, `ba`, `ka` unchanged; `theta_a_c`
-    /// is the accelerometer misalignment θaC (rad).
+    /// The same errors in the pa frame from the ps ones (docs/model.md
+    /// §Instrument errors): `D_g^pa = D_g R(θaC)` (so that
+    /// `D_g^pa f^pa = D_g f^ps`, with `f^ps = R(θaC) f^pa`), `dg`, `kg`,
+    /// `ba`, `ka`, `k2` unchanged; `theta_a_c` is the accelerometer
+    /// misalignment θaC (rad).
     ///
     /// # Examples
     ///
@@ -105,9 +112,17 @@ impl<T: RealField + Copy> InstrumentErrors<T> {
     }
 
     /// The accelerometer output of the installed specific force `af`
-    /// (`A f^p`, g): `ba + (I + K_a) A f^p` (g).
+    /// (`u = A f^p`, g): `ba + (I + K_a) u + K2 (u ∘ u)` (g).
     pub fn accel(&self, af: &Vector3<T>) -> Vector3<T> {
-        self.ba + af + self.ka.component_mul(af)
+        self.ba + af + self.ka.component_mul(af) + self.k2.component_mul(&af.component_mul(af))
+    }
+
+    /// [`InstrumentErrors::accel`] of a period's mean: `ba + (I + K_a) ū +
+    /// K2 (u∘u)‾` from the mean installed force `mean_af` (`ū`, g) and the
+    /// mean of its element-wise square `mean_af_sq` (`(u∘u)‾`, g²): the
+    /// mean of the second-order term is not the square of the mean.
+    pub fn accel_of_means(&self, mean_af: &Vector3<T>, mean_af_sq: &Vector3<T>) -> Vector3<T> {
+        self.ba + mean_af + self.ka.component_mul(mean_af) + self.k2.component_mul(mean_af_sq)
     }
 }
 
@@ -121,6 +136,7 @@ impl InstrumentErrors<f64> {
             kg: v(&self.kg),
             ba: v(&self.ba),
             ka: v(&self.ka),
+            k2: v(&self.k2),
         }
     }
 }

@@ -8,8 +8,10 @@
 //! The state vector is
 //! `[attitude(3), θgC or θgC^pa (3), θgT (3), θaC (3, ps only), θaT (3), λ (3, M2/M3)]`,
 //! followed for the full model ([`ErrorModel::Full`]) by the instruments'
-//! own errors `[dg (3), D_g (9, row-major), kg (3), ba (3), ka (3)]`
-//! ([`Layout::instruments`], [`Layout::instrument_errors`]).
+//! own errors `[dg (3), D_g (9, row-major), kg (3), ba (3), ka (3), k2 (3),
+//! δ_g (3), δ_a (3)]` ([`Layout::instruments`],
+//! [`Layout::instrument_errors`]); `δ_g`, `δ_a` are the Gauss–Markov
+//! parts of the drift and the bias, which add to `dg` and `ba`.
 
 use nalgebra::{RealField, SVector, Vector3};
 
@@ -112,7 +114,7 @@ impl Layout {
         }
     }
     /// Number of states: the installation states
-    /// ([`Layout::installation_n`]) and, for [`ErrorModel::Full`], 21 more.
+    /// ([`Layout::installation_n`]) and, for [`ErrorModel::Full`], 30 more.
     pub const fn n(&self) -> usize {
         self.installation_n() + self.errors.extra_states()
     }
@@ -131,11 +133,12 @@ impl Layout {
     ///
     /// let full = ConfigId::M1Pa.layout().with_errors(ErrorModel::Full);
     /// assert_eq!(full, ConfigId::M1Pa.layout_with(ErrorModel::Full));
-    /// assert_eq!((full.n(), full.instruments()), (33, Some(12)));
+    /// assert_eq!((full.n(), full.instruments()), (42, Some(12)));
     /// assert_eq!(
     ///     (full.dg(), full.d_g(), full.kg(), full.ba(), full.ka()),
     ///     (Some(12), Some(15), Some(24), Some(27), Some(30))
     /// );
+    /// assert_eq!((full.k2(), full.dg_gm(), full.ba_gm()), (Some(33), Some(36), Some(39)));
     /// assert_eq!(ConfigId::M1Pa.layout().instruments(), None);
     /// ```
     pub const fn with_errors(self, errors: ErrorModel) -> Layout {
@@ -178,6 +181,20 @@ impl Layout {
     pub const fn ka(&self) -> Option<usize> {
         self.instrument_index(18)
     }
+    /// Index of the first accelerometer second-order state `k2_x` (g per
+    /// g²).
+    pub const fn k2(&self) -> Option<usize> {
+        self.instrument_index(21)
+    }
+    /// Index of the first Gauss–Markov gyro drift state `dg_gm_x` (rad/s).
+    pub const fn dg_gm(&self) -> Option<usize> {
+        self.instrument_index(24)
+    }
+    /// Index of the first Gauss–Markov accelerometer bias state `ba_gm_x`
+    /// (g).
+    pub const fn ba_gm(&self) -> Option<usize> {
+        self.instrument_index(27)
+    }
     /// Number of measurement components per period.
     pub const fn z(&self) -> usize {
         if self.gimbal_obs {
@@ -219,7 +236,9 @@ impl Layout {
     }
 
     /// Unpacks the instruments' own errors of a state vector (all zero for
-    /// an [`ErrorModel::Installation`] layout).
+    /// an [`ErrorModel::Installation`] layout), as they act: the drift
+    /// `dg + δ_g` and the bias `ba + δ_a` include their Gauss–Markov parts
+    /// ([`Layout::persistent_instrument_errors`] leaves them out).
     ///
     /// # Examples
     ///
@@ -229,14 +248,34 @@ impl Layout {
     /// use rollcal::ConfigId;
     ///
     /// let layout = ConfigId::M2Ps.layout_with(ErrorModel::Full);
-    /// let mut x = SVector::<f64, 39>::zeros();
+    /// let mut x = SVector::<f64, 48>::zeros();
     /// x[layout.ba().unwrap() + 1] = 2e-5; // ba_y (g)
+    /// x[layout.ba_gm().unwrap() + 1] = 1e-6; // its Gauss–Markov part (g)
     /// x[layout.d_g().unwrap() + 5] = 1e-7; // Dg_yz (rad/s per g)
+    /// x[layout.k2().unwrap()] = 1.5e-5; // k2_x (g/g²)
     /// let e = layout.instrument_errors(&x);
-    /// assert_eq!(e.ba, Vector3::new(0.0, 2e-5, 0.0));
+    /// assert_eq!(e.ba, Vector3::new(0.0, 2e-5 + 1e-6, 0.0));
+    /// assert_eq!(layout.persistent_instrument_errors(&x).ba, Vector3::new(0.0, 2e-5, 0.0));
     /// assert_eq!(e.d_g[(1, 2)], 1e-7);
+    /// assert_eq!(e.k2.x, 1.5e-5);
     /// ```
     pub fn instrument_errors<T: RealField + Copy, const N: usize>(
+        &self,
+        x: &SVector<T, N>,
+    ) -> InstrumentErrors<T> {
+        let mut e = self.persistent_instrument_errors(x);
+        if let (Some(ig), Some(ia)) = (self.dg_gm(), self.ba_gm()) {
+            e.dg += block3(x, ig);
+            e.ba += block3(x, ia);
+        }
+        e
+    }
+
+    /// The instruments' own errors of a state vector without the
+    /// Gauss–Markov parts of the drift and the bias: the values to
+    /// compensate from the state's time on (the calibrated values,
+    /// docs/model.md §Errors that wander).
+    pub fn persistent_instrument_errors<T: RealField + Copy, const N: usize>(
         &self,
         x: &SVector<T, N>,
     ) -> InstrumentErrors<T> {
@@ -254,6 +293,7 @@ impl Layout {
                     kg: block3(x, i + 12),
                     ba: block3(x, i + 15),
                     ka: block3(x, i + 18),
+                    k2: block3(x, i + 21),
                 }
             }
         }

@@ -4,9 +4,10 @@
 //! (M1), `C^p_r(θA) R(λ)` (M2, M3) or `C^p_r(θp)` (M4). The mean over a
 //! period is in `period_mean`.
 //!
-//! The full model (SPEC §8, [`ErrorModel::Full`]) reads
-//! `Z_a = ba + (I + K_a) A C^p_n f^n`; an installation-only layout
-//! evaluates exactly the operations it did before the full model existed.
+//! The full model ([`ErrorModel::Full`], docs/model.md §Instrument errors)
+//! reads `Z_a = ba + (I + K_a) u + K2 (u ∘ u)`, `u = A C^p_n f^n`; an
+//! installation-only layout evaluates exactly the operations it did before
+//! the full model existed.
 
 use nalgebra::{Matrix3, RealField, SMatrix, Vector3};
 
@@ -34,8 +35,9 @@ impl Layout {
     }
 
     /// The accelerometer output `Z_a = A C^p_n f^n` (g) at one instant;
-    /// for the full model `ba + (I + K_a) A C^p_n f^n` with the instrument
-    /// errors of `m.params.instruments`.
+    /// for the full model `ba + (I + K_a) u + K2 (u ∘ u)`,
+    /// `u = A C^p_n f^n`, with the instrument errors of
+    /// `m.params.instruments`.
     pub fn accel_output<T: RealField + Copy>(
         &self,
         env: &Environment<T>,
@@ -48,8 +50,8 @@ impl Layout {
     }
 
     /// The accelerometer output of the installed specific force `af`
-    /// (`A f^p`, g): `af` itself for an installation-only layout,
-    /// `ba + (I + K_a) af` for the full model (g).
+    /// (`u = A f^p`, g): `af` itself for an installation-only layout,
+    /// `ba + (I + K_a) u + K2 (u ∘ u)` for the full model (g).
     pub fn accel_errors<T: RealField + Copy>(
         &self,
         m: &InstallationMatrices<T>,
@@ -91,7 +93,8 @@ impl Layout {
     /// `h` (every entry): no 3×N copy of it where the caller keeps it.
     ///
     /// For the full model the installation columns are multiplied by
-    /// `I + K_a`, `∂Z/∂ba = I` and `∂Z/∂ka = diag(A f^p)`; the gyro errors'
+    /// `I + K_a + 2 K2 diag(u)` (`u = A f^p`), `∂Z/∂ba = ∂Z/∂δ_a = I`,
+    /// `∂Z/∂ka = diag(u)` and `∂Z/∂k2 = diag(u ∘ u)`; the gyro errors'
     /// columns are zero.
     // Out of line: inlined into `mean_accel`'s loop over the nodes, LLVM
     // unrolled the lot into a 1.5 KB frame of spilled addresses (the M4F's
@@ -149,11 +152,21 @@ impl Layout {
             set_cols(h, il, &d_lam);
         }
         let af = m.a * f_p;
-        if let (Some(n_inst), Some(iba), Some(ika)) = (self.instruments(), self.ba(), self.ka()) {
-            let ka = &m.params.instruments.ka;
-            scale_rows(h, n_inst, &(Vector3::repeat(T::one()) + ka));
+        if let (Some(n_inst), Some(iba), Some(ika), Some(ik2), Some(iba_gm)) = (
+            self.instruments(),
+            self.ba(),
+            self.ka(),
+            self.k2(),
+            self.ba_gm(),
+        ) {
+            let e = &m.params.instruments;
+            let two: T = nalgebra::convert(2.0);
+            let slope = Vector3::repeat(T::one()) + e.ka + e.k2.component_mul(&af) * two;
+            scale_rows(h, n_inst, &slope);
             set_cols(h, iba, &Matrix3::identity());
             set_cols(h, ika, &Matrix3::from_diagonal(&af));
+            set_cols(h, ik2, &Matrix3::from_diagonal(&af.component_mul(&af)));
+            set_cols(h, iba_gm, &Matrix3::identity());
         }
         self.accel_errors(m, &af)
     }

@@ -21,20 +21,22 @@
 //! The state vector is
 //! `[attitude(3), θgC or θgC^pa (3), θgT (3), θaC (3, ps only), θaT (3), λ (3, M2/M3)]`,
 //! all radians: the installation states. The **full model** ([`ErrorModel::Full`],
-//! SPEC §8, types `M1PaFull` … `M4PsFull`) appends the instruments' own
-//! errors ([`InstrumentErrors`]):
+//! docs/model.md §Instrument errors, types `M1PaFull` … `M4PsFull`) appends
+//! the instruments' own errors ([`InstrumentErrors`]):
 //! `[dg (3, rad/s), D_g (9, rad/s per g, row-major: row = gyro, column =
-//! force axis in the model's platform frame), kg (3), ba (3, g), ka (3)]`,
-//! 21 more states (M1-pa 33, M2-ps 39, …). In the model's platform frame p
-//! the platform rate is `G [(I + K_g) ωc + dg + D_g f^p]` and the
-//! accelerometer output `ba + (I + K_a) A f^p`, with `f^p = C^p_n f^n`
-//! from the attitude state.
+//! force axis in the model's platform frame), kg (3), ba (3, g), ka (3),
+//! k2 (3, g/g²)]` and the Gauss–Markov parts of the drift and the bias
+//! `[δ_g (3, rad/s), δ_a (3, g)]`, 30 more states (M1-pa 42, M2-ps 48, …).
+//! In the model's platform frame p the platform rate is
+//! `G [(I + K_g) ωc + dg + δ_g + D_g f^p]` and the accelerometer output
+//! `ba + δ_a + (I + K_a) u + K2 (u ∘ u)`, `u = A f^p`, with
+//! `f^p = C^p_n f^n` from the attitude state.
 //!
 //! The module by concern:
 //! - `config_id`: [`ConfigId`], the seven by name, and [`ParseConfigIdError`];
 //! - `error_model`: [`ErrorModel`] (installation only, or full) and
 //!   [`ParseErrorModelError`];
-//! - `instrument_errors`: [`InstrumentErrors`], the full model's 21 states;
+//! - `instrument_errors`: [`InstrumentErrors`], the full model's instrument terms;
 //! - `dispatch`: [`with_config!`](crate::with_config),
 //!   [`with_built_config!`](crate::with_built_config) and
 //!   [`with_model!`](crate::with_model), `ConfigId` (and [`ErrorModel`]) → type;
@@ -47,7 +49,8 @@
 //! - `propagation`: one period's propagation ([`PeriodPropagation`]);
 //! - `period_mean`: the mean accelerometer output over a period;
 //! - `transition`: the transition rows `Φ` ([`transition_rows`],
-//!   [`apply_transition`]).
+//!   [`apply_transition`]);
+//! - `wander`: the errors that wander ([`Wander`], [`WanderStep`]).
 //!
 //! # Examples
 //!
@@ -83,6 +86,7 @@ mod period_mean;
 mod propagation;
 mod states;
 mod transition;
+mod wander;
 
 pub(crate) use blocks::attitude_columns;
 pub use config_id::{ConfigId, ParseConfigIdError};
@@ -95,6 +99,7 @@ pub use states::{Group, StateInfo};
 pub use transition::{
     apply_transition, apply_transition_of, transition_rows, transition_rows_into,
 };
+pub use wander::{Wander, WanderStep, MAX_DECAY_EXPONENT};
 
 /// A configuration as a type, with `N` states and `Z` measurement
 /// components per period fixed at compile time.
@@ -171,8 +176,10 @@ config_type!(
     M4Ps, M4Ps, 15, 3);
 
 config_type!(full
-    /// M1-pa full model (SPEC §8): the 12 states of [`M1Pa`] followed by
-    /// `dg, D_g^pa, kg, ba, ka` (33 states); accelerometer observations.
+    /// M1-pa full model (docs/model.md §Instrument errors): the 12 states
+    /// of [`M1Pa`] followed by `dg, D_g^pa, kg, ba, ka, k2` and the
+    /// Gauss–Markov parts `δ_g, δ_a` (42 states); accelerometer
+    /// observations.
     ///
     /// # Examples
     ///
@@ -181,33 +188,34 @@ config_type!(full
     /// use rollcal::ConfigId;
     ///
     /// type M = M1PaFull;
-    /// assert_eq!(<M as Model<33, 3>>::ID, ConfigId::M1Pa);
-    /// assert_eq!(<M as Model<33, 3>>::ERRORS, ErrorModel::Full);
-    /// let layout = <M as Model<33, 3>>::LAYOUT;
-    /// assert_eq!((layout.n(), layout.z(), layout.instruments()), (33, 3, Some(12)));
-    /// let states = <M as Model<33, 3>>::states();
+    /// assert_eq!(<M as Model<42, 3>>::ID, ConfigId::M1Pa);
+    /// assert_eq!(<M as Model<42, 3>>::ERRORS, ErrorModel::Full);
+    /// let layout = <M as Model<42, 3>>::LAYOUT;
+    /// assert_eq!((layout.n(), layout.z(), layout.instruments()), (42, 3, Some(12)));
+    /// let states = <M as Model<42, 3>>::states();
     /// assert_eq!((states[12].name, states[15].name, states[32].name), ("dg_x", "Dgpa_xx", "ka_z"));
+    /// assert_eq!((states[35].name, states[36].name, states[41].name), ("k2_z", "dg_gm_x", "ba_gm_z"));
     /// ```
-    M1PaFull, M1Pa, 33, 3);
+    M1PaFull, M1Pa, 42, 3);
 config_type!(full
-    /// M1-ps full model: [`M1Ps`]'s 15 states and the 21 instrument errors (36 states).
-    M1PsFull, M1Ps, 36, 3);
+    /// M1-ps full model: [`M1Ps`]'s 15 states and the 30 instrument states (45 states).
+    M1PsFull, M1Ps, 45, 3);
 config_type!(full
-    /// M2-ps full model: [`M2Ps`]'s 18 states and the 21 instrument errors (39 states);
+    /// M2-ps full model: [`M2Ps`]'s 18 states and the 30 instrument states (48 states);
     /// gimbal + accelerometer observations.
-    M2PsFull, M2Ps, 39, 6);
+    M2PsFull, M2Ps, 48, 6);
 config_type!(full
-    /// M3-pa full model: [`M3Pa`]'s 15 states and the 21 instrument errors (36 states).
-    M3PaFull, M3Pa, 36, 3);
+    /// M3-pa full model: [`M3Pa`]'s 15 states and the 30 instrument states (45 states).
+    M3PaFull, M3Pa, 45, 3);
 config_type!(full
-    /// M3-ps full model: [`M3Ps`]'s 18 states and the 21 instrument errors (39 states).
-    M3PsFull, M3Ps, 39, 3);
+    /// M3-ps full model: [`M3Ps`]'s 18 states and the 30 instrument states (48 states).
+    M3PsFull, M3Ps, 48, 3);
 config_type!(full
-    /// M4-pa full model: [`M4Pa`]'s 12 states and the 21 instrument errors (33 states).
-    M4PaFull, M4Pa, 33, 3);
+    /// M4-pa full model: [`M4Pa`]'s 12 states and the 30 instrument states (42 states).
+    M4PaFull, M4Pa, 42, 3);
 config_type!(full
-    /// M4-ps full model: [`M4Ps`]'s 15 states and the 21 instrument errors (36 states).
-    M4PsFull, M4Ps, 36, 3);
+    /// M4-ps full model: [`M4Ps`]'s 15 states and the 30 instrument states (45 states).
+    M4PsFull, M4Ps, 45, 3);
 
 /// The environment every model needs.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -102,9 +102,10 @@ impl Layout {
     ///   ([`EulerTrig::advanced_in`]; ≤ 7.2e-10 in f32), the rest in f64.
     ///
     /// For the full model ([`ErrorModel::Full`]) the mean is
-    /// `ba + (I + K_a) A Σ w_j R_j f_j` with `instruments`' `ba`, `ka`
-    /// (exact: the output is affine in `f`); an installation-only layout
-    /// ignores `instruments`.
+    /// `ba + (I + K_a) ū + K2 Σ w_j u_j ∘ u_j` with `u_j = A R_j f_j`,
+    /// `ū = A Σ w_j R_j f_j` and `instruments`' `ba`, `ka`, `k2` (the
+    /// second-order term's mean is the mean of the squares, node by node,
+    /// in f64); an installation-only layout ignores `instruments`.
     ///
     /// For `J = f64` it equals `mean_accel`'s value to rounding.
     #[allow(clippy::too_many_arguments)]
@@ -121,6 +122,16 @@ impl Layout {
         let weights = [1.0 / 6.0, 4.0 / 6.0, 1.0 / 6.0];
         let [att0, att_mid, att1] = att;
         let mut mean = Vector3::zeros();
+        // Σ w_j u_j ∘ u_j of the full model (the installation layout never
+        // forms it: its arithmetic stays what it was).
+        let full = self.errors == ErrorModel::Full;
+        let mut mean_sq = Vector3::<f64>::zeros();
+        let mut square = |f_j: &Vector3<f64>, w: f64| {
+            if full {
+                let u = a * f_j;
+                mean_sq += u.component_mul(&u) * w;
+            }
+        };
         match self.attitude {
             AttitudeKind::Misalignment => {
                 // f_j = C_j f^n = f_0 + (C_j − C_0) f^n: f_0 in f64, the
@@ -132,9 +143,10 @@ impl Layout {
                 let f_turns = [Vector3::zeros(), turn_mid * g_j, turn_end * g_j];
                 let mut small = Vector3::<J>::zeros();
                 for ((theta, f_turn), w) in att.iter().zip(f_turns).zip(weights) {
+                    let node = f_turn + dcm_deviation(&to_t::<J, 3, 1>(theta)) * (f0_j + f_turn);
+                    square(&(f0 + to_f64(&node)), w);
                     let w: J = nalgebra::convert(w);
-                    small +=
-                        (f_turn + dcm_deviation(&to_t::<J, 3, 1>(theta)) * (f0_j + f_turn)) * w;
+                    small += node * w;
                 }
                 mean = f0 + to_f64(&small);
             }
@@ -150,14 +162,16 @@ impl Layout {
                     trig0.advanced_in::<J>(att0, &(att1 - att0)),
                 ];
                 for (trig, w) in nodes.iter().zip(weights) {
-                    mean += trig.rotate(&f) * w;
+                    let f_j = trig.rotate(&f);
+                    square(&f_j, w);
+                    mean += f_j * w;
                 }
             }
         }
         let af = a * mean;
         match self.errors {
             ErrorModel::Installation => af,
-            ErrorModel::Full => instruments.accel(&af),
+            ErrorModel::Full => instruments.accel_of_means(&af, &mean_sq),
         }
     }
 }

@@ -32,6 +32,17 @@ pub enum Group {
     AccelBias,
     /// Accelerometer scale-factor errors `ka` (dimensionless; full model).
     AccelScale,
+    /// Accelerometer second-order coefficients `k2` (g per g², the
+    /// output's `K2 (u ∘ u)` term; full model).
+    AccelSecondOrder,
+    /// The Gauss–Markov part of the gyro drift, `δ_g` (rad/s; full
+    /// model): a nuisance that wanders about zero with the gyro's bias
+    /// instability, not a value to compensate (time-varying, reported at
+    /// the final time).
+    GyroMarkov,
+    /// The Gauss–Markov part of the accelerometer bias, `δ_a` (g; full
+    /// model): a nuisance like [`Group::GyroMarkov`].
+    AccelMarkov,
 }
 
 impl Group {
@@ -49,11 +60,14 @@ impl Group {
             Group::GyroScale => "kg",
             Group::AccelBias => "ba",
             Group::AccelScale => "ka",
+            Group::AccelSecondOrder => "k2",
+            Group::GyroMarkov => "dg_gm",
+            Group::AccelMarkov => "ba_gm",
         }
     }
 
     /// Every group, installation groups first.
-    pub const ALL: [Group; 11] = [
+    pub const ALL: [Group; 14] = [
         Group::Attitude,
         Group::ThetaGC,
         Group::ThetaGT,
@@ -65,9 +79,13 @@ impl Group {
         Group::GyroScale,
         Group::AccelBias,
         Group::AccelScale,
+        Group::AccelSecondOrder,
+        Group::GyroMarkov,
+        Group::AccelMarkov,
     ];
 
-    /// Whether the group is one of the full model's instrument errors.
+    /// Whether the group is one of the full model's instrument errors
+    /// (the Gauss–Markov nuisances included).
     pub const fn is_instrument(self) -> bool {
         matches!(
             self,
@@ -76,11 +94,34 @@ impl Group {
                 | Group::GyroScale
                 | Group::AccelBias
                 | Group::AccelScale
+                | Group::AccelSecondOrder
+                | Group::GyroMarkov
+                | Group::AccelMarkov
+        )
+    }
+
+    /// Whether the group's states vary with time and are reported at the
+    /// final time only, as nuisances, not as values to compensate: the
+    /// attitude and the Gauss–Markov parts of the drift and the bias.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use rollcal::Group;
+    ///
+    /// assert!(Group::Attitude.is_nuisance() && Group::AccelMarkov.is_nuisance());
+    /// assert!(!Group::AccelBias.is_nuisance() && !Group::ThetaAT.is_nuisance());
+    /// ```
+    pub const fn is_nuisance(self) -> bool {
+        matches!(
+            self,
+            Group::Attitude | Group::GyroMarkov | Group::AccelMarkov
         )
     }
 
     /// The internal unit of the group's states: `"rad"`, `"rad/s"`,
-    /// `"rad/s/g"`, `"1"` (dimensionless) or `"g"`.
+    /// `"rad/s/g"`, `"1"` (dimensionless), `"g"` or `"1/g"` (`k2`: g of
+    /// output per g² of input).
     pub const fn unit(self) -> &'static str {
         match self {
             Group::Attitude
@@ -89,16 +130,19 @@ impl Group {
             | Group::ThetaAC
             | Group::ThetaAT
             | Group::Lambda => "rad",
-            Group::GyroDrift => "rad/s",
+            Group::GyroDrift | Group::GyroMarkov => "rad/s",
             Group::GyroGDrift => "rad/s/g",
             Group::GyroScale | Group::AccelScale => "1",
-            Group::AccelBias => "g",
+            Group::AccelBias | Group::AccelMarkov => "g",
+            Group::AccelSecondOrder => "1/g",
         }
     }
 
     /// The factor from the internal unit to the printed one, and the
-    /// printed unit: angles in arcseconds (`″`), `dg` in °/h, `D_g` in
-    /// °/h/g, `kg` and `ka` in ppm, `ba` in µg (SPEC §2, §8).
+    /// printed unit: angles in arcseconds (`″`), `dg` and its
+    /// Gauss–Markov part in °/h, `D_g` in °/h/g, `kg` and `ka` in ppm, `ba`
+    /// and its Gauss–Markov part in µg, `k2` in µg/g² (docs/model.md
+    /// §State names).
     ///
     /// # Examples
     ///
@@ -120,10 +164,11 @@ impl Group {
             | Group::ThetaAC
             | Group::ThetaAT
             | Group::Lambda => (RAD_TO_ARCSEC, "″"),
-            Group::GyroDrift => (RAD_TO_ARCSEC, "°/h"),
+            Group::GyroDrift | Group::GyroMarkov => (RAD_TO_ARCSEC, "°/h"),
             Group::GyroGDrift => (RAD_TO_ARCSEC, "°/h/g"),
             Group::GyroScale | Group::AccelScale => (1e6, "ppm"),
-            Group::AccelBias => (1e6, "µg"),
+            Group::AccelBias | Group::AccelMarkov => (1e6, "µg"),
+            Group::AccelSecondOrder => (1e6, "µg/g²"),
         }
     }
 
@@ -243,8 +288,10 @@ const M4_PS_STATES: [StateInfo; 15] = states![
     "thaT_1": ThetaAT, "thaT_2": ThetaAT, "thaT_3": ThetaAT,
 ];
 
-/// The full model's instrument-error states in the ps frame (SPEC §8).
-const INSTRUMENT_PS: [StateInfo; 21] = states![
+/// The full model's instrument-error states in the ps frame
+/// (docs/model.md §Instrument errors): the 24 terms to calibrate, then the
+/// 6 Gauss–Markov nuisances.
+const INSTRUMENT_PS: [StateInfo; 30] = states![
     "dg_x": GyroDrift, "dg_y": GyroDrift, "dg_z": GyroDrift,
     "Dg_xx": GyroGDrift, "Dg_xy": GyroGDrift, "Dg_xz": GyroGDrift,
     "Dg_yx": GyroGDrift, "Dg_yy": GyroGDrift, "Dg_yz": GyroGDrift,
@@ -252,9 +299,12 @@ const INSTRUMENT_PS: [StateInfo; 21] = states![
     "kg_x": GyroScale, "kg_y": GyroScale, "kg_z": GyroScale,
     "ba_x": AccelBias, "ba_y": AccelBias, "ba_z": AccelBias,
     "ka_x": AccelScale, "ka_y": AccelScale, "ka_z": AccelScale,
+    "k2_x": AccelSecondOrder, "k2_y": AccelSecondOrder, "k2_z": AccelSecondOrder,
+    "dg_gm_x": GyroMarkov, "dg_gm_y": GyroMarkov, "dg_gm_z": GyroMarkov,
+    "ba_gm_x": AccelMarkov, "ba_gm_y": AccelMarkov, "ba_gm_z": AccelMarkov,
 ];
 /// The same in the pa frame: `D_g^pa` is named `Dgpa_*` (as `thgCpa_*`).
-const INSTRUMENT_PA: [StateInfo; 21] = states![
+const INSTRUMENT_PA: [StateInfo; 30] = states![
     "dg_x": GyroDrift, "dg_y": GyroDrift, "dg_z": GyroDrift,
     "Dgpa_xx": GyroGDrift, "Dgpa_xy": GyroGDrift, "Dgpa_xz": GyroGDrift,
     "Dgpa_yx": GyroGDrift, "Dgpa_yy": GyroGDrift, "Dgpa_yz": GyroGDrift,
@@ -262,22 +312,26 @@ const INSTRUMENT_PA: [StateInfo; 21] = states![
     "kg_x": GyroScale, "kg_y": GyroScale, "kg_z": GyroScale,
     "ba_x": AccelBias, "ba_y": AccelBias, "ba_z": AccelBias,
     "ka_x": AccelScale, "ka_y": AccelScale, "ka_z": AccelScale,
+    "k2_x": AccelSecondOrder, "k2_y": AccelSecondOrder, "k2_z": AccelSecondOrder,
+    "dg_gm_x": GyroMarkov, "dg_gm_y": GyroMarkov, "dg_gm_z": GyroMarkov,
+    "ba_gm_x": AccelMarkov, "ba_gm_y": AccelMarkov, "ba_gm_z": AccelMarkov,
 ];
 
-const M1_PA_FULL_STATES: [StateInfo; 33] = concat(M1_PA_STATES, INSTRUMENT_PA);
-const M1_PS_FULL_STATES: [StateInfo; 36] = concat(M1_PS_STATES, INSTRUMENT_PS);
-const M2_PS_FULL_STATES: [StateInfo; 39] = concat(M2_PS_STATES, INSTRUMENT_PS);
-const M3_PA_FULL_STATES: [StateInfo; 36] = concat(M3_PA_STATES, INSTRUMENT_PA);
-const M3_PS_FULL_STATES: [StateInfo; 39] = concat(M3_PS_STATES, INSTRUMENT_PS);
-const M4_PA_FULL_STATES: [StateInfo; 33] = concat(M4_PA_STATES, INSTRUMENT_PA);
-const M4_PS_FULL_STATES: [StateInfo; 36] = concat(M4_PS_STATES, INSTRUMENT_PS);
+const M1_PA_FULL_STATES: [StateInfo; 42] = concat(M1_PA_STATES, INSTRUMENT_PA);
+const M1_PS_FULL_STATES: [StateInfo; 45] = concat(M1_PS_STATES, INSTRUMENT_PS);
+const M2_PS_FULL_STATES: [StateInfo; 48] = concat(M2_PS_STATES, INSTRUMENT_PS);
+const M3_PA_FULL_STATES: [StateInfo; 45] = concat(M3_PA_STATES, INSTRUMENT_PA);
+const M3_PS_FULL_STATES: [StateInfo; 48] = concat(M3_PS_STATES, INSTRUMENT_PS);
+const M4_PA_FULL_STATES: [StateInfo; 42] = concat(M4_PA_STATES, INSTRUMENT_PA);
+const M4_PS_FULL_STATES: [StateInfo; 45] = concat(M4_PS_STATES, INSTRUMENT_PS);
 
 impl ConfigId {
     /// The names, units and groups of the states under error model
     /// `errors`, in state order: [`ConfigId::states`] for
     /// [`ErrorModel::Installation`]; for [`ErrorModel::Full`] the same
     /// followed by `dg_x, dg_y, dg_z, Dg_xx … Dg_zz` (`Dgpa_*` in the pa
-    /// frame), `kg_*, ba_*, ka_*`.
+    /// frame), `kg_*, ba_*, ka_*, k2_*` and the Gauss–Markov nuisances
+    /// `dg_gm_*, ba_gm_*`.
     ///
     /// # Examples
     ///
@@ -286,11 +340,13 @@ impl ConfigId {
     /// use rollcal::{ConfigId, Group};
     ///
     /// let states = ConfigId::M3Pa.states_with(ErrorModel::Full);
-    /// assert_eq!(states.len(), 36);
+    /// assert_eq!(states.len(), 45);
     /// assert_eq!(&states[..15], ConfigId::M3Pa.states());
     /// assert_eq!((states[15].name, states[15].unit), ("dg_x", "rad/s"));
     /// assert_eq!((states[19].name, states[19].group), ("Dgpa_xy", Group::GyroGDrift));
     /// assert_eq!(states[33].printed_scale(), (1e6, "ppm")); // ka_x
+    /// assert_eq!(states[36].printed_scale(), (1e6, "µg/g²")); // k2_x
+    /// assert_eq!((states[42].name, states[42].group), ("ba_gm_x", Group::AccelMarkov));
     /// ```
     pub fn states_with(self, errors: ErrorModel) -> &'static [StateInfo] {
         match errors {

@@ -297,7 +297,7 @@ mod tests {
             Message::Checkpoint(checkpoint(3, true)),
             Message::Configure(CalibratorConfig::paper(ConfigId::M1Pa)),
         ];
-        let mut buf = [0u8; 16384];
+        let mut buf = [0u8; crate::wire::MAX_FRAME_LEN];
         for m in &messages {
             let bytes = postcard::to_slice(m, &mut buf).unwrap().to_vec();
             let mut variants: StdVec<StdVec<u8>> = vec![bytes.clone()];
@@ -320,8 +320,8 @@ mod tests {
                         // Compared by their encodings: a NaN (the last
                         // NIS before any update) is not equal to itself.
                         (Ok((want, rest)), Ok(left)) => {
-                            let mut x = [0u8; 16384];
-                            let mut y = [0u8; 16384];
+                            let mut x = [0u8; crate::wire::MAX_FRAME_LEN];
+                            let mut y = [0u8; crate::wire::MAX_FRAME_LEN];
                             let got = postcard::to_slice(&s, &mut x).unwrap();
                             let want = postcard::to_slice(want, &mut y).unwrap();
                             assert!(got == want, "decoded in place differs on {} bytes", b.len());

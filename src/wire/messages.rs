@@ -9,15 +9,15 @@ use heapless::Vec;
 use serde::{Deserialize, Serialize};
 
 use crate::ekf::Options;
-use crate::models::{ConfigId, ErrorModel};
+use crate::models::{ConfigId, ErrorModel, Wander};
 
-/// Largest state dimension of any model this build carries: 39 (the full
+/// Largest state dimension of any model this build carries: 48 (the full
 /// M2-ps and M3-ps models) with the `full-model` feature, else 18 (M2-ps,
 /// M3-ps). It sizes the messages' vectors only: the bytes of a message do
 /// not depend on it (postcard writes a vector's length before its items).
 #[cfg(feature = "full-model")]
-pub const MAX_STATES: usize = 39;
-/// Largest state dimension of any model this build carries: 39 (the full
+pub const MAX_STATES: usize = 48;
+/// Largest state dimension of any model this build carries: 48 (the full
 /// M2-ps and M3-ps models) with the `full-model` feature, else 18 (M2-ps,
 /// M3-ps). It sizes the messages' vectors only: the bytes of a message do
 /// not depend on it (postcard writes a vector's length before its items).
@@ -150,28 +150,37 @@ pub struct CalibratorConfig {
     /// [`crate::calibrator::Calibrator::estimate`] is always available).
     pub estimate_every: u32,
     /// Which errors the filter estimates: the installation errors alone, or
-    /// followed by the instruments' own ([`ErrorModel::Full`], 21 more
+    /// followed by the instruments' own ([`ErrorModel::Full`], 30 more
     /// states; needs the `full-model` feature).
     pub errors: ErrorModel,
     /// Prior σ of the instrument errors (used by [`ErrorModel::Full`]).
     pub instrument_prior: InstrumentPrior,
+    /// The instruments' errors that wander (used by [`ErrorModel::Full`];
+    /// [`Wander::none`] for constant errors; docs/model.md §Errors that
+    /// wander), in internal units: rad/s, s, rad/s per √s, g, s, g per √s.
+    pub wander: Wander<f64>,
 }
 
 /// Prior σ of the instrument errors of the full model (docs/model.md
 /// §Instrument errors), one per group, in the filter's internal units; the
-/// initial estimate is zero. [`Default`] is SPEC §8's: 1 °/h, 1 °/h/g,
-/// 2 000 ppm, 1 000 µg, 1 000 ppm.
+/// initial estimate is zero. A zero σ: the model does not estimate that
+/// term (it stays zero). [`Default`] is docs/model.md §The instrumented
+/// scenario's: 1 °/h, 1 °/h/g, 2 000 ppm, 1 000 µg, 1 000 ppm, 100 µg/g².
 ///
 /// # Examples
 ///
 /// ```
+/// use rollcal::models::Wander;
 /// use rollcal::wire::InstrumentPrior;
 ///
 /// let p = InstrumentPrior::default();
 /// assert_eq!(p.ba_g, 1e-3); // 1 000 µg
-/// let sigma = p.sigma();
-/// assert_eq!(sigma.len(), 21);
+/// let sigma = p.sigma(&Wander::none());
+/// assert_eq!(sigma.len(), 30);
 /// assert_eq!(sigma[15], 1e-3); // ba_x, after dg (3), D_g (9), kg (3)
+/// assert_eq!(sigma[21], 1e-4); // k2_x: 100 µg/g²
+/// // The Gauss–Markov parts' prior is their stationary σ (none here).
+/// assert_eq!(sigma[27..], [0.0; 3]);
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct InstrumentPrior {
@@ -185,6 +194,8 @@ pub struct InstrumentPrior {
     pub ba_g: f64,
     /// σ of each accelerometer scale-factor error `ka` (dimensionless).
     pub ka: f64,
+    /// σ of each accelerometer second-order coefficient `k2` (g per g²).
+    pub k2: f64,
 }
 
 impl Default for InstrumentPrior {
@@ -196,28 +207,52 @@ impl Default for InstrumentPrior {
             kg: 2e-3,
             ba_g: 1e-3,
             ka: 1e-3,
+            k2: 1e-4,
         }
     }
 }
 
+/// The number of instrument states of the full model
+/// ([`ErrorModel::extra_states`]): 24 terms and 6 Gauss–Markov parts.
+pub const INSTRUMENT_STATES: usize = ErrorModel::Full.extra_states();
+
 impl InstrumentPrior {
-    /// The 21 σ in state order `[dg (3), D_g (9, row-major), kg (3), ba (3),
-    /// ka (3)]` (internal units).
-    pub fn sigma(&self) -> [f64; 21] {
+    /// The prior σ of the full model's 30 instrument states in state order
+    /// `[dg (3), D_g (9, row-major), kg (3), ba (3), ka (3), k2 (3), δ_g (3),
+    /// δ_a (3)]` (internal units); the Gauss–Markov parts `δ_g`, `δ_a` start
+    /// in their stationary distribution, σ of `wander`.
+    pub fn sigma(&self, wander: &Wander<f64>) -> [f64; INSTRUMENT_STATES] {
         core::array::from_fn(|i| match i {
             0..=2 => self.dg_rad_s,
             3..=11 => self.d_g_rad_s_g,
             12..=14 => self.kg,
             15..=17 => self.ba_g,
-            _ => self.ka,
+            18..=20 => self.ka,
+            21..=23 => self.k2,
+            24..=26 => wander.gyro_markov_sigma,
+            _ => wander.accel_markov_sigma,
         })
     }
 
-    /// Every σ finite and positive.
+    /// The first field that is not finite and zero or positive, by name
+    /// (`"dg_rad_s"` …), or `None`.
+    pub fn invalid_field(&self) -> Option<&'static str> {
+        [
+            ("dg_rad_s", self.dg_rad_s),
+            ("d_g_rad_s_g", self.d_g_rad_s_g),
+            ("kg", self.kg),
+            ("ba_g", self.ba_g),
+            ("ka", self.ka),
+            ("k2", self.k2),
+        ]
+        .into_iter()
+        .find(|(_, v)| !(v.is_finite() && *v >= 0.0))
+        .map(|(name, _)| name)
+    }
+
+    /// Every σ finite and zero or positive.
     pub fn is_valid(&self) -> bool {
-        [self.dg_rad_s, self.d_g_rad_s_g, self.kg, self.ba_g, self.ka]
-            .iter()
-            .all(|v| v.is_finite() && *v > 0.0)
+        self.invalid_field().is_none()
     }
 }
 
@@ -225,7 +260,8 @@ impl CalibratorConfig {
     /// The paper's settings (docs/model.md §The paper's scenario) for configuration `config`: noise
     /// 1e-6 g, 0.1°/h, 10″; latitude 34.25° with Earth rate; prior 1°;
     /// default options and limits; an estimate every 60 samples; the
-    /// installation model (SPEC §8's instrument prior, unused by it).
+    /// installation model (the default instrument prior and no wandering
+    /// errors, unused by it).
     ///
     /// # Examples
     ///
@@ -259,6 +295,7 @@ impl CalibratorConfig {
             estimate_every: 60,
             errors: ErrorModel::Installation,
             instrument_prior: InstrumentPrior::default(),
+            wander: Wander::none(),
         }
     }
 }

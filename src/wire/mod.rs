@@ -63,11 +63,12 @@ pub use encode::encode;
 pub use error::{EncodeError, FrameError};
 pub use messages::{
     CalibratorConfig, Checkpoint, Estimate, EstimateKind, InstrumentPrior, Limits, Message,
-    Progress, RejectCounts, Sample, SinglePassReason, MAX_COVARIANCE, MAX_STATES,
+    Progress, RejectCounts, Sample, SinglePassReason, INSTRUMENT_STATES, MAX_COVARIANCE,
+    MAX_STATES,
 };
 
 /// Protocol version carried in the first byte of every frame.
-pub const VERSION: u8 = 5;
+pub const VERSION: u8 = 6;
 
 /// Length of the CRC trailer (bytes).
 pub const CRC_LEN: usize = 4;
@@ -77,15 +78,15 @@ pub const MIN_DECODED_LEN: usize = 1 + 1 + CRC_LEN;
 
 /// Upper bound of an encoded frame of any [`Message`], delimiter included
 /// (bytes). The largest message is a [`Checkpoint`] of [`MAX_STATES`]
-/// states: 2 881 to 3 157 bytes encoded for 18 states, 12 625 to 13 108
-/// for the full model's 39 (`full-model` feature; docs/wire.md §Limits and
-/// sizes); a [`Decoder`] with this capacity accepts every message.
+/// states: 2 881 to 3 157 bytes encoded for 18 states, about 20 KB for the
+/// full model's 48 (`full-model` feature; docs/wire.md §Limits and sizes);
+/// a [`Decoder`] with this capacity accepts every message.
 #[cfg(not(feature = "full-model"))]
 pub const MAX_FRAME_LEN: usize = 4096;
 /// Upper bound of an encoded frame of any [`Message`], delimiter included
 /// (bytes). The largest message is a [`Checkpoint`] of [`MAX_STATES`]
-/// states: 2 881 to 3 157 bytes encoded for 18 states, 12 625 to 13 108
-/// for the full model's 39 (`full-model` feature; docs/wire.md §Limits and
-/// sizes); a [`Decoder`] with this capacity accepts every message.
+/// states: 2 881 to 3 157 bytes encoded for 18 states, about 20 KB for the
+/// full model's 48 (`full-model` feature; docs/wire.md §Limits and sizes);
+/// a [`Decoder`] with this capacity accepts every message.
 #[cfg(feature = "full-model")]
-pub const MAX_FRAME_LEN: usize = 16384;
+pub const MAX_FRAME_LEN: usize = 24576;

@@ -1087,12 +1087,12 @@ fn the_full_model_checkpoints_restores_and_names_its_error_model() {
         ..settings(&sc, id, 50)
     };
     let (c2, c1) = (full(ConfigId::M2Ps), full(ConfigId::M1Pa));
-    let r = run::<f64, M2PsFull, 39, 6>(c2, &data, &[]);
+    let r = run::<f64, M2PsFull, 48, 6>(c2, &data, &[]);
     assert_eq!(r.1.len(), 6);
     assert!(r.2.iter().all(|o| o.is_ok()));
-    assert_eq!(run::<f64, M2PsFull, 39, 6>(c2, &data, &[1, 150, 299]), r);
-    let p = run::<f32, M1PaFull, 33, 3>(c1, &data, &[]);
-    assert_eq!(run::<f32, M1PaFull, 33, 3>(c1, &data, &[2, 100]), p);
+    assert_eq!(run::<f64, M2PsFull, 48, 6>(c2, &data, &[1, 150, 299]), r);
+    let p = run::<f32, M1PaFull, 42, 3>(c1, &data, &[]);
+    assert_eq!(run::<f32, M1PaFull, 42, 3>(c1, &data, &[2, 100]), p);
 
     let cal = M2PsFullCalibrator::<f64>::new(c2).unwrap();
     let cp = over_the_wire(cal.checkpoint());

@@ -38,6 +38,7 @@ fn config(options: Options) -> FilterConfig<f64> {
         sigma_gyro: 0.1 * DEG / 3600.0,
         sigma_gimbal: SIGMA_GIMBAL,
         options,
+        wander: rollcal::models::Wander::none(),
     }
 }
 

@@ -134,13 +134,13 @@ fn zero_errors_agree<
 fn full_model_with_zero_instrument_errors_is_the_installation_model() {
     use rollcal::models::*;
     for (name, worst) in [
-        ("M1-pa", zero_errors_agree::<M1Pa, M1PaFull, 12, 33, 3>(1)),
-        ("M1-ps", zero_errors_agree::<M1Ps, M1PsFull, 15, 36, 3>(2)),
-        ("M2-ps", zero_errors_agree::<M2Ps, M2PsFull, 18, 39, 6>(3)),
-        ("M3-pa", zero_errors_agree::<M3Pa, M3PaFull, 15, 36, 3>(4)),
-        ("M3-ps", zero_errors_agree::<M3Ps, M3PsFull, 18, 39, 3>(5)),
-        ("M4-pa", zero_errors_agree::<M4Pa, M4PaFull, 12, 33, 3>(6)),
-        ("M4-ps", zero_errors_agree::<M4Ps, M4PsFull, 15, 36, 3>(7)),
+        ("M1-pa", zero_errors_agree::<M1Pa, M1PaFull, 12, 42, 3>(1)),
+        ("M1-ps", zero_errors_agree::<M1Ps, M1PsFull, 15, 45, 3>(2)),
+        ("M2-ps", zero_errors_agree::<M2Ps, M2PsFull, 18, 48, 6>(3)),
+        ("M3-pa", zero_errors_agree::<M3Pa, M3PaFull, 15, 45, 3>(4)),
+        ("M3-ps", zero_errors_agree::<M3Ps, M3PsFull, 18, 48, 3>(5)),
+        ("M4-pa", zero_errors_agree::<M4Pa, M4PaFull, 12, 42, 3>(6)),
+        ("M4-ps", zero_errors_agree::<M4Ps, M4PsFull, 15, 45, 3>(7)),
     ] {
         eprintln!("{name}: full (zero instrument errors) − installation: {worst:.1e}");
         // Rounding: the full model adds zeros (`0 · f`, `+ 0`) and
@@ -297,15 +297,15 @@ fn run_stream<T: nalgebra::RealField + Copy, M: Model<N, Z>, const N: usize, con
 
 #[test]
 fn filters_of_full_models_construct_and_step() {
-    let (x, sigma) = run_stream::<f64, M2PsFull, 39, 6>(300);
-    let iba = <M2PsFull as Model<39, 6>>::LAYOUT.ba().unwrap();
+    let (x, sigma) = run_stream::<f64, M2PsFull, 48, 6>(300);
+    let iba = <M2PsFull as Model<48, 6>>::LAYOUT.ba().unwrap();
     eprintln!(
         "M2-ps full after 300 s: ba {:?} µg, σ {:?} µg",
         x.fixed_rows::<3>(iba).map(|v| v * 1e6).as_slice(),
         sigma.fixed_rows::<3>(iba).map(|v| v * 1e6).as_slice()
     );
-    run_stream::<f64, M1PaFull, 33, 3>(300);
-    run_stream::<f32, M1PaFull, 33, 3>(100);
+    run_stream::<f64, M1PaFull, 42, 3>(300);
+    run_stream::<f32, M1PaFull, 42, 3>(100);
 }
 
 /// `mean_accel`'s Jacobian with respect to the state at the end of the

@@ -288,6 +288,7 @@ fn check<M: Model<N, Z>, const N: usize, const Z: usize>() -> Report {
         sigma_gyro: 1e-9,
         sigma_gimbal: 5e-5,
         options: Options::plain(),
+        wander: rollcal::models::Wander::none(),
     };
     let mut filter =
         Filter::<f64, M, N, Z>::new(config, x, SVector::repeat(DEG)).expect("valid filter");

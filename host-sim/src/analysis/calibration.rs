@@ -53,6 +53,10 @@ pub fn platform_config(
     c.limits.period_s = p.timing.period_s;
     c.errors = errors;
     c.instrument_prior = p.instruments.prior.to_wire();
+    c.wander = match errors {
+        ErrorModel::Installation => rollcal::models::Wander::none(),
+        ErrorModel::Full => p.instruments.wander.to_model(),
+    };
     c
 }
 

@@ -119,6 +119,9 @@ fn figure_title(id: ConfigId, g: Group) -> String {
         Group::GyroScale => "gyro scale factor kg",
         Group::AccelBias => "accelerometer bias ba",
         Group::AccelScale => "accelerometer scale factor ka",
+        Group::AccelSecondOrder => "accelerometer second-order term k2",
+        Group::GyroMarkov => "Gauss–Markov part of the gyro drift",
+        Group::AccelMarkov => "Gauss–Markov part of the accelerometer bias",
     };
     format!("{id}: {what} — estimation error, ±3σ filter, ±3σ_CRLB")
 }

@@ -10,10 +10,11 @@ use rollcal::geometry::euler_angles;
 use rollcal::models::{ConfigId, ErrorModel, Model};
 use rollcal::observability::Bound;
 
-use crate::analysis::runner::{filter_config, prior_sigma};
+use crate::analysis::runner::{filter_config, prior_sigma, with_wander};
 use crate::sim::instruments::instrument_truth_state;
 use crate::sim::scenario::{Scenario, DEG};
 use crate::sim::truth::{truth_state, TruthParams};
+use crate::sim::wander::WanderTruth;
 
 use super::pattern::gcd;
 use super::{
@@ -45,17 +46,22 @@ impl Problem {
         };
         let mut truth0 = truth_state(id, &params, &at);
         if errors == ErrorModel::Full {
-            truth0.extend(instrument_truth_state(id, &params));
+            truth0.extend(instrument_truth_state(id, &params, &WanderTruth::zero()));
         }
         Self {
             config: id,
             errors,
-            cfg: filter_config(s, s.site.earth_rate, Options::plain()),
+            cfg: with_wander(
+                filter_config(s, s.site.earth_rate, Options::plain()),
+                errors,
+                &s.instruments.wander,
+            ),
             truth0,
             prior: prior_sigma(
                 id.layout_with(errors),
                 s.prior.sigma_deg * DEG,
                 &s.instruments.prior.to_wire(),
+                &s.instruments.wander.to_model(),
             ),
             period_s: s.timing.period_s,
             max_beta: max_beta_deg * DEG,

@@ -43,7 +43,7 @@ pub fn truth_json(
         "crlb_sigma_rad": crlb,
         "instrument_names": instrument_names(id),
         "instrument_units": instrument_units(),
-        "instrument_truth": instrument_truth_state(id, &sim.params),
+        "instrument_truth": instrument_truth_state(id, &sim.params, &sim.final_wander()),
     }))
 }
 

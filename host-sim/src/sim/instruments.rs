@@ -1,20 +1,24 @@
-//! The 21 instrument-error states (docs/model.md §Instrument errors, SPEC
-//! §8): their order, names, printed units and true values, shared by the
-//! truth sidecar, the reports and (when the full model lands) the analysis.
+//! The 30 instrument-error states (docs/model.md §Instrument errors,
+//! §Errors that wander): their order, names, printed units and true values,
+//! shared by the truth sidecar, the reports and the analysis.
 //!
 //! Order: `[dg (3), D_g (9, row-major: row = gyro, column = force axis),
-//! kg (3), ba (3), ka (3)]`. Internal units: rad/s, rad/s per g,
-//! dimensionless, g, dimensionless. In the pa configurations the
-//! g-sensitive drift is `D_g^pa = D_g R(θaC)` (names `Dgpa_*`); `dg`, `kg`,
-//! `ba`, `ka` are the same numbers in both frames.
+//! kg (3), ba (3), ka (3), k2 (3), δ_g (3), δ_a (3)]`. Internal units:
+//! rad/s, rad/s per g, dimensionless, g, dimensionless, g per g², rad/s, g.
+//! In the pa configurations the g-sensitive drift is `D_g^pa = D_g R(θaC)`
+//! (names `Dgpa_*`); the others are the same numbers in both frames. The
+//! true value of a wandering term is the one at the instant it is taken
+//! at: `dg + r_g(t)`, `ba + r_a(t)` (the persistent part) and `δ_g(t)`,
+//! `δ_a(t)`.
 
 use rollcal::models::{ConfigId, ErrorModel, Group, PlatformFrame, StateInfo};
 
 use crate::sim::scenario::{ARCSEC, DEG};
 use crate::sim::truth::TruthParams;
+use crate::sim::wander::WanderTruth;
 
 /// Number of instrument-error states.
-pub const INSTRUMENT_STATES: usize = 21;
+pub const INSTRUMENT_STATES: usize = rollcal::wire::INSTRUMENT_STATES;
 
 /// Radians per second in one degree per hour (°/h → rad/s).
 pub const DEG_H: f64 = DEG / 3600.0;
@@ -24,7 +28,7 @@ pub const PPM: f64 = 1e-6;
 pub const UG: f64 = 1e-6;
 
 /// The core's states of the full model of `id` after the installation
-/// ones: the 21 instrument states, names and groups
+/// ones: the 30 instrument states, names and groups
 /// ([`ConfigId::states_with`], the one table of state names).
 fn instrument_infos(id: ConfigId) -> &'static [StateInfo] {
     let all = id.states_with(ErrorModel::Full);
@@ -34,13 +38,14 @@ fn instrument_infos(id: ConfigId) -> &'static [StateInfo] {
 /// The ASCII form of the printed unit of an instrument group, as the
 /// sidecar and the CSV columns write it (`deg_h`-style names use
 /// [`ascii_unit`] with `/` turned into `_`): `deg/h`, `deg/h/g`, `ppm`,
-/// `ug`; `rad` for the angles.
+/// `ug`, `ug/g2`; `rad` for the angles.
 pub fn ascii_unit(group: Group) -> &'static str {
     match group {
-        Group::GyroDrift => "deg/h",
+        Group::GyroDrift | Group::GyroMarkov => "deg/h",
         Group::GyroGDrift => "deg/h/g",
-        Group::AccelBias => "ug",
+        Group::AccelBias | Group::AccelMarkov => "ug",
         Group::GyroScale | Group::AccelScale => "ppm",
+        Group::AccelSecondOrder => "ug/g2",
         _ => "rad",
     }
 }
@@ -74,34 +79,45 @@ pub fn printed_factor(i: usize) -> f64 {
         .map_or(f64::NAN, |s| s.group.printed_scale().0)
 }
 
-/// The 21 names of configuration `id` (`Dgpa_*` in the pa frame).
+/// The 30 names of configuration `id` (`Dgpa_*` in the pa frame).
 pub fn instrument_names(id: ConfigId) -> [&'static str; INSTRUMENT_STATES] {
     let infos = instrument_infos(id);
     core::array::from_fn(|i| infos.get(i).map_or("", |s| s.name))
 }
 
-/// The 21 printed units, in state order.
+/// The 30 printed units, in state order.
 pub fn instrument_units() -> [&'static str; INSTRUMENT_STATES] {
     core::array::from_fn(printed_unit)
 }
 
 /// The true instrument states of configuration `id` (internal units, the
-/// order above): `D_g` in ps, `D_g^pa = D_g R(θaC)` in pa.
-pub fn instrument_truth_state(id: ConfigId, p: &TruthParams) -> [f64; INSTRUMENT_STATES] {
+/// order above) when the wandering parts are `w` (e.g. the run's end,
+/// `Simulation::final_wander`, or [`WanderTruth::zero`]): `D_g` in ps,
+/// `D_g^pa = D_g R(θaC)` in pa; `dg + r_g`, `ba + r_a` (the persistent
+/// parts, the calibrated values) and the Gauss–Markov parts `δ_g`, `δ_a`.
+/// The warm-up belongs to no state (no model carries it).
+pub fn instrument_truth_state(
+    id: ConfigId,
+    p: &TruthParams,
+    w: &WanderTruth,
+) -> [f64; INSTRUMENT_STATES] {
     let d = match id.layout().frame {
         PlatformFrame::Ps => p.d_g,
         PlatformFrame::Pa => p.d_g_pa(),
     };
     let mut x = [0.0; INSTRUMENT_STATES];
-    x[..3].copy_from_slice(p.dg.as_slice());
+    x[..3].copy_from_slice((p.dg + w.r_g).as_slice());
     for r in 0..3 {
         for c in 0..3 {
             x[3 + 3 * r + c] = d[(r, c)];
         }
     }
     x[12..15].copy_from_slice(p.kg.as_slice());
-    x[15..18].copy_from_slice(p.ba.as_slice());
-    x[18..].copy_from_slice(p.ka.as_slice());
+    x[15..18].copy_from_slice((p.ba + w.r_a).as_slice());
+    x[18..21].copy_from_slice(p.ka.as_slice());
+    x[21..24].copy_from_slice(p.k2.as_slice());
+    x[24..27].copy_from_slice(w.delta_g.as_slice());
+    x[27..].copy_from_slice(w.delta_a.as_slice());
     x
 }
 
@@ -114,10 +130,12 @@ mod tests {
         assert_eq!(instrument_names(ConfigId::M2Ps)[4], "Dg_xy");
         assert_eq!(instrument_names(ConfigId::M1Pa)[11], "Dgpa_zz");
         assert_eq!(instrument_names(ConfigId::M4Ps)[20], "ka_z");
+        assert_eq!(instrument_names(ConfigId::M4Ps)[23], "k2_z");
+        assert_eq!(instrument_names(ConfigId::M1Pa)[29], "ba_gm_z");
         let u = instrument_units();
         assert_eq!(
-            (u[0], u[3], u[12], u[15], u[18]),
-            ("deg/h", "deg/h/g", "ppm", "ug", "ppm")
+            (u[0], u[3], u[12], u[15], u[18], u[21], u[24], u[27]),
+            ("deg/h", "deg/h/g", "ppm", "ug", "ppm", "ug/g2", "deg/h", "ug")
         );
         assert!((printed_factor(0) * DEG_H - 1.0).abs() < 1e-15);
         assert!((printed_factor(16) * 30e-6 - 30.0).abs() < 1e-12);

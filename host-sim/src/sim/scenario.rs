@@ -71,13 +71,207 @@ pub struct Instruments {
     /// Accelerometer scale-factor errors `ka` (ppm).
     #[serde(default)]
     pub ka_ppm: [f64; 3],
-    /// Prior σ of the 21 instrument states.
+    /// Accelerometer second-order coefficients `k2` (µg/g²): the output
+    /// gains `k2_i u_i²`, `u` the specific force along the input axis.
+    #[serde(default)]
+    pub k2_ug_g2: [f64; 3],
+    /// Prior σ of the instrument terms.
     #[serde(default)]
     pub prior: InstrumentPrior,
+    /// The errors that wander, in data-sheet units: the truth's and the
+    /// model's (docs/model.md §Errors that wander).
+    #[serde(default, skip_serializing_if = "Wander::is_default")]
+    pub wander: Wander,
+    /// The warm-up transient of the drift and the bias (the truth only:
+    /// no model carries it).
+    #[serde(default, skip_serializing_if = "Warmup::is_default")]
+    pub warmup: Warmup,
+}
+
+/// The instruments' errors that wander (docs/model.md §Errors that wander),
+/// per axis, in data-sheet units (IEEE Std 952 / 1293 terms); every key
+/// optional, 0 (or absent) meaning "no such term". In a scenario they are
+/// the truth and the model; in a platform file the model.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Wander {
+    /// Gyro bias instability σ_bg (°/h): the stationary σ of a first-order
+    /// Gauss–Markov drift.
+    #[serde(default)]
+    pub gyro_bias_instability_deg_h: f64,
+    /// Its correlation time τ_g (s); needed when the instability is given.
+    #[serde(default)]
+    pub gyro_correlation_time_s: f64,
+    /// Gyro rate random walk K_g (°/h/√h): the drift's σ after t hours is
+    /// `K_g √t`.
+    #[serde(default)]
+    pub gyro_rate_random_walk_deg_h_rt_h: f64,
+    /// Accelerometer bias instability σ_ba (µg), Gauss–Markov.
+    #[serde(default)]
+    pub accel_bias_instability_ug: f64,
+    /// Its correlation time τ_a (s).
+    #[serde(default)]
+    pub accel_correlation_time_s: f64,
+    /// Accelerometer acceleration random walk K_a (µg/√h).
+    #[serde(default)]
+    pub accel_random_walk_ug_rt_h: f64,
+}
+
+/// The largest bias instability or random walk a file may give: 10 °/h
+/// (°/h/√h) for the gyros, 10⁴ µg (µg/√h) for the accelerometers.
+pub const MAX_WANDER: (f64, f64) = (10.0, 1e4);
+
+/// The longest correlation or warm-up time a file may give (s): 10⁷
+/// (about 116 days).
+pub const MAX_TIME_CONSTANT_S: f64 = 1e7;
+
+impl Wander {
+    /// Whether the table is absent (every figure zero).
+    pub fn is_default(&self) -> bool {
+        *self == Self::default()
+    }
+
+    /// The model's figures in internal units (rad/s, s, rad/s/√s, g, s,
+    /// g/√s): °/h × π/(180·3600); °/h/√h and µg/√h ÷ 60 (√h = 60 √s).
+    pub fn to_model(&self) -> rollcal::models::Wander<f64> {
+        use crate::sim::instruments::{DEG_H, UG};
+        rollcal::models::Wander {
+            gyro_markov_sigma: self.gyro_bias_instability_deg_h * DEG_H,
+            gyro_markov_tau_s: self.gyro_correlation_time_s,
+            gyro_random_walk: self.gyro_rate_random_walk_deg_h_rt_h * DEG_H / 60.0,
+            accel_markov_sigma: self.accel_bias_instability_ug * UG,
+            accel_markov_tau_s: self.accel_correlation_time_s,
+            accel_random_walk: self.accel_random_walk_ug_rt_h * UG / 60.0,
+        }
+    }
+
+    /// Every figure finite and ≥ 0 and within [`MAX_WANDER`], each
+    /// correlation time > 0 and ≤ [`MAX_TIME_CONSTANT_S`] where its
+    /// instability is given; errors name the key (`prefix.…`).
+    pub fn validate(&self, prefix: &str) -> Result<(), ScenarioError> {
+        let (gyro_max, accel_max) = MAX_WANDER;
+        for (name, v, max, unit) in [
+            (
+                "gyro_bias_instability_deg_h",
+                self.gyro_bias_instability_deg_h,
+                gyro_max,
+                "°/h",
+            ),
+            (
+                "gyro_rate_random_walk_deg_h_rt_h",
+                self.gyro_rate_random_walk_deg_h_rt_h,
+                gyro_max,
+                "°/h/√h",
+            ),
+            (
+                "accel_bias_instability_ug",
+                self.accel_bias_instability_ug,
+                accel_max,
+                "µg",
+            ),
+            (
+                "accel_random_walk_ug_rt_h",
+                self.accel_random_walk_ug_rt_h,
+                accel_max,
+                "µg/√h",
+            ),
+        ] {
+            if !(v.is_finite() && (0.0..=max).contains(&v)) {
+                return Err(ScenarioError(format!(
+                    "{prefix}.{name} = {v} must be finite, ≥ 0 and ≤ {max} {unit}"
+                )));
+            }
+        }
+        for (sigma_name, sigma, tau_name, tau) in [
+            (
+                "gyro_bias_instability_deg_h",
+                self.gyro_bias_instability_deg_h,
+                "gyro_correlation_time_s",
+                self.gyro_correlation_time_s,
+            ),
+            (
+                "accel_bias_instability_ug",
+                self.accel_bias_instability_ug,
+                "accel_correlation_time_s",
+                self.accel_correlation_time_s,
+            ),
+        ] {
+            if !(tau.is_finite() && (0.0..=MAX_TIME_CONSTANT_S).contains(&tau)) {
+                return Err(ScenarioError(format!(
+                    "{prefix}.{tau_name} = {tau} must be finite, ≥ 0 and ≤ {MAX_TIME_CONSTANT_S} s"
+                )));
+            }
+            if sigma > 0.0 && tau < 1.0 {
+                return Err(ScenarioError(format!(
+                    "{prefix}.{tau_name} = {tau} s: a bias instability ({prefix}.{sigma_name} = {sigma}) needs its correlation time, at least 1 s"
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The warm-up transient of the truth: the drift gains
+/// `Δ_g e^(−t/τ_w)` and the bias `Δ_a e^(−t/τ_w)` (deterministic, t from
+/// the start of the log). Every key optional (default 0).
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Warmup {
+    /// Δ_g per gyro x, y, z (°/h).
+    #[serde(default)]
+    pub gyro_deg_h: [f64; 3],
+    /// Δ_a per accelerometer x, y, z (µg).
+    #[serde(default)]
+    pub accel_ug: [f64; 3],
+    /// τ_w (s), needed when a Δ is not zero.
+    #[serde(default)]
+    pub time_constant_s: f64,
+}
+
+impl Warmup {
+    /// Whether the table is absent (no transient).
+    pub fn is_default(&self) -> bool {
+        *self == Self::default()
+    }
+
+    /// Whether there is a transient.
+    pub fn is_zero(&self) -> bool {
+        self.gyro_deg_h
+            .iter()
+            .chain(&self.accel_ug)
+            .all(|v| *v == 0.0)
+    }
+
+    /// Finite values within the drift and bias limits, a time constant
+    /// in (0, [`MAX_TIME_CONSTANT_S`]] where a Δ is given; errors name the
+    /// key.
+    pub fn validate(&self) -> Result<(), ScenarioError> {
+        let ok = |v: &[f64; 3], max: f64| v.iter().all(|x| x.is_finite() && x.abs() <= max);
+        if !ok(&self.gyro_deg_h, MAX_DRIFT_DEG_H) {
+            return Err(ScenarioError(format!(
+                "instruments.warmup.gyro_deg_h must be finite and within ±{MAX_DRIFT_DEG_H} °/h"
+            )));
+        }
+        if !ok(&self.accel_ug, MAX_SCALE_PPM_OR_BIAS_UG) {
+            return Err(ScenarioError(format!(
+                "instruments.warmup.accel_ug must be finite and within ±{MAX_SCALE_PPM_OR_BIAS_UG} µg"
+            )));
+        }
+        let tau = self.time_constant_s;
+        if !(tau.is_finite() && (0.0..=MAX_TIME_CONSTANT_S).contains(&tau))
+            || (!self.is_zero() && tau <= 0.0)
+        {
+            return Err(ScenarioError(format!(
+                "instruments.warmup.time_constant_s = {tau} must be > 0 and ≤ {MAX_TIME_CONSTANT_S} s when a warm-up is given"
+            )));
+        }
+        Ok(())
+    }
 }
 
 /// Prior σ of the instrument errors (printed units), one number per kind
-/// for every axis; defaults as SPEC §8's instrumented scenario.
+/// for every axis; defaults as the instrumented and realistic scenarios'
+/// (docs/model.md §Instrument errors).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct InstrumentPrior {
@@ -96,6 +290,10 @@ pub struct InstrumentPrior {
     /// σ of each accelerometer scale factor `ka` (ppm); default 1000.
     #[serde(default = "default_sigma_ka")]
     pub sigma_ka_ppm: f64,
+    /// σ of each accelerometer second-order coefficient `k2` (µg/g²);
+    /// default 100.
+    #[serde(default = "default_sigma_k2")]
+    pub sigma_k2_ug_g2: f64,
 }
 
 fn default_sigma_dg() -> f64 {
@@ -113,6 +311,9 @@ fn default_sigma_ba() -> f64 {
 fn default_sigma_ka() -> f64 {
     1000.0
 }
+fn default_sigma_k2() -> f64 {
+    100.0
+}
 
 impl InstrumentPrior {
     /// The prior as a `Configure` message carries it (internal units).
@@ -124,10 +325,12 @@ impl InstrumentPrior {
             kg: self.sigma_kg_ppm * PPM,
             ba_g: self.sigma_ba_ug * UG,
             ka: self.sigma_ka_ppm * PPM,
+            k2: self.sigma_k2_ug_g2 * UG,
         }
     }
 
-    /// Every σ finite and > 0; errors name the key (`prefix.sigma_…`).
+    /// Every σ finite and ≥ 0 (0: the term is not estimated); errors name
+    /// the key (`prefix.sigma_…`).
     pub fn validate(&self, prefix: &str) -> Result<(), ScenarioError> {
         for (name, v) in [
             ("sigma_dg_deg_h", self.sigma_dg_deg_h),
@@ -135,10 +338,43 @@ impl InstrumentPrior {
             ("sigma_kg_ppm", self.sigma_kg_ppm),
             ("sigma_ba_ug", self.sigma_ba_ug),
             ("sigma_ka_ppm", self.sigma_ka_ppm),
+            ("sigma_k2_ug_g2", self.sigma_k2_ug_g2),
         ] {
-            if !(v.is_finite() && v > 0.0) {
+            if !(v.is_finite() && v >= 0.0) {
                 return Err(ScenarioError(format!(
-                    "{prefix}.{name} must be finite and > 0"
+                    "{prefix}.{name} = {v} must be finite and ≥ 0 (0: the term is not estimated)"
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The prior and the wandering errors agree: a drift or bias that is not
+    /// estimated (σ 0) cannot wander (its random walk would have to be
+    /// estimated). Errors name both keys.
+    pub fn check_wander(
+        &self,
+        prefix: &str,
+        wander: &Wander,
+        wander_prefix: &str,
+    ) -> Result<(), ScenarioError> {
+        for (sigma_name, sigma, walk_name, walk) in [
+            (
+                "sigma_dg_deg_h",
+                self.sigma_dg_deg_h,
+                "gyro_rate_random_walk_deg_h_rt_h",
+                wander.gyro_rate_random_walk_deg_h_rt_h,
+            ),
+            (
+                "sigma_ba_ug",
+                self.sigma_ba_ug,
+                "accel_random_walk_ug_rt_h",
+                wander.accel_random_walk_ug_rt_h,
+            ),
+        ] {
+            if sigma == 0.0 && walk > 0.0 {
+                return Err(ScenarioError(format!(
+                    "{prefix}.{sigma_name} = 0 (not estimated) but {wander_prefix}.{walk_name} = {walk}: a term that wanders must be estimated; give it a prior σ, or set its random walk to 0"
                 )));
             }
         }
@@ -154,6 +390,7 @@ impl Default for InstrumentPrior {
             sigma_kg_ppm: default_sigma_kg(),
             sigma_ba_ug: default_sigma_ba(),
             sigma_ka_ppm: default_sigma_ka(),
+            sigma_k2_ug_g2: default_sigma_k2(),
         }
     }
 }
@@ -173,6 +410,9 @@ impl Instruments {
             && zero(&self.kg_ppm)
             && zero(&self.ba_ug)
             && zero(&self.ka_ppm)
+            && zero(&self.k2_ug_g2)
+            && self.wander.is_default()
+            && self.warmup.is_zero()
     }
 
     /// Whether the table is what an absent `[instruments]` means (zero
@@ -201,7 +441,12 @@ impl Instruments {
         within("kg_ppm", &self.kg_ppm, max, "ppm")?;
         within("ba_ug", &self.ba_ug, max, "µg")?;
         within("ka_ppm", &self.ka_ppm, max, "ppm")?;
-        self.prior.validate("instruments.prior")
+        within("k2_ug_g2", &self.k2_ug_g2, max, "µg/g²")?;
+        self.prior.validate("instruments.prior")?;
+        self.wander.validate("instruments.wander")?;
+        self.prior
+            .check_wander("instruments.prior", &self.wander, "instruments.wander")?;
+        self.warmup.validate()
     }
 }
 
@@ -279,16 +524,80 @@ pub enum Axis {
     Vector([f64; 3]),
 }
 
-/// Noise levels (1σ).
+/// Noise levels (1σ). The white noises are given per period (`accel_g`,
+/// `gyro_deg_h`) or as a data sheet gives them (`accel_vrw_ug_rt_hz`,
+/// `gyro_arw_deg_rt_h`), one of each pair; [`Noise::normalise`] turns the
+/// latter into the former for the file's period.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Noise {
     /// Accelerometer noise of one period's mean, per axis (g).
+    #[serde(default = "unset")]
     pub accel_g: f64,
     /// Gyro white rate noise, drawn once per period, per axis (°/h).
+    #[serde(default = "unset")]
     pub gyro_deg_h: f64,
     /// Gimbal-angle noise per sample (″).
     pub gimbal_arcsec: f64,
+    /// Accelerometer velocity random walk N_a (µg/√Hz): one period's mean
+    /// has σ = N_a/√T (T in s), instead of `accel_g`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub accel_vrw_ug_rt_hz: Option<f64>,
+    /// Gyro angle random walk N_g (°/√h): the rate noise of one period has
+    /// σ = N_g/√T (T in h, giving °/h), instead of `gyro_deg_h`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gyro_arw_deg_rt_h: Option<f64>,
+}
+
+/// The value of a noise key the file did not give.
+fn unset() -> f64 {
+    f64::NAN
+}
+
+impl Noise {
+    /// The per-period σ from the data-sheet keys, for the period `period_s`
+    /// (s): `accel_g = N_a·1e-6/√T`, `gyro_deg_h = N_g·60/√T` (√h = 60 √s).
+    /// Exactly one key of each pair must be given; errors name them.
+    pub fn normalise(&mut self, period_s: f64) -> Result<(), ScenarioError> {
+        let pairs = [
+            (
+                "noise.accel_g",
+                &mut self.accel_g,
+                "noise.accel_vrw_ug_rt_hz",
+                self.accel_vrw_ug_rt_hz.take(),
+                1e-6,
+            ),
+            (
+                "noise.gyro_deg_h",
+                &mut self.gyro_deg_h,
+                "noise.gyro_arw_deg_rt_h",
+                self.gyro_arw_deg_rt_h.take(),
+                60.0,
+            ),
+        ];
+        for (key, per_period, sheet_key, sheet, factor) in pairs {
+            match (per_period.is_nan(), sheet) {
+                (false, Some(_)) => {
+                    return Err(ScenarioError(format!(
+                        "give {key} or {sheet_key}, not both"
+                    )))
+                }
+                (true, None) => {
+                    return Err(ScenarioError(format!("{key} (or {sheet_key}) is missing")))
+                }
+                (true, Some(v)) => {
+                    if !(v.is_finite() && v >= 0.0) {
+                        return Err(ScenarioError(format!(
+                            "{sheet_key} = {v} must be finite and ≥ 0"
+                        )));
+                    }
+                    *per_period = v * factor / period_s.sqrt();
+                }
+                (false, None) => {}
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Timing.
@@ -363,8 +672,11 @@ impl Scenario {
 
     /// Parses and validates a scenario.
     pub fn from_toml(text: &str) -> Result<Self, ScenarioError> {
-        let s: Scenario = toml::from_str(text)
+        let mut s: Scenario = toml::from_str(text)
             .map_err(|e| ScenarioError(format!("scenario file: {}", toml_error(text, &e))))?;
+        if s.timing.period_s.is_finite() && s.timing.period_s > 0.0 {
+            s.noise.normalise(s.timing.period_s)?;
+        }
         s.validate()?;
         Ok(s)
     }
@@ -592,20 +904,25 @@ pub struct Platform {
     /// overrides it.
     #[serde(default)]
     pub errors: Option<String>,
-    /// The instruments' prior (`[instruments.prior]`, used by the full
-    /// model; default SPEC §8's). A platform file carries no instrument
-    /// values: they are what the calibration estimates.
+    /// The instruments' prior (`[instruments.prior]`) and errors that
+    /// wander (`[instruments.wander]`), used by the full model. A platform
+    /// file carries no instrument values: they are what the calibration
+    /// estimates.
     #[serde(default)]
     pub instruments: PlatformInstruments,
 }
 
-/// The `[instruments]` table of a platform file: the prior alone.
+/// The `[instruments]` table of a platform file: the prior and the
+/// errors that wander (the data sheet's figures), no values.
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct PlatformInstruments {
-    /// Prior σ of the 21 instrument states.
+    /// Prior σ of the instrument terms.
     #[serde(default)]
     pub prior: InstrumentPrior,
+    /// The errors that wander, as the model is to carry them.
+    #[serde(default, skip_serializing_if = "Wander::is_default")]
+    pub wander: Wander,
 }
 
 /// Timing of a platform.
@@ -629,7 +946,10 @@ impl Platform {
         if value.contains_key("truth") {
             return Scenario::from_toml(text).map(|s| Self::of_scenario(&s));
         }
-        let p: Platform = toml::from_str(text).map_err(err)?;
+        let mut p: Platform = toml::from_str(text).map_err(err)?;
+        if p.timing.period_s.is_finite() && p.timing.period_s > 0.0 {
+            p.noise.normalise(p.timing.period_s)?;
+        }
         p.validate()?;
         Ok(p)
     }
@@ -658,6 +978,7 @@ impl Platform {
             errors: None,
             instruments: PlatformInstruments {
                 prior: s.instruments.prior.clone(),
+                wander: s.instruments.wander.clone(),
             },
         }
     }
@@ -694,6 +1015,12 @@ impl Platform {
                 .map_err(|err| ScenarioError(format!("errors: '{e}': {err}")))?;
         }
         self.instruments.prior.validate("instruments.prior")?;
+        self.instruments.wander.validate("instruments.wander")?;
+        self.instruments.prior.check_wander(
+            "instruments.prior",
+            &self.instruments.wander,
+            "instruments.wander",
+        )?;
         check_site(&self.site)?;
         let tm = &self.timing;
         if !(tm.period_s.is_finite() && tm.period_s > 0.0) {

@@ -2,13 +2,16 @@
 //! timing): integrates the physical platform.
 //!
 //! It integrates the platform attitude `C^ps_n` under the true gyros
-//! (`ω^ps_ip = G [(I + K_g) ωc + ε] + w_g`, `ε = dg + D_g f^ps`; docs/model.md
-//! §Instrument errors), the computed frame `C^c_n` under the rolling path,
-//! and the commanded increment `∫ωc dt`, all by RK4 at the truth step
-//! (0.01 s), and applies the true accelerometers
-//! (`Z_a = ba + (I + K_a) A f^ps`) to the true specific force. With every
-//! instrument error zero it takes exactly the installation-only arithmetic
-//! (`G ωc`, `A f^ps`), bit for bit. It shares with the estimator only the
+//! (`ω^ps_ip = G [(I + K_g) ωc + ε] + w_g`, `ε = dg + D_g f^ps` plus the
+//! drift's wandering parts; docs/model.md §Instrument errors, §Errors that
+//! wander), the computed frame `C^c_n` under the rolling path, and the
+//! commanded increment `∫ωc dt`, all by RK4 at the truth step (0.01 s), and
+//! applies the true accelerometers (`Z_a = ba + (I + K_a) u + K2 (u ∘ u)`,
+//! `u = A f^ps`, plus the bias's wandering parts) to the true specific
+//! force. The wandering parts (Gauss–Markov, random walk, warm-up) move at
+//! the truth step ([`WanderTruth`]). With every instrument error zero it
+//! takes exactly the installation-only arithmetic (`G ωc`, `A f^ps`), bit
+//! for bit. It shares with the estimator only the
 //! tested geometry primitives (`skew`, `dcm`, `gimbal_dcm`, `euler_angles`,
 //! `rotation_vector`, `wrap_angle`); it uses none of the configurations'
 //! state models, dynamics or measurement functions.
@@ -24,6 +27,7 @@ use rollcal::models::{AttitudeKind, ConfigId, PlatformFrame};
 
 use crate::sim::instruments::{DEG_H, PPM, UG};
 use crate::sim::scenario::{Instruments, Scenario, ARCSEC, DEG};
+use crate::sim::wander::{WanderProcess, WanderTruth};
 
 /// True parameters in radians, ps frame, plus the exactly derived pa values,
 /// and the instruments' own errors in internal units (docs/model.md
@@ -55,6 +59,14 @@ pub struct TruthParams {
     pub ba: Vector3<f64>,
     /// Accelerometer scale-factor errors `ka` (dimensionless).
     pub ka: Vector3<f64>,
+    /// Accelerometer second-order coefficients `k2` (g per g²).
+    pub k2: Vector3<f64>,
+    /// The errors that wander (internal units; docs/model.md §Errors that
+    /// wander).
+    pub wander: rollcal::models::Wander<f64>,
+    /// The warm-up of the drift, `Δ_g` (rad/s), of the bias, `Δ_a` (g),
+    /// and its time constant τ_w (s; 0: none).
+    pub warmup: (Vector3<f64>, Vector3<f64>, f64),
 }
 
 impl TruthParams {
@@ -97,12 +109,19 @@ impl TruthParams {
             kg: v(ins.kg_ppm, PPM),
             ba: v(ins.ba_ug, UG),
             ka: v(ins.ka_ppm, PPM),
+            k2: v(ins.k2_ug_g2, UG),
+            wander: ins.wander.to_model(),
+            warmup: (
+                v(ins.warmup.gyro_deg_h, DEG_H),
+                v(ins.warmup.accel_ug, UG),
+                ins.warmup.time_constant_s,
+            ),
         }
     }
 
-    /// Whether any instrument error (`dg`, `D_g`, `kg`, `ba`, `ka`) is
-    /// non-zero; without one the simulator runs the installation-only
-    /// arithmetic.
+    /// Whether any instrument error (`dg`, `D_g`, `kg`, `ba`, `ka`, `k2`,
+    /// a wandering part) is non-zero; without one the simulator runs the
+    /// installation-only arithmetic.
     pub fn has_instrument_errors(&self) -> bool {
         let z3 = Vector3::zeros();
         self.dg != z3
@@ -110,25 +129,73 @@ impl TruthParams {
             || self.kg != z3
             || self.ba != z3
             || self.ka != z3
+            || self.k2 != z3
+            || self.has_wander()
+    }
+
+    /// Whether the drift or the bias wander (a Gauss–Markov part, a random
+    /// walk or a warm-up).
+    pub fn has_wander(&self) -> bool {
+        !self.wander.is_none()
+            || self.warmup.0 != Vector3::zeros()
+            || self.warmup.1 != Vector3::zeros()
     }
 
     /// The gyros' input in the bracket of the gyro model,
     /// `(I + K_g) ωc + dg + D_g f^ps` (rad/s, gyro axes), for the command
     /// `omega_c` (rad/s) and the specific force `f_ps` (g, ps frame); the
-    /// platform rate is `G` times it (plus noise).
+    /// platform rate is `G` times it (plus noise). The constant drift only:
+    /// [`TruthParams::gyro_input_with`] adds its wandering parts.
     pub fn gyro_input(&self, omega_c: &Vector3<f64>, f_ps: &Vector3<f64>) -> Vector3<f64> {
         omega_c + omega_c.component_mul(&self.kg) + self.dg + self.d_g * f_ps
     }
 
-    /// The accelerometers' intrinsic errors applied to an installation-only
-    /// output `z = A f^ps` (g): `ba + (I + K_a) z` (g). Linear in `z`, so it
-    /// may be applied to a period mean.
-    pub fn accel_intrinsic(&self, z: &Vector3<f64>) -> Vector3<f64> {
-        self.ba + z + z.component_mul(&self.ka)
+    /// [`TruthParams::gyro_input`] with the drift's wandering parts
+    /// `extra` (rad/s) added to `dg`.
+    pub fn gyro_input_with(
+        &self,
+        omega_c: &Vector3<f64>,
+        f_ps: &Vector3<f64>,
+        extra: &Vector3<f64>,
+    ) -> Vector3<f64> {
+        omega_c + omega_c.component_mul(&self.kg) + (self.dg + extra) + self.d_g * f_ps
     }
 
-    /// The noise-free accelerometer output `ba + (I + K_a) A f^ps` (g) for
-    /// the specific force `f_ps` (g, ps frame).
+    /// The accelerometers' intrinsic errors applied to an installation-only
+    /// output `z = A f^ps` (g) at one instant: `ba + (I + K_a) z + K2 (z ∘ z)`
+    /// (g).
+    pub fn accel_intrinsic(&self, z: &Vector3<f64>) -> Vector3<f64> {
+        self.accel_intrinsic_of_means(z, &z.component_mul(z), &Vector3::zeros())
+    }
+
+    /// The accelerometers' intrinsic errors of a period's mean: `ba + b̄ +
+    /// (I + K_a) z̄ + K2 (z∘z)‾` from the mean installation-only output
+    /// `mean_z` (g), the mean of its element-wise square `mean_z_sq` (g²)
+    /// and the mean of the bias's wandering parts `mean_extra` (g): exact
+    /// for means over the same nodes (the output is affine in `z`, `z ∘ z`
+    /// and the bias).
+    pub fn accel_intrinsic_of_means(
+        &self,
+        mean_z: &Vector3<f64>,
+        mean_z_sq: &Vector3<f64>,
+        mean_extra: &Vector3<f64>,
+    ) -> Vector3<f64> {
+        let out = self.ba + mean_z + mean_z.component_mul(&self.ka);
+        let out = if self.k2 == Vector3::zeros() {
+            out
+        } else {
+            out + self.k2.component_mul(mean_z_sq)
+        };
+        if *mean_extra == Vector3::zeros() {
+            out
+        } else {
+            out + mean_extra
+        }
+    }
+
+    /// The noise-free accelerometer output `ba + (I + K_a) u + K2 (u ∘ u)`,
+    /// `u = A f^ps` (g), for the specific force `f_ps` (g, ps frame); the
+    /// constant bias only.
     pub fn accel_output(&self, f_ps: &Vector3<f64>) -> Vector3<f64> {
         self.accel_intrinsic(&(self.a() * f_ps))
     }
@@ -187,6 +254,9 @@ pub struct PeriodSample {
     pub accel_mean_clean: Vector3<f64>,
     /// The true platform at `t_k`.
     pub truth: Instant,
+    /// The wandering parts of the drift and the bias at `t_k` (zero
+    /// without them).
+    pub wander: WanderTruth,
 }
 
 /// A simulated run.
@@ -198,8 +268,21 @@ pub struct Simulation {
     pub earth_rate_n: Vector3<f64>,
     /// The true platform at t = 0.
     pub initial: Instant,
+    /// The wandering parts at t = 0 (zero without them).
+    pub initial_wander: WanderTruth,
     /// One sample per period.
     pub samples: Vec<PeriodSample>,
+}
+
+impl Simulation {
+    /// The wandering parts of the drift and the bias at the end of the
+    /// run (zero without them): with the constants, the calibrated values
+    /// of docs/model.md §Errors that wander.
+    pub fn final_wander(&self) -> WanderTruth {
+        self.samples
+            .last()
+            .map_or_else(WanderTruth::zero, |s| s.wander)
+    }
 }
 
 /// Simulation switches.
@@ -345,34 +428,60 @@ struct Dynamics<'a> {
 impl Dynamics<'_> {
     /// The gyros' input for the command `w_c` at attitude `c_ps_n`:
     /// `(I + K_g) ωc + dg + D_g f^ps` with `f^ps = C^ps_n f^n` (evaluated at
-    /// each RK4 stage, since it moves with the attitude), or `ωc` itself
+    /// each RK4 stage, since it moves with the attitude) and the drift's
+    /// wandering parts `extra` (held over the truth step), or `ωc` itself
     /// without instrument errors.
-    fn gyro_input(&self, w_c: Vector3<f64>, c_ps_n: &Matrix3<f64>) -> Vector3<f64> {
-        match self.instruments {
-            Some(p) => p.gyro_input(&w_c, &(c_ps_n * self.f_n)),
-            None => w_c,
+    fn gyro_input(
+        &self,
+        w_c: Vector3<f64>,
+        c_ps_n: &Matrix3<f64>,
+        extra: Option<&Vector3<f64>>,
+    ) -> Vector3<f64> {
+        match (self.instruments, extra) {
+            (Some(p), None) => p.gyro_input(&w_c, &(c_ps_n * self.f_n)),
+            (Some(p), Some(e)) => p.gyro_input_with(&w_c, &(c_ps_n * self.f_n), e),
+            (None, _) => w_c,
         }
     }
 }
 
+/// What [`integrate_period`] sums over the nodes of a period with
+/// Simpson's weights: the installation-only accelerometer output, its
+/// element-wise square (for `k2`) and the bias's wandering parts.
+struct NodeSums {
+    z: Vector3<f64>,
+    z_sq: Vector3<f64>,
+    bias: Vector3<f64>,
+}
+
 /// Integrates one period `[t0, t0 + nsub·h]` by RK4 in `nsub` substeps of
-/// `h`, advancing `st`; returns the Simpson sum of the noise-free
-/// accelerometer output over the substep nodes (weights 1, 4, 2, …, 4, 1).
+/// `h`, advancing `st` (and the wandering parts `wander`, at each substep);
+/// returns the Simpson sums over the substep nodes (weights 1, 4, 2, …, 4,
+/// 1) of the noise-free installation-only accelerometer output, of its
+/// square and of the bias's wandering parts.
 fn integrate_period(
     st: &mut State,
     d: &Dynamics<'_>,
     t0: f64,
     h: f64,
     nsub: usize,
-) -> Vector3<f64> {
+    mut wander: Option<&mut WanderProcess>,
+) -> NodeSums {
     // Composite Simpson over the substep nodes for the mean accelerometer output.
-    let mut acc_sum = d.a * st.c_ps_n * d.f_n;
+    let z0 = d.a * st.c_ps_n * d.f_n;
+    let mut sums = NodeSums {
+        z: z0,
+        z_sq: z0.component_mul(&z0),
+        bias: wander.as_ref().map_or_else(Vector3::zeros, |w| w.bias(t0)),
+    };
     for j in 0..nsub {
         let ts = t0 + j as f64 * h;
         let w_path = d.path.rate(ts);
+        let drift = wander.as_ref().map(|w| w.drift(ts));
         let deriv = |x: &State| {
             let w_c = x.c_c_n * (d.w_ie + w_path);
-            let w_ps_np = d.g * d.gyro_input(w_c, &x.c_ps_n) + d.w_gyro - x.c_ps_n * d.w_ie;
+            let w_ps_np =
+                d.g * d.gyro_input(w_c, &x.c_ps_n, drift.as_ref()) + d.w_gyro - x.c_ps_n * d.w_ie;
             Deriv {
                 c_ps_n: -skew(&w_ps_np) * x.c_ps_n,
                 c_c_n: -skew(&(x.c_c_n * w_path)) * x.c_c_n,
@@ -395,9 +504,17 @@ fn integrate_period(
         } else {
             2.0
         };
-        acc_sum += d.a * st.c_ps_n * d.f_n * weight;
+        let z = d.a * st.c_ps_n * d.f_n;
+        sums.z += z * weight;
+        if let Some(w) = wander.as_deref_mut() {
+            w.advance(h);
+            sums.z_sq += z.component_mul(&z) * weight;
+            sums.bias += w.bias(ts + h) * weight;
+        } else if d.instruments.is_some_and(|p| p.k2 != Vector3::zeros()) {
+            sums.z_sq += z.component_mul(&z) * weight;
+        }
     }
-    acc_sum
+    sums
 }
 
 /// Runs the truth simulator over a scenario.
@@ -437,19 +554,28 @@ pub fn simulate(s: &Scenario, opts: SimOptions) -> Simulation {
     let sigma_gimbal = s.noise.gimbal_arcsec * ARCSEC;
 
     let instruments = params.has_instrument_errors().then_some(&params);
-    // The accelerometers' bias and scale factor on an installation-only
-    // output (or on a Simpson mean of it: they are linear, and the weights
-    // sum to the mean's divisor, so applying them to the mean is exact).
-    let intrinsic = |z: Vector3<f64>| match instruments {
-        Some(p) => p.accel_intrinsic(&z),
+    // The wandering parts: their own random stream (stream 1 of the seed),
+    // so that the noise of a scenario without them is what it always was.
+    let mut wander = params
+        .has_wander()
+        .then(|| WanderProcess::new(&params, opts.seed, opts.noise));
+    // The accelerometers' bias, scale factor and second-order term on
+    // Simpson means of the installation-only output, of its square and of
+    // the bias's wandering parts (the weights sum to the mean's divisor, so
+    // applying them to the means is exact).
+    let intrinsic = |z: Vector3<f64>, z_sq: Vector3<f64>, bias: Vector3<f64>| match instruments {
+        Some(p) => p.accel_intrinsic_of_means(&z, &z_sq, &bias),
         None => z,
     };
-    let instant = |t: f64, st: &State| Instant {
-        t,
-        c_ps_n: st.c_ps_n,
-        c_c_n: st.c_c_n,
-        accel_at_t: intrinsic(a * st.c_ps_n * f_n),
-        gimbal: wrap_angles(&euler_angles(&(st.c_ps_n * c_r_n.transpose()))),
+    let instant = |t: f64, st: &State, bias: Vector3<f64>| {
+        let z = a * st.c_ps_n * f_n;
+        Instant {
+            t,
+            c_ps_n: st.c_ps_n,
+            c_c_n: st.c_c_n,
+            accel_at_t: intrinsic(z, z.component_mul(&z), bias),
+            gimbal: wrap_angles(&euler_angles(&(st.c_ps_n * c_r_n.transpose()))),
+        }
     };
 
     let mut st = State {
@@ -457,13 +583,18 @@ pub fn simulate(s: &Scenario, opts: SimOptions) -> Simulation {
         c_c_n: Matrix3::identity(),
         dtheta: Vector3::zeros(),
     };
-    let initial = instant(0.0, &st);
+    let bias_at =
+        |w: &Option<WanderProcess>, t: f64| w.as_ref().map_or_else(Vector3::zeros, |w| w.bias(t));
+    let initial = instant(0.0, &st, bias_at(&wander, 0.0));
+    let initial_wander = wander
+        .as_ref()
+        .map_or_else(WanderTruth::zero, |w| w.truth(0.0));
     let mut samples = Vec::with_capacity(s.periods());
     for k in 1..=s.periods() {
         let t0 = (k - 1) as f64 * dt;
         let w_gyro = gauss3(sigma_gyro);
         st.dtheta = Vector3::zeros();
-        let acc_sum = integrate_period(
+        let sums = integrate_period(
             &mut st,
             &Dynamics {
                 path: &path,
@@ -477,9 +608,13 @@ pub fn simulate(s: &Scenario, opts: SimOptions) -> Simulation {
             t0,
             h,
             nsub,
+            wander.as_mut(),
         );
-        let accel_mean_clean = intrinsic(acc_sum / (3.0 * nsub as f64));
-        let truth = instant(k as f64 * dt, &st);
+        let divisor = 3.0 * nsub as f64;
+        let accel_mean_clean =
+            intrinsic(sums.z / divisor, sums.z_sq / divisor, sums.bias / divisor);
+        let t = k as f64 * dt;
+        let truth = instant(t, &st, bias_at(&wander, t));
         samples.push(PeriodSample {
             k: k as u32,
             dt,
@@ -488,12 +623,16 @@ pub fn simulate(s: &Scenario, opts: SimOptions) -> Simulation {
             gimbal: wrap_angles(&(truth.gimbal + gauss3(sigma_gimbal))),
             accel_mean_clean,
             truth,
+            wander: wander
+                .as_ref()
+                .map_or_else(WanderTruth::zero, |w| w.truth(t)),
         });
     }
     Simulation {
         params,
         earth_rate_n: w_ie,
         initial,
+        initial_wander,
         samples,
     }
 }

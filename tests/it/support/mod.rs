@@ -60,6 +60,7 @@ pub fn filter_config(c: &CalibratorConfig, options: Options) -> FilterConfig<f64
         sigma_gyro: c.sigma_gyro_rad_s,
         sigma_gimbal: c.sigma_gimbal_rad,
         options,
+        wander: rollcal::models::Wander::none(),
     }
 }
 

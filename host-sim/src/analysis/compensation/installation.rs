@@ -47,7 +47,10 @@ impl Compensation {
                     | Group::GyroGDrift
                     | Group::GyroScale
                     | Group::AccelBias
-                    | Group::AccelScale => (Vector3::repeat(f64::NAN), 0),
+                    | Group::AccelScale
+                    | Group::AccelSecondOrder
+                    | Group::GyroMarkov
+                    | Group::AccelMarkov => (Vector3::repeat(f64::NAN), 0),
                     Group::ThetaGC => (gc, 1),
                     Group::ThetaGT => (gt, 2),
                     Group::ThetaAC => (ac, 3),

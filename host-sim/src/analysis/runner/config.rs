@@ -60,6 +60,24 @@ pub fn filter_config_of(
         sigma_gyro: noise.gyro_deg_h * DEG / 3600.0,
         sigma_gimbal: noise.gimbal_arcsec * ARCSEC,
         options,
+        wander: rollcal::models::Wander::none(),
+    }
+}
+
+/// `config` with the errors that wander of `wander` (data-sheet units) for
+/// the full model, unchanged for the installation model (which has no
+/// states for them).
+pub fn with_wander(
+    config: FilterConfig<f64>,
+    errors: ErrorModel,
+    wander: &crate::sim::scenario::Wander,
+) -> FilterConfig<f64> {
+    match errors {
+        ErrorModel::Installation => config,
+        ErrorModel::Full => FilterConfig {
+            wander: wander.to_model(),
+            ..config
+        },
     }
 }
 
@@ -78,16 +96,18 @@ pub(super) fn initial<const N: usize>(
 
 /// The prior σ of every state of `layout` (internal units): `angle_rad`
 /// (rad) on the installation states, then, for the full model, the
-/// instrument priors `instruments` (rad/s, rad/s/g, 1, g, 1; SPEC §8): the
-/// calibrator's prior ([`rollcal::wire::InstrumentPrior::sigma`]).
+/// instrument priors `instruments` (rad/s, rad/s/g, 1, g, 1, 1/g) and the
+/// stationary σ of the Gauss–Markov parts of `wander`: the calibrator's
+/// prior ([`rollcal::wire::InstrumentPrior::sigma`]).
 pub fn prior_sigma(
     layout: Layout,
     angle_rad: f64,
     instruments: &rollcal::wire::InstrumentPrior,
+    wander: &rollcal::models::Wander<f64>,
 ) -> Vec<f64> {
     let mut s = vec![angle_rad; layout.installation_n()];
     if layout.errors == ErrorModel::Full {
-        s.extend(instruments.sigma());
+        s.extend(instruments.sigma(wander));
     }
     s
 }
@@ -99,5 +119,6 @@ pub fn prior_sigma_of(settings: &rollcal::wire::CalibratorConfig) -> Vec<f64> {
         settings.config.layout_with(settings.errors),
         settings.prior_sigma_rad,
         &settings.instrument_prior,
+        &settings.wander,
     )
 }

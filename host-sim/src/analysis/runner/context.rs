@@ -9,12 +9,13 @@ use rollcal::estimator::LogRecord;
 use rollcal::models::{ConfigId, ErrorModel, Layout};
 
 use super::bound::{bound, bound_history};
-use super::config::{filter_config, log_record, prior_sigma};
+use super::config::{filter_config, log_record, prior_sigma, with_wander};
 use super::passes::{result, run_passes, Estimator};
 use super::results::RunResult;
 use crate::sim::instruments::instrument_truth_state;
 use crate::sim::scenario::{Scenario, DEG};
 use crate::sim::truth::{truth_state, Instant, Simulation};
+use crate::sim::wander::WanderTruth;
 
 /// One simulated run (`sim` of `scenario`, Earth rate `earth_rate`) seen
 /// by configuration `config`.
@@ -91,15 +92,18 @@ impl<'a> SimulatedRun<'a> {
             self.layout(),
             self.sigma0(),
             &self.scenario.instruments.prior.to_wire(),
+            &self.scenario.instruments.wander.to_model(),
         )
     }
 
     /// The true state at instant `at` (internal units), in the model's
-    /// order: the installation states, then the instrument errors.
-    fn truth_at(&self, at: &Instant) -> Vec<f64> {
+    /// order: the installation states, then the instrument errors with the
+    /// wandering parts `w` of that instant (the persistent drift and bias,
+    /// the Gauss–Markov parts).
+    fn truth_at(&self, at: &Instant, w: &WanderTruth) -> Vec<f64> {
         let mut x = truth_state(self.config, &self.sim.params, at);
         if self.errors == ErrorModel::Full {
-            x.extend(instrument_truth_state(self.config, &self.sim.params));
+            x.extend(instrument_truth_state(self.config, &self.sim.params, w));
         }
         x
     }
@@ -107,22 +111,25 @@ impl<'a> SimulatedRun<'a> {
     /// The filter settings of the scenario with filter options `options`
     /// (the bound's: [`Options::plain`]).
     pub fn filter_config(&self, options: Options) -> FilterConfig<f64> {
-        filter_config(self.scenario, self.earth_rate, options)
+        with_wander(
+            filter_config(self.scenario, self.earth_rate, options),
+            self.errors,
+            &self.scenario.instruments.wander,
+        )
     }
 
     /// The true state at the start of the run (internal units).
     pub fn truth_at_start(&self) -> Vec<f64> {
-        self.truth_at(&self.sim.initial)
+        self.truth_at(&self.sim.initial, &self.sim.initial_wander)
     }
 
-    /// The true state at the end of the run (rad).
+    /// The true state at the end of the run (internal units): the
+    /// wandering terms' calibrated values (their persistent parts then).
     pub fn truth_at_end(&self) -> Vec<f64> {
-        let last = self
-            .sim
-            .samples
-            .last()
-            .map_or(self.sim.initial, |s| s.truth);
-        self.truth_at(&last)
+        match self.sim.samples.last() {
+            Some(s) => self.truth_at(&s.truth, &s.wander),
+            None => self.truth_at(&self.sim.initial, &self.sim.initial_wander),
+        }
     }
 
     /// The true state at the end of every period (rad).
@@ -130,7 +137,7 @@ impl<'a> SimulatedRun<'a> {
         self.sim
             .samples
             .iter()
-            .map(|s| self.truth_at(&s.truth))
+            .map(|s| self.truth_at(&s.truth, &s.wander))
             .collect()
     }
 

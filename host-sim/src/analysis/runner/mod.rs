@@ -25,7 +25,9 @@ mod passes;
 mod results;
 
 pub use bound::{bound, bound_history, crlb_sigma};
-pub use config::{filter_config, filter_config_of, log_record, prior_sigma, prior_sigma_of};
+pub use config::{
+    filter_config, filter_config_of, log_record, prior_sigma, prior_sigma_of, with_wander,
+};
 pub use context::SimulatedRun;
 pub use filter::{DynFilter, Precision};
 pub use passes::{result, run_filter, run_passes, segments_of_samples, Estimator, Passes};

@@ -102,6 +102,7 @@ fn passes_of<
             };
         }
         let sample = samples.get(ev.index);
+
         match ev.result {
             Ok(Some(i)) => {
                 last.nis.push(f64_of(i.nis));
