@@ -22,7 +22,7 @@ import struct
 import sys
 import zlib
 
-VERSION = 5
+VERSION = 6
 
 
 class Malformed(Exception):
@@ -109,7 +109,7 @@ class Reader:
         return v
 
 
-MAX_STATES = 39
+MAX_STATES = 48
 MAX_COVARIANCE = MAX_STATES * MAX_STATES
 CONFIG_IDS = ["M1-pa", "M1-ps", "M2-ps", "M3-pa", "M3-ps", "M4-pa", "M4-ps"]
 ERROR_MODELS = ["Installation", "Full"]
@@ -181,7 +181,10 @@ def configure(r):
     c["estimate_every"] = r.u32()
     c["errors"] = ERROR_MODELS[r.enum(2)]
     c["instrument_prior"] = dict(dg_rad_s=r.f64(), d_g_rad_s_g=r.f64(), kg=r.f64(),
-                                 ba_g=r.f64(), ka=r.f64())
+                                 ba_g=r.f64(), ka=r.f64(), k2=r.f64())
+    c["wander"] = dict(gyro_markov_sigma=r.f64(), gyro_markov_tau_s=r.f64(),
+                       gyro_random_walk=r.f64(), accel_markov_sigma=r.f64(),
+                       accel_markov_tau_s=r.f64(), accel_random_walk=r.f64())
     return c
 
 

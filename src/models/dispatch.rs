@@ -228,7 +228,7 @@ macro_rules! with_built_config {
 ///     (N, M::states().len())
 /// }
 /// let n = rollcal::with_model!(ConfigId::M2Ps, ErrorModel::Full, |M, N, Z| states::<M, N, Z>());
-/// assert_eq!(n, (39, 39));
+/// assert_eq!(n, (48, 48));
 /// let n = rollcal::with_model!(ConfigId::M2Ps, ErrorModel::Installation, |M, N, Z| states::<M, N, Z>());
 /// assert_eq!(n, (18, 18));
 /// ```
@@ -264,7 +264,7 @@ macro_rules! with_model {
 ///     Some(N)
 /// }
 /// let n = rollcal::with_built_model!(ConfigId::M4Pa, ErrorModel::Full, |M, N, Z| states::<M, N, Z>(), else |_other| None);
-/// assert_eq!(n, Some(33));
+/// assert_eq!(n, Some(42));
 /// ```
 #[macro_export]
 macro_rules! with_built_model {

@@ -1096,7 +1096,7 @@ fn the_full_model_checkpoints_restores_and_names_its_error_model() {
 
     let cal = M2PsFullCalibrator::<f64>::new(c2).unwrap();
     let cp = over_the_wire(cal.checkpoint());
-    assert_eq!((cp.errors, cp.state.len()), (ErrorModel::Full, 39));
+    assert_eq!((cp.errors, cp.state.len()), (ErrorModel::Full, 48));
     let installation = settings(&sc, ConfigId::M2Ps, 50);
     let refused = Error::ErrorModelMismatch {
         expected: ErrorModel::Installation,
@@ -1112,7 +1112,7 @@ fn the_full_model_checkpoints_restores_and_names_its_error_model() {
     let e = any.estimate();
     assert_eq!(
         (e.config, e.errors, e.sigma.len()),
-        (ConfigId::M2Ps, ErrorModel::Full, 39)
+        (ConfigId::M2Ps, ErrorModel::Full, 48)
     );
     // σ of the prior: 1° on the installation states, then dg (1 °/h), …,
     // ba_x (1000 µg, state 18 + 15).

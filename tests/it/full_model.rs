@@ -168,7 +168,7 @@ fn names_of<M: Model<N, Z>, const N: usize, const Z: usize>() {
                 expected.push(format!("{d}_{r}{c}"));
             }
         }
-        for g in ["kg", "ba", "ka"] {
+        for g in ["kg", "ba", "ka", "k2", "dg_gm", "ba_gm"] {
             for a in ["x", "y", "z"] {
                 expected.push(format!("{g}_{a}"));
             }
@@ -193,6 +193,9 @@ fn names_of<M: Model<N, Z>, const N: usize, const Z: usize>() {
         expect(12, Group::GyroScale, "1", "ppm");
         expect(15, Group::AccelBias, "g", "µg");
         expect(18, Group::AccelScale, "1", "ppm");
+        expect(21, Group::AccelSecondOrder, "1/g", "µg/g²");
+        expect(24, Group::GyroMarkov, "rad/s", "°/h");
+        expect(27, Group::AccelMarkov, "g", "µg");
         assert_eq!(Some(i + 15), M::LAYOUT.ba());
     } else {
         assert!(states
@@ -323,9 +326,17 @@ fn mean_accel_check<M: Model<N, Z>, const N: usize, const Z: usize>() -> Vec<(f6
             .copy_from(&Vector3::new(2.0, 0.05, 1.2));
     }
     let i = layout.instruments().unwrap();
-    for k in 0..21 {
-        // dg, D_g up to 1e-4 rad/s(/g); kg, ba, ka up to 2e-3.
-        x[i + k] = if k < 12 { 1e-4 } else { 2e-3 } * lcg(&mut s);
+    for k in 0..30 {
+        // dg, D_g up to 1e-4 rad/s(/g); kg, ba, ka up to 2e-3; k2 up to
+        // 5e-4 g/g²; the Gauss–Markov parts up to 1e-5 rad/s and 2e-5 g.
+        let scale = match k {
+            0..=11 => 1e-4,
+            12..=20 => 2e-3,
+            21..=23 => 5e-4,
+            24..=26 => 1e-5,
+            _ => 2e-5,
+        };
+        x[i + k] = scale * lcg(&mut s);
     }
     let c_cn0 = dcm(&Vector3::new(0.3, 1.0, -0.5));
     let frame = CommandFrame {
@@ -388,7 +399,7 @@ fn full_mean_accel_jacobian_matches_finite_differences() {
             // through the period's transition (REL_TOL_TRANSITION there).
             let allowed = if matches!(
                 s.group,
-                Group::GyroDrift | Group::GyroGDrift | Group::GyroScale
+                Group::GyroDrift | Group::GyroGDrift | Group::GyroScale | Group::GyroMarkov
             ) {
                 1e-9 + 1e-6 * size
             } else {

@@ -363,6 +363,16 @@ fn configure_of(max: bool) -> Message {
         c.limits.max_bridge = u32::MAX;
         c.options.iterate_updates = u32::MAX;
         c.options.iterations = u8::MAX;
+        // The realistic scenario's wandering errors (no zero byte).
+        let deg_h = 1f64.to_radians() / 3600.0;
+        c.wander = rollcal::models::Wander {
+            gyro_markov_sigma: 0.003 * deg_h,
+            gyro_markov_tau_s: 600.0,
+            gyro_random_walk: 0.002 * deg_h / 60.0,
+            accel_markov_sigma: 2e-6,
+            accel_markov_tau_s: 900.0,
+            accel_random_walk: 1e-6 / 60.0,
+        };
     } else {
         c.estimate_every = 0;
         c.limits.max_bridge = 0;
@@ -374,7 +384,7 @@ fn configure_of(max: bool) -> Message {
 /// (every varint one byte, every option `None`, every float zero) and the
 /// largest (every counter at its maximum, every option `Some`, no float
 /// with a zero byte, so that COBS adds a code byte per 254 bytes), and both
-/// fit `MAX_FRAME_LEN` (of this build; 39 states need `full-model`).
+/// fit `MAX_FRAME_LEN` (of this build; 48 states need `full-model`).
 #[test]
 fn the_pages_frame_sizes_are_measured() {
     let rows: Vec<(String, Message, Message)> = vec![
@@ -385,9 +395,9 @@ fn the_pages_frame_sizes_are_measured() {
             estimate_of(18, true),
         ),
         (
-            "`Estimate`, 39 states".into(),
-            estimate_of(39, false),
-            estimate_of(39, true),
+            "`Estimate`, 48 states".into(),
+            estimate_of(48, false),
+            estimate_of(48, true),
         ),
         (
             "`Checkpoint`, 18 states".into(),
@@ -395,9 +405,9 @@ fn the_pages_frame_sizes_are_measured() {
             checkpoint_of(18, true),
         ),
         (
-            "`Checkpoint`, 39 states".into(),
-            checkpoint_of(39, false),
-            checkpoint_of(39, true),
+            "`Checkpoint`, 48 states".into(),
+            checkpoint_of(48, false),
+            checkpoint_of(48, true),
         ),
         (
             "`Configure`".into(),
@@ -637,6 +647,18 @@ fn annotated(msg: &Message) -> Vec<(Vec<u8>, String)> {
             f(pc(&p.kg), format!("instrument_prior.kg = {:e}", p.kg));
             f(pc(&p.ba_g), format!("instrument_prior.ba_g = {:e}", p.ba_g));
             f(pc(&p.ka), format!("instrument_prior.ka = {:e}", p.ka));
+            f(pc(&p.k2), format!("instrument_prior.k2 = {:e}", p.k2));
+            let w = &c.wander;
+            for (name, v) in [
+                ("gyro_markov_sigma", w.gyro_markov_sigma),
+                ("gyro_markov_tau_s", w.gyro_markov_tau_s),
+                ("gyro_random_walk", w.gyro_random_walk),
+                ("accel_markov_sigma", w.accel_markov_sigma),
+                ("accel_markov_tau_s", w.accel_markov_tau_s),
+                ("accel_random_walk", w.accel_random_walk),
+            ] {
+                f(pc(&v), format!("wander.{name} = {v:e}"));
+            }
         }
         _ => {}
     }
@@ -803,6 +825,11 @@ fn a_python_decoder_written_from_the_page_reads_the_stream_and_every_example() {
                     bits(&c.instrument_prior.dg_rad_s)
                 ),
                 format!("instrument_prior.ka={}", bits(&c.instrument_prior.ka)),
+                format!("instrument_prior.k2={}", bits(&c.instrument_prior.k2)),
+                format!(
+                    "wander.accel_random_walk={}",
+                    bits(&c.wander.accel_random_walk)
+                ),
             ],
             other => vec![format!("{other:?}")],
         };
