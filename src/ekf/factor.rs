@@ -546,7 +546,8 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
                 // non-positive or infinite: one test below covers them. A
                 // state of zero variance (not estimated) stays at zero.
                 let d = a[j][j] * (beta / alpha);
-                if !(d > T::zero()) && !(a[j][j] == T::zero() && alpha.is_finite()) {
+                let pinned = a[j][j] == T::zero() && alpha.is_finite();
+                if !(d > T::zero() || pinned) {
                     return None;
                 }
                 sum_d += d;

@@ -148,7 +148,7 @@ impl<T: RealField + Copy> Wander<T> {
     pub fn step(&self, dt: f64) -> WanderStep<T> {
         let dt_t: T = nalgebra::convert(dt);
         let markov = |sigma: T, tau: T| -> (T, T) {
-            if sigma == T::zero() || !(tau > T::zero()) {
+            if sigma == T::zero() || tau <= T::zero() || !tau.is_finite() {
                 return (T::one(), T::zero());
             }
             let limit: T = nalgebra::convert(MAX_DECAY_EXPONENT);

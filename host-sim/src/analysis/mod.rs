@@ -20,6 +20,7 @@ pub mod calibration;
 pub mod checks;
 pub mod compensation;
 mod error;
+pub mod floor;
 pub mod montecarlo;
 pub mod observe;
 pub mod paper;

@@ -216,7 +216,7 @@ fn bound_and_block(run: &SimulatedRun) -> Result<(Vec<f64>, Vec<usize>), Error> 
         .enumerate()
         .filter(|(_, s)| match run.errors {
             ErrorModel::Installation => in_parameter_block(id, s.name, s.group),
-            _ => s.group != Group::Attitude && s.ratio < FULL_BLOCK_RATIO,
+            _ => !s.group.is_nuisance() && s.ratio < FULL_BLOCK_RATIO,
         })
         .map(|(i, _)| i)
         .collect();

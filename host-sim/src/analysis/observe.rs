@@ -62,7 +62,8 @@ pub struct ConfigObs {
     /// Error model (written only for the full model).
     #[serde(skip_serializing_if = "is_installation", serialize_with = "ser_errors")]
     pub errors: ErrorModel,
-    /// Number of states.
+    /// Number of states the model estimates (those of prior σ zero, held
+    /// at zero, not counted).
     pub n: usize,
     /// Numerical rank of the information matrix (zero-state linearisation).
     pub rank: usize,
@@ -142,19 +143,27 @@ fn analyse_typed<M: Model<N, Z>, const N: usize, const Z: usize>(
     let leak = at_truth.participation();
     let names = id.states_with(run.errors);
     let basis = spec.null_space_basis();
-    let null_space = (0..spec.nullity())
+    // A state the model does not estimate (prior σ 0) is a zero row and
+    // column of the prior-scaled information: a null direction of its own,
+    // which is not a combination of anything. Left out of the null space
+    // and of the dimension.
+    let estimated = |i: usize| prior[i] > 0.0;
+    let fixed = (0..N).filter(|&i| !estimated(i)).count();
+    let null_space: Vec<Vec<Term>> = (0..spec.nullity())
         .map(|c| {
             basis
                 .column(c)
                 .iter()
                 .zip(names)
-                .filter(|(v, _)| v.abs() > COEF_THRESHOLD)
-                .map(|(v, info)| Term {
+                .enumerate()
+                .filter(|(i, (v, _))| v.abs() > COEF_THRESHOLD && estimated(*i))
+                .map(|(_, (v, info))| Term {
                     state: info.name,
                     coef: *v,
                 })
                 .collect()
         })
+        .filter(|terms: &Vec<Term>| !terms.is_empty())
         .collect();
     let sigma = obs.crlb_sigma();
     let ratio = obs.ratio();
@@ -164,7 +173,8 @@ fn analyse_typed<M: Model<N, Z>, const N: usize, const Z: usize>(
         .enumerate()
         .map(|(i, info)| {
             let structural = part[i] > COEF_THRESHOLD;
-            let verdict = Verdict::of_bound(structural, ratio[i]);
+            let verdict = crate::analysis::verdict::special(info.group, prior[i])
+                .unwrap_or_else(|| Verdict::of_bound(structural, ratio[i]));
             StateObs {
                 name: info.name,
                 group: info.group,
@@ -181,7 +191,7 @@ fn analyse_typed<M: Model<N, Z>, const N: usize, const Z: usize>(
     Ok(ConfigObs {
         config: id,
         errors: run.errors,
-        n: N,
+        n: N - fixed,
         rank: spec.rank,
         rank_at_truth: at_truth.rank,
         eigenvalues: spec.eigenvalues.iter().copied().collect(),
@@ -278,6 +288,7 @@ pub fn verdict_matrix_markdown(configs: &[ConfigObs]) -> String {
             (Group::GyroScale, "kg"),
             (Group::AccelBias, "ba"),
             (Group::AccelScale, "ka"),
+            (Group::AccelSecondOrder, "k2"),
         ]);
     }
     let mut out = String::from("| config | rank/n |");

@@ -14,7 +14,8 @@ pub use rollcal::observability::{expected_observable, PRACTICAL_RATIO};
 ///
 /// The JSON values (`serde`) are an interface and stay as they were:
 /// `converged`, `failed`, `observable`, `weakly_observable`,
-/// `structurally_unobservable`, `not_observable`.
+/// `structurally_unobservable`, `not_observable`, and for the full model
+/// `not_estimated` and `nuisance`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Verdict {
@@ -33,17 +34,27 @@ pub enum Verdict {
     /// Not observable in practice: in the null space, or
     /// `σ / σ_prior ≥ 0.01`.
     NotObservable,
+    /// Not estimated: the model holds the term at zero (its prior σ is 0,
+    /// e.g. a platform file that says its instrument has no such term, or
+    /// a Gauss–Markov part without a bias instability).
+    NotEstimated,
+    /// A nuisance of the full model that wanders (the Gauss–Markov parts
+    /// of the drift and the bias): estimated to keep the others honest,
+    /// reported at the final time, not a value to compensate or judge.
+    Nuisance,
 }
 
 impl Verdict {
     /// Every verdict.
-    pub const ALL: [Verdict; 6] = [
+    pub const ALL: [Verdict; 8] = [
         Verdict::Converged,
         Verdict::Failed,
         Verdict::Observable,
         Verdict::WeaklyObservable,
         Verdict::StructurallyUnobservable,
         Verdict::NotObservable,
+        Verdict::NotEstimated,
+        Verdict::Nuisance,
     ];
 
     /// The printed word (docs/cli.md, "Verdict words").
@@ -55,6 +66,8 @@ impl Verdict {
             Verdict::WeaklyObservable => "weakly observable",
             Verdict::StructurallyUnobservable => "not observable (null space)",
             Verdict::NotObservable => "not observable",
+            Verdict::NotEstimated => "not estimated",
+            Verdict::Nuisance => "nuisance (wanders)",
         }
     }
 
@@ -65,6 +78,8 @@ impl Verdict {
             Verdict::Converged | Verdict::Failed | Verdict::Observable => "yes",
             Verdict::WeaklyObservable => "weak",
             Verdict::StructurallyUnobservable | Verdict::NotObservable => "no",
+            Verdict::NotEstimated => "—",
+            Verdict::Nuisance => "n/a",
         }
     }
 
@@ -93,6 +108,19 @@ impl Verdict {
     }
 }
 
+/// The verdict of a full-model state that is not judged against a bound:
+/// [`Verdict::NotEstimated`] for a prior σ of zero, [`Verdict::Nuisance`]
+/// for a Gauss–Markov part that wanders.
+pub fn special(group: Group, prior: f64) -> Option<Verdict> {
+    if prior == 0.0 {
+        Some(Verdict::NotEstimated)
+    } else if group.is_nuisance() && group != Group::Attitude {
+        Some(Verdict::Nuisance)
+    } else {
+        None
+    }
+}
+
 impl fmt::Display for Verdict {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.as_str())
@@ -106,6 +134,9 @@ impl fmt::Display for Verdict {
 /// excite it: the estimate is still the prior's); for the others,
 /// `observable in practice` or `not observable` by the same ratio.
 pub fn verdict(id: ConfigId, s: &StateResult, group: Group, prior: f64) -> Verdict {
+    if let Some(v) = special(group, prior) {
+        return v;
+    }
     let practical = s.sigma_rad < crate::analysis::verdict::PRACTICAL_RATIO * prior;
     if expected_observable(id, s.name, group) {
         if s.ratio() > 4.0 {

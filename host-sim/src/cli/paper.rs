@@ -70,7 +70,7 @@ pub fn command(args: &PaperArgs) -> Result<(), Error> {
         p.wall_s
     );
     if args.errors == ErrorModel::Full {
-        println!("Error model: full (the installation states and the instruments' 21 errors).\n");
+        println!("Error model: full (the installation states and the instruments' 24 terms; the Gauss–Markov parts of the drift and the bias where the instruments wander).\n");
     }
     println!("Which errors can each model observe? (Earth rate off, the paper's assumption)\n");
     print!("{}", verdict_matrix_markdown(&p.obs_off));

@@ -26,7 +26,7 @@ pub fn command(c: &CommonArgs) -> Result<(), Error> {
         c.passes
     );
     if c.errors == ErrorModel::Full {
-        println!("error model: full (the installation states and the instruments' 21 errors)");
+        println!("error model: full (the installation states and the instruments' 24 terms; the Gauss–Markov parts of the drift and the bias where the instruments wander)");
     }
     println!(
         "{:<7} {:>6} {:>12} {:>16} {:>14} {:>9}  {:>14}  data",

@@ -115,10 +115,17 @@ pub fn read_sidecar(path: &Path, id: ConfigId) -> Result<Sidecar, Error> {
                 key: key.into(),
             })
     };
+    /// The instrument states of a version-5 sidecar.
+    const V5_INSTRUMENT_STATES: usize = 21;
     let instruments = match v.get("instrument_truth") {
         None => [0.0; INSTRUMENT_STATES],
         Some(_) => {
-            let x = floats("instrument_truth")?;
+            let mut x = floats("instrument_truth")?;
+            // A sidecar of protocol version 5 holds the 21 terms before
+            // `k2` and the Gauss–Markov parts: those are zero.
+            if x.len() == V5_INSTRUMENT_STATES {
+                x.resize(INSTRUMENT_STATES, 0.0);
+            }
             <[f64; INSTRUMENT_STATES]>::try_from(x.as_slice()).map_err(|_| {
                 Error::SidecarLength {
                     path: name(),

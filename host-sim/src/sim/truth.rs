@@ -456,8 +456,8 @@ struct NodeSums {
 
 /// Integrates one period `[t0, t0 + nsub·h]` by RK4 in `nsub` substeps of
 /// `h`, advancing `st` (and the wandering parts `wander`, at each substep);
-/// returns the Simpson sums over the substep nodes (weights 1, 4, 2, …, 4,
-/// 1) of the noise-free installation-only accelerometer output, of its
+/// returns the Simpson sums over the substep nodes (weights 1, 4, 2, …,
+/// 4, 1) of the noise-free installation-only accelerometer output, of its
 /// square and of the bias's wandering parts.
 fn integrate_period(
     st: &mut State,

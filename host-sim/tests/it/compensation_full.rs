@@ -181,7 +181,7 @@ fn worst(
 fn full_truth(id: ConfigId, sim: &Simulation) -> Vec<f64> {
     let last = sim.samples.last().unwrap().truth;
     let mut x = truth_state(id, &sim.params, &last);
-    x.extend(instrument_truth_state(id, &sim.params));
+    x.extend(instrument_truth_state(id, &sim.params, &sim.final_wander()));
     x
 }
 
@@ -255,14 +255,14 @@ fn run_errors_full_matrices_json_applies_as_documented() {
     let v = support::json_file(&json);
     assert_eq!(v["errors"], "full");
     assert_eq!(v["names"].as_array().unwrap().len(), 18);
-    assert_eq!(v["all_states"]["names"].as_array().unwrap().len(), 39);
+    assert_eq!(v["all_states"]["names"].as_array().unwrap().len(), 48);
     let conv = v["conventions"].as_str().unwrap();
     assert!(
         conv.contains("w_c = (I + K_g)^-1 (G^-1 w^p - dg - D_g f^p)"),
         "{conv}"
     );
     assert!(
-        conv.contains("f^p = A^-1 (I + K_a)^-1 (Z_a - ba)"),
+        conv.contains("u_i = 2 c_i / (b_i + sqrt(b_i^2 + 4 k2_i c_i))"),
         "{conv}"
     );
     let m3 = |x: &serde_json::Value| Matrix3::from_fn(|i, j| x[i][j].as_f64().unwrap());
@@ -272,10 +272,11 @@ fn run_errors_full_matrices_json_applies_as_documented() {
     let a_inv = m3(&comp["accel_to_platform"]);
     let kg_inv = m3(&comp["gyro_scale_inverse"]);
     let ka_inv = m3(&comp["accel_scale_inverse"]);
-    let (dg, d_g, ba) = (
+    let (dg, d_g, ba, k2) = (
         v3(&comp["dg_rad_s"]),
         m3(&comp["d_g_rad_s_per_g"]),
         v3(&comp["ba_g"]),
+        v3(&comp["k2_g_per_g2"]),
     );
     // The printed terms are the internal ones in their units.
     let terms = &v["instrument_terms"];
@@ -313,8 +314,14 @@ fn run_errors_full_matrices_json_applies_as_documented() {
     for s in sim.samples.iter().step_by(300) {
         let z = s.truth.accel_at_t;
         let f_ps = s.truth.c_ps_n * f_n;
-        // As the conventions say: subtract the bias, divide by 1 + ka, A⁻¹.
-        let f = a_inv * (ka_inv * (z - ba));
+        // As the conventions say: subtract the bias, solve each axis's
+        // k2 u² + (1 + ka) u = c for the root near c / (1 + ka), A⁻¹.
+        let c_ = z - ba;
+        let u = Vector3::from_fn(|i, _| {
+            let b = 1.0 / ka_inv[(i, i)];
+            2.0 * c_[i] / (b + (b * b + 4.0 * k2[i] * c_[i]).sqrt())
+        });
+        let f = a_inv * u;
         assert!((f - c.compensate_accel(&z)).amax() < 1e-15);
         let w_p = s.dtheta_cmd / s.dt;
         let w_c = kg_inv * (g_inv * w_p - dg - d_g * f);
@@ -331,7 +338,7 @@ fn run_errors_full_matrices_json_applies_as_documented() {
         assert!(ra <= K_SIGMA && rg <= K_SIGMA, "{ra}σ {rg}σ");
         worst = (worst.0.max(ra), worst.1.max(rg));
     }
-    assert!(x_true.len() == 39);
+    assert!(x_true.len() == 48);
     println!(
         "JSON applied: worst specific force {:.2}σ, platform rate {:.2}σ",
         worst.0, worst.1

@@ -43,12 +43,17 @@ fn full_model_run_is_consistent_with_its_bound() {
         let r = run.run(Estimator::default(), None, false).unwrap();
         let crlb = run.crlb().unwrap();
         assert_eq!(r.states.len(), id.layout_with(ErrorModel::Full).n());
-        assert_eq!(r.states.len(), id.layout().n() + 21);
+        assert_eq!(r.states.len(), id.layout().n() + 30);
         for (s, c) in r.states.iter().zip(&crlb) {
             if s.info.group == Group::Attitude {
                 continue;
             }
             assert!(s.ratio() <= 4.0, "{id} {}: |err|/σ {}", s.name, s.ratio());
+            if *c == 0.0 {
+                // Not estimated (no bias instability in this scenario).
+                assert_eq!((s.sigma_rad, s.estimate_rad), (0.0, 0.0), "{id} {}", s.name);
+                continue;
+            }
             let q = s.sigma_rad / c;
             assert!((0.95..=1.05).contains(&q), "{id} {}: σ/σ_CRLB {q}", s.name);
         }
@@ -143,7 +148,7 @@ fn run_errors_full_on_the_command_line() {
     assert_eq!(v["errors"], "full");
     assert_eq!(v["states"].as_array().unwrap().len(), 12);
     let inst = v["instruments"].as_array().unwrap();
-    assert_eq!(inst.len(), 21);
+    assert_eq!(inst.len(), 30);
     assert_eq!(inst[3]["name"], "Dgpa_xx");
     assert_eq!(inst[15]["unit"], "µg");
     assert!((inst[15]["truth"].as_f64().unwrap() - 30.0).abs() < 1e-9);
@@ -250,14 +255,14 @@ fn full_model_observability_on_the_paper_path() {
             .unwrap()
         };
         let m1 = analyse(ConfigId::M1Pa);
-        assert_eq!(m1.n, 33);
+        assert_eq!(m1.n, 36);
         let verdict = |name: &str| m1.states.iter().find(|s| s.name == name).unwrap().verdict;
         if earth_rate {
-            assert_eq!(m1.rank, 33);
+            assert_eq!(m1.rank, 36);
             assert_eq!(verdict("Dgpa_xx"), Verdict::WeaklyObservable);
             assert_eq!(verdict("psi_y"), Verdict::WeaklyObservable);
         } else {
-            assert_eq!(m1.rank, 31);
+            assert_eq!(m1.rank, 34);
             let trace: Vec<_> = m1
                 .null_space
                 .iter()
@@ -282,7 +287,7 @@ fn full_model_observability_on_the_paper_path() {
         assert!(m2
             .states
             .iter()
-            .filter(|s| s.group.is_instrument())
+            .filter(|s| s.group.is_instrument() && !s.group.is_nuisance())
             .all(|s| s.verdict == Verdict::Observable));
     }
 }
@@ -303,12 +308,12 @@ fn paper_errors_full() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         stdout.contains(
-            "| config | rank/n | attitude | θgC | θgT | θaC | θaT | λ | dg | D_g | kg | ba | ka |"
+            "| config | rank/n | attitude | θgC | θgT | θaC | θaT | λ | dg | D_g | kg | ba | ka | k2 |"
         ),
         "{stdout}"
     );
-    assert!(stdout.contains("| M1-pa | 31/33 |"), "{stdout}");
-    assert!(stdout.contains("| M2-ps | 39/39 |"), "{stdout}");
+    assert!(stdout.contains("| M1-pa | 34/36 |"), "{stdout}");
+    assert!(stdout.contains("| M2-ps | 42/42 |"), "{stdout}");
     let json = support::json_file(&dir.join("summary.json"));
     assert_eq!(json["errors"], "full");
     assert!(json["command"].as_str().unwrap().contains("--errors full"));

@@ -13,6 +13,7 @@ use host_sim::sim::instruments::{
 };
 use host_sim::sim::scenario::{Scenario, DEG, PAPER_TOML};
 use host_sim::sim::truth::{simulate, SimOptions, Simulation, TruthParams};
+use host_sim::sim::wander::WanderTruth;
 use nalgebra::{Matrix3, Vector3};
 use rollcal::geometry::{dcm, rotation_vector};
 use rollcal::models::ConfigId;
@@ -270,8 +271,32 @@ fn scenario_errors_name_the_field() {
             "instruments.ka_ppm",
         ),
         (
-            "[instruments.prior]\nsigma_kg_ppm = 0.0\n",
+            "[instruments.prior]\nsigma_kg_ppm = nan\n",
             "instruments.prior.sigma_kg_ppm",
+        ),
+        (
+            "[instruments.wander]\naccel_bias_instability_ug = 2.0\n",
+            "instruments.wander.accel_correlation_time_s",
+        ),
+        (
+            "[instruments.wander]\ngyro_rate_random_walk_deg_h_rt_h = -0.002\n",
+            "instruments.wander.gyro_rate_random_walk_deg_h_rt_h",
+        ),
+        (
+            "[instruments.wander]\naccel_random_walk_ug_rt_h = 1e9\n",
+            "instruments.wander.accel_random_walk_ug_rt_h",
+        ),
+        (
+            "[instruments.prior]\nsigma_ba_ug = 0.0\n[instruments.wander]\naccel_random_walk_ug_rt_h = 1.0\n",
+            "instruments.prior.sigma_ba_ug = 0 (not estimated)",
+        ),
+        (
+            "[instruments.warmup]\naccel_ug = [3.0, 0.0, 0.0]\n",
+            "instruments.warmup.time_constant_s",
+        ),
+        (
+            "[instruments]\nk2_ug_g2 = [1e5, 0.0, 0.0]\n",
+            "instruments.k2_ug_g2",
         ),
         (
             "[instruments.prior]\nsigma_dg_deg_h = -1.0\n",
@@ -312,13 +337,15 @@ fn instrumented_scenario_has_the_spec_values() {
     assert_eq!(ins.ba_ug, [30.0, -20.0, 45.0]);
     assert_eq!(ins.ka_ppm, [40.0, -25.0, 35.0]);
     assert!(!ins.is_zero());
-    let s0 = ins.prior.to_wire().sigma();
+    let s0 = ins.prior.to_wire().sigma(&ins.wander.to_model());
     assert_eq!(s0[0], DEG_H);
     assert_eq!(s0[11], DEG_H);
     assert_eq!(s0[12], 2000.0 * PPM);
     assert_eq!(s0[17], 1000.0 * UG);
     assert_eq!(s0[20], 1000.0 * PPM);
-    // A written scenario (`design --out`) keeps the table; the paper's has none.
+    assert_eq!(s0[21], 100.0 * UG);
+    assert_eq!(s0[24..], [0.0; 6]); // no Gauss–Markov parts in this scenario
+                                    // A written scenario (`design --out`) keeps the table; the paper's has none.
     let written = toml::to_string(&sc).unwrap();
     assert_eq!(Scenario::from_toml(&written).unwrap(), sc);
     assert!(!toml::to_string(&Scenario::paper())
@@ -336,8 +363,8 @@ fn instrumented_scenario_has_the_spec_values() {
     assert_eq!(p.ba, v3([30.0, -20.0, 45.0]) * UG);
     // The ps state holds D_g; the pa state D_g R(θaC), so that
     // D_g^pa f^pa = D_g f^ps for f^pa = R(−θaC) f^ps.
-    let ps = instrument_truth_state(ConfigId::M2Ps, &p);
-    let pa = instrument_truth_state(ConfigId::M1Pa, &p);
+    let ps = instrument_truth_state(ConfigId::M2Ps, &p, &WanderTruth::zero());
+    let pa = instrument_truth_state(ConfigId::M1Pa, &p, &WanderTruth::zero());
     assert_eq!(ps[4], 0.01 * DEG_H);
     assert_eq!((&ps[..3], &ps[12..]), (&pa[..3], &pa[12..]));
     let f_ps = Vector3::new(0.3, 0.9, -0.2);
@@ -400,7 +427,11 @@ fn sidecar_records_the_instrument_truth() {
         for (a, b) in with_bias.instruments.ba_ug.iter_mut().zip(bias) {
             *a += b;
         }
-        let expected = instrument_truth_state(config, &TruthParams::from_scenario(&with_bias));
+        let expected = instrument_truth_state(
+            config,
+            &TruthParams::from_scenario(&with_bias),
+            &WanderTruth::zero(),
+        );
         let got = read_sidecar(&truth, config).unwrap().instruments;
         for (i, (g, e)) in got.iter().zip(expected).enumerate() {
             assert!((g - e).abs() <= 1e-15 * e.abs(), "{}: {g} vs {e}", names[i]);
@@ -417,7 +448,7 @@ fn sidecar_records_the_instrument_truth() {
     let old = dir.join("old.json");
     std::fs::write(&old, json.to_string()).unwrap();
     let s = read_sidecar(&old, ConfigId::M2Ps).unwrap();
-    assert_eq!(s.instruments, [0.0; 21]);
+    assert_eq!(s.instruments, [0.0; 30]);
     assert!(!s.truth.is_empty());
 
     // A wrong length or a non-array is a typed error naming the key.
@@ -429,7 +460,7 @@ fn sidecar_records_the_instrument_truth() {
             e,
             Error::SidecarLength {
                 found: 20,
-                expected: 21,
+                expected: 30,
                 ..
             }
         ),
@@ -437,7 +468,7 @@ fn sidecar_records_the_instrument_truth() {
     );
     assert!(
         e.to_string()
-            .contains("'instrument_truth' has 20 values, not 21"),
+            .contains("'instrument_truth' has 20 values, not 30"),
         "{e}"
     );
     json["instrument_truth"] = serde_json::json!("none");

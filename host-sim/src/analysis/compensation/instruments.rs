@@ -1,7 +1,9 @@
-//! The full model's part of the compensation (SPEC §8, docs/model.md
-//! §Compensation): the instruments' own errors in their printed units, the
-//! torquer command and the compensated specific force they give, and the
-//! covariance of those outputs propagated from the states' covariance.
+//! The full model's part of the compensation (docs/model.md §Compensation):
+//! the instruments' own errors in their printed units, the torquer command
+//! and the compensated specific force they give, and the covariance of
+//! those outputs propagated from the states' covariance. The drift and the
+//! bias are their persistent parts (the Gauss–Markov parts wander about
+//! zero and are not compensated; docs/model.md §Errors that wander).
 //!
 //! In the configuration's frame p (ps, or pa with `D_g^pa`):
 //!
@@ -11,8 +13,11 @@
 //!   turns it at a wanted `ω^p` under the specific force `f^p` is
 //!   `ωc = (I + K_g)⁻¹ (G⁻¹ ω^p − dg − D_g f^p)`
 //!   ([`Compensation::torquer_command`]);
-//! - accelerometers: `Z_a = ba + (I + K_a) A f^p` (the core's
-//!   [`InstrumentErrors::accel`]); so `f^p = A⁻¹ (I + K_a)⁻¹ (Z_a − ba)`
+//! - accelerometers: `Z_a = ba + (I + K_a) u + K2 (u ∘ u)`, `u = A f^p`
+//!   (the core's [`InstrumentErrors::accel`]); so per axis `u_i` is the
+//!   root near `Z_a − ba` of `k2_i u² + (1 + ka_i) u − (Z_a − ba)_i = 0`,
+//!   `u_i = 2 c / (b + √(b² + 4 k2_i c))` with `b = 1 + ka_i`,
+//!   `c = (Z_a − ba)_i` (`c / b` for `k2_i = 0`), and `f^p = A⁻¹ u`
 //!   ([`Compensation::compensate_accel`]).
 //!
 //! With every instrument error zero (the installation model) these are
@@ -34,7 +39,7 @@ use super::{finite_or_null, rows, Compensation, Error};
 pub const FULL_CONVENTIONS: &str = "Full model: the installation errors and the instruments' \
 own errors, in the configuration's platform frame p (ps: the platform cube; pa: the \
 accelerometer axes, thaC absorbed into the frame, C^pa_ps = R(-thaC)). Internal units: \
-angles rad, rates rad/s, specific force g; printed: deg/h, deg/h/g, ppm, ug. Matrices are \
+angles rad, rates rad/s, specific force g; printed: deg/h, deg/h/g, ppm, ug, ug/g2. Matrices are \
 row-major [[r1],[r2],[r3]]. C^b_a maps a-coordinates to b; R(theta) = exp(-[theta x]) \
 (passive, R ~ I - [theta x]); L(t) = [[0,0,0],[t1,0,0],[t2,t3,0]]. \
 Gyros: commanded with w_c (the torquer command, gyro axes), the platform turns at \
@@ -46,14 +51,18 @@ specific force f^p (g, p), command w_c = (I + K_g)^-1 (G^-1 w^p - dg - D_g f^p),
 gyro i: w_c_i = ((G^-1 w^p)_i - dg_i - (D_g f^p)_i) / (1 + kg_i) \
 (G^-1 = compensation.platform_to_gyro_command, (I + K_g)^-1 = compensation.gyro_scale_inverse, \
 dg = compensation.dg_rad_s, D_g = compensation.d_g_rad_s_per_g). \
-Accelerometers: Z_a = ba + (I + K_a) A f^p, A = (I + L(thaT)) R(-thaC) (pa: I + L(thaT)), \
-ba the bias (g), K_a = diag(ka) the scale-factor errors. Compensation of a raw output: \
-f^p = A^-1 (I + K_a)^-1 (Z_a - ba): subtract the bias, divide axis i by 1 + ka_i, apply A^-1 \
+Accelerometers: Z_a = ba + (I + K_a) u + K2 (u o u), u = A f^p, A = (I + L(thaT)) R(-thaC) \
+(pa: I + L(thaT)), ba the bias (g), K_a = diag(ka) the scale-factor errors, K2 = diag(k2) \
+the second-order coefficients (g/g^2; u o u the element-wise square). Compensation of a raw \
+output: subtract the bias, c = Z_a - ba; per axis i, u_i = 2 c_i / (b_i + sqrt(b_i^2 + 4 k2_i \
+c_i)) with b_i = 1 + ka_i (= c_i / b_i for k2_i = 0); then f^p = A^-1 u \
 (A^-1 = compensation.accel_to_platform, (I + K_a)^-1 = compensation.accel_scale_inverse, \
-ba = compensation.ba_g). The f^p of the torquer command may be this compensated output. \
+ba = compensation.ba_g, k2 = compensation.k2_g_per_g2). The f^p of the torquer command may \
+be this compensated output. dg and ba are the persistent parts at the end of the log (their \
+Gauss-Markov parts dg_gm, ba_gm wander about zero and are not compensated). \
 Base (M2, M3): C^r_n = R(lam) (base_dcm). names, estimate_rad, sigma_rad and correlation \
 cover the installation states (rad) as with --errors installation; instruments and \
-instrument_terms give dg, D_g, kg, ba, ka in their printed units with sigma; all_states \
+instrument_terms give dg, D_g, kg, ba, ka, k2 in their printed units with sigma; all_states \
 gives every state's estimate, sigma, covariance and correlation in its internal unit \
 (all_states.units).";
 
@@ -70,7 +79,8 @@ pub(super) struct Params {
     pub a_inv: Matrix3<f64>,
     /// `C^r_n = R(λ)`.
     pub c_rn: Matrix3<f64>,
-    /// The instruments' own errors (zero for the installation model).
+    /// The instruments' own errors (zero for the installation model), the
+    /// drift and the bias without their Gauss–Markov parts.
     pub e: InstrumentErrors<f64>,
 }
 
@@ -79,13 +89,13 @@ impl Params {
     /// (its length checked by the caller: N of the layout).
     pub fn of(config: ConfigId, errors: ErrorModel, x: &[f64]) -> Result<Self, Error> {
         let layout = config.layout_with(errors);
-        let m = rollcal::with_model!(config, errors, |M, N, Z| {
-            layout.matrices(&nalgebra::SVector::<f64, N>::from_column_slice(x))
+        let (m, e) = rollcal::with_model!(config, errors, |M, N, Z| {
+            let x = nalgebra::SVector::<f64, N>::from_column_slice(x);
+            (layout.matrices(&x), layout.persistent_instrument_errors(&x))
         });
         let (Some(g_inv), Some(a_inv)) = (m.g.try_inverse(), m.a.try_inverse()) else {
             return Err(Error::Singular);
         };
-        let e = m.params.instruments;
         let positive = |k: &Vector3<f64>| k.iter().all(|v| (1.0 + v) > 0.0);
         if !positive(&e.kg) || !positive(&e.ka) {
             return Err(Error::SingularScale);
@@ -110,9 +120,20 @@ impl Params {
         (self.g_inv * w_p - self.e.dg - self.e.d_g * f_p).component_div(&one_plus(&self.e.kg))
     }
 
-    /// `A⁻¹ (I + K_a)⁻¹ (Z_a − ba)`.
+    /// `A⁻¹ u`, `u` the installed force whose output is `z` (see the
+    /// [module docs](self); `A⁻¹ (I + K_a)⁻¹ (Z_a − ba)` without `k2`).
     fn specific_force(&self, z: &Vector3<f64>) -> Vector3<f64> {
-        self.a_inv * (z - self.e.ba).component_div(&one_plus(&self.e.ka))
+        let c = z - self.e.ba;
+        let b = one_plus(&self.e.ka);
+        let u = if self.e.k2 == Vector3::zeros() {
+            c.component_div(&b)
+        } else {
+            Vector3::from_fn(|i, _| {
+                let (b, c, k2) = (b[i], c[i], self.e.k2[i]);
+                2.0 * c / (b + (b * b + 4.0 * k2 * c).sqrt())
+            })
+        };
+        self.a_inv * u
     }
 }
 
@@ -151,8 +172,9 @@ impl Compensation {
     }
 
     /// Compensated specific force (g, frame p) of a raw accelerometer
-    /// output `z` (g): `A⁻¹ (I + K_a)⁻¹ (Z_a − ba)` (`A⁻¹ Z_a` for the
-    /// installation model).
+    /// output `z` (g): `A⁻¹ u` with `u` the root of the output's model
+    /// (the [module docs](self); `A⁻¹ (I + K_a)⁻¹ (Z_a − ba)` without `k2`,
+    /// `A⁻¹ Z_a` for the installation model).
     pub fn compensate_accel(&self, z: &Vector3<f64>) -> Vector3<f64> {
         self.params().specific_force(z)
     }
@@ -256,7 +278,8 @@ impl Compensation {
     }
 
     /// The instrument terms in their printed units: `(name, group, unit,
-    /// estimate, σ)` per instrument state, in state order (empty for the
+    /// estimate, σ)` per instrument state to compensate (the 24 terms; not
+    /// the Gauss–Markov nuisances), in state order (empty for the
     /// installation model).
     pub fn instrument_rows(&self) -> Vec<(&'static str, Group, &'static str, f64, f64)> {
         let Some(i0) = self.instrument_index() else {
@@ -267,6 +290,7 @@ impl Compensation {
             .iter()
             .enumerate()
             .skip(i0)
+            .filter(|(_, s)| !s.group.is_nuisance())
             .map(|(i, s)| {
                 let (k, unit) = s.printed_scale();
                 (
@@ -285,7 +309,7 @@ impl Compensation {
 /// ([`Compensation::to_json`]): `errors`, `conventions` =
 /// [`FULL_CONVENTIONS`], the compensation's formulas and terms (internal
 /// units), `instruments` (per state, printed units), `instrument_terms`
-/// (`dg`, `D_g`, `kg`, `ba`, `ka` as vectors and a 3×3, printed units) and
+/// (`dg`, `D_g`, `kg`, `ba`, `ka`, `k2` as vectors and a 3×3, printed units) and
 /// `all_states` (every state: names, internal units, estimate, σ,
 /// covariance, correlation).
 pub fn full_json(c: &Compensation, v: &mut serde_json::Value) {
@@ -295,12 +319,15 @@ pub fn full_json(c: &Compensation, v: &mut serde_json::Value) {
     v["conventions"] = FULL_CONVENTIONS.into();
     let comp = &mut v["compensation"];
     comp["torquer_command"] = "w_c = (I + K_g)^-1 (G^-1 w^p - dg - D_g f^p)".into();
-    comp["specific_force"] = "f^p = A^-1 (I + K_a)^-1 (Z_a - ba)".into();
+    comp["specific_force"] =
+        "f^p = A^-1 u, u_i = 2 c_i / (b_i + sqrt(b_i^2 + 4 k2_i c_i)), c = Z_a - ba, b_i = 1 + ka_i"
+            .into();
     comp["gyro_scale_inverse"] = serde_json::json!(diag_inv(&e.kg));
     comp["dg_rad_s"] = serde_json::json!(e.dg.as_slice());
     comp["d_g_rad_s_per_g"] = serde_json::json!(rows(&e.d_g));
     comp["accel_scale_inverse"] = serde_json::json!(diag_inv(&e.ka));
     comp["ba_g"] = serde_json::json!(e.ba.as_slice());
+    comp["k2_g_per_g2"] = serde_json::json!(e.k2.as_slice());
     let list = c.instrument_rows();
     v["instruments"] = list
         .iter()
@@ -314,7 +341,7 @@ pub fn full_json(c: &Compensation, v: &mut serde_json::Value) {
             })
         })
         .collect();
-    // The 21 in state order: dg (3), D_g (9, row-major), kg, ba, ka.
+    // The 24 in state order: dg (3), D_g (9, row-major), kg, ba, ka, k2.
     let col = |k: usize, from: usize, len: usize| -> Vec<f64> {
         list.iter()
             .skip(from)
@@ -339,6 +366,7 @@ pub fn full_json(c: &Compensation, v: &mut serde_json::Value) {
         "kg": vector(12),
         "ba": vector(15),
         "ka": vector(18),
+        "k2": vector(21),
     });
     let n = c.names.len();
     let states = c.config.states_with(c.errors);
@@ -361,16 +389,19 @@ mod tests {
     use super::super::tests::paper_ps;
     use super::*;
 
-    /// A full M2-ps estimate: the paper's installation, SPEC §8's
-    /// instrument table in internal units.
+    /// A full M2-ps estimate: the paper's installation, the realistic
+    /// scenario's instrument table in internal units (Gauss–Markov parts
+    /// of 0.002 °/h and 1.5 µg).
     fn full_m2_ps() -> Vec<f64> {
         const DEG_H: f64 = std::f64::consts::PI / 180.0 / 3600.0;
         let mut x = paper_ps();
         x.extend([0.02, -0.03, 0.015].map(|v| v * DEG_H));
         x.extend([0.03, 0.01, -0.005, -0.01, 0.02, 0.008, 0.006, -0.012, 0.025].map(|v| v * DEG_H));
         x.extend([
-            60e-6, -40e-6, 80e-6, 30e-6, -20e-6, 45e-6, 40e-6, -25e-6, 35e-6,
+            60e-6, -40e-6, 80e-6, 30e-6, -20e-6, 45e-6, 40e-6, -25e-6, 35e-6, 15e-6, -10e-6, 20e-6,
         ]);
+        x.extend([0.002 * DEG_H; 3]);
+        x.extend([1.5e-6; 3]);
         x
     }
 
@@ -378,9 +409,12 @@ mod tests {
     fn the_compensation_inverts_the_core_model() {
         let x = full_m2_ps();
         let n = x.len();
-        assert_eq!(n, 39);
-        let c = Compensation::with_errors(ConfigId::M2Ps, ErrorModel::Full, &x, &[1e-6; 39], &[])
+        assert_eq!(n, 48);
+        let c = Compensation::with_errors(ConfigId::M2Ps, ErrorModel::Full, &x, &[1e-6; 48], &[])
             .unwrap();
+        // The persistent bias: its Gauss–Markov part is not compensated.
+        assert_eq!(c.instruments.ba.x, 30e-6);
+        assert_eq!(c.instruments.k2.z, 20e-6);
         assert_eq!(c.instruments.kg.z, 80e-6);
         assert_eq!(c.instruments.d_g[(2, 1)], x[18 + 3 + 7]);
         // The core's forward models, inverted.
@@ -402,10 +436,10 @@ mod tests {
     fn with_zero_instrument_errors_the_installation_compensation_bit_for_bit() {
         let x = paper_ps();
         let mut full = x.clone();
-        full.extend([0.0; 21]);
+        full.extend([0.0; 30]);
         let c = Compensation::new(ConfigId::M2Ps, &x, &[1e-6; 18], &[]).unwrap();
         let d =
-            Compensation::with_errors(ConfigId::M2Ps, ErrorModel::Full, &full, &[1e-6; 39], &[])
+            Compensation::with_errors(ConfigId::M2Ps, ErrorModel::Full, &full, &[1e-6; 48], &[])
                 .unwrap();
         let (z, w) = (
             Vector3::new(0.1, 0.98, -0.05),
@@ -416,7 +450,7 @@ mod tests {
         assert_eq!(d.torquer_command(&w, &z), c.platform_to_gyro_command() * w);
         assert_eq!(c.torquer_command(&w, &z), c.platform_to_gyro_command() * w);
         assert!(c.instrument_rows().is_empty());
-        assert_eq!(d.instrument_rows().len(), 21);
+        assert_eq!(d.instrument_rows().len(), 24);
     }
 
     #[test]
@@ -434,7 +468,11 @@ mod tests {
             Compensation::with_errors(ConfigId::M2Ps, ErrorModel::Full, &x, &sigma, &p).unwrap();
         let z = Vector3::new(0.0, 1.0, 0.0);
         let cov = c.accel_covariance(&z).unwrap();
-        let col = c.accel_to_platform().column(0) / (1.0 + x[18 + 18]);
+        // ∂u_x/∂c_x at c_x = z_x − ba_x for u = 2c / (b + √(b² + 4 k2 c)).
+        let (b, cx, k2) = (1.0 + x[18 + 18], -x[ba], x[18 + 21]);
+        let root = (b * b + 4.0 * k2 * cx).sqrt();
+        let du = 2.0 / (b + root) - 2.0 * cx * (2.0 * k2 / root) / (b + root).powi(2);
+        let col = c.accel_to_platform().column(0) * du;
         let expect = col * col.transpose() * (s * s);
         assert!((cov - expect).amax() < 1e-6 * s * s, "{cov} {expect}");
         // Every other state has σ = 0: no other column.
@@ -446,7 +484,8 @@ mod tests {
         let json = c.to_json();
         assert_eq!(json["errors"], "full");
         assert_eq!(json["names"].as_array().unwrap().len(), 18);
-        assert_eq!(json["all_states"]["names"].as_array().unwrap().len(), 39);
+        assert_eq!(json["all_states"]["names"].as_array().unwrap().len(), 48);
+        assert_eq!(json["instrument_terms"]["k2"]["unit"], "µg/g²");
         assert_eq!(json["all_states"]["units"][ba], "g");
         assert_eq!(json["instrument_terms"]["ba"]["unit"], "µg");
         assert!((json["instrument_terms"]["ba"]["sigma"][0].as_f64().unwrap() - 0.1).abs() < 1e-12);

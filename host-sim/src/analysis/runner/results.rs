@@ -43,9 +43,21 @@ impl StateResult {
             wrap_angle(d)
         }
     }
-    /// |error| / σ.
+    /// |error| / σ (0 for a state the model does not estimate and whose
+    /// truth is its zero; infinite where the truth is not zero: the model
+    /// lacks a term the data has).
     pub fn ratio(&self) -> f64 {
-        self.error().abs() / self.sigma_rad
+        let e = self.error().abs();
+        if e == 0.0 && self.sigma_rad == 0.0 {
+            0.0
+        } else {
+            e / self.sigma_rad
+        }
+    }
+
+    /// Whether the model estimates the state (prior σ not zero).
+    pub fn estimated(&self) -> bool {
+        self.prior != 0.0
     }
 }
 
