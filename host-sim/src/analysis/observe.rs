@@ -62,8 +62,9 @@ pub struct ConfigObs {
     /// Error model (written only for the full model).
     #[serde(skip_serializing_if = "is_installation", serialize_with = "ser_errors")]
     pub errors: ErrorModel,
-    /// Number of states the model estimates (those of prior σ zero, held
-    /// at zero, not counted).
+    /// Number of states of the structural analysis: those the model
+    /// estimates as constants (not those of prior σ zero, held at zero, nor
+    /// the Gauss–Markov nuisances of errors that wander).
     pub n: usize,
     /// Numerical rank of the information matrix (zero-state linearisation).
     pub rank: usize,
@@ -121,33 +122,66 @@ fn analyse_typed<M: Model<N, Z>, const N: usize, const Z: usize>(
     let truth0 = run.truth_at_start();
     let x0 = SVector::<f64, N>::from_iterator(truth0.iter().copied());
     let prior = SVector::<f64, N>::from_iterator(run.prior_sigma());
+    // The structure is that of the states the model holds constant: the
+    // information matrix of the initial state has no process noise, and the
+    // Gauss–Markov nuisances of errors that wander (whose information the
+    // model forgets at the rate 1/τ) are left out of it (prior σ 0, no
+    // wander), as are the states it does not estimate.
+    let layout = M::LAYOUT;
+    let nuisance = |i: usize| {
+        [layout.dg_gm(), layout.ba_gm()]
+            .into_iter()
+            .flatten()
+            .any(|first| (first..first + 3).contains(&i))
+    };
+    let mut prior_struct = prior;
+    for (i, p) in prior_struct.iter_mut().enumerate() {
+        if nuisance(i) {
+            *p = 0.0;
+        }
+    }
+    let cfg_struct = ekf::FilterConfig {
+        wander: rollcal::models::Wander::none(),
+        ..cfg
+    };
+    let separate = prior_struct != prior || cfg_struct != cfg;
     // The bound, along the true trajectory.
     let mut obs = Observability::<f64, M, N, Z>::new(cfg, x0, prior)?;
+    // The structure at the true state, when it is not the bound's model.
+    let mut truth_struct = if separate {
+        Some(Observability::<f64, M, N, Z>::new(cfg_struct, x0, prior_struct)?)
+    } else {
+        None
+    };
     // The structure, along the path linearised at zero state (the paper's
     // first-order analysis): there the null directions are exact
     // combinations of the named states. At the true state they tilt by the
     // errors themselves (coefficients ≈ 1e-3 on neighbouring states, e.g.
     // the λy null direction of M2-ps picks up 0.001 λx), which is reported
     // as `null_leak_at_truth`.
-    let mut zero = Observability::<f64, M, N, Z>::new(cfg, SVector::zeros(), prior)?;
+    let mut zero =
+        Observability::<f64, M, N, Z>::new(cfg_struct, SVector::zeros(), prior_struct)?;
     let mut history = Vec::new();
     for s in &sim.samples {
         obs.step(&s.dtheta_cmd, s.dt)?;
         zero.step(&s.dtheta_cmd, s.dt)?;
+        if let Some(t) = truth_struct.as_mut() {
+            t.step(&s.dtheta_cmd, s.dt)?;
+        }
         if keep_history {
             history.push(obs.crlb_sigma().iter().copied().collect());
         }
     }
     let spec: Spectrum<f64, N> = zero.analyse(RANK_TOLERANCE)?;
-    let at_truth: Spectrum<f64, N> = obs.analyse(RANK_TOLERANCE)?;
+    let at_truth: Spectrum<f64, N> = truth_struct.as_ref().unwrap_or(&obs).analyse(RANK_TOLERANCE)?;
     let leak = at_truth.participation();
     let names = id.states_with(run.errors);
     let basis = spec.null_space_basis();
-    // A state the model does not estimate (prior σ 0) is a zero row and
-    // column of the prior-scaled information: a null direction of its own,
-    // which is not a combination of anything. Left out of the null space
-    // and of the dimension.
-    let estimated = |i: usize| prior[i] > 0.0;
+    // A state outside the structure (not estimated, or a Gauss–Markov
+    // nuisance) is a zero row and column of the prior-scaled information: a
+    // null direction of its own, which is not a combination of anything.
+    // Left out of the null space and of the dimension.
+    let estimated = |i: usize| prior_struct[i] > 0.0;
     let fixed = (0..N).filter(|&i| !estimated(i)).count();
     let null_space: Vec<Vec<Term>> = (0..spec.nullity())
         .map(|c| {
@@ -172,7 +206,7 @@ fn analyse_typed<M: Model<N, Z>, const N: usize, const Z: usize>(
         .iter()
         .enumerate()
         .map(|(i, info)| {
-            let structural = part[i] > COEF_THRESHOLD;
+            let structural = part[i] > COEF_THRESHOLD && prior_struct[i] > 0.0;
             let verdict = crate::analysis::verdict::special(info.group, prior[i])
                 .unwrap_or_else(|| Verdict::of_bound(structural, ratio[i]));
             StateObs {
