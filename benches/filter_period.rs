@@ -216,7 +216,7 @@ fn filter_period(c: &mut Criterion) {
         if label != "linearised" {
             continue;
         }
-        bench_period::<rollcal::models::M1PaFull, 42, 3>(
+        bench_period::<rollcal::models::M1PaFull, 48, 3>(
             c,
             &format!("m1pa-full/{label}"),
             &settings,
@@ -224,7 +224,7 @@ fn filter_period(c: &mut Criterion) {
             options,
             linearised,
         );
-        bench_period::<rollcal::models::M2PsFull, 48, 6>(
+        bench_period::<rollcal::models::M2PsFull, 54, 6>(
             c,
             &format!("m2ps-full/{label}"),
             &settings,

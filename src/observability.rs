@@ -249,7 +249,9 @@ pub fn expected_observable(id: ConfigId, name: &str, group: Group) -> bool {
         | Group::AccelScale
         | Group::AccelSecondOrder
         | Group::GyroMarkov
-        | Group::AccelMarkov => false,
+        | Group::AccelMarkov
+        | Group::GyroWarmup
+        | Group::AccelWarmup => false,
     }
 }
 
@@ -553,6 +555,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize, const 
             let rows = [
                 (layout.dg_gm(), step.gyro_phi),
                 (layout.ba_gm(), step.accel_phi),
+                (layout.dg_wu(), step.warmup_phi),
+                (layout.ba_wu(), step.warmup_phi),
             ];
             for (first, s) in rows {
                 for r in first.into_iter().flat_map(|i| i..i + 3) {
@@ -729,7 +733,9 @@ mod tests {
                     | Group::AccelScale
                     | Group::AccelSecondOrder
                     | Group::GyroMarkov
-                    | Group::AccelMarkov => false,
+                    | Group::AccelMarkov
+                    | Group::GyroWarmup
+                    | Group::AccelWarmup => false,
                     Group::ThetaGT | Group::ThetaAT => true,
                     Group::ThetaGC | Group::ThetaAC => rotations(id),
                     Group::Lambda => id == M2Ps && s.name != "lam_y",

@@ -109,7 +109,7 @@ class Reader:
         return v
 
 
-MAX_STATES = 48
+MAX_STATES = 54
 MAX_COVARIANCE = MAX_STATES * MAX_STATES
 CONFIG_IDS = ["M1-pa", "M1-ps", "M2-ps", "M3-pa", "M3-ps", "M4-pa", "M4-ps"]
 ERROR_MODELS = ["Installation", "Full"]
@@ -184,7 +184,9 @@ def configure(r):
                                  ba_g=r.f64(), ka=r.f64(), k2=r.f64())
     c["wander"] = dict(gyro_markov_sigma=r.f64(), gyro_markov_tau_s=r.f64(),
                        gyro_random_walk=r.f64(), accel_markov_sigma=r.f64(),
-                       accel_markov_tau_s=r.f64(), accel_random_walk=r.f64())
+                       accel_markov_tau_s=r.f64(), accel_random_walk=r.f64(),
+                       gyro_warmup_sigma=r.f64(), accel_warmup_sigma=r.f64(),
+                       warmup_tau_s=r.f64())
     return c
 
 

@@ -151,13 +151,13 @@ pub type M2PsCalibrator<T> = Calibrator<T, crate::models::M2Ps, 18, 6>;
 pub type M1PaCalibrator<T> = Calibrator<T, crate::models::M1Pa, 12, 3>;
 /// M4-pa calibrator (12 states).
 pub type M4PaCalibrator<T> = Calibrator<T, crate::models::M4Pa, 12, 3>;
-/// Full-model M2-ps calibrator (48 states; needs gimbal angles and the
+/// Full-model M2-ps calibrator (54 states; needs gimbal angles and the
 /// `full-model` feature).
-pub type M2PsFullCalibrator<T> = Calibrator<T, crate::models::M2PsFull, 48, 6>;
-/// Full-model M1-pa calibrator (42 states; needs the `full-model` feature).
-pub type M1PaFullCalibrator<T> = Calibrator<T, crate::models::M1PaFull, 42, 3>;
-/// Full-model M4-pa calibrator (42 states; needs the `full-model` feature).
-pub type M4PaFullCalibrator<T> = Calibrator<T, crate::models::M4PaFull, 42, 3>;
+pub type M2PsFullCalibrator<T> = Calibrator<T, crate::models::M2PsFull, 54, 6>;
+/// Full-model M1-pa calibrator (48 states; needs the `full-model` feature).
+pub type M1PaFullCalibrator<T> = Calibrator<T, crate::models::M1PaFull, 48, 3>;
+/// Full-model M4-pa calibrator (48 states; needs the `full-model` feature).
+pub type M4PaFullCalibrator<T> = Calibrator<T, crate::models::M4PaFull, 48, 3>;
 
 impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize>
     Calibrator<T, M, N, Z>

@@ -15,8 +15,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     ///
     /// Jacobians are then evaluated on the nominal trajectory and the
     /// innovation is `z − h(x_nom) − H (x̂ − x_nom)`. The full model's
-    /// Gauss–Markov states of the nominal are set to zero (their mean
-    /// decays to zero). This is each later pass
+    /// Gauss–Markov and warm-up states of the nominal are set to zero
+    /// (their mean decays to zero). This is each later pass
     /// of the multi-pass estimator (the nominal is the previous pass's estimate
     /// propagated back to the start), and, with the true initial state as
     /// nominal, the Riccati recursion of the posterior Cramér–Rao bound.
@@ -54,15 +54,20 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// ```
     pub fn set_nominal(&mut self, x_nominal: Option<SVector<f64, N>>) {
         self.reference = x_nominal.map(|mut x| {
-            // The full model's Gauss–Markov parts enter the model linearly and
-            // decay towards zero: the nominal holds them at zero, the one
+            // The full model's Gauss–Markov parts and warm-up enter the model
+            // linearly and decay towards zero: the nominal holds them at zero, the one
             // value the decay leaves in place, so that the linearised filter
             // moves its offsets from it exactly as the model moves the state
             // (docs/model.md §Errors that wander).
-            for i in [Self::LAYOUT.dg_gm(), Self::LAYOUT.ba_gm()]
-                .into_iter()
-                .flatten()
-                .flat_map(|i| i..i + 3)
+            for i in [
+                Self::LAYOUT.dg_gm(),
+                Self::LAYOUT.ba_gm(),
+                Self::LAYOUT.dg_wu(),
+                Self::LAYOUT.ba_wu(),
+            ]
+            .into_iter()
+            .flatten()
+            .flat_map(|i| i..i + 3)
             {
                 if let Some(v) = x.get_mut(i) {
                     *v = 0.0;

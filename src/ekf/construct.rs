@@ -95,7 +95,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// // In a firmware: `static mut SLOT: Option<M2PsFullFilter<f64>> = None;`
     /// let mut slot: Option<M2PsFullFilter<f64>> = None;
     /// let f = M2PsFullFilter::new_in(&mut slot, config, SVector::zeros(), SVector::repeat(1e-3))?;
-    /// assert_eq!(f.state().len(), 48);
+    /// assert_eq!(f.state().len(), 54);
     /// # Ok::<(), rollcal::Error>(())
     /// ```
     // Not inlined: its frame holds the prior's checks, not a filter.

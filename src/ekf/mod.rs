@@ -158,21 +158,21 @@ pub type M3PsFilter<T> = Filter<T, crate::models::M3Ps, 18, 3>;
 pub type M4PaFilter<T> = Filter<T, crate::models::M4Pa, 12, 3>;
 /// M4-ps filter (15 states).
 pub type M4PsFilter<T> = Filter<T, crate::models::M4Ps, 15, 3>;
-/// M1-pa full-model filter (42 states: installation and instrument errors,
+/// M1-pa full-model filter (48 states: installation and instrument errors,
 /// docs/model.md §Instrument errors; [`crate::models::M1PaFull`]).
-pub type M1PaFullFilter<T> = Filter<T, crate::models::M1PaFull, 42, 3>;
-/// M1-ps full-model filter (45 states).
-pub type M1PsFullFilter<T> = Filter<T, crate::models::M1PsFull, 45, 3>;
-/// M2-ps full-model filter (48 states).
-pub type M2PsFullFilter<T> = Filter<T, crate::models::M2PsFull, 48, 6>;
-/// M3-pa full-model filter (45 states).
-pub type M3PaFullFilter<T> = Filter<T, crate::models::M3PaFull, 45, 3>;
-/// M3-ps full-model filter (48 states).
-pub type M3PsFullFilter<T> = Filter<T, crate::models::M3PsFull, 48, 3>;
-/// M4-pa full-model filter (42 states).
-pub type M4PaFullFilter<T> = Filter<T, crate::models::M4PaFull, 42, 3>;
-/// M4-ps full-model filter (45 states).
-pub type M4PsFullFilter<T> = Filter<T, crate::models::M4PsFull, 45, 3>;
+pub type M1PaFullFilter<T> = Filter<T, crate::models::M1PaFull, 48, 3>;
+/// M1-ps full-model filter (51 states).
+pub type M1PsFullFilter<T> = Filter<T, crate::models::M1PsFull, 51, 3>;
+/// M2-ps full-model filter (54 states).
+pub type M2PsFullFilter<T> = Filter<T, crate::models::M2PsFull, 54, 6>;
+/// M3-pa full-model filter (51 states).
+pub type M3PaFullFilter<T> = Filter<T, crate::models::M3PaFull, 51, 3>;
+/// M3-ps full-model filter (54 states).
+pub type M3PsFullFilter<T> = Filter<T, crate::models::M3PsFull, 54, 3>;
+/// M4-pa full-model filter (48 states).
+pub type M4PaFullFilter<T> = Filter<T, crate::models::M4PaFull, 48, 3>;
+/// M4-ps full-model filter (51 states).
+pub type M4PsFullFilter<T> = Filter<T, crate::models::M4PsFull, 51, 3>;
 
 impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter<T, M, N, Z> {
     const LAYOUT: Layout = M::LAYOUT;

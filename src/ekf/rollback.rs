@@ -89,6 +89,9 @@ mod tests {
             accel_markov_sigma: 2e-6,
             accel_markov_tau_s: 900.0,
             accel_random_walk: 1e-6 / 60.0,
+            gyro_warmup_sigma: 0.005 * deg_h,
+            accel_warmup_sigma: 3e-6,
+            warmup_tau_s: 1200.0,
         }
     }
 
@@ -156,11 +159,11 @@ mod tests {
     fn predictions_and_a_reacquisition_roll_back_bit_for_bit() {
         rolls_back::<M1Pa, 12, 3>(false, Wander::none());
         rolls_back::<M1Pa, 12, 3>(true, Wander::none());
-        rolls_back::<M2PsFull, 48, 6>(false, Wander::none());
-        rolls_back::<M2PsFull, 48, 6>(true, Wander::none());
+        rolls_back::<M2PsFull, 54, 6>(false, Wander::none());
+        rolls_back::<M2PsFull, 54, 6>(true, Wander::none());
         // Predictions move the wandering states' rows and columns of the
         // factor too: rolled back all the same.
-        rolls_back::<M2PsFull, 48, 6>(false, realistic());
-        rolls_back::<M2PsFull, 48, 6>(true, realistic());
+        rolls_back::<M2PsFull, 54, 6>(false, realistic());
+        rolls_back::<M2PsFull, 54, 6>(true, realistic());
     }
 }

@@ -1,8 +1,9 @@
 //! The errors that wander at the end of a period ([`Filter::wander_jump`];
 //! docs/model.md §Errors that wander): after a period's measurement update
 //! and attitude time update, the full model's Gauss–Markov states decay by
-//! `φ = exp(−T/τ)` and gain the variance `σ² (1 − φ²)`, and the drift and
-//! bias gain their random walk's `K² T`. The wandering parts are held
+//! `φ = exp(−T/τ)` and gain the variance `σ² (1 − φ²)`, the warm-up states
+//! decay by `exp(−T/τ_w)`, and the drift and bias gain their random walk's
+//! `K² T`. The wandering parts are held
 //! constant over the period the measurement covers, so this move is
 //! independent of the period's measurement and gyro noise: it follows the
 //! decorrelated update (`factored`) as a separate time update, with the
@@ -19,13 +20,16 @@ use crate::precision::scalar_to_f64;
 
 /// The wandering states of `layout` with what a period does to them:
 /// `(first index, φ, q)` for the random walks of the drift and the bias and
-/// the Gauss–Markov parts of both (empty for a layout without them).
-fn moves<T: RealField + Copy>(layout: &Layout, step: &WanderStep<T>) -> [(Option<usize>, T, T); 4] {
+/// the Gauss–Markov parts and the warm-up of both (empty for a layout
+/// without them).
+fn moves<T: RealField + Copy>(layout: &Layout, step: &WanderStep<T>) -> [(Option<usize>, T, T); 6] {
     [
         (layout.dg(), T::one(), step.gyro_walk_q),
         (layout.ba(), T::one(), step.accel_walk_q),
         (layout.dg_gm(), step.gyro_phi, step.gyro_markov_q),
         (layout.ba_gm(), step.accel_phi, step.accel_markov_q),
+        (layout.dg_wu(), step.warmup_phi, T::zero()),
+        (layout.ba_wu(), step.warmup_phi, T::zero()),
     ]
 }
 
@@ -89,7 +93,7 @@ mod tests {
     use crate::geometry::{earth_rate_n, gravity_n, EARTH_RATE};
     use crate::models::{Environment, M1PaFull, Model, Wander};
 
-    const N: usize = 42;
+    const N: usize = 48;
 
     fn config(wander: Wander<f64>) -> FilterConfig<f64> {
         let deg = core::f64::consts::PI / 180.0;
@@ -119,6 +123,9 @@ mod tests {
             accel_markov_sigma: 2e-6,
             accel_markov_tau_s: 900.0,
             accel_random_walk: 1e-6 / 60.0,
+            gyro_warmup_sigma: 1e-8,
+            accel_warmup_sigma: 3e-6,
+            warmup_tau_s: 1200.0,
         };
         let layout = <M1PaFull as Model<N, 3>>::LAYOUT;
         let (iba, igm) = (layout.ba().unwrap(), layout.ba_gm().unwrap());

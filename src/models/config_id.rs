@@ -185,7 +185,7 @@ impl ConfigId {
     /// use rollcal::ConfigId;
     ///
     /// let full = ConfigId::M4Ps.layout_with(ErrorModel::Full);
-    /// assert_eq!((full.n(), full.z(), full.instruments()), (45, 3, Some(15)));
+    /// assert_eq!((full.n(), full.z(), full.instruments()), (51, 3, Some(15)));
     /// assert_eq!(ConfigId::M4Ps.layout_with(ErrorModel::Installation), ConfigId::M4Ps.layout());
     /// ```
     pub const fn layout_with(self, errors: ErrorModel) -> Layout {

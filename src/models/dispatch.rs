@@ -228,7 +228,7 @@ macro_rules! with_built_config {
 ///     (N, M::states().len())
 /// }
 /// let n = rollcal::with_model!(ConfigId::M2Ps, ErrorModel::Full, |M, N, Z| states::<M, N, Z>());
-/// assert_eq!(n, (48, 48));
+/// assert_eq!(n, (54, 54));
 /// let n = rollcal::with_model!(ConfigId::M2Ps, ErrorModel::Installation, |M, N, Z| states::<M, N, Z>());
 /// assert_eq!(n, (18, 18));
 /// ```
@@ -238,13 +238,13 @@ macro_rules! with_model {
         match $errors {
             $crate::models::ErrorModel::Installation => $crate::with_config!($id, |$m, $n, $z| $body),
             $crate::models::ErrorModel::Full => match $id {
-                $crate::models::ConfigId::M1Pa => $crate::with_config!(@arm M1PaFull, 42, 3, $m, $n, $z, $body),
-                $crate::models::ConfigId::M1Ps => $crate::with_config!(@arm M1PsFull, 45, 3, $m, $n, $z, $body),
-                $crate::models::ConfigId::M2Ps => $crate::with_config!(@arm M2PsFull, 48, 6, $m, $n, $z, $body),
-                $crate::models::ConfigId::M3Pa => $crate::with_config!(@arm M3PaFull, 45, 3, $m, $n, $z, $body),
-                $crate::models::ConfigId::M3Ps => $crate::with_config!(@arm M3PsFull, 48, 3, $m, $n, $z, $body),
-                $crate::models::ConfigId::M4Pa => $crate::with_config!(@arm M4PaFull, 42, 3, $m, $n, $z, $body),
-                $crate::models::ConfigId::M4Ps => $crate::with_config!(@arm M4PsFull, 45, 3, $m, $n, $z, $body),
+                $crate::models::ConfigId::M1Pa => $crate::with_config!(@arm M1PaFull, 48, 3, $m, $n, $z, $body),
+                $crate::models::ConfigId::M1Ps => $crate::with_config!(@arm M1PsFull, 51, 3, $m, $n, $z, $body),
+                $crate::models::ConfigId::M2Ps => $crate::with_config!(@arm M2PsFull, 54, 6, $m, $n, $z, $body),
+                $crate::models::ConfigId::M3Pa => $crate::with_config!(@arm M3PaFull, 51, 3, $m, $n, $z, $body),
+                $crate::models::ConfigId::M3Ps => $crate::with_config!(@arm M3PsFull, 54, 3, $m, $n, $z, $body),
+                $crate::models::ConfigId::M4Pa => $crate::with_config!(@arm M4PaFull, 48, 3, $m, $n, $z, $body),
+                $crate::models::ConfigId::M4Ps => $crate::with_config!(@arm M4PsFull, 51, 3, $m, $n, $z, $body),
             },
         }
     };
@@ -264,7 +264,7 @@ macro_rules! with_model {
 ///     Some(N)
 /// }
 /// let n = rollcal::with_built_model!(ConfigId::M4Pa, ErrorModel::Full, |M, N, Z| states::<M, N, Z>(), else |_other| None);
-/// assert_eq!(n, Some(42));
+/// assert_eq!(n, Some(48));
 /// ```
 #[macro_export]
 macro_rules! with_built_model {
@@ -283,13 +283,13 @@ macro_rules! with_built_model {
             }
             $crate::models::ErrorModel::Full => 'dispatch: {
                 $crate::__rollcal_if_full_model! {
-                    $crate::__rollcal_if_m1_pa! { if id == $crate::models::ConfigId::M1Pa { break 'dispatch $crate::with_config!(@arm M1PaFull, 42, 3, $m, $n, $z, $body); } }
-                    $crate::__rollcal_if_m1_ps! { if id == $crate::models::ConfigId::M1Ps { break 'dispatch $crate::with_config!(@arm M1PsFull, 45, 3, $m, $n, $z, $body); } }
-                    $crate::__rollcal_if_m2_ps! { if id == $crate::models::ConfigId::M2Ps { break 'dispatch $crate::with_config!(@arm M2PsFull, 48, 6, $m, $n, $z, $body); } }
-                    $crate::__rollcal_if_m3_pa! { if id == $crate::models::ConfigId::M3Pa { break 'dispatch $crate::with_config!(@arm M3PaFull, 45, 3, $m, $n, $z, $body); } }
-                    $crate::__rollcal_if_m3_ps! { if id == $crate::models::ConfigId::M3Ps { break 'dispatch $crate::with_config!(@arm M3PsFull, 48, 3, $m, $n, $z, $body); } }
-                    $crate::__rollcal_if_m4_pa! { if id == $crate::models::ConfigId::M4Pa { break 'dispatch $crate::with_config!(@arm M4PaFull, 42, 3, $m, $n, $z, $body); } }
-                    $crate::__rollcal_if_m4_ps! { if id == $crate::models::ConfigId::M4Ps { break 'dispatch $crate::with_config!(@arm M4PsFull, 45, 3, $m, $n, $z, $body); } }
+                    $crate::__rollcal_if_m1_pa! { if id == $crate::models::ConfigId::M1Pa { break 'dispatch $crate::with_config!(@arm M1PaFull, 48, 3, $m, $n, $z, $body); } }
+                    $crate::__rollcal_if_m1_ps! { if id == $crate::models::ConfigId::M1Ps { break 'dispatch $crate::with_config!(@arm M1PsFull, 51, 3, $m, $n, $z, $body); } }
+                    $crate::__rollcal_if_m2_ps! { if id == $crate::models::ConfigId::M2Ps { break 'dispatch $crate::with_config!(@arm M2PsFull, 54, 6, $m, $n, $z, $body); } }
+                    $crate::__rollcal_if_m3_pa! { if id == $crate::models::ConfigId::M3Pa { break 'dispatch $crate::with_config!(@arm M3PaFull, 51, 3, $m, $n, $z, $body); } }
+                    $crate::__rollcal_if_m3_ps! { if id == $crate::models::ConfigId::M3Ps { break 'dispatch $crate::with_config!(@arm M3PsFull, 54, 3, $m, $n, $z, $body); } }
+                    $crate::__rollcal_if_m4_pa! { if id == $crate::models::ConfigId::M4Pa { break 'dispatch $crate::with_config!(@arm M4PaFull, 48, 3, $m, $n, $z, $body); } }
+                    $crate::__rollcal_if_m4_ps! { if id == $crate::models::ConfigId::M4Ps { break 'dispatch $crate::with_config!(@arm M4PsFull, 51, 3, $m, $n, $z, $body); } }
                 }
                 #[allow(unreachable_code)]
                 {

@@ -244,7 +244,7 @@ impl Layout {
 
     /// The full model's instrument columns of `F` (nothing, and no
     /// arithmetic, for an installation-only layout): with `jmap` the rate's
-    /// map `J` (`J_r⁻¹(ψ)` or `T(θ)`), `∂/∂dg = ∂/∂δ_g = J G`,
+    /// map `J` (`J_r⁻¹(ψ)` or `T(θ)`), `∂/∂dg = ∂/∂δ_g = ∂/∂w_g = J G`,
     /// `∂/∂D_g[i][j] = (J G)_i f^p_j` (row-major), `∂/∂kg_i = (J G)_i ωc_i`.
     #[allow(clippy::too_many_arguments)]
     fn instrument_rate_columns<T: RealField + Copy, const N: usize>(
@@ -257,8 +257,8 @@ impl Layout {
         c_cn: &Matrix3<T>,
         f: &mut SMatrix<T, 3, N>,
     ) {
-        let (Some(idg), Some(id), Some(ikg), Some(idg_gm)) =
-            (self.dg(), self.d_g(), self.kg(), self.dg_gm())
+        let (Some(idg), Some(id), Some(ikg), Some(idg_gm), Some(idg_wu)) =
+            (self.dg(), self.d_g(), self.kg(), self.dg_gm(), self.dg_wu())
         else {
             return;
         };
@@ -266,6 +266,7 @@ impl Layout {
         let f_p = self.platform_dcm(att, &m.c_rn, c_cn) * env.gravity_n;
         set_cols(f, idg, &jg);
         set_cols(f, idg_gm, &jg);
+        set_cols(f, idg_wu, &jg);
         for (i, col) in jg.column_iter().enumerate() {
             let col = col.into_owned();
             let per_force = Matrix3::from_columns(&[col * f_p.x, col * f_p.y, col * f_p.z]);

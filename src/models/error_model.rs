@@ -19,13 +19,13 @@ use core::fmt;
 /// let full: ErrorModel = "full".parse().unwrap();
 /// assert_eq!(full, ErrorModel::Full);
 /// assert_eq!(full.as_str(), "full");
-/// assert_eq!(full.extra_states(), 30);
+/// assert_eq!(full.extra_states(), 36);
 /// let err: ParseErrorModelError = "bias".parse::<ErrorModel>().unwrap_err();
 /// assert_eq!(err.to_string(), "unknown error model (expected installation or full)");
 ///
-/// // M2-ps: 18 installation states, 48 with the instrument errors.
+/// // M2-ps: 18 installation states, 54 with the instrument errors.
 /// assert_eq!(ConfigId::M2Ps.layout().n(), 18);
-/// assert_eq!(ConfigId::M2Ps.layout_with(full).n(), 48);
+/// assert_eq!(ConfigId::M2Ps.layout_with(full).n(), 54);
 /// ```
 // Serialised as its index (postcard: a varint): `Installation` 0, `Full` 1.
 #[derive(
@@ -39,8 +39,9 @@ pub enum ErrorModel {
     Installation,
     /// The installation errors followed by
     /// `[dg (3), D_g (9), kg (3), ba (3), ka (3), k2 (3)]` and the
-    /// Gauss–Markov parts of the drift and the bias `[δ_g (3), δ_a (3)]`
-    /// (docs/model.md §Instrument errors, §Errors that wander).
+    /// Gauss–Markov parts and the warm-up of the drift and the bias
+    /// `[δ_g (3), δ_a (3), w_g (3), w_a (3)]` (docs/model.md §Instrument
+    /// errors, §Errors that wander).
     Full,
 }
 
@@ -58,12 +59,12 @@ impl ErrorModel {
     }
 
     /// The number of states this error model adds after the installation
-    /// states: 0 or 30 (24 instrument terms and 6 Gauss–Markov
-    /// nuisances).
+    /// states: 0 or 36 (24 instrument terms, then 12 nuisances: the
+    /// Gauss–Markov parts and the warm-up of the drift and the bias).
     pub const fn extra_states(self) -> usize {
         match self {
             ErrorModel::Installation => 0,
-            ErrorModel::Full => 30,
+            ErrorModel::Full => 36,
         }
     }
 

@@ -9,9 +9,10 @@
 //! `[attitude(3), θgC or θgC^pa (3), θgT (3), θaC (3, ps only), θaT (3), λ (3, M2/M3)]`,
 //! followed for the full model ([`ErrorModel::Full`]) by the instruments'
 //! own errors `[dg (3), D_g (9, row-major), kg (3), ba (3), ka (3), k2 (3),
-//! δ_g (3), δ_a (3)]` ([`Layout::instruments`],
+//! δ_g (3), δ_a (3), w_g (3), w_a (3)]` ([`Layout::instruments`],
 //! [`Layout::instrument_errors`]); `δ_g`, `δ_a` are the Gauss–Markov
-//! parts of the drift and the bias, which add to `dg` and `ba`.
+//! parts of the drift and the bias and `w_g`, `w_a` their warm-up, which
+//! add to `dg` and `ba`.
 
 use nalgebra::{RealField, SVector, Vector3};
 
@@ -114,7 +115,7 @@ impl Layout {
         }
     }
     /// Number of states: the installation states
-    /// ([`Layout::installation_n`]) and, for [`ErrorModel::Full`], 30 more.
+    /// ([`Layout::installation_n`]) and, for [`ErrorModel::Full`], 36 more.
     pub const fn n(&self) -> usize {
         self.installation_n() + self.errors.extra_states()
     }
@@ -133,12 +134,13 @@ impl Layout {
     ///
     /// let full = ConfigId::M1Pa.layout().with_errors(ErrorModel::Full);
     /// assert_eq!(full, ConfigId::M1Pa.layout_with(ErrorModel::Full));
-    /// assert_eq!((full.n(), full.instruments()), (42, Some(12)));
+    /// assert_eq!((full.n(), full.instruments()), (48, Some(12)));
     /// assert_eq!(
     ///     (full.dg(), full.d_g(), full.kg(), full.ba(), full.ka()),
     ///     (Some(12), Some(15), Some(24), Some(27), Some(30))
     /// );
     /// assert_eq!((full.k2(), full.dg_gm(), full.ba_gm()), (Some(33), Some(36), Some(39)));
+    /// assert_eq!((full.dg_wu(), full.ba_wu()), (Some(42), Some(45)));
     /// assert_eq!(ConfigId::M1Pa.layout().instruments(), None);
     /// ```
     pub const fn with_errors(self, errors: ErrorModel) -> Layout {
@@ -195,6 +197,14 @@ impl Layout {
     pub const fn ba_gm(&self) -> Option<usize> {
         self.instrument_index(27)
     }
+    /// Index of the first warm-up gyro drift state `dg_wu_x` (rad/s).
+    pub const fn dg_wu(&self) -> Option<usize> {
+        self.instrument_index(30)
+    }
+    /// Index of the first warm-up accelerometer bias state `ba_wu_x` (g).
+    pub const fn ba_wu(&self) -> Option<usize> {
+        self.instrument_index(33)
+    }
     /// Number of measurement components per period.
     pub const fn z(&self) -> usize {
         if self.gimbal_obs {
@@ -237,7 +247,8 @@ impl Layout {
 
     /// Unpacks the instruments' own errors of a state vector (all zero for
     /// an [`ErrorModel::Installation`] layout), as they act: the drift
-    /// `dg + δ_g` and the bias `ba + δ_a` include their Gauss–Markov parts
+    /// `dg + δ_g + w_g` and the bias `ba + δ_a + w_a` include their
+    /// Gauss–Markov parts and warm-up
     /// ([`Layout::persistent_instrument_errors`] leaves them out).
     ///
     /// # Examples
@@ -248,7 +259,7 @@ impl Layout {
     /// use rollcal::ConfigId;
     ///
     /// let layout = ConfigId::M2Ps.layout_with(ErrorModel::Full);
-    /// let mut x = SVector::<f64, 48>::zeros();
+    /// let mut x = SVector::<f64, 54>::zeros();
     /// x[layout.ba().unwrap() + 1] = 2e-5; // ba_y (g)
     /// x[layout.ba_gm().unwrap() + 1] = 1e-6; // its Gauss–Markov part (g)
     /// x[layout.d_g().unwrap() + 5] = 1e-7; // Dg_yz (rad/s per g)
@@ -264,15 +275,17 @@ impl Layout {
         x: &SVector<T, N>,
     ) -> InstrumentErrors<T> {
         let mut e = self.persistent_instrument_errors(x);
-        if let (Some(ig), Some(ia)) = (self.dg_gm(), self.ba_gm()) {
-            e.dg += block3(x, ig);
-            e.ba += block3(x, ia);
+        if let (Some(ig), Some(ia), Some(wg), Some(wa)) =
+            (self.dg_gm(), self.ba_gm(), self.dg_wu(), self.ba_wu())
+        {
+            e.dg += block3(x, ig) + block3(x, wg);
+            e.ba += block3(x, ia) + block3(x, wa);
         }
         e
     }
 
     /// The instruments' own errors of a state vector without the
-    /// Gauss–Markov parts of the drift and the bias: the values to
+    /// Gauss–Markov parts and the warm-up of the drift and the bias: the values to
     /// compensate from the state's time on (the calibrated values,
     /// docs/model.md §Errors that wander).
     pub fn persistent_instrument_errors<T: RealField + Copy, const N: usize>(

@@ -93,7 +93,7 @@ impl Layout {
     /// `h` (every entry): no 3×N copy of it where the caller keeps it.
     ///
     /// For the full model the installation columns are multiplied by
-    /// `I + K_a + 2 K2 diag(u)` (`u = A f^p`), `∂Z/∂ba = ∂Z/∂δ_a = I`,
+    /// `I + K_a + 2 K2 diag(u)` (`u = A f^p`), `∂Z/∂ba = ∂Z/∂δ_a = ∂Z/∂w_a = I`,
     /// `∂Z/∂ka = diag(u)` and `∂Z/∂k2 = diag(u ∘ u)`; the gyro errors'
     /// columns are zero.
     // Out of line: inlined into `mean_accel`'s loop over the nodes, LLVM
@@ -152,12 +152,13 @@ impl Layout {
             set_cols(h, il, &d_lam);
         }
         let af = m.a * f_p;
-        if let (Some(n_inst), Some(iba), Some(ika), Some(ik2), Some(iba_gm)) = (
+        if let (Some(n_inst), Some(iba), Some(ika), Some(ik2), Some(iba_gm), Some(iba_wu)) = (
             self.instruments(),
             self.ba(),
             self.ka(),
             self.k2(),
             self.ba_gm(),
+            self.ba_wu(),
         ) {
             let e = &m.params.instruments;
             let two: T = nalgebra::convert(2.0);
@@ -167,6 +168,7 @@ impl Layout {
             set_cols(h, ika, &Matrix3::from_diagonal(&af));
             set_cols(h, ik2, &Matrix3::from_diagonal(&af.component_mul(&af)));
             set_cols(h, iba_gm, &Matrix3::identity());
+            set_cols(h, iba_wu, &Matrix3::identity());
         }
         self.accel_errors(m, &af)
     }

@@ -26,10 +26,11 @@
 //! `[dg (3, rad/s), D_g (9, rad/s per g, row-major: row = gyro, column =
 //! force axis in the model's platform frame), kg (3), ba (3, g), ka (3),
 //! k2 (3, g/g²)]` and the Gauss–Markov parts of the drift and the bias
-//! `[δ_g (3, rad/s), δ_a (3, g)]`, 30 more states (M1-pa 42, M2-ps 48, …).
-//! In the model's platform frame p the platform rate is
-//! `G [(I + K_g) ωc + dg + δ_g + D_g f^p]` and the accelerometer output
-//! `ba + δ_a + (I + K_a) u + K2 (u ∘ u)`, `u = A f^p`, with
+//! `[δ_g (3, rad/s), δ_a (3, g)]` and their warm-up `[w_g (3, rad/s),
+//! w_a (3, g)]`, 36 more states (M1-pa 48, M2-ps 54, …). In the model's
+//! platform frame p the platform rate is
+//! `G [(I + K_g) ωc + dg + δ_g + w_g + D_g f^p]` and the accelerometer
+//! output `ba + δ_a + w_a + (I + K_a) u + K2 (u ∘ u)`, `u = A f^p`, with
 //! `f^p = C^p_n f^n` from the attitude state.
 //!
 //! The module by concern:
@@ -178,8 +179,8 @@ config_type!(
 config_type!(full
     /// M1-pa full model (docs/model.md §Instrument errors): the 12 states
     /// of [`M1Pa`] followed by `dg, D_g^pa, kg, ba, ka, k2` and the
-    /// Gauss–Markov parts `δ_g, δ_a` (42 states); accelerometer
-    /// observations.
+    /// Gauss–Markov parts `δ_g, δ_a` and warm-up `w_g, w_a` (48 states);
+    /// accelerometer observations.
     ///
     /// # Examples
     ///
@@ -188,34 +189,35 @@ config_type!(full
     /// use rollcal::ConfigId;
     ///
     /// type M = M1PaFull;
-    /// assert_eq!(<M as Model<42, 3>>::ID, ConfigId::M1Pa);
-    /// assert_eq!(<M as Model<42, 3>>::ERRORS, ErrorModel::Full);
-    /// let layout = <M as Model<42, 3>>::LAYOUT;
-    /// assert_eq!((layout.n(), layout.z(), layout.instruments()), (42, 3, Some(12)));
-    /// let states = <M as Model<42, 3>>::states();
+    /// assert_eq!(<M as Model<48, 3>>::ID, ConfigId::M1Pa);
+    /// assert_eq!(<M as Model<48, 3>>::ERRORS, ErrorModel::Full);
+    /// let layout = <M as Model<48, 3>>::LAYOUT;
+    /// assert_eq!((layout.n(), layout.z(), layout.instruments()), (48, 3, Some(12)));
+    /// let states = <M as Model<48, 3>>::states();
     /// assert_eq!((states[12].name, states[15].name, states[32].name), ("dg_x", "Dgpa_xx", "ka_z"));
     /// assert_eq!((states[35].name, states[36].name, states[41].name), ("k2_z", "dg_gm_x", "ba_gm_z"));
+    /// assert_eq!((states[42].name, states[47].name), ("dg_wu_x", "ba_wu_z"));
     /// ```
-    M1PaFull, M1Pa, 42, 3);
+    M1PaFull, M1Pa, 48, 3);
 config_type!(full
-    /// M1-ps full model: [`M1Ps`]'s 15 states and the 30 instrument states (45 states).
-    M1PsFull, M1Ps, 45, 3);
+    /// M1-ps full model: [`M1Ps`]'s 15 states and the 36 instrument states (51 states).
+    M1PsFull, M1Ps, 51, 3);
 config_type!(full
-    /// M2-ps full model: [`M2Ps`]'s 18 states and the 30 instrument states (48 states);
+    /// M2-ps full model: [`M2Ps`]'s 18 states and the 36 instrument states (54 states);
     /// gimbal + accelerometer observations.
-    M2PsFull, M2Ps, 48, 6);
+    M2PsFull, M2Ps, 54, 6);
 config_type!(full
-    /// M3-pa full model: [`M3Pa`]'s 15 states and the 30 instrument states (45 states).
-    M3PaFull, M3Pa, 45, 3);
+    /// M3-pa full model: [`M3Pa`]'s 15 states and the 36 instrument states (51 states).
+    M3PaFull, M3Pa, 51, 3);
 config_type!(full
-    /// M3-ps full model: [`M3Ps`]'s 18 states and the 30 instrument states (48 states).
-    M3PsFull, M3Ps, 48, 3);
+    /// M3-ps full model: [`M3Ps`]'s 18 states and the 36 instrument states (54 states).
+    M3PsFull, M3Ps, 54, 3);
 config_type!(full
-    /// M4-pa full model: [`M4Pa`]'s 12 states and the 30 instrument states (42 states).
-    M4PaFull, M4Pa, 42, 3);
+    /// M4-pa full model: [`M4Pa`]'s 12 states and the 36 instrument states (48 states).
+    M4PaFull, M4Pa, 48, 3);
 config_type!(full
-    /// M4-ps full model: [`M4Ps`]'s 15 states and the 30 instrument states (45 states).
-    M4PsFull, M4Ps, 45, 3);
+    /// M4-ps full model: [`M4Ps`]'s 15 states and the 36 instrument states (51 states).
+    M4PsFull, M4Ps, 51, 3);
 
 /// The environment every model needs.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -43,6 +43,12 @@ pub enum Group {
     /// The Gauss–Markov part of the accelerometer bias, `δ_a` (g; full
     /// model): a nuisance like [`Group::GyroMarkov`].
     AccelMarkov,
+    /// The warm-up transient of the gyro drift, `w_g` (rad/s; full model):
+    /// `Δ_g e^(−t/τ_w)`, a nuisance that decays.
+    GyroWarmup,
+    /// The warm-up transient of the accelerometer bias, `w_a` (g; full
+    /// model).
+    AccelWarmup,
 }
 
 impl Group {
@@ -63,11 +69,13 @@ impl Group {
             Group::AccelSecondOrder => "k2",
             Group::GyroMarkov => "dg_gm",
             Group::AccelMarkov => "ba_gm",
+            Group::GyroWarmup => "dg_wu",
+            Group::AccelWarmup => "ba_wu",
         }
     }
 
     /// Every group, installation groups first.
-    pub const ALL: [Group; 14] = [
+    pub const ALL: [Group; 16] = [
         Group::Attitude,
         Group::ThetaGC,
         Group::ThetaGT,
@@ -82,6 +90,8 @@ impl Group {
         Group::AccelSecondOrder,
         Group::GyroMarkov,
         Group::AccelMarkov,
+        Group::GyroWarmup,
+        Group::AccelWarmup,
     ];
 
     /// Whether the group is one of the full model's instrument errors
@@ -97,12 +107,15 @@ impl Group {
                 | Group::AccelSecondOrder
                 | Group::GyroMarkov
                 | Group::AccelMarkov
+                | Group::GyroWarmup
+                | Group::AccelWarmup
         )
     }
 
     /// Whether the group's states vary with time and are reported at the
     /// final time only, as nuisances, not as values to compensate: the
-    /// attitude and the Gauss–Markov parts of the drift and the bias.
+    /// attitude, the Gauss–Markov parts and the warm-up of the drift and
+    /// the bias.
     ///
     /// # Examples
     ///
@@ -115,7 +128,11 @@ impl Group {
     pub const fn is_nuisance(self) -> bool {
         matches!(
             self,
-            Group::Attitude | Group::GyroMarkov | Group::AccelMarkov
+            Group::Attitude
+                | Group::GyroMarkov
+                | Group::AccelMarkov
+                | Group::GyroWarmup
+                | Group::AccelWarmup
         )
     }
 
@@ -130,19 +147,19 @@ impl Group {
             | Group::ThetaAC
             | Group::ThetaAT
             | Group::Lambda => "rad",
-            Group::GyroDrift | Group::GyroMarkov => "rad/s",
+            Group::GyroDrift | Group::GyroMarkov | Group::GyroWarmup => "rad/s",
             Group::GyroGDrift => "rad/s/g",
             Group::GyroScale | Group::AccelScale => "1",
-            Group::AccelBias | Group::AccelMarkov => "g",
+            Group::AccelBias | Group::AccelMarkov | Group::AccelWarmup => "g",
             Group::AccelSecondOrder => "1/g",
         }
     }
 
     /// The factor from the internal unit to the printed one, and the
     /// printed unit: angles in arcseconds (`″`), `dg` and its
-    /// Gauss–Markov part in °/h, `D_g` in °/h/g, `kg` and `ka` in ppm, `ba`
-    /// and its Gauss–Markov part in µg, `k2` in µg/g² (docs/model.md
-    /// §State names).
+    /// Gauss–Markov part and warm-up in °/h, `D_g` in °/h/g, `kg` and `ka`
+    /// in ppm, `ba` and its Gauss–Markov part and warm-up in µg, `k2` in
+    /// µg/g² (docs/model.md §State names).
     ///
     /// # Examples
     ///
@@ -164,10 +181,10 @@ impl Group {
             | Group::ThetaAC
             | Group::ThetaAT
             | Group::Lambda => (RAD_TO_ARCSEC, "″"),
-            Group::GyroDrift | Group::GyroMarkov => (RAD_TO_ARCSEC, "°/h"),
+            Group::GyroDrift | Group::GyroMarkov | Group::GyroWarmup => (RAD_TO_ARCSEC, "°/h"),
             Group::GyroGDrift => (RAD_TO_ARCSEC, "°/h/g"),
             Group::GyroScale | Group::AccelScale => (1e6, "ppm"),
-            Group::AccelBias | Group::AccelMarkov => (1e6, "µg"),
+            Group::AccelBias | Group::AccelMarkov | Group::AccelWarmup => (1e6, "µg"),
             Group::AccelSecondOrder => (1e6, "µg/g²"),
         }
     }
@@ -290,8 +307,8 @@ const M4_PS_STATES: [StateInfo; 15] = states![
 
 /// The full model's instrument-error states in the ps frame
 /// (docs/model.md §Instrument errors): the 24 terms to calibrate, then the
-/// 6 Gauss–Markov nuisances.
-const INSTRUMENT_PS: [StateInfo; 30] = states![
+/// 6 Gauss–Markov nuisances and the 6 warm-up nuisances.
+const INSTRUMENT_PS: [StateInfo; 36] = states![
     "dg_x": GyroDrift, "dg_y": GyroDrift, "dg_z": GyroDrift,
     "Dg_xx": GyroGDrift, "Dg_xy": GyroGDrift, "Dg_xz": GyroGDrift,
     "Dg_yx": GyroGDrift, "Dg_yy": GyroGDrift, "Dg_yz": GyroGDrift,
@@ -302,9 +319,11 @@ const INSTRUMENT_PS: [StateInfo; 30] = states![
     "k2_x": AccelSecondOrder, "k2_y": AccelSecondOrder, "k2_z": AccelSecondOrder,
     "dg_gm_x": GyroMarkov, "dg_gm_y": GyroMarkov, "dg_gm_z": GyroMarkov,
     "ba_gm_x": AccelMarkov, "ba_gm_y": AccelMarkov, "ba_gm_z": AccelMarkov,
+    "dg_wu_x": GyroWarmup, "dg_wu_y": GyroWarmup, "dg_wu_z": GyroWarmup,
+    "ba_wu_x": AccelWarmup, "ba_wu_y": AccelWarmup, "ba_wu_z": AccelWarmup,
 ];
 /// The same in the pa frame: `D_g^pa` is named `Dgpa_*` (as `thgCpa_*`).
-const INSTRUMENT_PA: [StateInfo; 30] = states![
+const INSTRUMENT_PA: [StateInfo; 36] = states![
     "dg_x": GyroDrift, "dg_y": GyroDrift, "dg_z": GyroDrift,
     "Dgpa_xx": GyroGDrift, "Dgpa_xy": GyroGDrift, "Dgpa_xz": GyroGDrift,
     "Dgpa_yx": GyroGDrift, "Dgpa_yy": GyroGDrift, "Dgpa_yz": GyroGDrift,
@@ -315,23 +334,25 @@ const INSTRUMENT_PA: [StateInfo; 30] = states![
     "k2_x": AccelSecondOrder, "k2_y": AccelSecondOrder, "k2_z": AccelSecondOrder,
     "dg_gm_x": GyroMarkov, "dg_gm_y": GyroMarkov, "dg_gm_z": GyroMarkov,
     "ba_gm_x": AccelMarkov, "ba_gm_y": AccelMarkov, "ba_gm_z": AccelMarkov,
+    "dg_wu_x": GyroWarmup, "dg_wu_y": GyroWarmup, "dg_wu_z": GyroWarmup,
+    "ba_wu_x": AccelWarmup, "ba_wu_y": AccelWarmup, "ba_wu_z": AccelWarmup,
 ];
 
-const M1_PA_FULL_STATES: [StateInfo; 42] = concat(M1_PA_STATES, INSTRUMENT_PA);
-const M1_PS_FULL_STATES: [StateInfo; 45] = concat(M1_PS_STATES, INSTRUMENT_PS);
-const M2_PS_FULL_STATES: [StateInfo; 48] = concat(M2_PS_STATES, INSTRUMENT_PS);
-const M3_PA_FULL_STATES: [StateInfo; 45] = concat(M3_PA_STATES, INSTRUMENT_PA);
-const M3_PS_FULL_STATES: [StateInfo; 48] = concat(M3_PS_STATES, INSTRUMENT_PS);
-const M4_PA_FULL_STATES: [StateInfo; 42] = concat(M4_PA_STATES, INSTRUMENT_PA);
-const M4_PS_FULL_STATES: [StateInfo; 45] = concat(M4_PS_STATES, INSTRUMENT_PS);
+const M1_PA_FULL_STATES: [StateInfo; 48] = concat(M1_PA_STATES, INSTRUMENT_PA);
+const M1_PS_FULL_STATES: [StateInfo; 51] = concat(M1_PS_STATES, INSTRUMENT_PS);
+const M2_PS_FULL_STATES: [StateInfo; 54] = concat(M2_PS_STATES, INSTRUMENT_PS);
+const M3_PA_FULL_STATES: [StateInfo; 51] = concat(M3_PA_STATES, INSTRUMENT_PA);
+const M3_PS_FULL_STATES: [StateInfo; 54] = concat(M3_PS_STATES, INSTRUMENT_PS);
+const M4_PA_FULL_STATES: [StateInfo; 48] = concat(M4_PA_STATES, INSTRUMENT_PA);
+const M4_PS_FULL_STATES: [StateInfo; 51] = concat(M4_PS_STATES, INSTRUMENT_PS);
 
 impl ConfigId {
     /// The names, units and groups of the states under error model
     /// `errors`, in state order: [`ConfigId::states`] for
     /// [`ErrorModel::Installation`]; for [`ErrorModel::Full`] the same
     /// followed by `dg_x, dg_y, dg_z, Dg_xx … Dg_zz` (`Dgpa_*` in the pa
-    /// frame), `kg_*, ba_*, ka_*, k2_*` and the Gauss–Markov nuisances
-    /// `dg_gm_*, ba_gm_*`.
+    /// frame), `kg_*, ba_*, ka_*, k2_*` and the nuisances `dg_gm_*,
+    /// ba_gm_*` (Gauss–Markov parts) and `dg_wu_*, ba_wu_*` (warm-up).
     ///
     /// # Examples
     ///
@@ -340,7 +361,7 @@ impl ConfigId {
     /// use rollcal::{ConfigId, Group};
     ///
     /// let states = ConfigId::M3Pa.states_with(ErrorModel::Full);
-    /// assert_eq!(states.len(), 45);
+    /// assert_eq!(states.len(), 51);
     /// assert_eq!(&states[..15], ConfigId::M3Pa.states());
     /// assert_eq!((states[15].name, states[15].unit), ("dg_x", "rad/s"));
     /// assert_eq!((states[19].name, states[19].group), ("Dgpa_xy", Group::GyroGDrift));

@@ -11,13 +11,17 @@
 //! - **random walk of the bias**, `r' = w`, whose variance grows by `K² t`:
 //!   process noise on the states `dg` and `ba` themselves, so that their
 //!   estimate at the end of a log is the value to compensate from then on
-//!   (`dg + r_g(t_end)`, `ba + r_a(t_end)`).
+//!   (`dg + r_g(t_end)`, `ba + r_a(t_end)`);
+//! - **warm-up**, `Δ e^(−t/τ_w)` from the start of the log, `Δ` unknown of
+//!   σ given: the states `w_g` (`dg_wu_*`) and `w_a` (`ba_wu_*`), which
+//!   decay by `e^(−T/τ_w)` a period with no process noise.
 //!
 //! The filter holds the wandering parts constant over a period and moves
 //! them at its end (after the period's measurement update and attitude time
 //! update): for a period of length `T` the Gauss–Markov states are
 //! multiplied by `φ = exp(−T/τ)` and gain the variance `σ² (1 − φ²)`, the
-//! random walks gain `K² T`. Over a 1 s period and τ of minutes the
+//! random walks gain `K² T`, the warm-up states are multiplied by
+//! `exp(−T/τ_w)`. Over a 1 s period and τ of minutes the
 //! difference from the continuous processes is of order `T/τ` of one
 //! period's increment, far below the measurement noise.
 
@@ -44,6 +48,9 @@ use nalgebra::RealField;
 ///     accel_markov_sigma: 2e-6,               // 2 µg
 ///     accel_markov_tau_s: 900.0,
 ///     accel_random_walk: 1e-6 / 60.0, // 1 µg/√h in g/√s
+///     gyro_warmup_sigma: 0.006 * deg_h,
+///     accel_warmup_sigma: 4e-6,
+///     warmup_tau_s: 1200.0,
 /// };
 /// assert!(w.is_valid() && !w.is_none());
 /// let step = w.step(1.0);
@@ -53,6 +60,8 @@ use nalgebra::RealField;
 /// assert!((s2 * step.accel_phi * step.accel_phi + step.accel_markov_q - s2).abs() < 1e-25);
 /// // The random walk's variance grows by K² T.
 /// assert_eq!(step.accel_walk_q, w.accel_random_walk * w.accel_random_walk);
+/// // The warm-up decays by e^(−T/τ_w), with no noise.
+/// assert!((step.warmup_phi - (-1.0f64 / 1200.0).exp()).abs() < 1e-15);
 /// assert!(Wander::<f64>::none().is_none());
 /// ```
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -74,6 +83,15 @@ pub struct Wander<T> {
     /// Accelerometer acceleration random walk `K_a` (g per √s): each
     /// bias's variance grows by `K_a² t`; 0: the bias is a constant.
     pub accel_random_walk: T,
+    /// Warm-up of each gyro's drift: the σ of its amplitude `Δ_g` (rad/s)
+    /// at the start of the log; 0: no warm-up.
+    pub gyro_warmup_sigma: T,
+    /// Warm-up of each accelerometer's bias: the σ of its amplitude `Δ_a`
+    /// (g); 0: no warm-up.
+    pub accel_warmup_sigma: T,
+    /// The warm-up's time constant τ_w (s); read only when a warm-up σ is
+    /// not zero.
+    pub warmup_tau_s: T,
 }
 
 /// What one period of length `T` does to the wandering states (see the
@@ -94,6 +112,8 @@ pub struct WanderStep<T> {
     pub accel_markov_q: T,
     /// `K_a² T` (g²).
     pub accel_walk_q: T,
+    /// `exp(−T/τ_w)` (1 without a warm-up).
+    pub warmup_phi: T,
 }
 
 /// The largest `T/τ` a period's Gauss–Markov decay is computed for: beyond
@@ -112,6 +132,9 @@ impl<T: RealField + Copy> Wander<T> {
             accel_markov_sigma: T::zero(),
             accel_markov_tau_s: T::zero(),
             accel_random_walk: T::zero(),
+            gyro_warmup_sigma: T::zero(),
+            accel_warmup_sigma: T::zero(),
+            warmup_tau_s: T::zero(),
         }
     }
 
@@ -122,13 +145,20 @@ impl<T: RealField + Copy> Wander<T> {
             self.gyro_random_walk,
             self.accel_markov_sigma,
             self.accel_random_walk,
+            self.gyro_warmup_sigma,
+            self.accel_warmup_sigma,
         ]
         .iter()
         .all(|v| *v == T::zero())
     }
 
-    /// Every figure finite and not negative, and each correlation time
-    /// strictly positive where its σ is not zero.
+    /// Whether there is a warm-up (a σ of its amplitude not zero).
+    pub fn has_warmup(&self) -> bool {
+        self.gyro_warmup_sigma != T::zero() || self.accel_warmup_sigma != T::zero()
+    }
+
+    /// Every figure finite and not negative, and each correlation or
+    /// warm-up time strictly positive where its σ is not zero.
     pub fn is_valid(&self) -> bool {
         let figures = [
             self.gyro_markov_sigma,
@@ -137,11 +167,15 @@ impl<T: RealField + Copy> Wander<T> {
             self.accel_markov_sigma,
             self.accel_markov_tau_s,
             self.accel_random_walk,
+            self.gyro_warmup_sigma,
+            self.accel_warmup_sigma,
+            self.warmup_tau_s,
         ];
         let tau_ok = |sigma: T, tau: T| sigma == T::zero() || tau > T::zero();
         figures.iter().all(|v| v.is_finite() && *v >= T::zero())
             && tau_ok(self.gyro_markov_sigma, self.gyro_markov_tau_s)
             && tau_ok(self.accel_markov_sigma, self.accel_markov_tau_s)
+            && (!self.has_warmup() || self.warmup_tau_s > T::zero())
     }
 
     /// One period of length `dt` (s) of the wandering errors.
@@ -157,6 +191,12 @@ impl<T: RealField + Copy> Wander<T> {
         };
         let (gyro_phi, gyro_markov_q) = markov(self.gyro_markov_sigma, self.gyro_markov_tau_s);
         let (accel_phi, accel_markov_q) = markov(self.accel_markov_sigma, self.accel_markov_tau_s);
+        // The warm-up: the decay of a Gauss–Markov process without noise.
+        let (warmup_phi, _) = if self.has_warmup() {
+            markov(T::one(), self.warmup_tau_s)
+        } else {
+            (T::one(), T::zero())
+        };
         WanderStep {
             gyro_phi,
             gyro_markov_q,
@@ -164,6 +204,7 @@ impl<T: RealField + Copy> Wander<T> {
             accel_phi,
             accel_markov_q,
             accel_walk_q: self.accel_random_walk * self.accel_random_walk * dt_t,
+            warmup_phi,
         }
     }
 }
@@ -179,6 +220,9 @@ impl Wander<f64> {
             accel_markov_sigma: c(self.accel_markov_sigma),
             accel_markov_tau_s: c(self.accel_markov_tau_s),
             accel_random_walk: c(self.accel_random_walk),
+            gyro_warmup_sigma: c(self.gyro_warmup_sigma),
+            accel_warmup_sigma: c(self.accel_warmup_sigma),
+            warmup_tau_s: c(self.warmup_tau_s),
         }
     }
 }

@@ -43,25 +43,25 @@ pub enum AnyCalibrator<T: RealField + Copy> {
     M4Ps(Calibrator<T, M4Ps, 15, 3>),
     /// M1-pa, full model.
     #[cfg(all(feature = "m1-pa", feature = "full-model"))]
-    M1PaFull(Calibrator<T, M1PaFull, 42, 3>),
+    M1PaFull(Calibrator<T, M1PaFull, 48, 3>),
     /// M1-ps, full model.
     #[cfg(all(feature = "m1-ps", feature = "full-model"))]
-    M1PsFull(Calibrator<T, M1PsFull, 45, 3>),
+    M1PsFull(Calibrator<T, M1PsFull, 51, 3>),
     /// M2-ps, full model.
     #[cfg(all(feature = "m2-ps", feature = "full-model"))]
-    M2PsFull(Calibrator<T, M2PsFull, 48, 6>),
+    M2PsFull(Calibrator<T, M2PsFull, 54, 6>),
     /// M3-pa, full model.
     #[cfg(all(feature = "m3-pa", feature = "full-model"))]
-    M3PaFull(Calibrator<T, M3PaFull, 45, 3>),
+    M3PaFull(Calibrator<T, M3PaFull, 51, 3>),
     /// M3-ps, full model.
     #[cfg(all(feature = "m3-ps", feature = "full-model"))]
-    M3PsFull(Calibrator<T, M3PsFull, 48, 3>),
+    M3PsFull(Calibrator<T, M3PsFull, 54, 3>),
     /// M4-pa, full model.
     #[cfg(all(feature = "m4-pa", feature = "full-model"))]
-    M4PaFull(Calibrator<T, M4PaFull, 42, 3>),
+    M4PaFull(Calibrator<T, M4PaFull, 48, 3>),
     /// M4-ps, full model.
     #[cfg(all(feature = "m4-ps", feature = "full-model"))]
-    M4PsFull(Calibrator<T, M4PsFull, 45, 3>),
+    M4PsFull(Calibrator<T, M4PsFull, 51, 3>),
 }
 
 /// A filter of any of the seven configurations: the one in which a
@@ -95,25 +95,25 @@ pub enum AnyFilter<T: RealField + Copy> {
     M4Ps(Filter<T, M4Ps, 15, 3>),
     /// M1-pa, full model.
     #[cfg(all(feature = "m1-pa", feature = "full-model"))]
-    M1PaFull(Filter<T, M1PaFull, 42, 3>),
+    M1PaFull(Filter<T, M1PaFull, 48, 3>),
     /// M1-ps, full model.
     #[cfg(all(feature = "m1-ps", feature = "full-model"))]
-    M1PsFull(Filter<T, M1PsFull, 45, 3>),
+    M1PsFull(Filter<T, M1PsFull, 51, 3>),
     /// M2-ps, full model.
     #[cfg(all(feature = "m2-ps", feature = "full-model"))]
-    M2PsFull(Filter<T, M2PsFull, 48, 6>),
+    M2PsFull(Filter<T, M2PsFull, 54, 6>),
     /// M3-pa, full model.
     #[cfg(all(feature = "m3-pa", feature = "full-model"))]
-    M3PaFull(Filter<T, M3PaFull, 45, 3>),
+    M3PaFull(Filter<T, M3PaFull, 51, 3>),
     /// M3-ps, full model.
     #[cfg(all(feature = "m3-ps", feature = "full-model"))]
-    M3PsFull(Filter<T, M3PsFull, 48, 3>),
+    M3PsFull(Filter<T, M3PsFull, 54, 3>),
     /// M4-pa, full model.
     #[cfg(all(feature = "m4-pa", feature = "full-model"))]
-    M4PaFull(Filter<T, M4PaFull, 42, 3>),
+    M4PaFull(Filter<T, M4PaFull, 48, 3>),
     /// M4-ps, full model.
     #[cfg(all(feature = "m4-ps", feature = "full-model"))]
-    M4PsFull(Filter<T, M4PsFull, 45, 3>),
+    M4PsFull(Filter<T, M4PsFull, 51, 3>),
 }
 
 impl<T: RealField + Copy> AnyCalibrator<T> {

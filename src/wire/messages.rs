@@ -11,12 +11,12 @@ use serde::{Deserialize, Serialize};
 use crate::ekf::Options;
 use crate::models::{ConfigId, ErrorModel, Wander};
 
-/// Largest state dimension of any model this build carries: 48 (the full
+/// Largest state dimension of any model this build carries: 54 (the full
 /// M2-ps and M3-ps models) with the `full-model` feature, else 18 (M2-ps,
 /// M3-ps). It sizes the messages' vectors only: the bytes of a message do
 /// not depend on it (postcard writes a vector's length before its items).
 #[cfg(feature = "full-model")]
-pub const MAX_STATES: usize = 48;
+pub const MAX_STATES: usize = 54;
 /// Largest state dimension of any model this build carries: 48 (the full
 /// M2-ps and M3-ps models) with the `full-model` feature, else 18 (M2-ps,
 /// M3-ps). It sizes the messages' vectors only: the bytes of a message do
@@ -150,7 +150,7 @@ pub struct CalibratorConfig {
     /// [`crate::calibrator::Calibrator::estimate`] is always available).
     pub estimate_every: u32,
     /// Which errors the filter estimates: the installation errors alone, or
-    /// followed by the instruments' own ([`ErrorModel::Full`], 30 more
+    /// followed by the instruments' own ([`ErrorModel::Full`], 36 more
     /// states; needs the `full-model` feature).
     pub errors: ErrorModel,
     /// Prior σ of the instrument errors (used by [`ErrorModel::Full`]).
@@ -176,11 +176,12 @@ pub struct CalibratorConfig {
 /// let p = InstrumentPrior::default();
 /// assert_eq!(p.ba_g, 1e-3); // 1 000 µg
 /// let sigma = p.sigma(&Wander::none());
-/// assert_eq!(sigma.len(), 30);
+/// assert_eq!(sigma.len(), 36);
 /// assert_eq!(sigma[15], 1e-3); // ba_x, after dg (3), D_g (9), kg (3)
 /// assert_eq!(sigma[21], 1e-4); // k2_x: 100 µg/g²
-/// // The Gauss–Markov parts' prior is their stationary σ (none here).
-/// assert_eq!(sigma[27..], [0.0; 3]);
+/// // The Gauss–Markov parts' prior is their stationary σ, the warm-up's
+/// // its amplitude's σ (none here).
+/// assert_eq!(sigma[24..], [0.0; 12]);
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct InstrumentPrior {
@@ -213,14 +214,16 @@ impl Default for InstrumentPrior {
 }
 
 /// The number of instrument states of the full model
-/// ([`ErrorModel::extra_states`]): 24 terms and 6 Gauss–Markov parts.
+/// ([`ErrorModel::extra_states`]): 24 terms, 6 Gauss–Markov parts and 6
+/// warm-up transients.
 pub const INSTRUMENT_STATES: usize = ErrorModel::Full.extra_states();
 
 impl InstrumentPrior {
-    /// The prior σ of the full model's 30 instrument states in state order
+    /// The prior σ of the full model's 36 instrument states in state order
     /// `[dg (3), D_g (9, row-major), kg (3), ba (3), ka (3), k2 (3), δ_g (3),
-    /// δ_a (3)]` (internal units); the Gauss–Markov parts `δ_g`, `δ_a` start
-    /// in their stationary distribution, σ of `wander`.
+    /// δ_a (3), w_g (3), w_a (3)]` (internal units); the Gauss–Markov parts
+    /// `δ_g`, `δ_a` start in their stationary distribution and the warm-up
+    /// `w_g`, `w_a` with its amplitude's σ, both of `wander`.
     pub fn sigma(&self, wander: &Wander<f64>) -> [f64; INSTRUMENT_STATES] {
         core::array::from_fn(|i| match i {
             0..=2 => self.dg_rad_s,
@@ -230,7 +233,9 @@ impl InstrumentPrior {
             18..=20 => self.ka,
             21..=23 => self.k2,
             24..=26 => wander.gyro_markov_sigma,
-            _ => wander.accel_markov_sigma,
+            27..=29 => wander.accel_markov_sigma,
+            30..=32 => wander.gyro_warmup_sigma,
+            _ => wander.accel_warmup_sigma,
         })
     }
 

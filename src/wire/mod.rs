@@ -78,15 +78,15 @@ pub const MIN_DECODED_LEN: usize = 1 + 1 + CRC_LEN;
 
 /// Upper bound of an encoded frame of any [`Message`], delimiter included
 /// (bytes). The largest message is a [`Checkpoint`] of [`MAX_STATES`]
-/// states: 2 881 to 3 157 bytes encoded for 18 states, about 20 KB for the
-/// full model's 48 (`full-model` feature; docs/wire.md §Limits and sizes);
+/// states: 2 881 to 3 157 bytes encoded for 18 states, about 25 KB for the
+/// full model's 54 (`full-model` feature; docs/wire.md §Limits and sizes);
 /// a [`Decoder`] with this capacity accepts every message.
 #[cfg(not(feature = "full-model"))]
 pub const MAX_FRAME_LEN: usize = 4096;
 /// Upper bound of an encoded frame of any [`Message`], delimiter included
 /// (bytes). The largest message is a [`Checkpoint`] of [`MAX_STATES`]
-/// states: 2 881 to 3 157 bytes encoded for 18 states, about 20 KB for the
-/// full model's 48 (`full-model` feature; docs/wire.md §Limits and sizes);
+/// states: 2 881 to 3 157 bytes encoded for 18 states, about 25 KB for the
+/// full model's 54 (`full-model` feature; docs/wire.md §Limits and sizes);
 /// a [`Decoder`] with this capacity accepts every message.
 #[cfg(feature = "full-model")]
-pub const MAX_FRAME_LEN: usize = 24576;
+pub const MAX_FRAME_LEN: usize = 32768;

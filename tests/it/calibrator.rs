@@ -1087,16 +1087,16 @@ fn the_full_model_checkpoints_restores_and_names_its_error_model() {
         ..settings(&sc, id, 50)
     };
     let (c2, c1) = (full(ConfigId::M2Ps), full(ConfigId::M1Pa));
-    let r = run::<f64, M2PsFull, 48, 6>(c2, &data, &[]);
+    let r = run::<f64, M2PsFull, 54, 6>(c2, &data, &[]);
     assert_eq!(r.1.len(), 6);
     assert!(r.2.iter().all(|o| o.is_ok()));
-    assert_eq!(run::<f64, M2PsFull, 48, 6>(c2, &data, &[1, 150, 299]), r);
-    let p = run::<f32, M1PaFull, 42, 3>(c1, &data, &[]);
-    assert_eq!(run::<f32, M1PaFull, 42, 3>(c1, &data, &[2, 100]), p);
+    assert_eq!(run::<f64, M2PsFull, 54, 6>(c2, &data, &[1, 150, 299]), r);
+    let p = run::<f32, M1PaFull, 48, 3>(c1, &data, &[]);
+    assert_eq!(run::<f32, M1PaFull, 48, 3>(c1, &data, &[2, 100]), p);
 
     let cal = M2PsFullCalibrator::<f64>::new(c2).unwrap();
     let cp = over_the_wire(cal.checkpoint());
-    assert_eq!((cp.errors, cp.state.len()), (ErrorModel::Full, 48));
+    assert_eq!((cp.errors, cp.state.len()), (ErrorModel::Full, 54));
     let installation = settings(&sc, ConfigId::M2Ps, 50);
     let refused = Error::ErrorModelMismatch {
         expected: ErrorModel::Installation,
@@ -1112,7 +1112,7 @@ fn the_full_model_checkpoints_restores_and_names_its_error_model() {
     let e = any.estimate();
     assert_eq!(
         (e.config, e.errors, e.sigma.len()),
-        (ConfigId::M2Ps, ErrorModel::Full, 48)
+        (ConfigId::M2Ps, ErrorModel::Full, 54)
     );
     // σ of the prior: 1° on the installation states, then dg (1 °/h), …,
     // ba_x (1000 µg, state 18 + 15).

@@ -134,13 +134,13 @@ fn zero_errors_agree<
 fn full_model_with_zero_instrument_errors_is_the_installation_model() {
     use rollcal::models::*;
     for (name, worst) in [
-        ("M1-pa", zero_errors_agree::<M1Pa, M1PaFull, 12, 42, 3>(1)),
-        ("M1-ps", zero_errors_agree::<M1Ps, M1PsFull, 15, 45, 3>(2)),
-        ("M2-ps", zero_errors_agree::<M2Ps, M2PsFull, 18, 48, 6>(3)),
-        ("M3-pa", zero_errors_agree::<M3Pa, M3PaFull, 15, 45, 3>(4)),
-        ("M3-ps", zero_errors_agree::<M3Ps, M3PsFull, 18, 48, 3>(5)),
-        ("M4-pa", zero_errors_agree::<M4Pa, M4PaFull, 12, 42, 3>(6)),
-        ("M4-ps", zero_errors_agree::<M4Ps, M4PsFull, 15, 45, 3>(7)),
+        ("M1-pa", zero_errors_agree::<M1Pa, M1PaFull, 12, 48, 3>(1)),
+        ("M1-ps", zero_errors_agree::<M1Ps, M1PsFull, 15, 51, 3>(2)),
+        ("M2-ps", zero_errors_agree::<M2Ps, M2PsFull, 18, 54, 6>(3)),
+        ("M3-pa", zero_errors_agree::<M3Pa, M3PaFull, 15, 51, 3>(4)),
+        ("M3-ps", zero_errors_agree::<M3Ps, M3PsFull, 18, 54, 3>(5)),
+        ("M4-pa", zero_errors_agree::<M4Pa, M4PaFull, 12, 48, 3>(6)),
+        ("M4-ps", zero_errors_agree::<M4Ps, M4PsFull, 15, 51, 3>(7)),
     ] {
         eprintln!("{name}: full (zero instrument errors) − installation: {worst:.1e}");
         // Rounding: the full model adds zeros (`0 · f`, `+ 0`) and
@@ -168,7 +168,7 @@ fn names_of<M: Model<N, Z>, const N: usize, const Z: usize>() {
                 expected.push(format!("{d}_{r}{c}"));
             }
         }
-        for g in ["kg", "ba", "ka", "k2", "dg_gm", "ba_gm"] {
+        for g in ["kg", "ba", "ka", "k2", "dg_gm", "ba_gm", "dg_wu", "ba_wu"] {
             for a in ["x", "y", "z"] {
                 expected.push(format!("{g}_{a}"));
             }
@@ -196,6 +196,8 @@ fn names_of<M: Model<N, Z>, const N: usize, const Z: usize>() {
         expect(21, Group::AccelSecondOrder, "1/g", "µg/g²");
         expect(24, Group::GyroMarkov, "rad/s", "°/h");
         expect(27, Group::AccelMarkov, "g", "µg");
+        expect(30, Group::GyroWarmup, "rad/s", "°/h");
+        expect(33, Group::AccelWarmup, "g", "µg");
         assert_eq!(Some(i + 15), M::LAYOUT.ba());
     } else {
         assert!(states
@@ -300,15 +302,15 @@ fn run_stream<T: nalgebra::RealField + Copy, M: Model<N, Z>, const N: usize, con
 
 #[test]
 fn filters_of_full_models_construct_and_step() {
-    let (x, sigma) = run_stream::<f64, M2PsFull, 48, 6>(300);
-    let iba = <M2PsFull as Model<48, 6>>::LAYOUT.ba().unwrap();
+    let (x, sigma) = run_stream::<f64, M2PsFull, 54, 6>(300);
+    let iba = <M2PsFull as Model<54, 6>>::LAYOUT.ba().unwrap();
     eprintln!(
         "M2-ps full after 300 s: ba {:?} µg, σ {:?} µg",
         x.fixed_rows::<3>(iba).map(|v| v * 1e6).as_slice(),
         sigma.fixed_rows::<3>(iba).map(|v| v * 1e6).as_slice()
     );
-    run_stream::<f64, M1PaFull, 42, 3>(300);
-    run_stream::<f32, M1PaFull, 42, 3>(100);
+    run_stream::<f64, M1PaFull, 48, 3>(300);
+    run_stream::<f32, M1PaFull, 48, 3>(100);
 }
 
 /// `mean_accel`'s Jacobian with respect to the state at the end of the
@@ -326,14 +328,15 @@ fn mean_accel_check<M: Model<N, Z>, const N: usize, const Z: usize>() -> Vec<(f6
             .copy_from(&Vector3::new(2.0, 0.05, 1.2));
     }
     let i = layout.instruments().unwrap();
-    for k in 0..30 {
+    for k in 0..36 {
         // dg, D_g up to 1e-4 rad/s(/g); kg, ba, ka up to 2e-3; k2 up to
-        // 5e-4 g/g²; the Gauss–Markov parts up to 1e-5 rad/s and 2e-5 g.
+        // 5e-4 g/g²; the Gauss–Markov parts and the warm-up up to 1e-5
+        // rad/s and 2e-5 g.
         let scale = match k {
             0..=11 => 1e-4,
             12..=20 => 2e-3,
             21..=23 => 5e-4,
-            24..=26 => 1e-5,
+            24..=26 | 30..=32 => 1e-5,
             _ => 2e-5,
         };
         x[i + k] = scale * lcg(&mut s);
@@ -399,7 +402,11 @@ fn full_mean_accel_jacobian_matches_finite_differences() {
             // through the period's transition (REL_TOL_TRANSITION there).
             let allowed = if matches!(
                 s.group,
-                Group::GyroDrift | Group::GyroGDrift | Group::GyroScale | Group::GyroMarkov
+                Group::GyroDrift
+                    | Group::GyroGDrift
+                    | Group::GyroScale
+                    | Group::GyroMarkov
+                    | Group::GyroWarmup
             ) {
                 1e-9 + 1e-6 * size
             } else {

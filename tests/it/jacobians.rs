@@ -143,6 +143,12 @@ fn state<const N: usize>(layout: &Layout) -> SVector<f64, N> {
         for k in 27..30 {
             x[i + k] = 2e-5 * r(); // δ_a (g)
         }
+        for k in 30..33 {
+            x[i + k] = 1e-5 * r(); // w_g (rad/s)
+        }
+        for k in 33..36 {
+            x[i + k] = 2e-5 * r(); // w_a (g)
+        }
     }
     x
 }
@@ -203,7 +209,8 @@ impl Blocks {
         self.0
             .iter()
             .map(|(n, e, s)| {
-                let allowed = if transition && matches!(*n, "dg" | "Dg" | "kg" | "dg_gm") {
+                let allowed = if transition && matches!(*n, "dg" | "Dg" | "kg" | "dg_gm" | "dg_wu")
+                {
                     TOL + REL_TOL_TRANSITION * s
                 } else {
                     TOL

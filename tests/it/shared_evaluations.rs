@@ -213,9 +213,9 @@ fn mean_accel_output_is_mean_accels_value() {
         ("M4-pa", mean_accel_output_error::<M4Pa, 12, 3>(23)),
         // The full model: instrument errors of 1e-3 in their units (ba, ka
         // act on the mean exactly as on each node's output).
-        ("M1-pa full", mean_accel_output_error::<M1PaFull, 42, 3>(24)),
-        ("M2-ps full", mean_accel_output_error::<M2PsFull, 48, 6>(25)),
-        ("M4-pa full", mean_accel_output_error::<M4PaFull, 42, 3>(26)),
+        ("M1-pa full", mean_accel_output_error::<M1PaFull, 48, 3>(24)),
+        ("M2-ps full", mean_accel_output_error::<M2PsFull, 54, 6>(25)),
+        ("M4-pa full", mean_accel_output_error::<M4PaFull, 48, 3>(26)),
     ] {
         eprintln!("{name}: mean_accel_output − mean_accel: f64 {e64:.1e} g, f32 {e32:.1e} g");
         // f64: rounding (a few ulp of 1 g). f32: M1's rotations of ≤ 1.7 mrad

@@ -372,6 +372,9 @@ fn configure_of(max: bool) -> Message {
             accel_markov_sigma: 2e-6,
             accel_markov_tau_s: 900.0,
             accel_random_walk: 1e-6 / 60.0,
+            gyro_warmup_sigma: 0.005 * deg_h,
+            accel_warmup_sigma: 3e-6,
+            warmup_tau_s: 1200.0,
         };
     } else {
         c.estimate_every = 0;
@@ -384,7 +387,7 @@ fn configure_of(max: bool) -> Message {
 /// (every varint one byte, every option `None`, every float zero) and the
 /// largest (every counter at its maximum, every option `Some`, no float
 /// with a zero byte, so that COBS adds a code byte per 254 bytes), and both
-/// fit `MAX_FRAME_LEN` (of this build; 48 states need `full-model`).
+/// fit `MAX_FRAME_LEN` (of this build; 54 states need `full-model`).
 #[test]
 fn the_pages_frame_sizes_are_measured() {
     let rows: Vec<(String, Message, Message)> = vec![
@@ -395,9 +398,9 @@ fn the_pages_frame_sizes_are_measured() {
             estimate_of(18, true),
         ),
         (
-            "`Estimate`, 48 states".into(),
-            estimate_of(48, false),
-            estimate_of(48, true),
+            "`Estimate`, 54 states".into(),
+            estimate_of(54, false),
+            estimate_of(54, true),
         ),
         (
             "`Checkpoint`, 18 states".into(),
@@ -405,9 +408,9 @@ fn the_pages_frame_sizes_are_measured() {
             checkpoint_of(18, true),
         ),
         (
-            "`Checkpoint`, 48 states".into(),
-            checkpoint_of(48, false),
-            checkpoint_of(48, true),
+            "`Checkpoint`, 54 states".into(),
+            checkpoint_of(54, false),
+            checkpoint_of(54, true),
         ),
         (
             "`Configure`".into(),
@@ -656,6 +659,9 @@ fn annotated(msg: &Message) -> Vec<(Vec<u8>, String)> {
                 ("accel_markov_sigma", w.accel_markov_sigma),
                 ("accel_markov_tau_s", w.accel_markov_tau_s),
                 ("accel_random_walk", w.accel_random_walk),
+                ("gyro_warmup_sigma", w.gyro_warmup_sigma),
+                ("accel_warmup_sigma", w.accel_warmup_sigma),
+                ("warmup_tau_s", w.warmup_tau_s),
             ] {
                 f(pc(&v), format!("wander.{name} = {v:e}"));
             }

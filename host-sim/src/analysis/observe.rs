@@ -149,7 +149,11 @@ fn analyse_typed<M: Model<N, Z>, const N: usize, const Z: usize>(
     let mut obs = Observability::<f64, M, N, Z>::new(cfg, x0, prior)?;
     // The structure at the true state, when it is not the bound's model.
     let mut truth_struct = if separate {
-        Some(Observability::<f64, M, N, Z>::new(cfg_struct, x0, prior_struct)?)
+        Some(Observability::<f64, M, N, Z>::new(
+            cfg_struct,
+            x0,
+            prior_struct,
+        )?)
     } else {
         None
     };
@@ -159,8 +163,7 @@ fn analyse_typed<M: Model<N, Z>, const N: usize, const Z: usize>(
     // errors themselves (coefficients ≈ 1e-3 on neighbouring states, e.g.
     // the λy null direction of M2-ps picks up 0.001 λx), which is reported
     // as `null_leak_at_truth`.
-    let mut zero =
-        Observability::<f64, M, N, Z>::new(cfg_struct, SVector::zeros(), prior_struct)?;
+    let mut zero = Observability::<f64, M, N, Z>::new(cfg_struct, SVector::zeros(), prior_struct)?;
     let mut history = Vec::new();
     for s in &sim.samples {
         obs.step(&s.dtheta_cmd, s.dt)?;
@@ -173,7 +176,10 @@ fn analyse_typed<M: Model<N, Z>, const N: usize, const Z: usize>(
         }
     }
     let spec: Spectrum<f64, N> = zero.analyse(RANK_TOLERANCE)?;
-    let at_truth: Spectrum<f64, N> = truth_struct.as_ref().unwrap_or(&obs).analyse(RANK_TOLERANCE)?;
+    let at_truth: Spectrum<f64, N> = truth_struct
+        .as_ref()
+        .unwrap_or(&obs)
+        .analyse(RANK_TOLERANCE)?;
     let leak = at_truth.participation();
     let names = id.states_with(run.errors);
     let basis = spec.null_space_basis();

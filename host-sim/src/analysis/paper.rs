@@ -122,6 +122,8 @@ fn figure_title(id: ConfigId, g: Group) -> String {
         Group::AccelSecondOrder => "accelerometer second-order term k2",
         Group::GyroMarkov => "Gauss–Markov part of the gyro drift",
         Group::AccelMarkov => "Gauss–Markov part of the accelerometer bias",
+        Group::GyroWarmup => "warm-up of the gyro drift",
+        Group::AccelWarmup => "warm-up of the accelerometer bias",
     };
     format!("{id}: {what} — estimation error, ±3σ filter, ±3σ_CRLB")
 }

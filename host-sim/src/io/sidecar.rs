@@ -41,9 +41,9 @@ pub fn truth_json(
         "truth_rad": truth,
         "truth0_rad": truth0,
         "crlb_sigma_rad": crlb,
-        "instrument_names": instrument_names(id),
-        "instrument_units": instrument_units(),
-        "instrument_truth": instrument_truth_state(id, &sim.params, &sim.final_wander()),
+        "instrument_names": instrument_names(id).to_vec(),
+        "instrument_units": instrument_units().to_vec(),
+        "instrument_truth": instrument_truth_state(id, &sim.params, &sim.final_wander()).to_vec(),
     }))
 }
 

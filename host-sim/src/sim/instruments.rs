@@ -1,15 +1,16 @@
-//! The 30 instrument-error states (docs/model.md §Instrument errors,
+//! The 36 instrument-error states (docs/model.md §Instrument errors,
 //! §Errors that wander): their order, names, printed units and true values,
 //! shared by the truth sidecar, the reports and the analysis.
 //!
 //! Order: `[dg (3), D_g (9, row-major: row = gyro, column = force axis),
-//! kg (3), ba (3), ka (3), k2 (3), δ_g (3), δ_a (3)]`. Internal units:
-//! rad/s, rad/s per g, dimensionless, g, dimensionless, g per g², rad/s, g.
+//! kg (3), ba (3), ka (3), k2 (3), δ_g (3), δ_a (3), w_g (3), w_a (3)]`.
+//! Internal units: rad/s, rad/s per g, dimensionless, g, dimensionless, g
+//! per g², rad/s, g, rad/s, g.
 //! In the pa configurations the g-sensitive drift is `D_g^pa = D_g R(θaC)`
 //! (names `Dgpa_*`); the others are the same numbers in both frames. The
 //! true value of a wandering term is the one at the instant it is taken
-//! at: `dg + r_g(t)`, `ba + r_a(t)` (the persistent part) and `δ_g(t)`,
-//! `δ_a(t)`.
+//! at: `dg + r_g(t)`, `ba + r_a(t)` (the persistent part), `δ_g(t)`,
+//! `δ_a(t)` and the warm-up `Δ e^(−t/τ_w)`.
 
 use rollcal::models::{ConfigId, ErrorModel, Group, PlatformFrame, StateInfo};
 
@@ -28,7 +29,7 @@ pub const PPM: f64 = 1e-6;
 pub const UG: f64 = 1e-6;
 
 /// The core's states of the full model of `id` after the installation
-/// ones: the 30 instrument states, names and groups
+/// ones: the 36 instrument states, names and groups
 /// ([`ConfigId::states_with`], the one table of state names).
 fn instrument_infos(id: ConfigId) -> &'static [StateInfo] {
     let all = id.states_with(ErrorModel::Full);
@@ -41,9 +42,9 @@ fn instrument_infos(id: ConfigId) -> &'static [StateInfo] {
 /// `ug`, `ug/g2`; `rad` for the angles.
 pub fn ascii_unit(group: Group) -> &'static str {
     match group {
-        Group::GyroDrift | Group::GyroMarkov => "deg/h",
+        Group::GyroDrift | Group::GyroMarkov | Group::GyroWarmup => "deg/h",
         Group::GyroGDrift => "deg/h/g",
-        Group::AccelBias | Group::AccelMarkov => "ug",
+        Group::AccelBias | Group::AccelMarkov | Group::AccelWarmup => "ug",
         Group::GyroScale | Group::AccelScale => "ppm",
         Group::AccelSecondOrder => "ug/g2",
         _ => "rad",
@@ -79,13 +80,13 @@ pub fn printed_factor(i: usize) -> f64 {
         .map_or(f64::NAN, |s| s.group.printed_scale().0)
 }
 
-/// The 30 names of configuration `id` (`Dgpa_*` in the pa frame).
+/// The 36 names of configuration `id` (`Dgpa_*` in the pa frame).
 pub fn instrument_names(id: ConfigId) -> [&'static str; INSTRUMENT_STATES] {
     let infos = instrument_infos(id);
     core::array::from_fn(|i| infos.get(i).map_or("", |s| s.name))
 }
 
-/// The 30 printed units, in state order.
+/// The 36 printed units, in state order.
 pub fn instrument_units() -> [&'static str; INSTRUMENT_STATES] {
     core::array::from_fn(printed_unit)
 }
@@ -94,8 +95,8 @@ pub fn instrument_units() -> [&'static str; INSTRUMENT_STATES] {
 /// order above) when the wandering parts are `w` (e.g. the run's end,
 /// `Simulation::final_wander`, or [`WanderTruth::zero`]): `D_g` in ps,
 /// `D_g^pa = D_g R(θaC)` in pa; `dg + r_g`, `ba + r_a` (the persistent
-/// parts, the calibrated values) and the Gauss–Markov parts `δ_g`, `δ_a`.
-/// The warm-up belongs to no state (no model carries it).
+/// parts, the calibrated values), the Gauss–Markov parts `δ_g`, `δ_a` and
+/// the warm-up.
 pub fn instrument_truth_state(
     id: ConfigId,
     p: &TruthParams,
@@ -117,7 +118,9 @@ pub fn instrument_truth_state(
     x[18..21].copy_from_slice(p.ka.as_slice());
     x[21..24].copy_from_slice(p.k2.as_slice());
     x[24..27].copy_from_slice(w.delta_g.as_slice());
-    x[27..].copy_from_slice(w.delta_a.as_slice());
+    x[27..30].copy_from_slice(w.delta_a.as_slice());
+    x[30..33].copy_from_slice(w.warmup_g.as_slice());
+    x[33..].copy_from_slice(w.warmup_a.as_slice());
     x
 }
 
@@ -132,6 +135,7 @@ mod tests {
         assert_eq!(instrument_names(ConfigId::M4Ps)[20], "ka_z");
         assert_eq!(instrument_names(ConfigId::M4Ps)[23], "k2_z");
         assert_eq!(instrument_names(ConfigId::M1Pa)[29], "ba_gm_z");
+        assert_eq!(instrument_names(ConfigId::M1Pa)[35], "ba_wu_z");
         let u = instrument_units();
         assert_eq!(
             (u[0], u[3], u[12], u[15], u[18], u[21], u[24], u[27]),

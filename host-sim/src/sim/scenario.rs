@@ -90,8 +90,10 @@ pub struct Instruments {
 
 /// The instruments' errors that wander (docs/model.md §Errors that wander),
 /// per axis, in data-sheet units (IEEE Std 952 / 1293 terms); every key
-/// optional, 0 (or absent) meaning "no such term". In a scenario they are
-/// the truth and the model; in a platform file the model.
+/// optional, 0 (or absent) meaning "no such term". In a scenario the
+/// bias instabilities and random walks are the truth and the model, the
+/// warm-up σ the model's (the truth's warm-up is `[instruments.warmup]`);
+/// in a platform file all are the model.
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Wander {
@@ -115,6 +117,16 @@ pub struct Wander {
     /// Accelerometer acceleration random walk K_a (µg/√h).
     #[serde(default)]
     pub accel_random_walk_ug_rt_h: f64,
+    /// Gyro warm-up: the σ of the amplitude `Δ_g` (°/h) of the drift's
+    /// transient `Δ_g e^(−t/τ_w)` from the start of the log.
+    #[serde(default)]
+    pub gyro_warmup_deg_h: f64,
+    /// Accelerometer warm-up: the σ of the amplitude `Δ_a` (µg).
+    #[serde(default)]
+    pub accel_warmup_ug: f64,
+    /// The warm-up's time constant τ_w (s); needed when a warm-up is given.
+    #[serde(default)]
+    pub warmup_time_constant_s: f64,
 }
 
 /// The largest bias instability or random walk a file may give: 10 °/h
@@ -142,6 +154,9 @@ impl Wander {
             accel_markov_sigma: self.accel_bias_instability_ug * UG,
             accel_markov_tau_s: self.accel_correlation_time_s,
             accel_random_walk: self.accel_random_walk_ug_rt_h * UG / 60.0,
+            gyro_warmup_sigma: self.gyro_warmup_deg_h * DEG_H,
+            accel_warmup_sigma: self.accel_warmup_ug * UG,
+            warmup_tau_s: self.warmup_time_constant_s,
         }
     }
 
@@ -175,6 +190,8 @@ impl Wander {
                 accel_max,
                 "µg/√h",
             ),
+            ("gyro_warmup_deg_h", self.gyro_warmup_deg_h, gyro_max, "°/h"),
+            ("accel_warmup_ug", self.accel_warmup_ug, accel_max, "µg"),
         ] {
             if !(v.is_finite() && (0.0..=max).contains(&v)) {
                 return Err(ScenarioError(format!(
@@ -206,6 +223,17 @@ impl Wander {
                     "{prefix}.{tau_name} = {tau} s: a bias instability ({prefix}.{sigma_name} = {sigma}) needs its correlation time, at least 1 s"
                 )));
             }
+        }
+        let tau = self.warmup_time_constant_s;
+        if !(tau.is_finite() && (0.0..=MAX_TIME_CONSTANT_S).contains(&tau)) {
+            return Err(ScenarioError(format!(
+                "{prefix}.warmup_time_constant_s = {tau} must be finite, ≥ 0 and ≤ {MAX_TIME_CONSTANT_S} s"
+            )));
+        }
+        if (self.gyro_warmup_deg_h > 0.0 || self.accel_warmup_ug > 0.0) && tau < 1.0 {
+            return Err(ScenarioError(format!(
+                "{prefix}.warmup_time_constant_s = {tau} s: a warm-up ({prefix}.gyro_warmup_deg_h or accel_warmup_ug) needs its time constant, at least 1 s"
+            )));
         }
         Ok(())
     }

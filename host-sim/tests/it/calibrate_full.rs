@@ -84,7 +84,7 @@ fn calibrate_errors_full_is_run_errors_full() {
         let (c, r) = (support::json_file(&cal_json), support::json_file(&run_json));
         assert_eq!(c["errors"], "full");
         let (c, r) = (states(&c), states(&r));
-        assert_eq!(c.len(), if config == "M2-ps" { 48 } else { 42 });
+        assert_eq!(c.len(), if config == "M2-ps" { 54 } else { 48 });
         assert_eq!(c.len(), r.len());
         for (a, b) in c.iter().zip(&r) {
             assert_eq!(a.0, b.0);

@@ -255,7 +255,7 @@ fn run_errors_full_matrices_json_applies_as_documented() {
     let v = support::json_file(&json);
     assert_eq!(v["errors"], "full");
     assert_eq!(v["names"].as_array().unwrap().len(), 18);
-    assert_eq!(v["all_states"]["names"].as_array().unwrap().len(), 48);
+    assert_eq!(v["all_states"]["names"].as_array().unwrap().len(), 54);
     let conv = v["conventions"].as_str().unwrap();
     assert!(
         conv.contains("w_c = (I + K_g)^-1 (G^-1 w^p - dg - D_g f^p)"),
@@ -338,7 +338,7 @@ fn run_errors_full_matrices_json_applies_as_documented() {
         assert!(ra <= K_SIGMA && rg <= K_SIGMA, "{ra}σ {rg}σ");
         worst = (worst.0.max(ra), worst.1.max(rg));
     }
-    assert!(x_true.len() == 48);
+    assert!(x_true.len() == 54);
     println!(
         "JSON applied: worst specific force {:.2}σ, platform rate {:.2}σ",
         worst.0, worst.1

@@ -467,7 +467,7 @@ fn the_search_bound_of_the_full_model_is_the_observability_bound() {
     let problem = Problem::with_errors(id, ErrorModel::Full, &s, 60.0);
     let p = pattern_of(&s).unwrap();
     let o = problem.evaluate(&p, Goal::Budget { periods: 5400 }, true, false);
-    assert_eq!(o.sigma_end.len(), 42);
+    assert_eq!(o.sigma_end.len(), 48);
     for (st, sig) in obs.states.iter().zip(&o.sigma_end) {
         if st.sigma_crlb_rad == 0.0 {
             // Not estimated: held at zero by both.

@@ -256,9 +256,9 @@ fn f32_increments_carry_no_torquer_scale_factor() {
     let bound = 0.25 * f64::from(f32::EPSILON) / 2.0 * 1e6;
     let mut worst = 0.0_f64;
     for k in [
-        f32_increment_as_kg::<48>(ConfigId::M2Ps, "designed-full-m2ps"),
-        f32_increment_as_kg::<42>(ConfigId::M1Pa, "designed-full-m1pa"),
-        f32_increment_as_kg::<42>(ConfigId::M4Pa, "designed-full-m1pa"),
+        f32_increment_as_kg::<54>(ConfigId::M2Ps, "designed-full-m2ps"),
+        f32_increment_as_kg::<48>(ConfigId::M1Pa, "designed-full-m1pa"),
+        f32_increment_as_kg::<48>(ConfigId::M4Pa, "designed-full-m1pa"),
     ] {
         worst = k.iter().fold(worst, |w, v| w.max(v.abs()));
     }

@@ -43,7 +43,7 @@ fn full_model_run_is_consistent_with_its_bound() {
         let r = run.run(Estimator::default(), None, false).unwrap();
         let crlb = run.crlb().unwrap();
         assert_eq!(r.states.len(), id.layout_with(ErrorModel::Full).n());
-        assert_eq!(r.states.len(), id.layout().n() + 30);
+        assert_eq!(r.states.len(), id.layout().n() + 36);
         for (s, c) in r.states.iter().zip(&crlb) {
             if s.info.group == Group::Attitude {
                 continue;
@@ -148,7 +148,7 @@ fn run_errors_full_on_the_command_line() {
     assert_eq!(v["errors"], "full");
     assert_eq!(v["states"].as_array().unwrap().len(), 12);
     let inst = v["instruments"].as_array().unwrap();
-    assert_eq!(inst.len(), 30);
+    assert_eq!(inst.len(), 36);
     assert_eq!(inst[3]["name"], "Dgpa_xx");
     assert_eq!(inst[15]["unit"], "µg");
     assert!((inst[15]["truth"].as_f64().unwrap() - 30.0).abs() < 1e-9);

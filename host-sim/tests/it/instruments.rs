@@ -344,8 +344,8 @@ fn instrumented_scenario_has_the_spec_values() {
     assert_eq!(s0[17], 1000.0 * UG);
     assert_eq!(s0[20], 1000.0 * PPM);
     assert_eq!(s0[21], 100.0 * UG);
-    assert_eq!(s0[24..], [0.0; 6]); // no Gauss–Markov parts in this scenario
-                                    // A written scenario (`design --out`) keeps the table; the paper's has none.
+    assert_eq!(s0[24..], [0.0; 12]); // no wandering parts in this scenario
+                                     // A written scenario (`design --out`) keeps the table; the paper's has none.
     let written = toml::to_string(&sc).unwrap();
     assert_eq!(Scenario::from_toml(&written).unwrap(), sc);
     assert!(!toml::to_string(&Scenario::paper())
@@ -418,10 +418,10 @@ fn sidecar_records_the_instrument_truth() {
             .unwrap();
         support::assert_success(&out);
         let json = support::json_file(&truth);
-        assert_eq!(json["instrument_names"], serde_json::json!(names));
+        assert_eq!(json["instrument_names"], serde_json::json!(names.to_vec()));
         assert_eq!(
             json["instrument_units"],
-            serde_json::json!(instrument_units())
+            serde_json::json!(instrument_units().to_vec())
         );
         let mut with_bias = sc.clone();
         for (a, b) in with_bias.instruments.ba_ug.iter_mut().zip(bias) {
@@ -448,7 +448,7 @@ fn sidecar_records_the_instrument_truth() {
     let old = dir.join("old.json");
     std::fs::write(&old, json.to_string()).unwrap();
     let s = read_sidecar(&old, ConfigId::M2Ps).unwrap();
-    assert_eq!(s.instruments, [0.0; 30]);
+    assert_eq!(s.instruments, [0.0; 36]);
     assert!(!s.truth.is_empty());
 
     // A wrong length or a non-array is a typed error naming the key.
@@ -460,7 +460,7 @@ fn sidecar_records_the_instrument_truth() {
             e,
             Error::SidecarLength {
                 found: 20,
-                expected: 30,
+                expected: 36,
                 ..
             }
         ),
@@ -468,7 +468,7 @@ fn sidecar_records_the_instrument_truth() {
     );
     assert!(
         e.to_string()
-            .contains("'instrument_truth' has 20 values, not 30"),
+            .contains("'instrument_truth' has 20 values, not 36"),
         "{e}"
     );
     json["instrument_truth"] = serde_json::json!("none");

@@ -20,6 +20,7 @@ fn realistic_wander() -> Wander {
         accel_bias_instability_ug: 2.0,
         accel_correlation_time_s: 900.0,
         accel_random_walk_ug_rt_h: 1.0,
+        ..Wander::default()
     }
 }
 

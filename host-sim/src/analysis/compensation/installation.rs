@@ -50,7 +50,9 @@ impl Compensation {
                     | Group::AccelScale
                     | Group::AccelSecondOrder
                     | Group::GyroMarkov
-                    | Group::AccelMarkov => (Vector3::repeat(f64::NAN), 0),
+                    | Group::AccelMarkov
+                    | Group::GyroWarmup
+                    | Group::AccelWarmup => (Vector3::repeat(f64::NAN), 0),
                     Group::ThetaGC => (gc, 1),
                     Group::ThetaGT => (gt, 2),
                     Group::ThetaAC => (ac, 3),

@@ -402,6 +402,8 @@ mod tests {
         ]);
         x.extend([0.002 * DEG_H; 3]);
         x.extend([1.5e-6; 3]);
+        x.extend([0.001 * DEG_H; 3]);
+        x.extend([0.5e-6; 3]);
         x
     }
 
@@ -409,8 +411,8 @@ mod tests {
     fn the_compensation_inverts_the_core_model() {
         let x = full_m2_ps();
         let n = x.len();
-        assert_eq!(n, 48);
-        let c = Compensation::with_errors(ConfigId::M2Ps, ErrorModel::Full, &x, &[1e-6; 48], &[])
+        assert_eq!(n, 54);
+        let c = Compensation::with_errors(ConfigId::M2Ps, ErrorModel::Full, &x, &[1e-6; 54], &[])
             .unwrap();
         // The persistent bias: its Gauss–Markov part is not compensated.
         assert_eq!(c.instruments.ba.x, 30e-6);
@@ -436,10 +438,10 @@ mod tests {
     fn with_zero_instrument_errors_the_installation_compensation_bit_for_bit() {
         let x = paper_ps();
         let mut full = x.clone();
-        full.extend([0.0; 30]);
+        full.extend([0.0; 36]);
         let c = Compensation::new(ConfigId::M2Ps, &x, &[1e-6; 18], &[]).unwrap();
         let d =
-            Compensation::with_errors(ConfigId::M2Ps, ErrorModel::Full, &full, &[1e-6; 48], &[])
+            Compensation::with_errors(ConfigId::M2Ps, ErrorModel::Full, &full, &[1e-6; 54], &[])
                 .unwrap();
         let (z, w) = (
             Vector3::new(0.1, 0.98, -0.05),
@@ -484,7 +486,7 @@ mod tests {
         let json = c.to_json();
         assert_eq!(json["errors"], "full");
         assert_eq!(json["names"].as_array().unwrap().len(), 18);
-        assert_eq!(json["all_states"]["names"].as_array().unwrap().len(), 48);
+        assert_eq!(json["all_states"]["names"].as_array().unwrap().len(), 54);
         assert_eq!(json["instrument_terms"]["k2"]["unit"], "µg/g²");
         assert_eq!(json["all_states"]["units"][ba], "g");
         assert_eq!(json["instrument_terms"]["ba"]["unit"], "µg");
