@@ -31,9 +31,14 @@ pub struct MonteCarloArgs {
     #[arg(long, value_enum, default_value_t = Precision::F64)]
     pub precision: Precision,
     /// Error model of the estimator: `installation` or `full` (with the
-    /// instruments' 21 errors; docs/model.md §Full model).
+    /// instruments' own errors; docs/model.md §Full model).
     #[arg(long, default_value = "installation", value_parser = parse_errors)]
     pub errors: ErrorModel,
+    /// At most this many passes over the data (default: the estimator of
+    /// record's); `--passes 1` judges the running filter, what the
+    /// calibrator reports while a run goes on.
+    #[arg(long, value_parser = clap::value_parser!(u8).range(1..=16))]
+    pub passes: Option<u8>,
     /// Write the statistics as JSON to PATH.
     #[arg(long, value_name = "PATH")]
     pub json: Option<PathBuf>,
@@ -60,6 +65,7 @@ pub fn command(args: &MonteCarloArgs) -> Result<(), Error> {
         runs,
         Estimator {
             precision: args.precision,
+            passes: args.passes.unwrap_or(Estimator::default().passes),
             ..Estimator::default()
         },
         &|n| {
