@@ -453,6 +453,16 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize, const 
         })
     }
 
+    /// Sets the computed frame `C^c_n` at the start of the first period to
+    /// `c_cn` (the path's start, `C^c_n = I`, otherwise), for a log that
+    /// starts elsewhere on its path ([`crate::estimator::LogStart`]); the
+    /// true initial state given to [`Observability::new`] is then the one
+    /// at that start. Call it before the first period. On error nothing
+    /// changes.
+    pub fn start_at(&mut self, c_cn: &nalgebra::Matrix3<f64>) -> Result<(), Error> {
+        self.crlb.start_at(c_cn)
+    }
+
     /// One filter period of length `dt` (s) with commanded angle increment
     /// `dtheta_c` (rad, c frame) and a measurement: propagates the true
     /// state and the bound, adds the period's measurement to `J` (`FULL`)

@@ -73,8 +73,8 @@ fn csv_round_trips_the_frame_samples() {
         .collect();
     let mut log = csvlog::parse(&short).unwrap();
     assert!(!log.has_frames);
-    let er = rollcal::wire::CalibratorConfig::paper(rollcal::models::ConfigId::M2Ps).earth_rate_n;
-    csvlog::fill_frames(&mut log.samples, er).unwrap();
+    let settings = rollcal::wire::CalibratorConfig::paper(rollcal::models::ConfigId::M2Ps);
+    csvlog::fill_frames(&mut log.samples, &settings).unwrap();
     for (a, b) in log.samples.iter().zip(&frames) {
         for (x, y) in a.c_cn_quat.iter().zip(&b.c_cn_quat) {
             assert!((x - y).abs() < 1e-6, "seq {}: {x} vs {y}", a.seq);

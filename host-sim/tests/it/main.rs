@@ -26,6 +26,7 @@ mod full_model;
 mod golden;
 mod innovations;
 mod instruments;
+mod mid_path;
 mod observability;
 mod packed_log;
 mod plots;
