@@ -261,6 +261,9 @@ fn read_csv(
     };
     let text = read_text(&args.input)?;
     let mut log = crate::io::csvlog::parse(&text).map_err(|e| format!("{}: {e}", args.input))?;
+    if let Some(note) = log.ignored_note() {
+        eprintln!("{note}");
+    }
     let settings = fallback.unwrap_or_else(|| CalibratorConfig {
         errors: input.errors.unwrap_or_default(),
         ..CalibratorConfig::paper(id)

@@ -82,11 +82,29 @@ pub struct Log {
     /// Whether the log had the `ccn_q*` columns (else the quaternions are
     /// zero until [`fill_frames`]).
     pub has_frames: bool,
+    /// The header's columns that are none of [`COLUMNS`] (a temperature, a
+    /// status word, …), in file order: read past, not used.
+    pub ignored: Vec<String>,
+}
+
+impl Log {
+    /// The note for the user about the ignored columns, if any.
+    pub fn ignored_note(&self) -> Option<String> {
+        (!self.ignored.is_empty()).then(|| {
+            let names: Vec<String> = self.ignored.iter().map(|n| format!("'{n}'")).collect();
+            format!(
+                "note: column(s) {} ignored: not one of docs/csv.md's ({})",
+                names.join(", "),
+                header()
+            )
+        })
+    }
 }
 
 /// Parses a log. Blank lines and lines starting with `#` are skipped; the
-/// first other line is the header. Errors are one line and name the line
-/// number (1-based) and the column.
+/// first other line is the header. Columns of another name than
+/// [`COLUMNS`]' are ignored ([`Log::ignored`]). Errors are one line and
+/// name the line number (1-based) and the column.
 pub fn parse(text: &str) -> Result<Log, Error> {
     let mut lines = text
         .lines()
@@ -101,10 +119,10 @@ pub fn parse(text: &str) -> Result<Log, Error> {
     for (n, l) in lines {
         samples.push(parse_line(&h, n, l).map_err(Error::Csv)?);
     }
-    let has_frames = h.has_frames;
     Ok(Log {
         samples,
-        has_frames,
+        has_frames: h.has_frames,
+        ignored: h.ignored,
     })
 }
 
@@ -118,19 +136,20 @@ struct Header {
     has_gimbal: bool,
     /// Whether the quaternion columns are present.
     has_frames: bool,
+    /// The names of the columns that are none of [`COLUMNS`].
+    ignored: Vec<String>,
 }
 
 /// Parses the header line `head` (line `hline`).
 fn parse_header(hline: usize, head: &str) -> Result<Header, String> {
     // Column index of each named column in the file.
     let mut index = [None::<usize>; COLUMNS.len()];
+    let mut ignored = Vec::new();
     let names: Vec<&str> = head.split(',').map(str::trim).collect();
     for (pos, name) in names.iter().enumerate() {
         let Some(k) = COLUMNS.iter().position(|c| c == name) else {
-            return Err(format!(
-                "line {hline}: unknown column '{name}' (expected {})",
-                header()
-            ));
+            ignored.push((*name).to_string());
+            continue;
         };
         if index[k].replace(pos).is_some() {
             return Err(format!("line {hline}: column '{name}' appears twice"));
@@ -160,6 +179,7 @@ fn parse_header(hline: usize, head: &str) -> Result<Header, String> {
         columns: names.len(),
         has_gimbal,
         has_frames,
+        ignored,
     })
 }
 
