@@ -475,17 +475,7 @@ fn answer<T: RealField + Copy>(
     }
     let sigma0 = runner::prior_sigma_of(&settings);
     let nan = vec![f64::NAN; layout.n()];
-    let start = host.log_start()?;
-    let truth_start = match (sidecar.as_ref(), est.progress.log_incomplete) {
-        (Some(s), None) => truth_at_start(
-            &settings,
-            &start,
-            (s.truth0_of(settings.errors), &s.truth_of(settings.errors)),
-            &host.log.records_f64(),
-        )?,
-        _ => None,
-    };
-    let received_bound = received_bound(&settings, truth_start.as_deref(), &start, host)?;
+    let (start, truth_start, received_bound) = received(&settings, sidecar.as_ref(), &est, host)?;
     // The sidecar's bound is the installation model's: not the full model's.
     let crlb = received_bound
         .as_ref()
@@ -540,32 +530,47 @@ fn answer<T: RealField + Copy>(
     })
 }
 
-/// The bound of the samples actually received: the bound over the same
-/// log (the bridged periods predicted only), from the true state at the
-/// log's start `start`; `None` without one (no sidecar, or a log that is
-/// not the whole run: then the full run's bound of the sidecar is the one
-/// shown).
-fn received_bound<T: RealField + Copy>(
+/// Where the log started on the path, the true state there (with a
+/// sidecar and a complete log) and the bound of the samples actually
+/// received: the bound over the same log (the bridged periods predicted
+/// only) from that true state; `None` without one (no sidecar, or a log
+/// that is not the whole run: then the full run's bound of the sidecar is
+/// the one shown).
+#[allow(clippy::type_complexity)]
+fn received<T: RealField + Copy>(
     settings: &CalibratorConfig,
-    truth_start: Option<&[f64]>,
-    start: &LogStart,
-    host: &Host<T>,
-) -> Result<Option<Vec<f64>>, Error> {
+    sidecar: Option<&Sidecar>,
+    est: &Estimate,
+    host: &mut Host<T>,
+) -> Result<(LogStart, Option<Vec<f64>>, Option<Vec<f64>>), Error> {
+    let start = host.log_start()?;
+    let records = host.log.records_f64();
+    let truth_start = match (sidecar, est.progress.log_incomplete) {
+        (Some(s), None) => truth_at_start(
+            settings,
+            &start,
+            (s.truth0_of(settings.errors), &s.truth_of(settings.errors)),
+            &records,
+        )?,
+        _ => None,
+    };
     let sigma0 = runner::prior_sigma_of(settings);
-    truth_start
+    let bound = truth_start
+        .as_deref()
         .map(|t0| {
             runner::bound(
                 settings.config,
                 settings.errors,
                 FilterConfig::<f64>::from(settings),
                 t0,
-                start,
+                &start,
                 &sigma0,
-                &host.log.records_f64(),
+                &records,
             )
-            .map_err(|e| format!("Cramér–Rao bound of the received samples: {e}").into())
+            .map_err(|e| format!("Cramér–Rao bound of the received samples: {e}"))
         })
-        .transpose()
+        .transpose()?;
+    Ok((start, truth_start, bound))
 }
 
 /// The answer as a run's result: the final passes' estimate, σ,
