@@ -1,4 +1,4 @@
-//! Frames, rotations and gimbal kinematics (docs/model.md §Frames; paper eqs. 1, 2, 5).
+//! Frames, rotations and gimbal kinematics (docs/model.md §Notation, §Frames).
 //!
 //! Every function here is pure and allocation-free. Angles are radians,
 //! direction-cosine matrices (DCMs) follow the convention `C^b_a` = "from
@@ -50,7 +50,8 @@ pub fn skew_squared<T: RealField + Copy>(v: &Vector3<T>) -> Matrix3<T> {
 }
 
 /// `L(t)`: the strictly lower-triangular matrix `[[0,0,0],[t1,0,0],[t2,t3,0]]`
-/// (the paper's `[θ]` of the non-orthogonality angles `θT`, eq. 6).
+/// (the paper's `[θ]` of the non-orthogonality angles `θT`, docs/model.md
+/// §Notation).
 #[inline]
 pub fn lower<T: RealField + Copy>(t: &Vector3<T>) -> Matrix3<T> {
     let z = T::zero();

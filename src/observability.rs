@@ -1,5 +1,5 @@
-//! Observability of a configuration along a rolling path (docs/model.md §Observability; the
-//! paper's §2 proves by hand what this module computes).
+//! Observability of a configuration along a rolling path (docs/model.md
+//! §Observability; what the paper proves by hand, computed).
 //!
 //! [`Observability`] follows the *true* trajectory of a configuration (the
 //! model integrated without noise from the true initial state along the
@@ -42,7 +42,7 @@
 //! coefficients below [`COEF_THRESHOLD`] set to zero: this makes the
 //! combinations readable, e.g. `0.577 psi_x + 0.577 thgC_x + 0.577 thaC_x`
 //! (the ps-frame gauge: the cube frame cannot be told from the accelerometer
-//! frame, paper eq. 28).
+//! frame, docs/model.md §Configurations).
 //!
 //! A state is *structurally unobservable* when it takes part in the null
 //! space (the norm of its unit vector's projection on the null space exceeds
@@ -240,7 +240,7 @@ pub fn expected_observable(id: ConfigId, name: &str, group: Group) -> bool {
         Group::Lambda => id == M2Ps && (name == "lam_x" || name == "lam_z"),
         Group::Attitude => false,
         // The paper takes the instruments' own errors as calibrated: it
-        // has no verdict on them (SPEC §8 asks the analysis for one).
+        // has no verdict on them (this analysis gives one: docs/observability.md).
         Group::GyroDrift
         | Group::GyroGDrift
         | Group::GyroScale

@@ -157,7 +157,7 @@ pub type M4PaFilter<T> = Filter<T, crate::models::M4Pa, 12, 3>;
 /// M4-ps filter (15 states).
 pub type M4PsFilter<T> = Filter<T, crate::models::M4Ps, 15, 3>;
 /// M1-pa full-model filter (33 states: installation and instrument errors,
-/// SPEC §8; [`crate::models::M1PaFull`]).
+/// docs/model.md §Instrument errors; [`crate::models::M1PaFull`]).
 pub type M1PaFullFilter<T> = Filter<T, crate::models::M1PaFull, 33, 3>;
 /// M1-ps full-model filter (36 states).
 pub type M1PsFullFilter<T> = Filter<T, crate::models::M1PsFull, 36, 3>;

@@ -24,8 +24,9 @@ use crate::command::CommandFrame;
 use crate::geometry::{angle_between, euler_angles, wrap_angles};
 use crate::models::{AttitudeKind, Layout, ATT};
 
-/// The computed frame `C^c_n` at the start of a log's first period (see
-/// the [module docs](self)).
+/// The computed frame `C^c_n` at the start of a log's first period: the
+/// path's start (`C^c_n = I`), or where a log that starts elsewhere on
+/// the path began, from its first sample or walked back from its end.
 ///
 /// # Examples
 ///

@@ -1,5 +1,5 @@
 //! Which instrument errors a model estimates (docs/model.md §Full model,
-//! SPEC §8): the installation errors alone ([`ErrorModel::Installation`],
+//! §Instrument errors): the installation errors alone ([`ErrorModel::Installation`],
 //! the paper's models and the default of every configuration) or the
 //! installation errors followed by the instruments' own errors
 //! ([`ErrorModel::Full`]: gyro drift, g-sensitive drift, torquer scale
@@ -38,7 +38,7 @@ pub enum ErrorModel {
     #[default]
     Installation,
     /// The installation errors followed by
-    /// `[dg (3), D_g (9), kg (3), ba (3), ka (3)]` (SPEC §8).
+    /// `[dg (3), D_g (9), kg (3), ba (3), ka (3)]` (docs/model.md §Instrument errors).
     Full,
 }
 

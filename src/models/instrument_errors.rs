@@ -1,5 +1,5 @@
-//! The instruments' own errors of the full model (SPEC §8,
-//! docs/model.md §Full model): [`InstrumentErrors`], unpacked from a state
+//! The instruments' own errors of the full model (docs/model.md
+//! §Instrument errors, §Full model): [`InstrumentErrors`], unpacked from a state
 //! vector by [`Layout::instrument_errors`](super::Layout::instrument_errors),
 //! and the two places they act: the gyro input
 //! `(I + K_g) ωc + dg + D_g f^p` ([`InstrumentErrors::gyro_input`]) and the
@@ -75,7 +75,8 @@ impl<T: RealField + Copy> InstrumentErrors<T> {
         self.kg.component_mul(omega_c) + self.dg + self.d_g * f_p
     }
 
-    /// The same errors in the pa frame from the ps ones (SPEC §8):
+    /// The same errors in the pa frame from the ps ones (docs/model.md
+    /// §Instrument errors):
     /// `D_g^pa = D_g R(θaC)` (so that `D_g^pa f^pa = D_g f^ps`, with
     /// `f^ps = R(θaC) f^pa`), `dg`, `kg`, `ba`, `ka` unchanged; `theta_a_c`
     /// is the accelerometer misalignment θaC (rad).

@@ -1,4 +1,4 @@
-//! The seven system configurations of docs/model.md §Configurations (paper §1.3).
+//! The seven system configurations of docs/model.md §Configurations.
 //!
 //! A configuration is composed of four parts:
 //! - the **attitude model** ([`AttitudeKind`]): the misalignment `ψ` of the
@@ -21,7 +21,7 @@
 //! The state vector is
 //! `[attitude(3), θgC or θgC^pa (3), θgT (3), θaC (3, ps only), θaT (3), λ (3, M2/M3)]`,
 //! all radians: the installation states. The **full model** ([`ErrorModel::Full`],
-//! SPEC §8, types `M1PaFull` … `M4PsFull`) appends the instruments' own
+//! docs/model.md §Instrument errors, types `M1PaFull` … `M4PsFull`) appends the instruments' own
 //! errors ([`InstrumentErrors`]):
 //! `[dg (3, rad/s), D_g (9, rad/s per g, row-major: row = gyro, column =
 //! force axis in the model's platform frame), kg (3), ba (3, g), ka (3)]`,
@@ -171,7 +171,7 @@ config_type!(
     M4Ps, M4Ps, 15, 3);
 
 config_type!(full
-    /// M1-pa full model (SPEC §8): the 12 states of [`M1Pa`] followed by
+    /// M1-pa full model (docs/model.md §Instrument errors): the 12 states of [`M1Pa`] followed by
     /// `dg, D_g^pa, kg, ba, ka` (33 states); accelerometer observations.
     ///
     /// # Examples

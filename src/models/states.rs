@@ -98,7 +98,7 @@ impl Group {
 
     /// The factor from the internal unit to the printed one, and the
     /// printed unit: angles in arcseconds (`″`), `dg` in °/h, `D_g` in
-    /// °/h/g, `kg` and `ka` in ppm, `ba` in µg (SPEC §2, §8).
+    /// °/h/g, `kg` and `ka` in ppm, `ba` in µg (docs/model.md §State names).
     ///
     /// # Examples
     ///
@@ -243,7 +243,8 @@ const M4_PS_STATES: [StateInfo; 15] = states![
     "thaT_1": ThetaAT, "thaT_2": ThetaAT, "thaT_3": ThetaAT,
 ];
 
-/// The full model's instrument-error states in the ps frame (SPEC §8).
+/// The full model's instrument-error states in the ps frame (docs/model.md
+/// §Instrument errors).
 const INSTRUMENT_PS: [StateInfo; 21] = states![
     "dg_x": GyroDrift, "dg_y": GyroDrift, "dg_z": GyroDrift,
     "Dg_xx": GyroGDrift, "Dg_xy": GyroGDrift, "Dg_xz": GyroGDrift,

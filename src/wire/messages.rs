@@ -159,7 +159,7 @@ pub struct CalibratorConfig {
 
 /// Prior σ of the instrument errors of the full model (docs/model.md
 /// §Instrument errors), one per group, in the filter's internal units; the
-/// initial estimate is zero. [`Default`] is SPEC §8's: 1 °/h, 1 °/h/g,
+/// initial estimate is zero. [`Default`] is docs/model.md §The instrumented scenario's: 1 °/h, 1 °/h/g,
 /// 2 000 ppm, 1 000 µg, 1 000 ppm.
 ///
 /// # Examples
@@ -225,7 +225,7 @@ impl CalibratorConfig {
     /// The paper's settings (docs/model.md §The paper's scenario) for configuration `config`: noise
     /// 1e-6 g, 0.1°/h, 10″; latitude 34.25° with Earth rate; prior 1°;
     /// default options and limits; an estimate every 60 samples; the
-    /// installation model (SPEC §8's instrument prior, unused by it).
+    /// installation model (the default instrument prior, unused by it).
     ///
     /// # Examples
     ///

@@ -116,7 +116,7 @@ fn state<const N: usize>(layout: &Layout) -> SVector<f64, N> {
     }
     if let Some(i) = layout.instruments() {
         // The full model's instrument errors, pseudo-random and far from
-        // zero (larger than the SPEC §8 truths, so that a missing factor
+        // zero (larger than the instrumented scenario's, so that a missing factor
         // `I + K_a` or term `G D_g ∂f^p/∂att` shows at ≥ 1e-6): dg and D_g
         // up to 20 °/h (1e-4 rad/s), kg, ka up to 2000 ppm, ba up to 2 mg.
         let mut seed = 0x5eed_u64 + i as u64;
@@ -317,7 +317,7 @@ fn run(id: ConfigId, errors: ErrorModel) -> Report {
     report
 }
 
-/// Runs every configuration, installation-only and full (SPEC §8),
+/// Runs every configuration, installation-only and full,
 /// prints the errors of one check and asserts them against `TOL` (and,
 /// for a `transition` check, the gyro errors' columns against
 /// `REL_TOL_TRANSITION` of their size).

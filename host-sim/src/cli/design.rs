@@ -9,22 +9,33 @@ use std::sync::Mutex;
 use rollcal::models::{ConfigId, ErrorModel};
 
 use crate::design::{
-    parse_target, run, Goal, Note, Observer, Request, Run, TargetArg, DEFAULT_STEP_DEG,
+    nominal_scenario, parse_target, run, Goal, Note, Observer, Request, Run, TargetArg,
+    DEFAULT_STEP_DEG,
 };
 use crate::output::design as show;
 use crate::output::progress::Progress;
-use crate::sim::scenario::Scenario;
+use crate::sim::scenario::{Platform, Scenario};
 
 /// Arguments of `host-sim design`.
 #[derive(clap::Args, Clone, Debug)]
 pub struct DesignArgs {
-    /// Configuration: M1-pa, M1-ps, M2-ps, M3-pa, M3-ps, M4-pa, M4-ps (case-insensitive).
+    /// Configuration: M1-pa, M1-ps, M2-ps, M3-pa, M3-ps, M4-pa, M4-ps
+    /// (case-insensitive); optional when the platform file names one (it
+    /// must then agree).
     #[arg(long, value_parser = super::args::parse_config)]
-    pub config: ConfigId,
+    pub config: Option<ConfigId>,
     /// Scenario file (TOML): site, noise, truth, timing, prior, and the
     /// reference path the targets default to; default: the paper's scenario.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", conflicts_with = "platform")]
     pub scenario: Option<PathBuf>,
+    /// Platform file (TOML, docs/csv.md; the one `calibrate` reads): site,
+    /// noise, period, prior, the instruments' prior and the path rolled
+    /// today (`[[path]]`: the reference of the default targets; the
+    /// paper's when absent). No truth: the bound at nominal values, zero
+    /// installation errors and instrument terms (docs/path-design.md,
+    /// "Your own platform").
+    #[arg(long, value_name = "FILE")]
+    pub platform: Option<PathBuf>,
     /// A target σ, NAME=VALUE, NAME a state (thgC_x) or a group (thgC),
     /// VALUE in arcseconds (with `--errors full`, an instrument term's in
     /// °/h, °/h/g, ppm or µg: dg=0.01); repeatable. Default: the reference
@@ -39,8 +50,9 @@ pub struct DesignArgs {
     /// reported with the σ reached and what time or rate reaches it, and
     /// when no path reaches every target the search falls back to the best
     /// worst-case σ/target within the duration limit.
-    #[arg(long, default_value = "installation", value_parser = super::args::parse_errors)]
-    pub errors: ErrorModel,
+    /// Default: the platform file's `errors`, else `installation`.
+    #[arg(long, value_parser = super::args::parse_errors)]
+    pub errors: Option<ErrorModel>,
     /// Multiply the default targets by this factor (e.g. 2: half the accuracy).
     #[arg(long, default_value_t = 1.0, value_parser = parse_positive)]
     pub target_scale: f64,
@@ -123,11 +135,60 @@ fn parse_positive(s: &str) -> Result<f64, String> {
     }
 }
 
-/// The library's request of `args`.
-fn request_of(args: &DesignArgs) -> Request {
+/// The reference scenario of `args`: the scenario file, the platform file
+/// at nominal values (with its notes on stderr), or the paper's; with the
+/// configuration and error model the platform file names, if any.
+fn reference_of(
+    args: &DesignArgs,
+) -> Result<(Scenario, Option<ConfigId>, Option<ErrorModel>), String> {
+    if let Some(p) = &args.scenario {
+        return Ok((
+            Scenario::from_file(p).map_err(|e| e.to_string())?,
+            None,
+            None,
+        ));
+    }
+    let Some(path) = &args.platform else {
+        return Ok((Scenario::paper(), None, None));
+    };
+    let platform = Platform::from_file(path).map_err(|e| e.to_string())?;
+    let (scenario, paper_path) = nominal_scenario(&platform)?;
+    eprintln!(
+        "note: {}: the bound at nominal values (zero installation errors, initial gimbal angles and instrument terms; docs/path-design.md, \"Your own platform\")",
+        path.display()
+    );
+    if paper_path {
+        eprintln!(
+            "note: {} has no [[path]]: the reference path (the default targets, the duration limit) is the paper's, {} s",
+            path.display(),
+            scenario.timing.duration_s
+        );
+    }
+    Ok((scenario, platform.config_id(), platform.error_model()))
+}
+
+/// The configuration: `--config`, or the platform file's; both must agree.
+fn config_of(args: &DesignArgs, platform: Option<ConfigId>) -> Result<ConfigId, String> {
+    match (args.config, platform) {
+        (Some(a), Some(b)) if a != b => Err(format!(
+            "--config {a} contradicts the configuration {b} of the platform file {}",
+            args.platform
+                .as_deref()
+                .unwrap_or(std::path::Path::new(""))
+                .display()
+        )),
+        (Some(a), _) | (None, Some(a)) => Ok(a),
+        (None, None) => {
+            Err("give --config (or a platform file with config = \"…\", --platform FILE)".into())
+        }
+    }
+}
+
+/// The library's request of `args` for `config` and `errors`.
+fn request_of(args: &DesignArgs, config: ConfigId, errors: ErrorModel) -> Request {
     Request {
-        config: args.config,
-        errors: args.errors,
+        config,
+        errors,
         targets: args.targets.clone(),
         target_scale: args.target_scale,
         max_rate_deg_s: args.max_rate_deg_s,
@@ -186,14 +247,13 @@ fn speed(r: &Run) -> Result<serde_json::Value, String> {
 /// Runs `host-sim design`.
 pub fn command(args: &DesignArgs) -> Result<(), String> {
     let t_all = std::time::Instant::now();
-    let base = match &args.scenario {
-        Some(p) => Scenario::from_file(p).map_err(|e| e.to_string())?,
-        None => Scenario::paper(),
-    };
-    if args.errors == ErrorModel::Full {
-        super::args::note_instrument_prior(&base, args.errors);
+    let (base, platform_config, platform_errors) = reference_of(args)?;
+    let config = config_of(args, platform_config)?;
+    let errors = args.errors.or(platform_errors).unwrap_or_default();
+    if errors == ErrorModel::Full {
+        super::args::note_instrument_prior(&base, errors);
     }
-    let r = run(&request_of(args), base, &Stderr::default())?;
+    let r = run(&request_of(args, config, errors), base, &Stderr::default())?;
     show::print_result(&r);
     if args.explain {
         show::print_explain(&r);
@@ -221,8 +281,18 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
         crate::output::report::write_json(p, &json)?;
     }
     eprintln!("design: done in {:.1} s", t_all.elapsed().as_secs_f64());
-    if matches!(r.goal, Goal::Reach { .. }) && !r.checked.met {
-        return Err("the designed path misses a target in the observability check".into());
+    match r.goal {
+        Goal::Reach { .. } if !r.checked.met => {
+            Err("the designed path misses a target in the observability check".into())
+        }
+        // The shortest path to every target was asked for and none exists
+        // within the limits: the best path within them is written, and the
+        // exit status says the goal was not reached.
+        Goal::Budget { .. } if r.fallback => Err(format!(
+            "{} target(s) out of reach within the limits (listed above): the best path within them is written to {}",
+            r.unreached.len(),
+            out.display()
+        )),
+        _ => Ok(()),
     }
-    Ok(())
 }

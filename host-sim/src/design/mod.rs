@@ -57,6 +57,7 @@ mod candidates;
 mod check;
 mod error;
 mod explain;
+mod nominal;
 mod pattern;
 mod probe;
 mod problem;
@@ -77,6 +78,7 @@ pub use check::{
 };
 pub use error::DesignError;
 pub use explain::{contributions, target_groups, Contribution};
+pub use nominal::{nominal_scenario, TRUTH_STEPS_PER_PERIOD};
 pub use pattern::{pattern_of, Pattern, Piece, Rotation};
 pub use probe::{dwell_probe, DwellProbe};
 pub use problem::{Goal, Outcome, Problem};

@@ -359,7 +359,10 @@ pub struct Run {
     /// The full model's targets out of reach.
     pub unreached: Vec<OutOfReach>,
     /// The shortest-path search found no path reaching every target; the
-    /// result is the budget search's within the duration limit.
+    /// result is the budget search's within the duration limit, or, when
+    /// its best path meets every target ([`Run::goal`] then
+    /// [`Goal::Reach`]), that path cut where it meets them (a path to every
+    /// target, not the shortest).
     pub fallback: bool,
     /// Largest rotation rate (°/s).
     pub max_rate: f64,
@@ -415,7 +418,11 @@ impl Run {
 }
 
 /// Designs the path `req` asks for on the reference scenario `base`,
-/// telling `obs` how it goes (see the [module docs](self)).
+/// telling `obs` how it goes: the limits and targets, the reference path's
+/// bound, the search (repeated with shorter coarse steps until they hold;
+/// for the full model the budget search when no path reaches every
+/// target, cut where its best meets them all when it does), the check of
+/// the written scenario, the dwell probe and the targets out of reach.
 pub fn run(req: &Request, base: Scenario, obs: &dyn Observer) -> Result<Run, DesignError> {
     let reference = pattern_of(&base)?;
     let l = limits(req, &base)?;
@@ -439,23 +446,46 @@ pub fn run(req: &Request, base: Scenario, obs: &dyn Observer) -> Result<Run, Des
         threads: rayon::current_num_threads(),
     });
     let mut fallback = false;
-    let (design, coarse) = match search_until_fine(&mut problem, &space, goal, l.max_periods, obs) {
-        // The full model: no path reaches every target within the limits;
-        // the best worst-case σ/target within the duration limit instead,
-        // and the targets out of reach are reported with the bound.
-        Err(DesignError::NoPathReaches { within_s })
-            if problem.errors == ErrorModel::Full && req.budget_s.is_none() =>
-        {
-            obs.note(&Note::Fallback { within_s });
-            goal = Goal::Budget {
-                periods: l.max_periods,
-            };
-            fallback = true;
-            search_until_fine(&mut problem, &space, goal, l.max_periods, obs)?
-        }
-        r => r?,
-    };
+    let (design, mut coarse) =
+        match search_until_fine(&mut problem, &space, goal, l.max_periods, obs) {
+            // The full model: no path reaches every target within the limits;
+            // the best worst-case σ/target within the duration limit instead,
+            // and the targets out of reach are reported with the bound.
+            Err(DesignError::NoPathReaches { within_s })
+                if problem.errors == ErrorModel::Full && req.budget_s.is_none() =>
+            {
+                obs.note(&Note::Fallback { within_s });
+                goal = Goal::Budget {
+                    periods: l.max_periods,
+                };
+                fallback = true;
+                search_until_fine(&mut problem, &space, goal, l.max_periods, obs)?
+            }
+            r => r?,
+        };
     let best = design.best.pattern.clone();
+    if fallback {
+        // The budget search's best may meet every target within the limit
+        // after all (the shortest-path search gave up on its coarse
+        // grammar): then it is a path to every target, cut period by
+        // period where it meets them.
+        let reach = problem
+            .evaluate(
+                &best,
+                Goal::Reach {
+                    cutoff: l.max_periods,
+                },
+                true,
+                false,
+            )
+            .reach;
+        if let Some(periods) = reach {
+            goal = Goal::Reach {
+                cutoff: l.max_periods,
+            };
+            coarse.periods = periods;
+        }
+    }
     // Check with `host-sim observability`'s computation; one more period at
     // a time in the rare case rounding of the truth simulator's increments
     // leaves a target a hair short.

@@ -251,8 +251,9 @@ fn parse_line(h: &Header, n: usize, l: &str) -> Result<Sample, String> {
 /// integrating its commanded increments from `C^c_n(0) = I` (docs/model.md
 /// §Measurement timing), as the filter does, for a calibrator of
 /// `settings`. Such a log must have no missing sequence numbers (across a
-/// gap the motion is unknown), and it must start where the path starts
-/// ([`check_start`]).
+/// gap the motion is unknown), and it must start where the path starts:
+/// its first sample's specific force and gimbal angles within 5 prior σ
+/// of what `C^c_n = I` gives, else a one-line error.
 pub fn fill_frames(samples: &mut [Sample], settings: &CalibratorConfig) -> Result<(), Error> {
     let mut frame = CommandFrame::aligned(Vector3::from(settings.earth_rate_n));
     let mut last: Option<u32> = None;

@@ -1,5 +1,5 @@
-//! The 21 instrument-error states (docs/model.md §Instrument errors, SPEC
-//! §8): their order, names, printed units and true values, shared by the
+//! The 21 instrument-error states (docs/model.md §Instrument errors):
+//! their order, names, printed units and true values, shared by the
 //! truth sidecar, the reports and (when the full model lands) the analysis.
 //!
 //! Order: `[dg (3), D_g (9, row-major: row = gyro, column = force axis),

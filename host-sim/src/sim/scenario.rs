@@ -77,7 +77,8 @@ pub struct Instruments {
 }
 
 /// Prior σ of the instrument errors (printed units), one number per kind
-/// for every axis; defaults as SPEC §8's instrumented scenario.
+/// for every axis; defaults as the instrumented scenario's (docs/model.md
+/// §The instrumented scenario).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct InstrumentPrior {
@@ -593,7 +594,7 @@ pub struct Platform {
     #[serde(default)]
     pub errors: Option<String>,
     /// The instruments' prior (`[instruments.prior]`, used by the full
-    /// model; default SPEC §8's). A platform file carries no instrument
+    /// model; default docs/model.md §The instrumented scenario's). A platform file carries no instrument
     /// values: they are what the calibration estimates.
     #[serde(default)]
     pub instruments: PlatformInstruments,

@@ -19,6 +19,7 @@ mod consistency;
 mod convergence;
 mod csv_log;
 mod design;
+mod design_answer;
 mod dwell;
 mod f32;
 mod firmware_check;

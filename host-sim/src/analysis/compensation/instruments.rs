@@ -1,5 +1,5 @@
-//! The full model's part of the compensation (SPEC §8, docs/model.md
-//! §Compensation): the instruments' own errors in their printed units, the
+//! The full model's part of the compensation (docs/model.md
+//! §Compensation, §Instrument errors): the instruments' own errors in their printed units, the
 //! torquer command and the compensated specific force they give, and the
 //! covariance of those outputs propagated from the states' covariance.
 //!
@@ -361,8 +361,8 @@ mod tests {
     use super::super::tests::paper_ps;
     use super::*;
 
-    /// A full M2-ps estimate: the paper's installation, SPEC §8's
-    /// instrument table in internal units.
+    /// A full M2-ps estimate: the paper's installation, the instrumented
+    /// scenario's instrument errors in internal units.
     fn full_m2_ps() -> Vec<f64> {
         const DEG_H: f64 = std::f64::consts::PI / 180.0 / 3600.0;
         let mut x = paper_ps();

@@ -78,7 +78,7 @@ pub(super) fn initial<const N: usize>(
 
 /// The prior σ of every state of `layout` (internal units): `angle_rad`
 /// (rad) on the installation states, then, for the full model, the
-/// instrument priors `instruments` (rad/s, rad/s/g, 1, g, 1; SPEC §8): the
+/// instrument priors `instruments` (rad/s, rad/s/g, 1, g, 1; docs/model.md §Instrument errors): the
 /// calibrator's prior ([`rollcal::wire::InstrumentPrior::sigma`]).
 pub fn prior_sigma(
     layout: Layout,

@@ -23,6 +23,9 @@ pub fn write_scenario(r: &Run, out: &Path) -> Result<(), String> {
         r.best().describe(),
         match r.goal {
             Goal::Reach { .. } => "every target".to_string(),
+            Goal::Budget { .. } if r.fallback => {
+                "the best worst-case σ/target within the limit (not every target)".to_string()
+            }
             Goal::Budget { .. } => "the best worst-case σ/target of the budget".to_string(),
         },
         r.t_design(),
@@ -154,6 +157,7 @@ pub fn result_json(r: &Run, speed: serde_json::Value, wall_s: f64) -> serde_json
     if problem.errors == ErrorModel::Full {
         if let Some(m) = json.as_object_mut() {
             m.insert("errors".into(), problem.errors.as_str().into());
+            m.insert("fallback".into(), r.fallback.into());
             if let Some(serde_json::Value::Array(ts)) = m.get_mut("targets") {
                 for (t, &(i, _)) in ts.iter_mut().zip(&problem.targets) {
                     if let (Some(t), true) = (t.as_object_mut(), names[i].group.is_instrument()) {

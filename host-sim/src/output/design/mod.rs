@@ -49,7 +49,14 @@ fn print_headline(r: &Run) {
         r.request.max_beta_deg
     );
     let (t_design, t_ref) = (r.t_design(), r.t_ref());
+    let gave_up = "the shortest-path search found none (no pattern of its stage 1, the coarse grammar, reaches every target within the duration limit, and its refinement starts from those)";
     match r.goal {
+        Goal::Reach { .. } if r.fallback => println!(
+            "\nA path to every target: {t_design} s ({:.1} % of the reference path's {t_ref} s){}\n  Not the shortest: {gave_up}; the budget search over the same space found this one within {} s, cut where it meets every target.",
+            100.0 * t_design / t_ref,
+            if r.checked.met { "" } else { "  — WARNING: the observability check misses a target" },
+            r.max_duration
+        ),
         Goal::Reach { .. } => {
             println!(
                 "\nShortest path to every target: {t_design} s ({:.1} % of the reference path's {t_ref} s){}",
@@ -60,13 +67,14 @@ fn print_headline(r: &Run) {
                 println!("  No path of the search space reaches the targets sooner than the reference path.");
             }
         }
+        Goal::Budget { periods: b } if r.fallback => println!(
+            "\nNo path to every target within {} s: {gave_up}, and the budget search over the same space reaches a worst-case σ/target of {:.3} at best (the reference path in its {t_ref} s: {:.3}).",
+            b as f64 * r.period_s(),
+            worst_ratio(&r.problem, &r.checked.sigma),
+            worst_ratio(&r.problem, &r.ref_sigma)
+        ),
         Goal::Budget { periods: b } => println!(
-            "\n{}Best worst-case σ/target within {} s: {:.3} (the reference path in its {t_ref} s: {:.3})",
-            if r.fallback {
-                "The shortest-path search found none: no path of its stage 1 (the coarse grammar) reaches every target within the duration limit, and its refinement starts from those; instead, the budget search over the same space:\n"
-            } else {
-                ""
-            },
+            "\nBest worst-case σ/target within {} s: {:.3} (the reference path in its {t_ref} s: {:.3})",
             b as f64 * r.period_s(),
             worst_ratio(&r.problem, &r.checked.sigma),
             worst_ratio(&r.problem, &r.ref_sigma)
@@ -150,6 +158,14 @@ fn print_unreached(r: &Run) {
     if problem.errors != ErrorModel::Full {
         return;
     }
+    if r.unreached.is_empty() && matches!(r.goal, Goal::Reach { .. }) {
+        // The written path is cut where it meets them all (the headline's).
+        println!(
+            "\n  Every target is met within the limits (rate ≤ {max_rate} °/s, {max_duration} s), at {} s.",
+            r.t_design()
+        );
+        return;
+    }
     if r.unreached.is_empty() {
         // Period by period, when the designed pattern first meets them all.
         let first = problem
@@ -226,7 +242,7 @@ fn print_search(r: &Run) {
         r.coarse.coarse_periods as f64 * r.period_s(),
         100.0 * r.coarse.change
     );
-    if let Goal::Reach { .. } = r.goal {
+    if matches!(r.goal, Goal::Reach { .. }) && !r.fallback {
         println!(
             "  optimality: exact over the exhaustive grammar (patterns of ≤ {} rotations about {} axes by 90°·n at {} °/s, repeated) to one coarse step; the refinement only improves on it (local optimum over 30° angles, ¾ and ½ rates{}{})",
             space.max_rotations,
