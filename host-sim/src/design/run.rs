@@ -327,6 +327,47 @@ fn reference_targets(
     Ok((ref_out, ref_sigma))
 }
 
+/// The search towards `goal`; for the full model, when no path reaches
+/// every target, the budget search within the duration limit instead
+/// (`true` returned), whose best path, when it meets every target after
+/// all, is cut period by period where it does (the goal returned is then
+/// a reach again: a path to every target, not the shortest).
+fn search_with_fallback(
+    req: &Request,
+    problem: &mut Problem,
+    space: &Space,
+    goal: Goal,
+    max_periods: u64,
+    obs: &dyn Observer,
+) -> Result<(Design, CoarseCheck, Goal, bool), DesignError> {
+    let within_s = match search_until_fine(problem, space, goal, max_periods, obs) {
+        Err(DesignError::NoPathReaches { within_s })
+            if problem.errors == ErrorModel::Full && req.budget_s.is_none() =>
+        {
+            within_s
+        }
+        r => return r.map(|(d, c)| (d, c, goal, false)),
+    };
+    obs.note(&Note::Fallback { within_s });
+    let budget = Goal::Budget {
+        periods: max_periods,
+    };
+    let (design, mut coarse) = search_until_fine(problem, space, budget, max_periods, obs)?;
+    let reach = Goal::Reach {
+        cutoff: max_periods,
+    };
+    match problem
+        .evaluate(&design.best.pattern, reach, true, false)
+        .reach
+    {
+        Some(periods) => {
+            coarse.periods = periods;
+            Ok((design, coarse, reach, true))
+        }
+        None => Ok((design, coarse, budget, true)),
+    }
+}
+
 /// A finished design: everything its printed result and files show.
 #[derive(Clone, Debug)]
 pub struct Run {
@@ -430,7 +471,7 @@ pub fn run(req: &Request, base: Scenario, obs: &dyn Observer) -> Result<Run, Des
     let mut problem = Problem::with_errors(id, req.errors, &base, req.max_beta_deg);
     problem.step_deg = req.step_deg;
     let (ref_out, ref_sigma) = reference_targets(req, &base, &mut problem, &reference)?;
-    let mut goal = goal_of(req, base.timing.period_s, l.max_periods)?;
+    let goal = goal_of(req, base.timing.period_s, l.max_periods)?;
     let space = space_of(req, &l);
     obs.note(&Note::Searching {
         config: id,
@@ -445,47 +486,9 @@ pub fn run(req: &Request, base: Scenario, obs: &dyn Observer) -> Result<Run, Des
         dwells: !space.dwell_steps.is_empty(),
         threads: rayon::current_num_threads(),
     });
-    let mut fallback = false;
-    let (design, mut coarse) =
-        match search_until_fine(&mut problem, &space, goal, l.max_periods, obs) {
-            // The full model: no path reaches every target within the limits;
-            // the best worst-case σ/target within the duration limit instead,
-            // and the targets out of reach are reported with the bound.
-            Err(DesignError::NoPathReaches { within_s })
-                if problem.errors == ErrorModel::Full && req.budget_s.is_none() =>
-            {
-                obs.note(&Note::Fallback { within_s });
-                goal = Goal::Budget {
-                    periods: l.max_periods,
-                };
-                fallback = true;
-                search_until_fine(&mut problem, &space, goal, l.max_periods, obs)?
-            }
-            r => r?,
-        };
+    let (design, coarse, goal, fallback) =
+        search_with_fallback(req, &mut problem, &space, goal, l.max_periods, obs)?;
     let best = design.best.pattern.clone();
-    if fallback {
-        // The budget search's best may meet every target within the limit
-        // after all (the shortest-path search gave up on its coarse
-        // grammar): then it is a path to every target, cut period by
-        // period where it meets them.
-        let reach = problem
-            .evaluate(
-                &best,
-                Goal::Reach {
-                    cutoff: l.max_periods,
-                },
-                true,
-                false,
-            )
-            .reach;
-        if let Some(periods) = reach {
-            goal = Goal::Reach {
-                cutoff: l.max_periods,
-            };
-            coarse.periods = periods;
-        }
-    }
     // Check with `host-sim observability`'s computation; one more period at
     // a time in the rare case rounding of the truth simulator's increments
     // leaves a target a hair short.
