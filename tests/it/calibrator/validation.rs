@@ -31,17 +31,11 @@ fn the_calibrator_is_the_filter_on_the_f32_samples() {
     assert_eq!(e.state.as_slice(), f.state().as_slice());
 }
 
-#[test]
-fn bad_samples_are_rejected_by_reason_and_leave_the_filter_untouched() {
-    let (sc, data) = samples(60);
-    let mut cal = M2PsCalibrator::<f64>::new(settings(&sc, ConfigId::M2Ps, 0)).unwrap();
-    for s in &data[..30] {
-        cal.push(s).unwrap();
-    }
-    let good = data[30];
-    let prev = data[29];
+/// One bad variant of `good` (the sample after `prev`; `old` an earlier
+/// one) per reason a sample is rejected for.
+fn bad_samples(good: Sample, prev: Sample, old: Sample) -> Vec<(RejectReason, Sample)> {
     let nan = f32::NAN;
-    let cases: Vec<(RejectReason, Sample)> = vec![
+    vec![
         (
             RejectReason::NonFinite,
             Sample {
@@ -95,7 +89,7 @@ fn bad_samples_are_rejected_by_reason_and_leave_the_filter_untouched() {
             },
         ),
         (RejectReason::Duplicate, prev),
-        (RejectReason::OutOfOrder, data[10]),
+        (RejectReason::OutOfOrder, old),
         (
             RejectReason::TimeBackwards,
             Sample {
@@ -110,7 +104,20 @@ fn bad_samples_are_rejected_by_reason_and_leave_the_filter_untouched() {
                 ..good
             },
         ),
-    ];
+    ]
+}
+
+#[test]
+fn bad_samples_are_rejected_by_reason_and_leave_the_filter_untouched() {
+    let (sc, data) = samples(60);
+    let mut cal = M2PsCalibrator::<f64>::new(settings(&sc, ConfigId::M2Ps, 0)).unwrap();
+    for s in &data[..30] {
+        cal.push(s).unwrap();
+    }
+    let good = data[30];
+    let prev = data[29];
+    let nan = f32::NAN;
+    let cases = bad_samples(good, prev, data[10]);
     for (reason, bad) in &cases {
         let before = cal.clone();
         assert_eq!(cal.push(bad), Err(*reason), "{bad:?}");
