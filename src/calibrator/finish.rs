@@ -99,8 +99,9 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
             return self.single_pass(SinglePassReason::Estimator);
         };
         let (config, x0, sigma0) = Self::prior(&self.settings);
+        let x0 = at.state(M::LAYOUT, &x0);
         let start = PassStart {
-            x0: &at.state(M::LAYOUT, &x0),
+            x0: &x0,
             sigma0: &sigma0,
             at,
         };

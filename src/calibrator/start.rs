@@ -40,7 +40,9 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     /// [`LogStart::state`]; the prior's σ covers the rest). Returns whether
     /// it did; at the path's start nothing changes. The filter is at its
     /// prior before a run's first sample, so [`Calibrator::unacquire`]
-    /// takes it back.
+    /// takes it back. Out of line: its prior's vectors are on the stack
+    /// only at a run's first sample, not under every sample's filter step.
+    #[inline(never)]
     pub(super) fn acquire_start(&mut self, s: &Sample) -> Result<bool, ekf::Error> {
         let start = self.start_of(s);
         if start.is_aligned() {
@@ -56,7 +58,9 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
 
     /// Undoes [`Calibrator::acquire_start`] when the first sample's own
     /// period failed: the filter back at its prior on the path's start, as
-    /// the run's first sample found it.
+    /// the run's first sample found it. Out of line (see
+    /// [`Calibrator::acquire_start`]).
+    #[inline(never)]
     pub(super) fn unacquire(&mut self) {
         let (config, x0, sigma0) = Self::prior(&self.settings);
         // The prior was accepted when the calibrator was built.
