@@ -21,8 +21,8 @@
 //! fixed well-conditioned matrices; no model evaluation.
 //!
 //! The full models `m1pa-full/linearised` (33 states) and
-//! `m2ps-full/linearised` (39) run on the same stream with SPEC §8's
-//! instrument priors, beside `dense/33x3` and `dense/39x6`.
+//! `m2ps-full/linearised` (39) run on the same stream with the default
+//! instrument priors (docs/model.md §Instrument errors), beside `dense/33x3` and `dense/39x6`.
 //!
 //! `cargo bench --bench filter_period -- --warm-up-time 1 --measurement-time 3`
 
@@ -55,7 +55,8 @@ fn observation(s: &PeriodSample) -> Observation<f64> {
 }
 
 /// The prior σ of every state of `M`: `angle_rad` on the installation
-/// states, SPEC §8's instrument priors (1 °/h, 1 °/h/g, 2000 ppm,
+/// states, the default instrument priors (docs/model.md §Instrument
+/// errors: 1 °/h, 1 °/h/g, 2000 ppm,
 /// 1000 µg, 1000 ppm, in rad/s, rad/s/g, 1, g, 1) on those of the full
 /// model.
 fn prior<M: Model<N, Z>, const N: usize, const Z: usize>(angle_rad: f64) -> SVector<f64, N> {

@@ -85,7 +85,7 @@ build_plugin() {
 # end-of-stream frames (EstimateRequest, Finish): the paper scenario with
 # the installation model, $OUT/<config>.bin (stream) and $OUT/<config>-in.bin
 # (firmware input); with `full`, the instrumented scenario (the instruments'
-# own errors, SPEC §8) with the full model, $OUT/<config>-full.bin and
+# own errors, docs/model.md §Instrument errors) with the full model, $OUT/<config>-full.bin and
 # $OUT/<config>-full-in.bin.
 record_stream() {
     local config=$1 name=$1 args=()

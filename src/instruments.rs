@@ -1,5 +1,4 @@
-//! Instrument installation models (docs/model.md §Installation models;
-//! paper eqs. 6, 10, 11).
+//! Instrument installation models (docs/model.md §Installation models).
 //!
 //! Angles are radians. `θgC`, `θaC` are the axis-rotation (misalignment)
 //! angles of the gyro and accelerometer triads, `θgT`, `θaT` their
@@ -9,7 +8,8 @@ use nalgebra::{Matrix3, RealField, Vector3};
 
 use crate::geometry::{dcm, lower, rotation_vector};
 
-/// Gyro installation matrix `G = R(θgC) (I + L(θgT))` (paper eqs. 6, 11):
+/// Gyro installation matrix `G = R(θgC) (I + L(θgT))` (docs/model.md
+/// §Installation models):
 /// the platform rate is `ω^p_ip = G ωc` when the gyros follow the commanded
 /// rate `ωc`. In the pa frame pass `θgC^pa` for `theta_g_c`.
 ///
@@ -65,8 +65,8 @@ pub fn accel_matrix<T: RealField + Copy>(
 }
 
 /// The pa-frame gyro misalignment `θgC^pa` (rad) of the ps-frame angles,
-/// exactly: `R(θgC^pa) = R(−θaC) R(θgC)` (paper eq. 10 is its first-order
-/// form `θgC^pa ≈ θgC − θaC`).
+/// exactly: `R(θgC^pa) = R(−θaC) R(θgC)` (the paper's `θgC^pa ≈ θgC − θaC`
+/// is its first-order form, docs/model.md §Installation models).
 ///
 /// # Examples
 ///
@@ -77,7 +77,7 @@ pub fn accel_matrix<T: RealField + Copy>(
 /// let arcsec = 1f64.to_radians() / 3600.0;
 /// let theta_g_c = Vector3::new(30.0, 0.0, -15.0) * arcsec;
 /// let theta_a_c = Vector3::new(10.0, 5.0, 0.0) * arcsec;
-/// // Paper eq. 10, θgC^pa ≈ θgC − θaC, is its first-order form.
+/// // The paper's θgC^pa ≈ θgC − θaC is its first-order form.
 /// let exact = theta_g_c_pa(&theta_g_c, &theta_a_c);
 /// assert!((exact - (theta_g_c - theta_a_c)).norm() < 1e-3 * arcsec);
 /// ```

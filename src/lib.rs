@@ -15,11 +15,11 @@
 //! frame North–Up–East, `C^b_a` maps frame-a coordinates to frame b, and
 //! `R(θ) = exp(−[θ×])`. See [`geometry`] for the frames.
 //!
-//! Modules, in the order of the paper:
-//! - [`geometry`]: rotations, gimbal kinematics (paper eqs. 1, 2, 5);
-//! - [`instruments`]: installation models `G`, `A` (eqs. 6, 10, 11);
+//! Modules, in the order of docs/model.md:
+//! - [`geometry`]: rotations, gimbal kinematics (§Notation, §Frames);
+//! - [`instruments`]: installation models `G`, `A` (§Installation models);
 //! - [`command`]: the computed frame and the commanded rate;
-//! - [`models`]: the seven configurations (paper §1.3);
+//! - [`models`]: the seven configurations (§Configurations);
 //! - [`ekf`]: the filter (docs/model.md §Estimator), with its U-D factored
 //!   covariance and the analytic Hessian of the accelerometer model (the
 //!   filter's second-order terms) as private modules;

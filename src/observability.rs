@@ -1,5 +1,5 @@
-//! Observability of a configuration along a rolling path (docs/model.md §Observability; the
-//! paper's §2 proves by hand what this module computes).
+//! Observability of a configuration along a rolling path (docs/model.md
+//! §Observability; what the paper proves by hand, computed).
 //!
 //! [`Observability`] follows the *true* trajectory of a configuration (the
 //! model integrated without noise from the true initial state along the
@@ -42,7 +42,7 @@
 //! coefficients below [`COEF_THRESHOLD`] set to zero: this makes the
 //! combinations readable, e.g. `0.577 psi_x + 0.577 thgC_x + 0.577 thaC_x`
 //! (the ps-frame gauge: the cube frame cannot be told from the accelerometer
-//! frame, paper eq. 28).
+//! frame, docs/model.md §Configurations).
 //!
 //! A state is *structurally unobservable* when it takes part in the null
 //! space (the norm of its unit vector's projection on the null space exceeds
@@ -457,6 +457,16 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize, const 
             sigma_prior,
             periods: 0,
         })
+    }
+
+    /// Sets the computed frame `C^c_n` at the start of the first period to
+    /// `c_cn` (the path's start, `C^c_n = I`, otherwise), for a log that
+    /// starts elsewhere on its path ([`crate::estimator::LogStart`]); the
+    /// true initial state given to [`Observability::new`] is then the one
+    /// at that start. Call it before the first period. On error nothing
+    /// changes.
+    pub fn start_at(&mut self, c_cn: &nalgebra::Matrix3<f64>) -> Result<(), Error> {
+        self.crlb.start_at(c_cn)
     }
 
     /// One filter period of length `dt` (s) with commanded angle increment

@@ -78,7 +78,7 @@ fn run_model<M: Model<N, Z> + 'static, const N: usize, const Z: usize>(args: &Ar
         Mode::Plain => Options::plain(),
         _ => Options::default(),
     };
-    // 1° for the installation states, SPEC §8's prior for the instrument
+    // 1° for the installation states, the default prior for the instrument
     // terms of the full model.
     let installation = M::LAYOUT.installation_n();
     let instruments = InstrumentPrior::default().sigma();

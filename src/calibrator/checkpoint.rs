@@ -5,6 +5,7 @@ use nalgebra::{Matrix3, RealField, SVector};
 
 use super::{to_f64, Calibrator, Error};
 use crate::ekf::{FilterConfig, Parts};
+use crate::estimator::LogStart;
 use crate::models::Model;
 use crate::wire::{CalibratorConfig, Checkpoint};
 
@@ -122,6 +123,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         self.settings = settings;
         self.progress = cp.progress;
         self.frame_errors = 0;
+        self.start = LogStart::aligned();
         Ok(())
     }
 }

@@ -5,7 +5,7 @@ use nalgebra::RealField;
 
 use super::{to_f64, Calibrator};
 use crate::ekf::Filter;
-use crate::estimator::{self, EstimatorOptions, PassEvent, SampleLog};
+use crate::estimator::{self, EstimatorOptions, PassEvent, PassStart, SampleLog};
 use crate::models::Model;
 use crate::wire::{Estimate, EstimateKind, SinglePassReason};
 
@@ -20,7 +20,8 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     /// The final answer: the estimator of record ([`crate::estimator`]: pass
     /// 1, back-propagation, linearised passes until no state moves by more
     /// than `passes.tolerance` σ) over `log`, which must hold what
-    /// [`Calibrator::push_logged`] appended. When it does not (no log, full,
+    /// [`Calibrator::push_logged`] appended, from where the log starts
+    /// ([`Calibrator::log_start`]). When it does not (no log, full,
     /// a re-acquired attitude, a mismatch) the answer is the running
     /// estimate, marked [`EstimateKind::SinglePass`] with the reason. The
     /// calibrator itself is unchanged: more samples may follow. Also returns
@@ -94,8 +95,17 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         if let Some(r) = reason {
             return self.single_pass(r);
         }
+        let Ok(at) = self.log_start(log) else {
+            return self.single_pass(SinglePassReason::Estimator);
+        };
         let (config, x0, sigma0) = Self::prior(&self.settings);
-        match estimator::estimate_in(filter, &config, &x0, &sigma0, log, passes, observer) {
+        let x0 = at.state(M::LAYOUT, &x0);
+        let start = PassStart {
+            x0: &x0,
+            sigma0: &sigma0,
+            at,
+        };
+        match estimator::estimate_from(filter, &config, &start, log, passes, observer) {
             Ok(report) => {
                 let kind = EstimateKind::Final {
                     passes: report.passes,

@@ -56,6 +56,7 @@ mod error;
 mod finish;
 mod gaps;
 mod push;
+mod start;
 mod validate;
 
 use core::marker::PhantomData;
@@ -63,6 +64,7 @@ use core::marker::PhantomData;
 use nalgebra::{RealField, SVector, Vector3};
 
 use crate::ekf::Filter;
+use crate::estimator::LogStart;
 use crate::models::Model;
 use crate::wire::{CalibratorConfig, Progress};
 
@@ -142,6 +144,9 @@ pub struct Calibrator<T: RealField + Copy, M, const N: usize, const Z: usize> {
     settings: CalibratorConfig,
     progress: Progress,
     frame_errors: u32,
+    /// Where this run started, as acquired from its first sample (aligned
+    /// before it, and after a restore: [`Calibrator::log_start`]).
+    start: LogStart,
     _model: PhantomData<M>,
 }
 
@@ -193,6 +198,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
             settings,
             progress: Progress::default(),
             frame_errors: 0,
+            start: LogStart::aligned(),
             _model: PhantomData,
         }
     }
@@ -206,6 +212,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         let (config, x0, sigma0) = Self::prior(&self.settings);
         self.filter.restart(config, x0, sigma0)?;
         self.progress = Progress::default();
+        self.start = LogStart::aligned();
         Ok(())
     }
 

@@ -13,9 +13,11 @@ use crate::wire::{Estimate, Sample, SinglePassReason};
 impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize>
     Calibrator<T, M, N, Z>
 {
-    /// Processes one sample: validates it, bridges the gap before it along
-    /// the commanded motion (or re-acquires the attitude), and runs one
-    /// filter period. Returns an [`Estimate`] when the cadence
+    /// Processes one sample: validates it, takes the start of the log from
+    /// it when it is the run's first (a log may start anywhere on the path,
+    /// [`Calibrator::log_start`]), bridges the gap before it along the
+    /// commanded motion (or re-acquires the attitude), and runs one filter
+    /// period. Returns an [`Estimate`] when the cadence
     /// ([`CalibratorConfig::estimate_every`](crate::wire::CalibratorConfig::estimate_every)) says so. On `Err` the sample
     /// was counted by reason and the filter is untouched.
     ///
@@ -121,6 +123,13 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
                 .filter(|_| M::LAYOUT.gimbal_obs)
                 .map(vec3_f32),
         };
+        // A run's first sample: the log may start anywhere on the path.
+        let acquired = match self.progress.last_seq {
+            None => self
+                .acquire_start(s)
+                .map_err(|e| self.reject(RejectReason::Filter(e)))?,
+            Some(_) => false,
+        };
         if gap > 0 {
             self.bridge_gap(s, gap, checked.reanchored, log.as_deref_mut())?;
         } else if checked.reanchored {
@@ -130,7 +139,12 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         let nis = match self.filter.step(&dtheta, dt, &obs) {
             Ok(innovation) => Some(to_f64(innovation.nis)),
             Err(ekf::Error::Gated) => None,
-            Err(e) => return Err(self.reject(RejectReason::Filter(e))),
+            Err(e) => {
+                if acquired {
+                    self.unacquire();
+                }
+                return Err(self.reject(RejectReason::Filter(e)));
+            }
         };
         self.append(log, &LogRecord::measured(dt, dtheta, obs));
         let p = &mut self.progress;

@@ -1,6 +1,7 @@
 //! The installation matrices of the linearisation point's parameters as the
 //! filter uses them ([`MatricesCache`]): computed once per parameter value
-//! (paper eqs. 6, 10, 11 through [`InstallationMatrices`]), not once per use.
+//! (docs/model.md §Installation models, through [`InstallationMatrices`]),
+//! not once per use.
 
 use core::any::Any;
 

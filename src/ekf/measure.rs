@@ -1,7 +1,7 @@
 //! The measurement model as the filter evaluates it: the predicted mean
 //! accelerometer output over a period and, in M2, the gimbal angles at its
-//! end, with their Jacobian (docs/model.md §Measurement; paper eqs. 6, 10,
-//! 11), the period's gyro noise as measurement noise ([`Noise`],
+//! end, with their Jacobian (docs/model.md §Configurations, §Installation
+//! models), the period's gyro noise as measurement noise ([`Noise`],
 //! docs/model.md §Measurement timing) and the measurement noise `R`; the
 //! period retraced to end at another state (relinearisation).
 

@@ -1,6 +1,6 @@
 //! The prediction of one period ([`Filter::predict`]): the state propagated
-//! by one RK4 step over the commanded motion (docs/model.md §Dynamics; paper
-//! eqs. 1, 2, 5), the period kept pending for its covariance time update;
+//! by one RK4 step over the commanded motion (docs/model.md §Configurations,
+//! §Measurement timing), the period kept pending for its covariance time update;
 //! and the optional second-order terms of the attitude dynamics
 //! ([`Options::second_order_dynamics`](super::Options::second_order_dynamics)).
 

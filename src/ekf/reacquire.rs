@@ -1,6 +1,9 @@
-//! The attitude re-acquired after a gap across which the commanded motion is
-//! not known ([`Filter::reacquire_attitude`]): the computed frame set, the
-//! attitude's covariance re-opened, the parameters' information kept.
+//! The attitude acquired: at the start of a log that does not start at the
+//! path's start ([`Filter::start_at`]: the computed frame set before the
+//! first period), and re-acquired after a gap across which the commanded
+//! motion is not known ([`Filter::reacquire_attitude`]: the computed frame
+//! set, the attitude's covariance re-opened, the parameters' information
+//! kept).
 
 use nalgebra::{Matrix3, RealField};
 
@@ -71,6 +74,48 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             nominal.fixed_rows_mut::<3>(ATT).copy_from(&att);
         }
         self.pending.clear();
+        Ok(())
+    }
+
+    /// Sets the computed frame `C^c_n` at the start of the next period to
+    /// `c_cn`, nothing else: for a filter whose log does not start at the
+    /// path's start (where `C^c_n = I`, [`Filter::new`]), called after
+    /// [`Filter::new`] or [`Filter::restart`] and before the first period,
+    /// with the attitude of the initial estimate given for that frame
+    /// ([`crate::estimator::LogStart`]).
+    ///
+    /// # Errors
+    /// [`Error::NonFiniteInput`] for a non-finite frame; the filter is then
+    /// left untouched.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// # use nalgebra::SVector;
+    /// # use rollcal::ekf::{FilterConfig, M1PaFilter, Options};
+    /// # use rollcal::geometry::{earth_rate_n, gravity_n, r2, EARTH_RATE};
+    /// # use rollcal::models::Environment;
+    /// # let deg = core::f64::consts::PI / 180.0;
+    /// # let config = FilterConfig::<f64> {
+    /// #     env: Environment { earth_rate_n: earth_rate_n(EARTH_RATE, 34.25 * deg), gravity_n: gravity_n() },
+    /// #     sigma_accel: 1e-6,
+    /// #     sigma_gyro: 0.1 * deg / 3600.0,
+    /// #     sigma_gimbal: 10.0 * deg / 3600.0,
+    /// #     options: Options::default(),
+    /// #     wander: rollcal::models::Wander::none(),
+    /// # };
+    /// let mut f = M1PaFilter::<f64>::new(config, SVector::zeros(), SVector::repeat(deg))?;
+    /// // A log that starts half a turn about Up into the path.
+    /// f.start_at(&r2(180.0 * deg))?;
+    /// assert_eq!(f.command_frame().c_cn, r2(180.0 * deg));
+    /// assert!(f.start_at(&(r2(0.0) * f64::NAN)).is_err());
+    /// # Ok::<(), rollcal::Error>(())
+    /// ```
+    pub fn start_at(&mut self, c_cn: &Matrix3<f64>) -> Result<(), Error> {
+        if !all_finite(c_cn.iter().copied()) {
+            return Err(Error::NonFiniteInput);
+        }
+        self.command.c_cn = *c_cn;
         Ok(())
     }
 }

@@ -6,9 +6,11 @@
 //! 1. **pass 1**, the extended filter ([`Filter`], with the cold-start
 //!    remedy of [`FilterConfig::options`], by default the second-order
 //!    innovation covariance), over every record of the log, from the prior
-//!    `x0`, `σ0`;
+//!    `x0`, `σ0` at the log's start ([`LogStart`]: the path's start,
+//!    `C^c_n = I`, for [`estimate`]; anywhere on the path for
+//!    [`estimate_from`]);
 //! 2. **back-propagation** ([`back_propagate`]) of the pass's final estimate
-//!    to t = 0: the state at the end integrated backwards through every
+//!    to the log's start: the state at the end integrated backwards through every
 //!    period with [`Layout::propagate_state`] on [`Period::reversed`]
 //!    (parameters are constant; only the attitude moves);
 //! 3. **a linearised pass**: a new filter from the same `x0`, `σ0` over the
@@ -47,7 +49,9 @@
 //! [`CommandFrame::period_before`], the exact inverse of
 //! [`CommandFrame::period`] by a fixed-point iteration (the Earth-rate term
 //! contracts it by ≈ 1e-4 per iteration). That costs one extra read of
-//! every record per pass and nothing in memory. Each period is inverted to
+//! every record per pass and nothing in memory. The same walk from the end
+//! of a calibrator's run finds where its log started
+//! ([`LogStart::walked_back`]). Each period is inverted to
 //! ≤ 4e-16; after the 5400 periods of the paper's path the frame comes back
 //! to `C^c_n(0) = I` within 6e-14, and the back-propagated state agrees with
 //! one propagated through periods stored on the way forward to ≈ 1e-17 rad
@@ -65,11 +69,13 @@
 pub mod flash;
 pub mod log;
 pub mod packed;
+mod start;
 
 #[cfg(feature = "flash-log")]
 pub use flash::{FlashLog, FlashLogError, DEFAULT_SEGMENTS, MAX_SLOT};
 pub use log::{LogError, LogRecord, SampleLog, SliceLog};
 pub use packed::{PackedLayout, PackedLog, MAX_PERIODS};
+pub use start::LogStart;
 
 use nalgebra::{RealField, SVector};
 
@@ -342,11 +348,55 @@ where
 /// the last pass ([`Outcome::filter`]). A firmware's stack then holds one
 /// filter, not the filter, the outcome and a copy of both. On error the
 /// filter is left as the failing pass left it.
+///
+/// The log starts at the path's start ([`LogStart::aligned`]);
+/// [`estimate_from`] takes a log that starts elsewhere.
 pub fn estimate_in<T, M, const N: usize, const Z: usize, L, F>(
     filter: &mut Filter<T, M, N, Z>,
     config: &FilterConfig<T>,
     x0: &SVector<f64, N>,
     sigma0: &SVector<T, N>,
+    log: &mut L,
+    passes: &EstimatorOptions,
+    observer: F,
+) -> Result<PassReport, EstimatorError>
+where
+    T: RealField + Copy,
+    M: Model<N, Z>,
+    L: SampleLog<T> + ?Sized,
+    F: FnMut(&PassEvent<'_, T, M, N, Z>),
+{
+    let start = PassStart {
+        x0,
+        sigma0,
+        at: LogStart::aligned(),
+    };
+    estimate_from(filter, config, &start, log, passes, observer)
+}
+
+/// Where every pass of [`estimate_from`] restarts: the prior (estimate
+/// `x0`, σ `sigma0`, rad) at the log's start `at`.
+#[derive(Clone, Copy, Debug)]
+pub struct PassStart<'a, T: RealField + Copy, const N: usize> {
+    /// Initial estimate (rad), its attitude states those of the start
+    /// ([`LogStart::state`]).
+    pub x0: &'a SVector<f64, N>,
+    /// Prior σ of every state (rad).
+    pub sigma0: &'a SVector<T, N>,
+    /// The computed frame at the start of the log's first period.
+    pub at: LogStart,
+}
+
+/// [`estimate_in`] over a log that starts at `start.at`: every pass
+/// restarts the filter at `start.x0`, `start.sigma0` with its computed
+/// frame there ([`Filter::start_at`]), and pass 1 integrates the frame
+/// from there to the end of the run for the back-propagation. What the
+/// calibrator's `Finish` runs ([`crate::calibrator::Calibrator::finish_in`],
+/// the start from [`LogStart::walked_back`]).
+pub fn estimate_from<T, M, const N: usize, const Z: usize, L, F>(
+    filter: &mut Filter<T, M, N, Z>,
+    config: &FilterConfig<T>,
+    start: &PassStart<'_, T, N>,
     log: &mut L,
     passes: &EstimatorOptions,
     mut observer: F,
@@ -357,6 +407,8 @@ where
     L: SampleLog<T> + ?Sized,
     F: FnMut(&PassEvent<'_, T, M, N, Z>),
 {
+    let (x0, sigma0) = (start.x0, start.sigma0);
+    let start_frame = start.at.frame(config.env.earth_rate_n);
     let records = log.len();
     if records == 0 {
         return Err(EstimatorError::EmptyLog);
@@ -372,6 +424,7 @@ where
     let mut pass: u8 = 1;
     loop {
         filter.restart(*config, *x0, *sigma0)?;
+        filter.start_at(&start_frame.c_cn)?;
         filter.set_nominal(nominal);
         let tally = run_pass(filter, log, pass, &mut end_frame, &mut observer)?;
         let converged = converged(filter, previous.as_ref(), passes.tolerance);
@@ -386,7 +439,7 @@ where
             });
         }
         let x = *filter.state();
-        let end = end_frame.unwrap_or_else(|| CommandFrame::aligned(config.env.earth_rate_n));
+        let end = end_frame.unwrap_or(start_frame);
         let (x_start, _) = back_propagate_out_of_line(M::LAYOUT, &config.env, &x, &end, log)?;
         nominal = Some(x_start);
         previous = Some(x);
@@ -395,8 +448,8 @@ where
 }
 
 /// One pass of [`estimate_in`] over every record of `log` in `filter`
-/// (restarted), the computed frame of pass 1 integrated into `end_frame`
-/// on the way. Out of line, as are the steps between passes: the frame
+/// (restarted at the log's start), the computed frame of pass 1
+/// integrated from the filter's start into `end_frame` on the way. Out of line, as are the steps between passes: the frame
 /// above every filter step of `Finish` is this one's (a record, the
 /// step's result), not the passes' bookkeeping (a firmware's stack; the
 /// full model's vectors are 0.3 KB each in f64).
@@ -416,7 +469,7 @@ where
 {
     let mut frame = match end_frame {
         Some(_) => None,
-        None => Some(CommandFrame::aligned(filter.config().env.earth_rate_n)),
+        None => Some(*filter.command_frame()),
     };
     let mut tally = Tally::default();
     for index in 0..log.len() {

@@ -1,5 +1,4 @@
-//! The seven configurations by name (docs/model.md §Configurations, paper
-//! §1.3): [`ConfigId`], its identifiers (`"M1-pa"` … `"M4-ps"`), their
+//! The seven configurations by name (docs/model.md §Configurations): [`ConfigId`], its identifiers (`"M1-pa"` … `"M4-ps"`), their
 //! parsing ([`ConfigId::parse`], [`FromStr`](core::str::FromStr) with
 //! [`ParseConfigIdError`]), which of them this build holds, and the
 //! composition ([`Layout`]) of each.

@@ -1,6 +1,6 @@
 //! The continuous-time dynamics of the attitude states and their Jacobian
-//! (docs/model.md §Configurations, paper §1.3; M1's first-order form is
-//! paper eq. 11): M1 `ψ̇ = J_r⁻¹(ψ)(G ωc − R(ψ) ωc)`, M2/M3
+//! (docs/model.md §Configurations, which also gives M1's first-order
+//! form): M1 `ψ̇ = J_r⁻¹(ψ)(G ωc − R(ψ) ωc)`, M2/M3
 //! `θ̇A = T(θA)[G ωc − C^p_r R(λ) ω^n_ie]`, M4 `θ̇p = T(θp)[G ωc − C^p_n ω^n_ie]`.
 //! The installation parameters are constant: only the attitude rows of the
 //! system matrix `F` are not zero.

@@ -1,5 +1,5 @@
 //! Which instrument errors a model estimates (docs/model.md §Full model,
-//! SPEC §8): the installation errors alone ([`ErrorModel::Installation`],
+//! §Instrument errors): the installation errors alone ([`ErrorModel::Installation`],
 //! the paper's models and the default of every configuration) or the
 //! installation errors followed by the instruments' own errors
 //! ([`ErrorModel::Full`]: gyro drift, g-sensitive drift, torquer scale

@@ -1,6 +1,5 @@
 //! The installation parameters of a state vector and the per-period
-//! constant matrices of them (docs/model.md §Installation models; paper
-//! eqs. 6, 10, 11): `G = R(θgC)(I + L(θgT))`, `A = (I + L(θaT)) R(−θaC)`,
+//! constant matrices of them (docs/model.md §Installation models): `G = R(θgC)(I + L(θgT))`, `A = (I + L(θaT)) R(−θaC)`,
 //! `C^r_n = R(λ)`, with the rotations and right Jacobians the model's
 //! Jacobians need.
 
@@ -25,7 +24,7 @@ pub struct Installation<T: RealField + Copy> {
     pub theta_a_t: Vector3<T>,
     /// Base mounting angles `λ` (zero without a base).
     pub lambda: Vector3<T>,
-    /// The instruments' own errors (SPEC §8; zero for
+    /// The instruments' own errors (docs/model.md §Instrument errors; zero for
     /// [`ErrorModel::Installation`](super::ErrorModel::Installation)).
     pub instruments: InstrumentErrors<T>,
 }

@@ -1,5 +1,5 @@
 //! The composition of a configuration and where its states sit in the
-//! state vector (docs/model.md §Configurations, paper §1.3): the attitude
+//! state vector (docs/model.md §Configurations): the attitude
 //! model ([`AttitudeKind`]), the platform frame ([`PlatformFrame`]), the
 //! [`Layout`] that combines them with the base and the observation set, the
 //! fixed indices [`ATT`], [`GC`], [`GT`], and the unpacking of a state
@@ -27,7 +27,7 @@ use crate::geometry::wrap_angles;
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum AttitudeKind {
     /// Misalignment `ψ` (rad) of the platform frame p with respect to the
-    /// computed frame c: `C^p_c = R(ψ)` (M1, paper eq. 11).
+    /// computed frame c: `C^p_c = R(ψ)` (M1, docs/model.md §Frames).
     Misalignment,
     /// Gimbal angles `θA = (α, β, γ)` (rad): `C^p_r = R3(γ)R2(β)R1(α)`,
     /// `C^p_n = C^p_r R(λ)` (M2, M3).
@@ -80,7 +80,8 @@ pub struct Layout {
     /// Whether the gimbal angles are observed (M2).
     pub gimbal_obs: bool,
     /// Which errors the states hold after the attitude: the installation
-    /// errors alone, or followed by the instruments' own (SPEC §8).
+    /// errors alone, or followed by the instruments' own (docs/model.md
+    /// §Instrument errors).
     pub errors: ErrorModel,
 }
 

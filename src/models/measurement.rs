@@ -1,5 +1,5 @@
 //! The accelerometer measurement at one instant and its Jacobian
-//! (docs/model.md §Configurations; paper eqs. 6, 10, 11):
+//! (docs/model.md §Configurations, §Installation models):
 //! `Z_a = A C^p_n f^n`, with the platform attitude `C^p_n = R(ψ) C^c_n`
 //! (M1), `C^p_r(θA) R(λ)` (M2, M3) or `C^p_r(θp)` (M4). The mean over a
 //! period is in `period_mean`.

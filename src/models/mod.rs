@@ -1,4 +1,4 @@
-//! The seven system configurations of docs/model.md §Configurations (paper §1.3).
+//! The seven system configurations of docs/model.md §Configurations.
 //!
 //! A configuration is composed of four parts:
 //! - the **attitude model** ([`AttitudeKind`]): the misalignment `ψ` of the

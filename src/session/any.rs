@@ -7,7 +7,7 @@ use nalgebra::RealField;
 
 use crate::calibrator::{self, Calibrator, RejectReason};
 use crate::ekf::Filter;
-use crate::estimator::SampleLog;
+use crate::estimator::{EstimatorError, LogStart, SampleLog};
 #[allow(unused_imports)] // the configurations left out of a build (cargo features)
 use crate::models::{ConfigId, ErrorModel, M1Pa, M1Ps, M2Ps, M3Pa, M3Ps, M4Pa, M4Ps, Model};
 #[allow(unused_imports)] // the configurations left out of a build (cargo features)
@@ -268,6 +268,11 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
     /// [`Calibrator::set_frame_errors`].
     pub fn set_frame_errors(&mut self, n: u32) {
         each!(self, c => c.set_frame_errors(n))
+    }
+
+    /// [`Calibrator::log_start`]: where the run's log started.
+    pub fn log_start(&self, log: &mut (dyn SampleLog<T> + '_)) -> Result<LogStart, EstimatorError> {
+        each!(self, c => c.log_start(log))
     }
 }
 

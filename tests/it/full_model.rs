@@ -1,4 +1,4 @@
-//! The full model of SPEC §8 (installation errors followed by the
+//! The full model of docs/model.md §Instrument errors (installation errors followed by the
 //! instruments' own errors `dg, D_g, kg, ba, ka`) in the core crate:
 //!
 //! - a full state with zero instrument errors gives the installation
@@ -151,7 +151,7 @@ fn full_model_with_zero_instrument_errors_is_the_installation_model() {
 
 /// `N` names for each of the 14 model types, the full ones the
 /// installation names followed by the 21 instrument names, units and
-/// groups as SPEC §8 has them.
+/// groups as docs/model.md §Instrument errors has them.
 fn names_of<M: Model<N, Z>, const N: usize, const Z: usize>() {
     let states = M::states();
     assert_eq!(states.len(), N, "{} {}", M::ID, M::ERRORS);
@@ -244,7 +244,7 @@ fn error_model_parses_its_names() {
     );
 }
 
-/// The SPEC §8 priors of the 21 instrument errors in internal units, after
+/// The default priors of the 21 instrument errors in internal units, after
 /// the installation σ0 of the stream's settings.
 fn sigma0<M: Model<N, Z>, const N: usize, const Z: usize>(installation: f64) -> SVector<f64, N> {
     let deg_h = DEG / 3600.0;

@@ -9,7 +9,7 @@ use nalgebra::RealField;
 use rollcal::calibrator::RejectReason;
 use rollcal::ekf::{self, FilterConfig, Options};
 use rollcal::estimator::{
-    EstimatorOptions, LogError, LogRecord, PackedLayout, PassEvent, SampleLog,
+    EstimatorOptions, LogError, LogRecord, LogStart, PackedLayout, PassEvent, SampleLog,
 };
 use rollcal::models::{ConfigId, ErrorModel, Model};
 use rollcal::observability::Observability;
@@ -248,6 +248,21 @@ impl<T: RealField + Copy> Host<T> {
         Ok(())
     }
 
+    /// Where the log of the session's calibrator started
+    /// ([`rollcal::calibrator::Calibrator::log_start`]; the path's start
+    /// before it is configured).
+    pub fn log_start(&mut self) -> Result<LogStart, Error> {
+        match self.session.calibrator() {
+            Some(cal) => cal
+                .log_start(&mut self.log)
+                .map_err(|source| Error::Estimator {
+                    context: "the start of the log".into(),
+                    source,
+                }),
+            None => Ok(LogStart::aligned()),
+        }
+    }
+
     /// The estimator of record over the log, at most `passes` passes,
     /// with the last pass's innovations, history and covariance.
     pub fn finish(&mut self, passes: u8) -> Option<Final> {
@@ -328,64 +343,107 @@ fn tag(m: &Message) -> &'static str {
     }
 }
 
+/// The state (rad) at the log's start `start` of a run that ends at
+/// `x_end` (rad; missing trailing states are zero): `x_end` integrated
+/// back through every record ([`rollcal::estimator::back_propagate`], what
+/// the next linearised pass would start from) from the end of the run (the
+/// start's computed frame integrated forward through the records).
+pub fn state_at_start(
+    settings: &CalibratorConfig,
+    start: &LogStart,
+    x_end: &[f64],
+    records: &[LogRecord<f64>],
+) -> Result<Vec<f64>, Error> {
+    fn typed<M: Model<N, Z>, const N: usize, const Z: usize>(
+        cfg: FilterConfig<f64>,
+        start: &LogStart,
+        x_end: &[f64],
+        records: &[LogRecord<f64>],
+    ) -> Result<Vec<f64>, Error> {
+        let mut frame = start.frame(cfg.env.earth_rate_n);
+        for r in records.iter().filter(|r| r.has_valid_period()) {
+            let p = frame.period(&r.dtheta_cmd, r.dt);
+            frame.advance(&p);
+        }
+        let mut storage = records.to_vec();
+        let mut log = rollcal::estimator::SliceLog::from_records(&mut storage);
+        let (x, _) = rollcal::estimator::back_propagate::<f64, N, _>(
+            M::LAYOUT,
+            &cfg.env,
+            &padded::<N>(x_end),
+            &frame,
+            &mut log,
+        )
+        .map_err(|source| Error::Estimator {
+            context: "the start of the log".into(),
+            source,
+        })?;
+        Ok(x.iter().copied().collect())
+    }
+    let cfg = FilterConfig::<f64>::from(settings);
+    rollcal::with_model!(
+        settings.config,
+        settings.errors,
+        |M, N, Z| typed::<M, N, Z>(cfg, start, x_end, records)
+    )
+}
+
+/// The true state (rad) at the log's start `start`, from a truth sidecar's
+/// initial state `truth0` (the path's start) and final state `truth_end`
+/// (the end of the run): `truth0` for a log that starts at the path's
+/// start, else `truth_end` integrated back through the records
+/// ([`state_at_start`]; the model's trajectory without the gyro noise,
+/// which moves the Jacobians of the bound by nothing measurable). `None`
+/// at the path's start without `truth0`.
+pub fn truth_at_start(
+    settings: &CalibratorConfig,
+    start: &LogStart,
+    (truth0, truth_end): (Option<Vec<f64>>, &[f64]),
+    records: &[LogRecord<f64>],
+) -> Result<Option<Vec<f64>>, Error> {
+    if start.is_aligned() {
+        return Ok(truth0);
+    }
+    state_at_start(settings, start, truth_end, records).map(Some)
+}
+
+/// `v` as an `N`-vector, missing trailing values zero.
+fn padded<const N: usize>(v: &[f64]) -> nalgebra::SVector<f64, N> {
+    nalgebra::SVector::<f64, N>::from_iterator(v.iter().copied().chain(std::iter::repeat(0.0)))
+}
+
 /// The bound σ (rad) of every state at the estimate along the received
 /// path, and the observability verdict of each, for `calibrate` without a
-/// truth. The initial state is the estimator of record's own start of the
-/// log: the final estimate `x_end` integrated back through every record
-/// ([`rollcal::estimator::back_propagate`], what the next linearised pass
-/// would start from); the bound is [`runner::bound`]'s recursion
-/// ([`Observability`]) from it; the null space is that of the information
-/// matrix along the same records linearised at zero state (as
-/// `observability`), the verdict [`Verdict::of_bound`].
-/// With `x_end` `None` the bound starts at `x_start` instead.
+/// truth. The bound is [`runner::bound`]'s recursion ([`Observability`])
+/// from `x_start` (rad) at the log's start `start`: the estimator of
+/// record's own start of the log ([`state_at_start`] of the final
+/// estimate), or, when the log is not the whole run (`None`), the start's
+/// prior estimate, pass 1's ([`LogStart::state`] of zero). The null space is that of the
+/// information matrix along the same records linearised at the start's
+/// prior estimate (zero state at the path's start, as `observability`),
+/// the verdict [`Verdict::of_bound`].
 pub fn bound_at_estimate(
     settings: &CalibratorConfig,
-    x_end: Option<&[f64]>,
-    x_start: &[f64],
+    start: &LogStart,
+    x_start: Option<&[f64]>,
     records: &[LogRecord<f64>],
 ) -> Result<(Vec<f64>, Vec<Verdict>), Error> {
     fn typed<M: Model<N, Z>, const N: usize, const Z: usize>(
         cfg: FilterConfig<f64>,
-        x_end: Option<&[f64]>,
-        x_start: &[f64],
+        start: &LogStart,
+        x_start: Option<&[f64]>,
         sigma0: &[f64],
         records: &[LogRecord<f64>],
     ) -> Result<(Vec<f64>, Vec<Verdict>), Error> {
         use rollcal::observability::{COEF_THRESHOLD, RANK_TOLERANCE};
-        let vector = |v: &[f64]| {
-            nalgebra::SVector::<f64, N>::from_iterator(
-                v.iter().copied().chain(std::iter::repeat(0.0)),
-            )
-        };
-        let x0 = match x_end {
-            None => vector(x_start),
-            Some(x_end) => {
-                let mut frame = rollcal::command::CommandFrame::aligned(cfg.env.earth_rate_n);
-                for r in records.iter().filter(|r| r.has_valid_period()) {
-                    let p = frame.period(&r.dtheta_cmd, r.dt);
-                    frame.advance(&p);
-                }
-                let mut storage = records.to_vec();
-                let mut log = rollcal::estimator::SliceLog::from_records(&mut storage);
-                rollcal::estimator::back_propagate::<f64, N, _>(
-                    M::LAYOUT,
-                    &cfg.env,
-                    &vector(x_end),
-                    &frame,
-                    &mut log,
-                )
-                .map_err(|source| Error::Estimator {
-                    context: "the start of the log".into(),
-                    source,
-                })?
-                .0
-            }
-        };
-        let prior = vector(sigma0);
+        let prior = padded::<N>(sigma0);
         let e = |e: ekf::Error| Error::filter("the bound at the estimate", e);
+        let cold = start.state(M::LAYOUT, &nalgebra::SVector::zeros());
+        let x0 = x_start.map_or(cold, padded);
         let mut at = Observability::<f64, M, N, Z>::new(cfg, x0, prior).map_err(e)?;
-        let mut zero = Observability::<f64, M, N, Z>::new(cfg, nalgebra::SVector::zeros(), prior)
-            .map_err(e)?;
+        let mut zero = Observability::<f64, M, N, Z>::new(cfg, cold, prior).map_err(e)?;
+        at.start_at(start.c_cn()).map_err(e)?;
+        zero.start_at(start.c_cn()).map_err(e)?;
         for r in records {
             at.record(r).map_err(e)?;
             zero.record(r).map_err(e)?;
@@ -402,7 +460,7 @@ pub fn bound_at_estimate(
     rollcal::with_model!(
         settings.config,
         settings.errors,
-        |M, N, Z| typed::<M, N, Z>(cfg, x_end, x_start, &sigma0, records)
+        |M, N, Z| typed::<M, N, Z>(cfg, start, x_start, &sigma0, records)
     )
 }
 

@@ -248,6 +248,44 @@ fn host_states(json: &serde_json::Value) -> Result<Vec<HostState>, String> {
     Ok(out)
 }
 
+/// How far the firmware's estimate is from the host's.
+struct Differences {
+    /// The largest |Δ| over the installation states (rad).
+    max_rad: f64,
+    /// The largest |Δ|/σ over every state.
+    max_sigma: f64,
+    /// The largest |Δ|/σ over the instrument terms.
+    max_instr: f64,
+    /// The installation state of `max_rad`.
+    worst: String,
+}
+
+/// The differences of the firmware's `state` from the host's `states`:
+/// radians for the installation states, the instrument terms in units of
+/// their σ (`max_sigma` covers both). A NaN on either side counts as an
+/// infinite difference.
+fn differences(states: &[HostState], state: &[f64]) -> Differences {
+    let (mut max_rad, mut max_sigma, mut max_instr) = (0.0f64, 0.0f64, 0.0f64);
+    let mut worst = String::new();
+    for (s, x) in states.iter().zip(state.iter()) {
+        let d = (x - s.estimate).abs();
+        let d = if d.is_nan() { f64::INFINITY } else { d };
+        if s.instrument {
+            max_instr = max_instr.max(d / s.sigma);
+        } else if d > max_rad || worst.is_empty() {
+            max_rad = d;
+            worst.clone_from(&s.name);
+        }
+        max_sigma = max_sigma.max(d / s.sigma);
+    }
+    Differences {
+        max_rad,
+        max_sigma,
+        max_instr,
+        worst,
+    }
+}
+
 fn compare(
     firmware: &Path,
     host: &Path,
@@ -276,22 +314,12 @@ fn compare(
             states.len()
         ));
     }
-    // Radians for the installation states; the instrument terms in units
-    // of their σ (max_sigma covers both).
-    let (mut max_rad, mut max_sigma, mut max_instr) = (0.0f64, 0.0f64, 0.0f64);
-    let mut worst = String::new();
-    for (s, x) in states.iter().zip(est.state.iter()) {
-        // A NaN on either side counts as an infinite difference.
-        let d = (x - s.estimate).abs();
-        let d = if d.is_nan() { f64::INFINITY } else { d };
-        if s.instrument {
-            max_instr = max_instr.max(d / s.sigma);
-        } else if d > max_rad || worst.is_empty() {
-            max_rad = d;
-            worst.clone_from(&s.name);
-        }
-        max_sigma = max_sigma.max(d / s.sigma);
-    }
+    let Differences {
+        max_rad,
+        max_sigma,
+        max_instr,
+        worst,
+    } = differences(&states, &est.state);
     let full = states.iter().any(|s| s.instrument);
     let host_passes = json["answer"]["passes"].as_u64();
     let fw_passes = match est.kind {

@@ -74,13 +74,14 @@ impl CommonArgs {
 }
 
 /// Tells on stderr, for the full model, when the scenario gives no
-/// `[instruments.prior]` of its own: the run then takes SPEC §8's (the
-/// priors of an instrument before any calibration).
+/// `[instruments.prior]` of its own: the run then takes the default
+/// priors (an instrument's before any calibration, docs/model.md
+/// §The instrumented scenario).
 pub fn note_instrument_prior(scenario: &Scenario, errors: ErrorModel) {
     use crate::sim::scenario::InstrumentPrior;
     if errors == ErrorModel::Full && scenario.instruments.prior == InstrumentPrior::default() {
         eprintln!(
-            "instrument priors: SPEC §8's (1 °/h, 1 °/h/g, 2000 ppm, 1000 µg, 1000 ppm); \
+            "instrument priors: the defaults of docs/model.md (1 °/h, 1 °/h/g, 2000 ppm, 1000 µg, 1000 ppm); \
              [instruments.prior] of the scenario sets others"
         );
     }

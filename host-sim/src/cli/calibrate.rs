@@ -38,7 +38,7 @@ use std::time::{Duration, Instant as Clock};
 
 use nalgebra::RealField;
 use rollcal::ekf::FilterConfig;
-use rollcal::estimator::LogRecord;
+use rollcal::estimator::{LogRecord, LogStart};
 use rollcal::models::{ConfigId, ErrorModel};
 use rollcal::wire::{
     CalibratorConfig, DecoderStats, Estimate, EstimateKind, FrameDecoder, FrameError, Message,
@@ -49,7 +49,8 @@ use super::args::{load_scenario, parse_config};
 use super::checks::print_judgement;
 use super::Error;
 use crate::analysis::calibration::{
-    bound_at_estimate, platform_config, CalibratorView, Final, Host, LogStorage,
+    bound_at_estimate, platform_config, state_at_start, truth_at_start, CalibratorView, Final,
+    Host, LogStorage,
 };
 use crate::analysis::checks::{self, DataVerdict, Judgement};
 use crate::analysis::runner::{self, Passes, Precision, RunResult};
@@ -260,12 +261,15 @@ fn read_csv(
     };
     let text = read_text(&args.input)?;
     let mut log = crate::io::csvlog::parse(&text).map_err(|e| format!("{}: {e}", args.input))?;
+    if let Some(note) = log.ignored_note() {
+        eprintln!("{note}");
+    }
     let settings = fallback.unwrap_or_else(|| CalibratorConfig {
         errors: input.errors.unwrap_or_default(),
         ..CalibratorConfig::paper(id)
     });
     if !log.has_frames {
-        crate::io::csvlog::fill_frames(&mut log.samples, settings.earth_rate_n)
+        crate::io::csvlog::fill_frames(&mut log.samples, &settings)
             .map_err(|e| format!("{}: {e}", args.input))?;
     }
     Ok((log.samples, settings))
@@ -379,6 +383,11 @@ struct Calibration {
     format: Format,
     /// The truth sidecar, when given.
     sidecar: Option<Sidecar>,
+    /// Where the log started on the path.
+    start: LogStart,
+    /// The true state at the log's start (with a sidecar and a complete
+    /// log).
+    truth_start: Option<Vec<f64>>,
     /// The bound of the samples received (with a sidecar and a complete log).
     received_bound: Option<Vec<f64>>,
     /// σ_CRLB per state: the bound of the samples received, else the full
@@ -466,7 +475,7 @@ fn answer<T: RealField + Copy>(
     }
     let sigma0 = runner::prior_sigma_of(&settings);
     let nan = vec![f64::NAN; layout.n()];
-    let received_bound = received_bound(&settings, sidecar.as_ref(), &est, host)?;
+    let (start, truth_start, received_bound) = received(&settings, sidecar.as_ref(), &est, host)?;
     // The sidecar's bound is the installation model's: not the full model's.
     let crlb = received_bound
         .as_ref()
@@ -508,6 +517,8 @@ fn answer<T: RealField + Copy>(
         stats,
         format: input.format,
         sidecar,
+        start,
+        truth_start,
         received_bound,
         crlb,
         fin,
@@ -519,36 +530,47 @@ fn answer<T: RealField + Copy>(
     })
 }
 
-/// The bound of the samples actually received: the bound over the same
-/// log (the bridged periods predicted only), from the sidecar's true
-/// initial state; `None` without one or when the log is not the whole run
-/// (then the full run's bound of the sidecar is the one shown).
-fn received_bound<T: RealField + Copy>(
+/// Where the log started on the path, the true state there (with a
+/// sidecar and a complete log) and the bound of the samples actually
+/// received: the bound over the same log (the bridged periods predicted
+/// only) from that true state; `None` without one (no sidecar, or a log
+/// that is not the whole run: then the full run's bound of the sidecar is
+/// the one shown).
+#[allow(clippy::type_complexity)]
+fn received<T: RealField + Copy>(
     settings: &CalibratorConfig,
     sidecar: Option<&Sidecar>,
     est: &Estimate,
-    host: &Host<T>,
-) -> Result<Option<Vec<f64>>, Error> {
+    host: &mut Host<T>,
+) -> Result<(LogStart, Option<Vec<f64>>, Option<Vec<f64>>), Error> {
+    let start = host.log_start()?;
+    let records = host.log.records_f64();
+    let truth_start = match (sidecar, est.progress.log_incomplete) {
+        (Some(s), None) => truth_at_start(
+            settings,
+            &start,
+            (s.truth0_of(settings.errors), &s.truth_of(settings.errors)),
+            &records,
+        )?,
+        _ => None,
+    };
     let sigma0 = runner::prior_sigma_of(settings);
-    Ok(
-        match (
-            sidecar.and_then(|s| s.truth0_of(settings.errors)),
-            est.progress.log_incomplete,
-        ) {
-            (Some(t0), None) => Some(
-                runner::bound(
-                    settings.config,
-                    settings.errors,
-                    FilterConfig::<f64>::from(settings),
-                    &t0,
-                    &sigma0,
-                    &host.log.records_f64(),
-                )
-                .map_err(|e| format!("Cramér–Rao bound of the received samples: {e}"))?,
-            ),
-            _ => None,
-        },
-    )
+    let bound = truth_start
+        .as_deref()
+        .map(|t0| {
+            runner::bound(
+                settings.config,
+                settings.errors,
+                FilterConfig::<f64>::from(settings),
+                t0,
+                &start,
+                &sigma0,
+                &records,
+            )
+            .map_err(|e| format!("Cramér–Rao bound of the received samples: {e}"))
+        })
+        .transpose()?;
+    Ok((start, truth_start, bound))
 }
 
 /// The answer as a run's result: the final passes' estimate, σ,
@@ -629,10 +651,10 @@ fn print_results(c: &Calibration) -> Result<(Judgement, Option<(Vec<f64>, Vec<Ve
     let at_estimate = if c.sidecar.is_none() {
         let records = &c.records;
         // A log that is not the whole run (re-acquired attitude, full log)
-        // has no known start: the bound along the logged records from the
-        // cold start (zero state, as pass 1), said so.
-        let zeros = vec![0.0; id.layout_with(c.settings.errors).n()];
-        let end = if p.log_incomplete.is_some() {
+        // has no start of the final passes: the bound along the logged
+        // records from the cold start (the prior estimate at the log's
+        // start, as pass 1), said so.
+        let x_start = if p.log_incomplete.is_some() {
             eprintln!(
                 "note: the log is not the whole run: the bound is taken from the cold start along the {} logged samples only (of {} accepted)",
                 records.len(),
@@ -640,14 +662,10 @@ fn print_results(c: &Calibration) -> Result<(Judgement, Option<(Vec<f64>, Vec<Ve
             );
             None
         } else {
-            Some(
-                r.states
-                    .iter()
-                    .map(|s| s.estimate_rad)
-                    .collect::<Vec<f64>>(),
-            )
+            let end: Vec<f64> = r.states.iter().map(|s| s.estimate_rad).collect();
+            Some(state_at_start(&c.settings, &c.start, &end, records)?)
         };
-        let (b, v) = bound_at_estimate(&c.settings, end.as_deref(), &zeros, records)?;
+        let (b, v) = bound_at_estimate(&c.settings, &c.start, x_start.as_deref(), records)?;
         print_table_no_truth(r, &b, &v);
         Some((b, v))
     } else {
@@ -769,13 +787,14 @@ fn report(
 ) -> Result<(), Error> {
     let (id, r, p) = (c.id, &c.r, &c.est.progress);
     // σ_CRLB(t): the bound of the received samples, when computed.
-    let crlb_history = match c.sidecar.as_ref().and_then(|s| s.truth0.as_ref()) {
+    let crlb_history = match c.truth_start.as_ref() {
         Some(t0) if c.received_bound.is_some() => Some(
             runner::bound_history(
                 id,
                 ErrorModel::Installation,
                 FilterConfig::<f64>::from(&c.settings),
                 t0,
+                &c.start,
                 &[c.settings.prior_sigma_rad],
                 &c.records,
             )

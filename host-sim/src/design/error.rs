@@ -5,7 +5,13 @@ use std::fmt;
 
 /// Why a design could not be made or checked.
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub enum DesignError {
+    /// A limit or option of the request that cannot be searched (a rate
+    /// above 10 °/s, |β| at gimbal lock, a duration or budget of no whole
+    /// period or beyond what the tool simulates, no axis): the message,
+    /// naming the option.
+    Limit(String),
     /// An axis (of `--axes` or of the reference path) that is not
     /// understood: the scenario's message.
     Axis(String),
@@ -42,7 +48,7 @@ pub enum DesignError {
 impl fmt::Display for DesignError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Self::Axis(m) | Self::Target(m) => f.write_str(m),
+            Self::Limit(m) | Self::Axis(m) | Self::Target(m) => f.write_str(m),
             Self::NoPathReaches { within_s } => write!(
                 f,
                 "no path in the search space reaches every target within {within_s} s (raise --max-duration-s or --max-rate-deg-s, or loosen the targets)"

@@ -46,8 +46,10 @@
 //! [`Outcome`]), the bound evaluation (`Problem::evaluate`), the candidate
 //! moves and the search ([`search`]), the targets, the information shares
 //! ([`contributions`]), the checks of the designed path and the speed
-//! measurement. It prints nothing and returns [`DesignError`]; the
-//! subcommand (`host-sim design`) is [`crate::cli::design`].
+//! measurement, and one design from start to end ([`run`]). It prints
+//! nothing and returns [`DesignError`]; `crate::output::design` prints and
+//! writes a [`Run`], and the subcommand (`host-sim design`) is
+//! [`crate::cli::design`].
 
 mod axis;
 mod bound;
@@ -55,10 +57,12 @@ mod candidates;
 mod check;
 mod error;
 mod explain;
+mod nominal;
 mod pattern;
 mod probe;
 mod problem;
 mod reach;
+mod run;
 mod search;
 mod speed;
 mod targets;
@@ -74,10 +78,12 @@ pub use check::{
 };
 pub use error::DesignError;
 pub use explain::{contributions, target_groups, Contribution};
+pub use nominal::{nominal_scenario, TRUTH_STEPS_PER_PERIOD};
 pub use pattern::{pattern_of, Pattern, Piece, Rotation};
 pub use probe::{dwell_probe, DwellProbe};
 pub use problem::{Goal, Outcome, Problem};
 pub use reach::{out_of_reach, OutOfReach, FASTER_RATES_DEG_S};
+pub use run::{run, Note, Observer, Request, Run, Silent, OUT_OF_REACH_HORIZON};
 pub use search::{best_of, score_all, search, Design, Scored, StageStats};
 pub use speed::{measure_speed, Speed};
 pub use targets::{

@@ -7,9 +7,10 @@
 //! microseconds, so frames → CSV → frames is lossless: every field of
 //! every sample comes back bit for bit.
 
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 use rollcal::command::CommandFrame;
-use rollcal::wire::Sample;
+use rollcal::geometry::{euler_angles, wrap_angles};
+use rollcal::wire::{CalibratorConfig, Sample};
 
 use super::Error;
 
@@ -81,11 +82,29 @@ pub struct Log {
     /// Whether the log had the `ccn_q*` columns (else the quaternions are
     /// zero until [`fill_frames`]).
     pub has_frames: bool,
+    /// The header's columns that are none of [`COLUMNS`] (a temperature, a
+    /// status word, …), in file order: read past, not used.
+    pub ignored: Vec<String>,
+}
+
+impl Log {
+    /// The note for the user about the ignored columns, if any.
+    pub fn ignored_note(&self) -> Option<String> {
+        (!self.ignored.is_empty()).then(|| {
+            let names: Vec<String> = self.ignored.iter().map(|n| format!("'{n}'")).collect();
+            format!(
+                "note: column(s) {} ignored: not one of docs/csv.md's ({})",
+                names.join(", "),
+                header()
+            )
+        })
+    }
 }
 
 /// Parses a log. Blank lines and lines starting with `#` are skipped; the
-/// first other line is the header. Errors are one line and name the line
-/// number (1-based) and the column.
+/// first other line is the header. Columns of another name than
+/// [`COLUMNS`]' are ignored ([`Log::ignored`]). Errors are one line and
+/// name the line number (1-based) and the column.
 pub fn parse(text: &str) -> Result<Log, Error> {
     let mut lines = text
         .lines()
@@ -100,10 +119,10 @@ pub fn parse(text: &str) -> Result<Log, Error> {
     for (n, l) in lines {
         samples.push(parse_line(&h, n, l).map_err(Error::Csv)?);
     }
-    let has_frames = h.has_frames;
     Ok(Log {
         samples,
-        has_frames,
+        has_frames: h.has_frames,
+        ignored: h.ignored,
     })
 }
 
@@ -117,19 +136,20 @@ struct Header {
     has_gimbal: bool,
     /// Whether the quaternion columns are present.
     has_frames: bool,
+    /// The names of the columns that are none of [`COLUMNS`].
+    ignored: Vec<String>,
 }
 
 /// Parses the header line `head` (line `hline`).
 fn parse_header(hline: usize, head: &str) -> Result<Header, String> {
     // Column index of each named column in the file.
     let mut index = [None::<usize>; COLUMNS.len()];
+    let mut ignored = Vec::new();
     let names: Vec<&str> = head.split(',').map(str::trim).collect();
     for (pos, name) in names.iter().enumerate() {
         let Some(k) = COLUMNS.iter().position(|c| c == name) else {
-            return Err(format!(
-                "line {hline}: unknown column '{name}' (expected {})",
-                header()
-            ));
+            ignored.push((*name).to_string());
+            continue;
         };
         if index[k].replace(pos).is_some() {
             return Err(format!("line {hline}: column '{name}' appears twice"));
@@ -159,6 +179,7 @@ fn parse_header(hline: usize, head: &str) -> Result<Header, String> {
         columns: names.len(),
         has_gimbal,
         has_frames,
+        ignored,
     })
 }
 
@@ -228,12 +249,15 @@ fn parse_line(h: &Header, n: usize, l: &str) -> Result<Sample, String> {
 
 /// Fills the computed frame `C^c_n` of a log without `ccn_q*` columns by
 /// integrating its commanded increments from `C^c_n(0) = I` (docs/model.md
-/// §Measurement timing), as the filter does. Such a log must have no
-/// missing sequence numbers: across a gap the motion is unknown.
-pub fn fill_frames(samples: &mut [Sample], earth_rate_n: [f64; 3]) -> Result<(), Error> {
-    let mut frame = CommandFrame::aligned(Vector3::from(earth_rate_n));
+/// §Measurement timing), as the filter does, for a calibrator of
+/// `settings`. Such a log must have no missing sequence numbers (across a
+/// gap the motion is unknown), and it must start where the path starts:
+/// its first sample's specific force and gimbal angles within 5 prior σ
+/// of what `C^c_n = I` gives, else a one-line error.
+pub fn fill_frames(samples: &mut [Sample], settings: &CalibratorConfig) -> Result<(), Error> {
+    let mut frame = CommandFrame::aligned(Vector3::from(settings.earth_rate_n));
     let mut last: Option<u32> = None;
-    for s in samples.iter_mut() {
+    for (i, s) in samples.iter_mut().enumerate() {
         if let Some(prev) = last {
             if s.seq != prev.wrapping_add(1) {
                 return Err(Error::Csv(format!(
@@ -246,6 +270,66 @@ pub fn fill_frames(samples: &mut [Sample], earth_rate_n: [f64; 3]) -> Result<(),
         let period = frame.period(&Vector3::from(s.dtheta_cmd), f64::from(s.dt));
         frame.advance(&period);
         s.c_cn_quat = rollcal::geometry::quaternion_from_dcm(&frame.c_cn).map(|v| v as f32);
+        if i == 0 {
+            check_start(s, &frame.c_cn, settings)?;
+        }
+    }
+    Ok(())
+}
+
+/// How far (in prior σ, [`CalibratorConfig::prior_sigma_rad`]) the first
+/// sample of a log without `ccn_q*` columns may be from the path's start:
+/// there the platform is on the computed frame `C^c_n = I` to within its
+/// attitude's prior, and the installation errors are within theirs.
+const START_PRIOR_SIGMAS: f64 = 5.0;
+
+/// Checks that the first sample `s` of a log without `ccn_q*` columns,
+/// whose period ends at the computed frame `c_cn` integrated from the
+/// path's start, was taken there: its specific force within
+/// [`START_PRIOR_SIGMAS`] prior σ of the direction `C^c_n` gives gravity,
+/// and its gimbal angles (when logged) within as much of the Euler angles
+/// of `C^c_n`. A log that starts elsewhere on the path would be calibrated
+/// from the wrong frame; it needs its `ccn_q*` columns, which give the
+/// start (docs/csv.md).
+fn check_start(s: &Sample, c_cn: &Matrix3<f64>, settings: &CalibratorConfig) -> Result<(), Error> {
+    let limit = START_PRIOR_SIGMAS * settings.prior_sigma_rad;
+    let deg = |rad: f64| rad.to_degrees();
+    let refuse = |what: String| {
+        Err(Error::Csv(format!(
+            "seq {}: a log without the ccn_q* columns is integrated from the path's start (C^c_n = I), but {what}, more than {:.1}° ({START_PRIOR_SIGMAS} prior σ) off: a log that starts elsewhere on the path needs the ccn_q* columns (docs/csv.md)",
+            s.seq,
+            deg(limit)
+        )))
+    };
+    let f = Vector3::from(s.accel_mean).cast::<f64>();
+    let g = c_cn * Vector3::from(settings.gravity_n);
+    let angle = (f.dot(&g) / (f.norm() * g.norm())).clamp(-1.0, 1.0).acos();
+    if angle > limit {
+        return refuse(format!(
+            "its first accelerometer means ({:.4}, {:.4}, {:.4}) g are {:.1}° from the gravity that frame gives ({:.4}, {:.4}, {:.4}) g",
+            f.x,
+            f.y,
+            f.z,
+            deg(angle),
+            g.x,
+            g.y,
+            g.z
+        ));
+    }
+    if let Some(gimbal) = s.gimbal {
+        let expected = euler_angles(c_cn);
+        let off = Vector3::from(gimbal).cast::<f64>() - expected;
+        if wrap_angles(&off).amax() > limit {
+            return refuse(format!(
+                "its first gimbal angles ({:.2}, {:.2}, {:.2})° are far from that frame's ({:.2}, {:.2}, {:.2})°",
+                deg(f64::from(gimbal[0])),
+                deg(f64::from(gimbal[1])),
+                deg(f64::from(gimbal[2])),
+                deg(expected.x),
+                deg(expected.y),
+                deg(expected.z)
+            ));
+        }
     }
     Ok(())
 }

@@ -73,8 +73,8 @@ fn csv_round_trips_the_frame_samples() {
         .collect();
     let mut log = csvlog::parse(&short).unwrap();
     assert!(!log.has_frames);
-    let er = rollcal::wire::CalibratorConfig::paper(rollcal::models::ConfigId::M2Ps).earth_rate_n;
-    csvlog::fill_frames(&mut log.samples, er).unwrap();
+    let settings = rollcal::wire::CalibratorConfig::paper(rollcal::models::ConfigId::M2Ps);
+    csvlog::fill_frames(&mut log.samples, &settings).unwrap();
     for (a, b) in log.samples.iter().zip(&frames) {
         for (x, y) in a.c_cn_quat.iter().zip(&b.c_cn_quat) {
             assert!((x - y).abs() < 1e-6, "seq {}: {x} vs {y}", a.seq);
@@ -255,7 +255,8 @@ fn a_malformed_csv_line_is_a_one_line_error_with_its_number() {
         ),
         (format!("{h}\n-1,{}\n", &good[2..]), "line 2", "seq"),
         ("seq,t_s\n".to_string(), "line 1", "dt_s"),
-        ("seq,t_s,bogus\n".to_string(), "line 1", "bogus"),
+        // An unknown column is ignored: the missing required one is the error.
+        ("seq,t_s,bogus\n".to_string(), "line 1", "dt_s"),
     ];
     for (text, line, word) in &cases {
         let e = csvlog::parse(text).unwrap_err().to_string();
@@ -288,4 +289,142 @@ fn a_malformed_csv_line_is_a_one_line_error_with_its_number() {
         .unwrap();
     assert!(!stderr(&out).contains("panicked"), "{}", stderr(&out));
     std::fs::remove_dir_all(&d).ok();
+}
+
+/// The CSV of `record` (M1-pa, seed 2) with a line's fields rewritten by
+/// `edit` (the header too), written to `dir/name`.
+fn rewritten(dir: &Path, name: &str, edit: impl Fn(usize, Vec<String>) -> Vec<String>) -> PathBuf {
+    let src = dir.join("src.csv");
+    if !src.exists() {
+        record("M1-pa", "2", "csv", &src);
+    }
+    let text: String = std::fs::read_to_string(&src)
+        .unwrap()
+        .lines()
+        .enumerate()
+        .map(|(i, l)| edit(i, l.split(',').map(String::from).collect()).join(",") + "\n")
+        .collect();
+    let out = dir.join(name);
+    std::fs::write(&out, text).unwrap();
+    out
+}
+
+/// `calibrate --input LOG --platform (M1-pa) --json OUT`: the JSON and stderr.
+fn calibrate_csv(dir: &Path, log: &Path) -> (serde_json::Value, String) {
+    let platform = dir.join("m1pa.toml");
+    let text = std::fs::read_to_string(repo("scenarios/platform-example.toml"))
+        .unwrap()
+        .replace("config = \"M2-ps\"", "config = \"M1-pa\"");
+    std::fs::write(&platform, text).unwrap();
+    let json = dir.join("out.json");
+    let out = ok(host_sim()
+        .args(["calibrate", "--input"])
+        .arg(log)
+        .arg("--platform")
+        .arg(&platform)
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap());
+    (json_file(&json), stderr(&out))
+}
+
+/// A column docs/csv.md does not name (a temperature, a status word) is
+/// read past and named in one note on stderr; the answer is the log's
+/// without it, bit for bit.
+#[test]
+fn unknown_columns_are_ignored_with_a_note() {
+    let d = dir("extra");
+    let plain = rewritten(&d, "plain.csv", |_, f| f);
+    let extra = rewritten(&d, "extra.csv", |i, mut f| {
+        let t = if i == 0 {
+            "temperature_c".to_string()
+        } else {
+            format!("{:.2}", 21.5 + i as f64 * 1e-3)
+        };
+        f.insert(3, t);
+        f.push(if i == 0 {
+            "status".into()
+        } else {
+            "0x0".into()
+        });
+        f
+    });
+    let (a, note_a) = calibrate_csv(&d, &plain);
+    let (b, note_b) = calibrate_csv(&d, &extra);
+    assert!(!note_a.contains("ignored"), "{note_a}");
+    let notes: Vec<&str> = note_b.lines().filter(|l| l.contains("ignored")).collect();
+    assert_eq!(notes.len(), 1, "{note_b}");
+    assert!(
+        notes[0].contains("'temperature_c', 'status' ignored"),
+        "{}",
+        notes[0]
+    );
+    assert_eq!(a["states"], b["states"]);
+    assert_eq!(a["answer"], b["answer"]);
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// Lines are taken in file order, as a stream's samples: a line whose
+/// sequence number is not above the last accepted one is rejected
+/// (`out_of_order`), and a line that comes early opens a gap that its
+/// `C^c_n` bridges. Two lines swapped lose one period; a log in reverse
+/// order keeps only its first line.
+#[test]
+fn lines_out_of_time_order_are_rejected_as_a_streams_samples_are() {
+    let d = dir("order");
+    let swapped = rewritten(&d, "swapped.csv", |_, f| f);
+    let text = std::fs::read_to_string(&swapped).unwrap();
+    let mut lines: Vec<&str> = text.lines().collect();
+    lines.swap(100, 101);
+    std::fs::write(&swapped, lines.join("\n") + "\n").unwrap();
+    let (a, _) = calibrate_csv(&d, &swapped);
+    assert_eq!(a["stream"]["accepted"], 5399, "{}", a["stream"]);
+    assert_eq!(a["stream"]["bridged"], 1, "{}", a["stream"]);
+    assert_eq!(a["stream"]["rejects"]["out_of_order"], 1, "{}", a["stream"]);
+    let reversed = d.join("reversed.csv");
+    let body: Vec<&str> = lines[1..].iter().rev().copied().collect();
+    std::fs::write(&reversed, format!("{}\n{}\n", lines[0], body.join("\n"))).unwrap();
+    let json = d.join("rev.json");
+    let out = host_sim()
+        .args(["calibrate", "--input"])
+        .arg(&reversed)
+        .arg("--platform")
+        .arg(d.join("m1pa.toml"))
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert!(!stderr(&out).contains("panicked"), "{}", stderr(&out));
+    let r = json_file(&json);
+    assert_eq!(r["stream"]["accepted"], 1, "{}", r["stream"]);
+    assert_eq!(
+        r["stream"]["rejects"]["out_of_order"], 5399,
+        "{}",
+        r["stream"]
+    );
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// docs/csv.md's quaternion convention, held to the code: scalar first,
+/// the passive DCM `C^c_n = R(θ)`; the paper path's first second (0.1°
+/// about South) and a quarter turn about Up.
+#[test]
+fn the_quaternion_convention_is_the_documented_one() {
+    use rollcal::geometry::{dcm, quaternion_from_dcm, r2};
+    let deg = std::f64::consts::PI / 180.0;
+    let south = quaternion_from_dcm(&dcm(&nalgebra::Vector3::new(-0.1 * deg, 0.0, 0.0)));
+    assert_eq!(
+        south.map(|v| v as f32),
+        [0.99999964, -0.0008726645, 0.0, 0.0]
+    );
+    let up = quaternion_from_dcm(&r2(90.0 * deg));
+    // docs/csv.md's digits of cos 45° = sin 45°.
+    let half = std::f64::consts::FRAC_1_SQRT_2;
+    assert_eq!(format!("{half:.7}"), "0.7071068");
+    let want = [half, 0.0, half, 0.0];
+    assert!(
+        up.iter().zip(want).all(|(a, b)| (a - b).abs() < 1e-15),
+        "{up:?}"
+    );
 }

@@ -34,7 +34,8 @@ fn instrumented_seed1() -> (Scenario, host_sim::sim::truth::Simulation) {
 
 /// On the instrumented scenario (seed 1), the full model of M2-ps and M1-pa
 /// ends with every non-attitude state within 4σ of the truth, σ within 5 %
-/// of σ_CRLB, and the instrument truths those of SPEC §8's table.
+/// of σ_CRLB, and the instrument truths those of docs/model.md §The instrumented
+/// scenario.
 #[test]
 fn full_model_run_is_consistent_with_its_bound() {
     let (scenario, sim) = instrumented_seed1();

@@ -1,5 +1,5 @@
 //! The instruments' own errors in the truth simulator (docs/model.md
-//! §Instrument errors, SPEC §8): the `[instruments]` scenario table, the
+//! §Instrument errors): the `[instruments]` scenario table, the
 //! gyro drift and scale factor acting on the platform, the accelerometer
 //! bias and scale factor on the means, the 21 instrument states of the truth
 //! sidecar. Zero instrument errors change nothing, bit for bit.

@@ -1,7 +1,8 @@
 //! The second-order terms of the accelerometer measurement, from its
 //! analytic Hessian (the cold-start remedy of the filter, [`crate::ekf`]).
 //!
-//! The accelerometer output at one instant is (paper eqs. 6, 10, 11)
+//! The accelerometer output at one instant is (docs/model.md §Installation
+//! models, §Configurations)
 //!
 //! `h(x) = A f^p = (I + L(θaT)) R(−θaC) q`,  `q = C^p_n f^n`,
 //!
@@ -22,11 +23,11 @@
 //! multiplications (`m` = 6, 9 or 12) instead of 24 Jacobian evaluations and
 //! `3 N³` of central differences.
 //!
-//! The full model (SPEC §8, `Z_a = ba + (I + K_a) h`) is linear in `ba`
+//! The full model (docs/model.md §Instrument errors, `Z_a = ba + (I + K_a) h`) is linear in `ba`
 //! and `ka`: its terms here are those of the installation output `h` alone.
 //! Left out are the factor `1 + ka` (≤ 1e-3 of the terms) and the Hessian
 //! blocks `ka_a × y` (`= ∂h_a/∂y`), whose share of the covariance term,
-//! ≈ σ_ka² σ_att² |∂h/∂att|² ≈ 3e-10 g² at the SPEC §8 priors (1000 ppm,
+//! ≈ σ_ka² σ_att² |∂h/∂att|² ≈ 3e-10 g² at the default priors (1000 ppm,
 //! 1°), is ≈ 0.6 % of the attitude's own (≈ ½ σ_att⁴ ≈ 5e-8 g²) at a cold
 //! start and falls with it.
 //!

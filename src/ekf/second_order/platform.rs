@@ -1,7 +1,7 @@
 //! The accelerometer's specific force in platform axes before the
 //! accelerometers' own installation errors, `q = C^p_n f^n` (`R(ψ) C^c_n f^n`
-//! in M1, `C(θ) R(λ) f^n` in M2 and M3, `C(θp) f^n` in M4; paper eqs. 1,
-//! 2, 5), with its first and second derivatives with respect to the attitude
+//! in M1, `C(θ) R(λ) f^n` in M2 and M3, `C(θp) f^n` in M4; docs/model.md
+//! §Frames, §Configurations), with its first and second derivatives with respect to the attitude
 //! and `λ` ([`Platform`]): the part of the Hessian that depends on the
 //! configuration's attitude kind.
 

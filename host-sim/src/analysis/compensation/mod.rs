@@ -20,7 +20,7 @@
 //! [`rollcal::instruments::accel_matrix`], evaluated by
 //! [`rollcal::models::Layout::matrices`].
 //!
-//! The full model (SPEC §8, docs/model.md §Instrument errors) adds the
+//! The full model (docs/model.md §Instrument errors) adds the
 //! instruments' own errors: `ω^p_ip = G [(I + K_g) ωc + dg + D_g f^p]` and
 //! `Z_a = ba + (I + K_a) A f^p`, so the torquer command is
 //! `ωc = (I + K_g)⁻¹ (G⁻¹ ω^p − dg − D_g f^p)` and the compensated specific

@@ -2,7 +2,7 @@
 //! record.
 
 use rollcal::ekf::{self, FilterConfig};
-use rollcal::estimator::LogRecord;
+use rollcal::estimator::{LogRecord, LogStart};
 use rollcal::models::{ConfigId, ErrorModel, Model};
 use rollcal::observability::Observability;
 
@@ -13,7 +13,8 @@ use crate::sim::truth::Simulation;
 
 /// Posterior Cramér–Rao bound σ (rad) of every state after the periods
 /// `records`, from the true initial state `truth0` (rad; missing trailing
-/// states are zero) with prior σ `sigma0` of every state (internal units), model
+/// states are zero) at the log's start `start` (the path's start for a
+/// simulated run) with prior σ `sigma0` of every state (internal units), model
 /// `errors`, and the noise
 /// levels of `cfg` (its options are ignored): [`Observability`] along the
 /// true trajectory, a record without measurement being a period that is
@@ -23,24 +24,27 @@ pub fn bound(
     errors: ErrorModel,
     cfg: FilterConfig<f64>,
     truth0: &[f64],
+    start: &LogStart,
     sigma0: &[f64],
     records: &[LogRecord<f64>],
 ) -> Result<Vec<f64>, ekf::Error> {
     fn typed<M: Model<N, Z>, const N: usize, const Z: usize>(
         cfg: FilterConfig<f64>,
         truth0: &[f64],
+        start: &LogStart,
         sigma0: &[f64],
         records: &[LogRecord<f64>],
     ) -> Result<Vec<f64>, ekf::Error> {
         let (x, s) = initial::<N>(truth0, sigma0);
         let mut obs = Observability::<f64, M, N, Z>::new(cfg, x, s)?;
+        obs.start_at(start.c_cn())?;
         for r in records {
             obs.record(r)?;
         }
         Ok(obs.crlb_sigma().iter().copied().collect())
     }
     rollcal::with_model!(id, errors, |M, N, Z| typed::<M, N, Z>(
-        cfg, truth0, sigma0, records
+        cfg, truth0, start, sigma0, records
     ))
 }
 
@@ -51,17 +55,20 @@ pub fn bound_history(
     errors: ErrorModel,
     cfg: FilterConfig<f64>,
     truth0: &[f64],
+    start: &LogStart,
     sigma0: &[f64],
     records: &[LogRecord<f64>],
 ) -> Result<Vec<Vec<f64>>, ekf::Error> {
     fn typed<M: Model<N, Z>, const N: usize, const Z: usize>(
         cfg: FilterConfig<f64>,
         truth0: &[f64],
+        start: &LogStart,
         sigma0: &[f64],
         records: &[LogRecord<f64>],
     ) -> Result<Vec<Vec<f64>>, ekf::Error> {
         let (x, s) = initial::<N>(truth0, sigma0);
         let mut obs = rollcal::observability::Bound::<f64, M, N, Z>::bound_only(cfg, x, s)?;
+        obs.start_at(start.c_cn())?;
         let mut out = Vec::with_capacity(records.len());
         for r in records {
             obs.record(r)?;
@@ -70,7 +77,7 @@ pub fn bound_history(
         Ok(out)
     }
     rollcal::with_model!(id, errors, |M, N, Z| typed::<M, N, Z>(
-        cfg, truth0, sigma0, records
+        cfg, truth0, start, sigma0, records
     ))
 }
 

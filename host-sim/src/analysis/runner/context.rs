@@ -5,7 +5,7 @@
 //! step.
 
 use rollcal::ekf::{self, FilterConfig, Options};
-use rollcal::estimator::LogRecord;
+use rollcal::estimator::{LogRecord, LogStart};
 use rollcal::models::{ConfigId, ErrorModel, Layout};
 
 use super::bound::{bound, bound_history};
@@ -180,7 +180,15 @@ impl<'a> SimulatedRun<'a> {
         let truth0 = self.truth_at_start();
         let records = self.records();
         let sigma0 = self.prior_sigma();
-        bound(self.config, self.errors, cfg, &truth0, &sigma0, &records)
+        bound(
+            self.config,
+            self.errors,
+            cfg,
+            &truth0,
+            &LogStart::aligned(),
+            &sigma0,
+            &records,
+        )
     }
 
     /// [`Self::crlb`] after every period (for the σ(t) figures).
@@ -189,6 +197,14 @@ impl<'a> SimulatedRun<'a> {
         let truth0 = self.truth_at_start();
         let records = self.records();
         let sigma0 = self.prior_sigma();
-        bound_history(self.config, self.errors, cfg, &truth0, &sigma0, &records)
+        bound_history(
+            self.config,
+            self.errors,
+            cfg,
+            &truth0,
+            &LogStart::aligned(),
+            &sigma0,
+            &records,
+        )
     }
 }

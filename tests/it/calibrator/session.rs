@@ -1,0 +1,235 @@
+//! The session: checkpoints, resets, restores and finishes as if
+//! uninterrupted, whatever its filter held, with replies into a slot and
+//! requests as the messages they name.
+
+use super::*;
+
+#[test]
+fn the_session_checkpoints_resets_restores_and_finishes_as_if_uninterrupted() {
+    use rollcal::estimator::{EstimatorOptions, LogRecord, SliceLog};
+    use rollcal::session::{Reply, Session, SessionError};
+    use rollcal::wire::EstimateKind;
+    let (sc, data) = samples(300);
+    let cfg = settings(&sc, ConfigId::M2Ps, 0);
+    let blank = LogRecord::predicted(1.0, nalgebra::Vector3::zeros());
+    let run = |interrupt: bool| {
+        let mut storage = vec![blank; 300];
+        let mut log = SliceLog::new(&mut storage);
+        let mut session = Session::<f64>::new(Some(ConfigId::M2Ps), EstimatorOptions::default());
+        // Samples before Configure are counted and dropped.
+        let early = session.handle(&Message::Sample(data[0]), &mut log);
+        assert_eq!(early, Reply::Error(SessionError::NotConfigured));
+        assert_eq!(
+            session.handle(&Message::Configure(cfg), &mut log),
+            Reply::Nothing
+        );
+        let mut saved = None;
+        for (i, s) in data.iter().enumerate() {
+            if interrupt && i == 120 {
+                let Reply::Send(Message::Checkpoint(cp)) =
+                    session.handle(&Message::CheckpointRequest, &mut log)
+                else {
+                    panic!("no checkpoint")
+                };
+                saved = Some(cp);
+            }
+            if interrupt && i == 180 {
+                // A reset loses everything since; the restore brings back the
+                // state of sample 120, and the log is taken back with it.
+                assert_eq!(session.handle(&Message::Reset, &mut log), Reply::Nothing);
+                let cp = over_the_wire(saved.take().unwrap());
+                assert_eq!(
+                    session.handle(&Message::Checkpoint(cp), &mut log),
+                    Reply::Nothing
+                );
+                for s in &data[120..180] {
+                    session.handle(&Message::Sample(*s), &mut log);
+                }
+            }
+            assert!(!matches!(
+                session.handle(&Message::Sample(*s), &mut log),
+                Reply::Error(_) | Reply::Rejected(_)
+            ));
+        }
+        let Reply::Send(Message::Estimate(fin)) = session.handle(&Message::Finish, &mut log) else {
+            panic!("no final estimate")
+        };
+        (fin, session.stats().unconfigured)
+    };
+    let (plain, unconfigured) = run(false);
+    let (interrupted, _) = run(true);
+    assert_eq!(unconfigured, 1);
+    assert!(
+        matches!(plain.kind, EstimateKind::Final { .. }),
+        "{:?}",
+        plain.kind
+    );
+    assert_eq!(plain.state, interrupted.state);
+    assert_eq!(plain.sigma, interrupted.sigma);
+    assert_eq!(plain.kind, interrupted.kind);
+    // A Configure for another configuration than the session runs is refused.
+    let mut storage = vec![blank; 1];
+    let mut log = SliceLog::new(&mut storage);
+    let mut session = Session::<f64>::new(Some(ConfigId::M1Pa), EstimatorOptions::default());
+    assert_eq!(
+        session.handle(&Message::Configure(cfg), &mut log),
+        Reply::Error(SessionError::ConfigMismatch {
+            expected: ConfigId::M1Pa,
+            found: ConfigId::M2Ps
+        })
+    );
+}
+
+/// `Finish` runs its passes in the session's own filter
+/// (`AnyCalibrator::finish`, which a firmware keeps in static memory): the
+/// answer is the calibrator's own `finish` on a first `Finish`, on a
+/// repeated one (the filter then holds the last pass's end), and after the
+/// session ran another configuration (its filter then of another kind).
+// Needs both configurations it switches between (the no-default-features
+// build of .ci/run has M2-ps alone).
+#[cfg(all(feature = "m1-pa", feature = "m2-ps"))]
+#[test]
+fn the_sessions_finish_is_the_calibrators_whatever_its_filter_held() {
+    use rollcal::estimator::{EstimatorOptions, LogRecord, SliceLog};
+    use rollcal::session::{AnyCalibrator, Reply, Session};
+    use rollcal::wire::{Estimate, EstimateKind};
+    let (sc, data) = samples(200);
+    let blank = LogRecord::predicted(1.0, nalgebra::Vector3::zeros());
+    let opts = EstimatorOptions::default();
+    let mut session = Session::<f64>::new(None, opts);
+    let same = |a: &Estimate, b: &Estimate| {
+        assert!(matches!(a.kind, EstimateKind::Final { .. }), "{:?}", a.kind);
+        assert_eq!(a.kind, b.kind);
+        assert_eq!(a.state, b.state);
+        assert_eq!(a.sigma, b.sigma);
+        assert_eq!(a.updates, b.updates);
+    };
+    for id in [ConfigId::M2Ps, ConfigId::M1Pa, ConfigId::M2Ps] {
+        let mut storage = vec![blank; data.len()];
+        let mut log = SliceLog::new(&mut storage);
+        let configure = Message::Configure(settings(&sc, id, 0));
+        assert_eq!(session.handle(&configure, &mut log), Reply::Nothing);
+        for s in &data {
+            session.handle(&Message::Sample(*s), &mut log);
+        }
+        let own = match session.calibrator() {
+            Some(AnyCalibrator::M2Ps(c)) => c.finish(&mut log, &opts, |_| {}).0,
+            Some(AnyCalibrator::M1Pa(c)) => c.finish(&mut log, &opts, |_| {}).0,
+            other => panic!("{other:?}"),
+        };
+        for _ in 0..2 {
+            match session.handle(&Message::Finish, &mut log) {
+                Reply::Send(Message::Estimate(e)) => same(&e, &own),
+                other => panic!("{other:?}"),
+            }
+        }
+    }
+}
+
+/// `Session::handle_into` and `request_into` (a reply slot the caller owns,
+/// the firmware's way) are `handle` and `request`: the same replies, the
+/// same session after each message, whatever the slot held before (it
+/// starts with a stale checkpoint, then keeps the last reply); and the
+/// errors among them are counted.
+#[test]
+fn replies_into_a_slot_are_the_replies() {
+    use rollcal::estimator::{EstimatorOptions, LogRecord, SliceLog};
+    use rollcal::session::{Reply, Request, Session};
+    let (sc, data) = samples(40);
+    let cfg = settings(&sc, ConfigId::M1Pa, 10);
+    let blank = LogRecord::predicted(1.0, nalgebra::Vector3::zeros());
+    let mut storage = [vec![blank; 40], vec![blank; 40]];
+    let [a_storage, b_storage] = &mut storage;
+    let (mut a_log, mut b_log) = (SliceLog::new(a_storage), SliceLog::new(b_storage));
+    let mut a = Session::<f64>::new(None, EstimatorOptions::default());
+    let mut b = Session::<f64>::new(None, EstimatorOptions::default());
+    let mut stale = M1PaCalibrator::<f64>::new(cfg).unwrap();
+    for s in &data[..3] {
+        let _ = stale.push(s);
+    }
+    let mut slot = Reply::Send(Message::Checkpoint(stale.checkpoint()));
+    // Unconfigured first (errors), then a run with every request, a
+    // restore from the checkpoint taken half-way, and a Finish.
+    let mut messages = vec![Message::Sample(data[0]), Message::EstimateRequest];
+    messages.push(Message::Configure(cfg));
+    messages.extend(data[..20].iter().map(|s| Message::Sample(*s)));
+    messages.push(Message::CheckpointRequest);
+    let mut kinds = std::collections::BTreeSet::new();
+    let mut errors = 0;
+    for (k, msg) in messages.iter().enumerate() {
+        let want = a.handle(msg, &mut a_log);
+        b.handle_into(msg, &mut b_log, &mut slot);
+        assert_eq!(slot, want, "message {k}");
+        assert_eq!(a.stats(), b.stats(), "message {k}");
+        kinds.insert(format!("{:?}", std::mem::discriminant(&want)));
+        errors += u32::from(matches!(want, Reply::Error(_)));
+    }
+    let Reply::Send(Message::Checkpoint(cp)) = slot.clone() else {
+        panic!("no checkpoint: {slot:?}");
+    };
+    for s in &data[20..] {
+        let msg = Message::Sample(*s);
+        assert_eq!(a.handle(&msg, &mut a_log), {
+            b.handle_into(&msg, &mut b_log, &mut slot);
+            slot.clone()
+        });
+    }
+    let restore = Message::Checkpoint(cp);
+    assert_eq!(a.handle(&restore, &mut a_log), {
+        b.handle_into(&restore, &mut b_log, &mut slot);
+        slot.clone()
+    });
+    for r in [
+        Request::Estimate,
+        Request::Finish,
+        Request::Checkpoint,
+        Request::Reset,
+    ] {
+        let want = a.request(r, &mut a_log);
+        b.request_into(r, &mut b_log, &mut slot);
+        assert_eq!(slot, want, "{r:?}");
+        kinds.insert(format!("{:?}", std::mem::discriminant(&want)));
+        errors += u32::from(matches!(want, Reply::Error(_)));
+    }
+    assert_eq!(format!("{a:?}"), format!("{b:?}"));
+    assert_eq!(a.stats(), b.stats());
+    // Nothing, Send and Error replies were all compared, and every error
+    // was counted.
+    assert_eq!(kinds.len(), 3, "{kinds:?}");
+    assert_eq!(b.stats().errors, errors);
+}
+
+/// `Session::request(r)` is `Session::handle(&r.message())`: the same reply
+/// and the same session after it, configured or not, on every request.
+#[test]
+fn a_request_is_the_message_it_names() {
+    use rollcal::estimator::{EstimatorOptions, LogRecord, SampleLog, SliceLog};
+    use rollcal::session::{Request, Session};
+    let (sc, data) = samples(60);
+    let cfg = settings(&sc, ConfigId::M1Pa, 0);
+    let blank = LogRecord::predicted(1.0, nalgebra::Vector3::zeros());
+    for configured in [false, true] {
+        for r in Request::ALL {
+            let mut storage = [vec![blank; 60], vec![blank; 60]];
+            let [a_storage, b_storage] = &mut storage;
+            let mut logs = [SliceLog::new(a_storage), SliceLog::new(b_storage)];
+            let mut sessions =
+                [(); 2].map(|()| Session::<f64>::new(None, EstimatorOptions::default()));
+            if configured {
+                for (session, log) in sessions.iter_mut().zip(logs.iter_mut()) {
+                    session.handle(&Message::Configure(cfg), log);
+                    for s in &data {
+                        session.handle(&Message::Sample(*s), log);
+                    }
+                }
+            }
+            let [a, b] = &mut sessions;
+            let [a_log, b_log] = &mut logs;
+            assert_eq!(a.handle(&r.message(), a_log), b.request(r, b_log), "{r:?}");
+            // (Debug: a reset's `last_nis` is NaN, which `==` never equals.)
+            assert_eq!(format!("{a:?}"), format!("{b:?}"), "{r:?}");
+            assert_eq!(a.stats(), b.stats(), "{r:?}");
+            assert_eq!(SampleLog::len(&*a_log), SampleLog::len(&*b_log), "{r:?}");
+        }
+    }
+}
