@@ -81,6 +81,11 @@ pub struct Log {
     /// Whether the log had the `ccn_q*` columns (else the quaternions are
     /// zero until [`fill_frames`]).
     pub has_frames: bool,
+    /// Whether the log had the gimbal columns.
+    pub has_gimbal: bool,
+    /// The line of each sample in the file (1-based, counting every line),
+    /// for messages about a sample.
+    pub lines: Vec<usize>,
 }
 
 /// Parses a log. Blank lines and lines starting with `#` are skipped; the
@@ -97,13 +102,16 @@ pub fn parse(text: &str) -> Result<Log, Error> {
     };
     let h = parse_header(hline, head).map_err(Error::Csv)?;
     let mut samples = Vec::new();
+    let mut numbers = Vec::new();
     for (n, l) in lines {
         samples.push(parse_line(&h, n, l).map_err(Error::Csv)?);
+        numbers.push(n);
     }
-    let has_frames = h.has_frames;
     Ok(Log {
         samples,
-        has_frames,
+        has_frames: h.has_frames,
+        has_gimbal: h.has_gimbal,
+        lines: numbers,
     })
 }
 

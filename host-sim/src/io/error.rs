@@ -38,6 +38,10 @@ pub enum Error {
     Encode(rollcal::wire::EncodeError),
     /// A CSV log that cannot be read: the line and column, and why.
     Csv(String),
+    /// The settings of an input cannot be had: a platform file or scenario
+    /// that does not load, options that contradict it, a CSV log without a
+    /// configuration.
+    Settings(String),
     /// A file that is not a truth sidecar.
     NotSidecar {
         /// The file.
@@ -84,7 +88,7 @@ impl fmt::Display for Error {
                 write!(f, "cannot open serial device {path} at {baud} Bd: {source}")
             }
             Error::Read { path, source } => write!(f, "cannot read {path}: {source}"),
-            Error::Stopped(m) | Error::Csv(m) => f.write_str(m),
+            Error::Stopped(m) | Error::Csv(m) | Error::Settings(m) => f.write_str(m),
             Error::Encode(e) => write!(f, "{e}"),
             Error::NotSidecar { path, source } => {
                 write!(f, "{path} is not a truth sidecar: {source}")

@@ -1,8 +1,9 @@
 //! What host-sim writes for a reader: the terminal tables, JSON and CSV of
-//! runs ([`report`]), the HTML report ([`html`]), the PNG figures
+//! runs ([`report`]), of a calibration ([`calibration`]), the HTML report ([`html`]), the PNG figures
 //! ([`plots`], one file per figure) and the progress on stderr
 //! ([`progress`]). Rendering only: the numbers come computed.
 
+pub mod calibration;
 pub mod html;
 pub mod plots;
 pub mod progress;

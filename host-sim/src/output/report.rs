@@ -1,10 +1,12 @@
 //! Tables, JSON and CSV of estimator runs (shared by `run`, `calibrate`,
 //! `paper`).
 
+use std::io::Write;
 use std::path::Path;
 
 use rollcal::models::{ErrorModel, Group};
 
+use crate::analysis::checks::{Judgement, FALSE_ALARM};
 use crate::analysis::runner::{RunResult, StateResult};
 use crate::sim::instruments::printed_value;
 use crate::sim::scenario::ARCSEC;
@@ -81,12 +83,19 @@ pub fn write_csv(path: &Path, r: &RunResult) -> std::io::Result<()> {
     w.flush()
 }
 
-/// Prints the final table of a run with the Cramér–Rao σ of every state.
+/// Prints the final table of a run with the Cramér–Rao σ of every state
+/// ([`write_table`] to stdout).
 pub fn print_table(r: &RunResult, crlb: &[f64]) {
-    println!(
+    let _ = write_table(&mut std::io::stdout().lock(), r, crlb);
+}
+
+/// Writes the final table of a run with the Cramér–Rao σ of every state.
+pub fn write_table(out: &mut dyn Write, r: &RunResult, crlb: &[f64]) -> std::io::Result<()> {
+    writeln!(
+        out,
         "{:<11} {:>12} {:>12} {:>10} {:>10} {:>8} {:>10} {:>8}  verdict",
         "state", "truth ″", "estimate ″", "error ″", "σ ″", "|err|/σ", "σ_CRLB ″", "σ/σ_CRLB"
-    );
+    )?;
     for (s, c) in r.states.iter().zip(crlb) {
         let group = s.info.group;
         let verdict = crate::analysis::runner::verdict(r.config, s, group, s.prior);
@@ -95,7 +104,8 @@ pub fn print_table(r: &RunResult, crlb: &[f64]) {
         } else {
             String::new()
         };
-        println!(
+        writeln!(
+            out,
             "{:<11} {:>12.3} {:>12.3} {:>10.4} {:>10.4} {:>8.2} {:>10.4} {:>8.3}  {}{unit}",
             s.name,
             printed_value(s.info.group, s.truth_rad),
@@ -106,28 +116,31 @@ pub fn print_table(r: &RunResult, crlb: &[f64]) {
             printed_value(s.info.group, *c),
             s.sigma_rad / c,
             verdict
-        );
+        )?;
     }
-    print_failures_and_nis(r);
+    write_failures_and_nis(out, r)
 }
 
-/// Prints the final table of a run without a truth: per state the
+/// Writes the final table of a run without a truth: per state the
 /// estimate and σ, the bound σ at the estimate along the received path
 /// (`bound`), σ/bound and the observability verdict of that bound
 /// (`verdicts`: [`crate::analysis::verdict::Verdict::of_bound`]); never a truth
 /// column or `FAILED`. Then the failures and the mean NIS as
-/// [`print_table`].
-pub fn print_table_no_truth(
+/// [`write_table`].
+pub fn write_table_no_truth(
+    out: &mut dyn Write,
     r: &RunResult,
     bound: &[f64],
     verdicts: &[crate::analysis::verdict::Verdict],
-) {
-    println!(
+) -> std::io::Result<()> {
+    writeln!(
+        out,
         "{:<11} {:>12} {:>10} {:>10} {:>8}  verdict (the bound at the estimate, received path)",
         "state", "estimate ″", "σ ″", "bound ″", "σ/bound"
-    );
+    )?;
     for ((s, b), v) in r.states.iter().zip(bound).zip(verdicts) {
-        println!(
+        writeln!(
+            out,
             "{:<11} {:>12.3} {:>10.4} {:>10.4} {:>8.3}  {}",
             s.name,
             s.estimate_rad / ARCSEC,
@@ -135,27 +148,83 @@ pub fn print_table_no_truth(
             b / ARCSEC,
             s.sigma_rad / b,
             v
-        );
+        )?;
     }
-    print_failures_and_nis(r);
+    write_failures_and_nis(out, r)
 }
 
-fn print_failures_and_nis(r: &RunResult) {
-    if !r.failures.is_empty() {
-        println!(
-            "{} updates failed; first: period {} ({})",
+fn write_failures_and_nis(out: &mut dyn Write, r: &RunResult) -> std::io::Result<()> {
+    if let Some((k, e)) = r.failures.first() {
+        writeln!(
+            out,
+            "{} updates failed; first: period {k} ({e})",
             r.failures.len(),
-            r.failures[0].0,
-            r.failures[0].1
-        );
+        )?;
     }
     let n = r.nis.len().max(1) as f64;
-    println!(
+    writeln!(
+        out,
         "mean NIS {:.3} over {} updates of the last of {} pass(es)",
         r.nis.iter().sum::<f64>() / n,
         r.nis.len(),
         r.passes
-    );
+    )
+}
+
+/// Writes the data checks of a judgement (every NIS and whiteness check,
+/// the failed bias checks and the passed ones as one line), the path's
+/// check, the verdict and its likely cause.
+pub fn write_judgement(out: &mut dyn Write, j: &Judgement) -> std::io::Result<()> {
+    if !j.checks.is_empty() {
+        writeln!(
+            out,
+            "data against the model ({} checks, each at α = {:.1e}: a clean log is flagged with probability ≤ {}):",
+            j.checks.len(),
+            j.alpha_each,
+            FALSE_ALARM
+        )?;
+        writeln!(
+            out,
+            "  {:<10} {:<42} {:>10} {:>22}  result",
+            "check", "scope", "statistic", "band"
+        )?;
+        let mut passed_bias = 0;
+        for c in &j.checks {
+            if c.name == "bias" && c.passed {
+                passed_bias += 1;
+                continue;
+            }
+            writeln!(
+                out,
+                "  {:<10} {:<42} {:>10.4} {:>22}  {}",
+                c.name,
+                c.scope,
+                c.statistic,
+                format!("[{:.4}, {:.4}]", c.band.0, c.band.1),
+                if c.passed { "pass" } else { "FAIL" }
+            )?;
+        }
+        if passed_bias > 0 {
+            writeln!(
+                out,
+                "  bias       {passed_bias} segment × component checks passed"
+            )?;
+        }
+    }
+    if let Some(c) = &j.path {
+        writeln!(
+            out,
+            "path: {} ({}): {}",
+            c.name,
+            c.detail,
+            if c.passed { "pass" } else { "FAIL" }
+        )?;
+    }
+    writeln!(out, "data verdict: {}", j.verdict)?;
+    if let Some(cause) = &j.cause {
+        writeln!(out, "{cause}")?;
+    }
+    Ok(())
 }
 
 /// The group of a state from its group name (attitude when unknown).

@@ -1,60 +1,19 @@
-//! The calibrator run on a stream, as `calibrate` drives it: the no_std
-//! session ([`rollcal::session::Session`]) with the host's sample log, the
-//! NIS and failures of every accepted sample, the estimator of record's
-//! final passes with their covariance, the calibrator settings of a
-//! scenario or platform file, and the bound at the estimate without a
-//! truth.
+//! The host's side of the session: the no_std session
+//! ([`rollcal::session::Session`]) with the host's sample log, the NIS and
+//! failures of every accepted sample, and the estimator of record's final
+//! passes with their covariance.
 
 use nalgebra::RealField;
 use rollcal::calibrator::RejectReason;
-use rollcal::ekf::{self, FilterConfig, Options};
+use rollcal::ekf;
 use rollcal::estimator::{
     EstimatorOptions, LogError, LogRecord, PackedLayout, PassEvent, SampleLog,
 };
 use rollcal::models::{ConfigId, ErrorModel, Model};
-use rollcal::observability::Observability;
 use rollcal::session::{Covariance, PassObserver, Reply, Session};
 use rollcal::wire::{CalibratorConfig, Estimate, Message};
 
 use crate::analysis::runner;
-use crate::analysis::verdict::Verdict;
-use crate::analysis::Error;
-use crate::sim::scenario::{Platform, Scenario, DEG};
-use crate::sim::truth::PeriodSample;
-
-/// Calibrator settings equal to `runner::filter_config` of the scenario
-/// (so that the stream's filter is `run`'s filter), for error model
-/// `errors` with the scenario's instrument prior.
-pub fn calibrator_config(
-    sc: &Scenario,
-    id: ConfigId,
-    errors: ErrorModel,
-    earth_rate: bool,
-) -> CalibratorConfig {
-    platform_config(&Platform::of_scenario(sc), id, errors, earth_rate)
-}
-
-/// Calibrator settings of a platform file (the `Configure` message a
-/// platform with these settings would send), for error model `errors`.
-pub fn platform_config(
-    p: &Platform,
-    id: ConfigId,
-    errors: ErrorModel,
-    earth_rate: bool,
-) -> CalibratorConfig {
-    let f = runner::filter_config_of(&p.site, &p.noise, earth_rate, Options::default());
-    let mut c = CalibratorConfig::paper(id);
-    c.sigma_accel_g = f.sigma_accel;
-    c.sigma_gyro_rad_s = f.sigma_gyro;
-    c.sigma_gimbal_rad = f.sigma_gimbal;
-    c.earth_rate_n = f.env.earth_rate_n.into();
-    c.gravity_n = f.env.gravity_n.into();
-    c.prior_sigma_rad = p.prior.sigma_deg * DEG;
-    c.limits.period_s = p.timing.period_s;
-    c.errors = errors;
-    c.instrument_prior = p.instruments.prior.to_wire();
-    c
-}
 
 /// How the host's sample log keeps a record.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
@@ -321,108 +280,5 @@ fn tag(m: &Message) -> &'static str {
         Message::Configure(_) => "Configure",
         Message::Reset => "Reset",
         _ => "message",
-    }
-}
-
-/// The bound σ (rad) of every state at the estimate along the received
-/// path, and the observability verdict of each, for `calibrate` without a
-/// truth. The initial state is the estimator of record's own start of the
-/// log: the final estimate `x_end` integrated back through every record
-/// ([`rollcal::estimator::back_propagate`], what the next linearised pass
-/// would start from); the bound is [`runner::bound`]'s recursion
-/// ([`Observability`]) from it; the null space is that of the information
-/// matrix along the same records linearised at zero state (as
-/// `observability`), the verdict [`Verdict::of_bound`].
-/// With `x_end` `None` the bound starts at `x_start` instead.
-pub fn bound_at_estimate(
-    settings: &CalibratorConfig,
-    x_end: Option<&[f64]>,
-    x_start: &[f64],
-    records: &[LogRecord<f64>],
-) -> Result<(Vec<f64>, Vec<Verdict>), Error> {
-    fn typed<M: Model<N, Z>, const N: usize, const Z: usize>(
-        cfg: FilterConfig<f64>,
-        x_end: Option<&[f64]>,
-        x_start: &[f64],
-        sigma0: &[f64],
-        records: &[LogRecord<f64>],
-    ) -> Result<(Vec<f64>, Vec<Verdict>), Error> {
-        use rollcal::observability::{COEF_THRESHOLD, RANK_TOLERANCE};
-        let vector = |v: &[f64]| {
-            nalgebra::SVector::<f64, N>::from_iterator(
-                v.iter().copied().chain(std::iter::repeat(0.0)),
-            )
-        };
-        let x0 = match x_end {
-            None => vector(x_start),
-            Some(x_end) => {
-                let mut frame = rollcal::command::CommandFrame::aligned(cfg.env.earth_rate_n);
-                for r in records.iter().filter(|r| r.has_valid_period()) {
-                    let p = frame.period(&r.dtheta_cmd, r.dt);
-                    frame.advance(&p);
-                }
-                let mut storage = records.to_vec();
-                let mut log = rollcal::estimator::SliceLog::from_records(&mut storage);
-                rollcal::estimator::back_propagate::<f64, N, _>(
-                    M::LAYOUT,
-                    &cfg.env,
-                    &vector(x_end),
-                    &frame,
-                    &mut log,
-                )
-                .map_err(|source| Error::Estimator {
-                    context: "the start of the log".into(),
-                    source,
-                })?
-                .0
-            }
-        };
-        let prior = vector(sigma0);
-        let e = |e: ekf::Error| Error::filter("the bound at the estimate", e);
-        let mut at = Observability::<f64, M, N, Z>::new(cfg, x0, prior).map_err(e)?;
-        let mut zero = Observability::<f64, M, N, Z>::new(cfg, nalgebra::SVector::zeros(), prior)
-            .map_err(e)?;
-        for r in records {
-            at.record(r).map_err(e)?;
-            zero.record(r).map_err(e)?;
-        }
-        let part = zero.analyse(RANK_TOLERANCE).map_err(e)?.participation();
-        let ratio = at.ratio();
-        let verdicts = (0..N)
-            .map(|i| Verdict::of_bound(part[i] > COEF_THRESHOLD, ratio[i]))
-            .collect();
-        Ok((at.crlb_sigma().iter().copied().collect(), verdicts))
-    }
-    let cfg = FilterConfig::<f64>::from(settings);
-    let sigma0 = runner::prior_sigma_of(settings);
-    rollcal::with_model!(
-        settings.config,
-        settings.errors,
-        |M, N, Z| typed::<M, N, Z>(cfg, x_end, x_start, &sigma0, records)
-    )
-}
-
-/// The calibrator's final values as a [`runner::DynFilter`], for the report.
-pub struct CalibratorView {
-    /// Estimate (rad).
-    pub state: Vec<f64>,
-    /// σ (rad).
-    pub sigma: Vec<f64>,
-    /// Covariance, row-major (rad²).
-    pub covariance: Vec<f64>,
-}
-
-impl runner::DynFilter for CalibratorView {
-    fn step(&mut self, _: &PeriodSample) -> Result<f64, ekf::Error> {
-        Err(ekf::Error::NoPrediction)
-    }
-    fn state(&self) -> Vec<f64> {
-        self.state.clone()
-    }
-    fn sigma(&self) -> Vec<f64> {
-        self.sigma.clone()
-    }
-    fn covariance(&self) -> Vec<f64> {
-        self.covariance.clone()
     }
 }

@@ -1,0 +1,372 @@
+//! What the session answered after the stream, as a [`Calibration`]: the
+//! final passes (unless `--passes 1`), the truth sidecar's values and the
+//! bound of the samples received, the result as a run's.
+
+use std::fmt;
+
+use nalgebra::RealField;
+use rollcal::ekf::FilterConfig;
+use rollcal::estimator::LogRecord;
+use rollcal::models::{ConfigId, ErrorModel};
+use rollcal::wire::{CalibratorConfig, DecoderStats, Estimate, EstimateKind, VERSION};
+
+use super::bound::{bound_at_estimate, CalibratorView};
+use super::host::{Final, Host};
+use crate::analysis::checks::{self, Judgement};
+use crate::analysis::runner::{self, Passes, RunResult};
+use crate::analysis::verdict::Verdict;
+use crate::io::sidecar::Sidecar;
+
+/// What a calibration gave: everything the printed table, the JSON, the
+/// matrices and the report need, computed once.
+pub struct Calibration {
+    /// The configuration of the stream.
+    pub id: ConfigId,
+    /// The calibrator's settings.
+    pub settings: CalibratorConfig,
+    /// The calibrator's running estimate (pass 1).
+    pub est: Estimate,
+    /// The decoder's counters.
+    pub stats: DecoderStats,
+    /// The truth sidecar, when given.
+    pub sidecar: Option<Sidecar>,
+    /// The bound of the samples received (with a sidecar and a complete log).
+    pub received_bound: Option<Vec<f64>>,
+    /// σ_CRLB per state: the bound of the samples received, else the full
+    /// run's from the sidecar, else NaN.
+    pub crlb: Vec<f64>,
+    /// The estimator of record's final passes (None with `--passes 1`).
+    pub fin: Option<Final>,
+    /// Whether the final passes are the answer (else pass 1).
+    pub final_answer: bool,
+    /// The result as a run's.
+    pub r: RunResult,
+    /// The calibrator's log in f64 (after the final passes).
+    pub records: Vec<LogRecord<f64>>,
+    /// The session's restarts (`Configure` after the first, `Reset`).
+    pub restarts: u32,
+    /// Messages the session ignored.
+    pub ignored: u32,
+    /// Without a truth: the bound at the estimate along the received path
+    /// and its verdict per state ([`bound_at_estimate`]).
+    pub at_estimate: Option<(Vec<f64>, Vec<Verdict>)>,
+    /// The data judged against the model ([`checks::judge`]) with the
+    /// path's distance from gimbal lock.
+    pub judgement: Judgement,
+    /// Notes for the user (how the bound was taken, an incomplete answer).
+    pub notes: Vec<String>,
+}
+
+/// Why the session gave no calibration to report.
+#[derive(Debug)]
+pub enum CalibrationError {
+    /// Every frame was of another protocol version.
+    OtherVersion {
+        /// The version of the frames.
+        version: u8,
+        /// How many frames of it.
+        frames: u32,
+    },
+    /// No `Configure` and no sample reached the session.
+    NoSamples {
+        /// Frames decoded.
+        ok: u32,
+        /// Frames rejected.
+        rejected: u32,
+    },
+    /// The calibrator accepted no sample.
+    NoneAccepted {
+        /// Samples rejected.
+        rejected: u32,
+        /// Frames rejected.
+        bad_frames: u32,
+    },
+    /// The bound of the received samples could not be computed.
+    Bound(String),
+    /// The bound at the estimate could not be computed.
+    Analysis(crate::analysis::Error),
+}
+
+impl fmt::Display for CalibrationError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            CalibrationError::OtherVersion { version, frames } => write!(
+                f,
+                "the stream is of protocol version {version} ({frames} frames), this host-sim reads version {VERSION}: record it again with this version"
+            ),
+            CalibrationError::NoSamples { ok, rejected } => write!(
+                f,
+                "no samples in the stream ({ok} frames decoded, {rejected} rejected)"
+            ),
+            CalibrationError::NoneAccepted {
+                rejected,
+                bad_frames,
+            } => write!(
+                f,
+                "no sample accepted ({rejected} rejected, {bad_frames} bad frames)"
+            ),
+            CalibrationError::Bound(e) => write!(f, "Cramér–Rao bound of the received samples: {e}"),
+            CalibrationError::Analysis(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for CalibrationError {}
+
+impl<T: RealField + Copy> Host<T> {
+    /// The configuration of the session's calibrator, or why there is
+    /// none (`stats`: the decoder's counters).
+    pub fn configured(&self, stats: &DecoderStats) -> Result<ConfigId, CalibrationError> {
+        if let (None, Some(v)) = (self.session.calibrator(), self.other_version) {
+            return Err(CalibrationError::OtherVersion {
+                version: v,
+                frames: stats.wrong_version,
+            });
+        }
+        self.session
+            .calibrator()
+            .map(|c| c.settings().config)
+            .ok_or(CalibrationError::NoSamples {
+                ok: stats.ok,
+                rejected: stats.errors(),
+            })
+    }
+}
+
+impl Calibration {
+    /// The answer of the session in `host` after the stream: the final
+    /// passes (at most `passes`; none for 1), with the decoder's counters
+    /// `stats` and the truth `sidecar`.
+    pub fn of<T: RealField + Copy>(
+        host: &mut Host<T>,
+        stats: DecoderStats,
+        sidecar: Option<Sidecar>,
+        passes: u8,
+    ) -> Result<Self, CalibrationError> {
+        let id = host.configured(&stats)?;
+        let Some(cal) = host.session.calibrator_mut() else {
+            return Err(CalibrationError::NoSamples {
+                ok: stats.ok,
+                rejected: stats.errors(),
+            });
+        };
+        cal.set_frame_errors(stats.errors());
+        let settings = *cal.settings();
+        let layout = id.layout_with(settings.errors);
+        let est = cal.estimate();
+        if est.progress.accepted == 0 {
+            return Err(CalibrationError::NoneAccepted {
+                rejected: est.progress.rejects.total(),
+                bad_frames: stats.errors(),
+            });
+        }
+        // The running filter's covariance (the answer when the passes do not run).
+        let running_covariance = crate::analysis::compensation::covariance_of_packed_ud(
+            layout.n(),
+            &cal.checkpoint().factor,
+        );
+        let nan = vec![f64::NAN; layout.n()];
+        let received_bound = received_bound(&settings, sidecar.as_ref(), &est, host)?;
+        // The sidecar's bound is the installation model's: not the full model's.
+        let crlb = received_bound
+            .as_ref()
+            .or(sidecar
+                .as_ref()
+                .map(|s| &s.crlb)
+                .filter(|_| settings.errors == ErrorModel::Installation))
+            .unwrap_or(&nan)
+            .clone();
+        // The final answer: the calibrator's own estimator of record over its
+        // log (pass 1 alone with --passes 1, or when the log is incomplete).
+        let fin = if passes > 1 {
+            host.finish(passes)
+        } else {
+            None
+        };
+        let truth = sidecar
+            .as_ref()
+            .map_or_else(|| nan.clone(), |s| s.truth_of(settings.errors));
+        let sigma0 = runner::prior_sigma_of(&settings);
+        let r = result(
+            &settings,
+            host,
+            &est,
+            fin.as_ref(),
+            running_covariance,
+            &truth,
+            &sigma0,
+        );
+        let final_answer = fin
+            .as_ref()
+            .is_some_and(|f| matches!(f.estimate.kind, EstimateKind::Final { .. }));
+        let mut notes = Vec::new();
+        if let Some(EstimateKind::SinglePass { reason, .. }) = fin.as_ref().map(|f| f.estimate.kind)
+        {
+            notes.push(format!(
+                "note: {reason}: the final answer is the calibrator's pass 1"
+            ));
+        }
+        let records = host.log.records_f64();
+        let at_estimate = match &sidecar {
+            None => Some(at_estimate(&settings, &est, &r, &records, &mut notes)?),
+            Some(_) => None,
+        };
+        let judgement = checks::judge(&r).with_path(checks::gimbal_lock_check(id, &records));
+        Ok(Calibration {
+            id,
+            settings,
+            est,
+            stats,
+            sidecar,
+            received_bound,
+            crlb,
+            fin,
+            final_answer,
+            r,
+            records,
+            restarts: host.session.stats().restarts,
+            ignored: host.session.stats().ignored,
+            at_estimate,
+            judgement,
+            notes,
+        })
+    }
+}
+
+/// The bound at the estimate and its verdicts, for a calibration without
+/// a truth (docs/own-platform.md, "Judging a calibration without a
+/// truth"). A log that is not the whole run (re-acquired attitude, full
+/// log) has no known start: the bound along the logged records from the
+/// cold start (zero state, as pass 1), said so in `notes`.
+fn at_estimate(
+    settings: &CalibratorConfig,
+    est: &Estimate,
+    r: &RunResult,
+    records: &[LogRecord<f64>],
+    notes: &mut Vec<String>,
+) -> Result<(Vec<f64>, Vec<Verdict>), CalibrationError> {
+    let p = &est.progress;
+    let zeros = vec![0.0; settings.config.layout_with(settings.errors).n()];
+    let end = if p.log_incomplete.is_some() {
+        notes.push(format!(
+            "note: the log is not the whole run: the bound is taken from the cold start along the {} logged samples only (of {} accepted)",
+            records.len(),
+            p.accepted
+        ));
+        None
+    } else {
+        Some(
+            r.states
+                .iter()
+                .map(|s| s.estimate_rad)
+                .collect::<Vec<f64>>(),
+        )
+    };
+    bound_at_estimate(settings, end.as_deref(), &zeros, records).map_err(CalibrationError::Analysis)
+}
+
+impl Calibration {
+    /// σ_CRLB(t) for the report: the bound of the received samples along
+    /// the log, when it was computed (a truth sidecar with the initial
+    /// state and a complete log).
+    pub fn crlb_history(&self) -> Result<Option<Vec<Vec<f64>>>, CalibrationError> {
+        match self.sidecar.as_ref().and_then(|s| s.truth0.as_ref()) {
+            Some(t0) if self.received_bound.is_some() => runner::bound_history(
+                self.id,
+                ErrorModel::Installation,
+                FilterConfig::<f64>::from(&self.settings),
+                t0,
+                &[self.settings.prior_sigma_rad],
+                &self.records,
+            )
+            .map(Some)
+            .map_err(|e| CalibrationError::Bound(e.to_string())),
+            _ => Ok(None),
+        }
+    }
+}
+
+/// The bound of the samples actually received: the bound over the same
+/// log (the bridged periods predicted only), from the sidecar's true
+/// initial state; `None` without one or when the log is not the whole run
+/// (then the full run's bound of the sidecar is the one shown).
+fn received_bound<T: RealField + Copy>(
+    settings: &CalibratorConfig,
+    sidecar: Option<&Sidecar>,
+    est: &Estimate,
+    host: &Host<T>,
+) -> Result<Option<Vec<f64>>, CalibrationError> {
+    let sigma0 = runner::prior_sigma_of(settings);
+    Ok(
+        match (
+            sidecar.and_then(|s| s.truth0_of(settings.errors)),
+            est.progress.log_incomplete,
+        ) {
+            (Some(t0), None) => Some(
+                runner::bound(
+                    settings.config,
+                    settings.errors,
+                    FilterConfig::<f64>::from(settings),
+                    &t0,
+                    &sigma0,
+                    &host.log.records_f64(),
+                )
+                .map_err(|e| CalibrationError::Bound(e.to_string()))?,
+            ),
+            _ => None,
+        },
+    )
+}
+
+/// The answer as a run's result: the final passes' estimate, σ,
+/// covariance, innovations and history when they are the answer, else
+/// pass 1's (with the running filter's covariance).
+fn result<T: RealField + Copy>(
+    settings: &CalibratorConfig,
+    host: &Host<T>,
+    est: &Estimate,
+    fin: Option<&Final>,
+    running_covariance: Vec<f64>,
+    truth: &[f64],
+    sigma0: &[f64],
+) -> RunResult {
+    // The last pass of the estimator of record (None: pass 1 is the answer,
+    // whose innovations and history were not kept).
+    let final_pass = fin.filter(|f| matches!(f.estimate.kind, EstimateKind::Final { .. }));
+    let (state, sigma, nis, passes) = match final_pass {
+        Some(Final { estimate, nis, .. }) => {
+            let passes = match estimate.kind {
+                EstimateKind::Final { passes, .. } => passes,
+                _ => 1,
+            };
+            (&estimate.state, &estimate.sigma, nis.clone(), passes)
+        }
+        None => (&est.state, &est.sigma, host.nis.clone(), 1),
+    };
+    // Failures of the last pass are counted in the estimate's report,
+    // not listed; the table shows the pass-1 failures.
+    runner::result(
+        settings.config,
+        settings.errors,
+        &Passes {
+            filter: Box::new(CalibratorView {
+                state: state.to_vec(),
+                sigma: sigma.to_vec(),
+                covariance: match final_pass {
+                    Some(f) => f.covariance.clone(),
+                    None => running_covariance,
+                },
+            }),
+            history: final_pass.map(|f| f.history.clone()).unwrap_or_default(),
+            nis,
+            updates: final_pass.map(|f| f.updates.clone()).unwrap_or_default(),
+            segments: crate::sim::segments::command_segments(
+                host.log.records.iter().map(|r| (r.dt, r.dtheta_cmd.into())),
+            ),
+            failures: host.failures.clone(),
+            passes,
+        },
+        truth,
+        sigma0,
+    )
+}
