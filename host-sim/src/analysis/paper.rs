@@ -13,7 +13,7 @@ use crate::analysis::runner::{expected_observable, Estimator, RunResult, Simulat
 use crate::analysis::verdict::Verdict;
 use crate::analysis::Error;
 use crate::output::plots::{plot_group_marked, Curve};
-use crate::sim::instruments::printed_value;
+use crate::sim::instruments::{printed_unit, printed_value};
 use crate::sim::scenario::{Scenario, ARCSEC};
 use crate::sim::truth::{simulate, SimOptions, Simulation};
 
@@ -198,13 +198,7 @@ fn summarise(
         .map(|(i, s)| {
             let group = s.info.group;
             let observable = at_run.states[i].observable;
-            let verdict = if !observable {
-                Verdict::NotObservable
-            } else if s.ratio() <= 4.0 {
-                Verdict::Converged
-            } else {
-                Verdict::Failed
-            };
+            let verdict = crate::analysis::verdict::against_truth(observable, s.ratio());
             // The paper claims nothing per attitude axis, nor of the
             // instruments' own errors (taken as calibrated).
             let paper = (group != Group::Attitude && !group.is_instrument())
@@ -448,7 +442,7 @@ pub fn summary_markdown(p: &Paper) -> String {
         );
         let _ = writeln!(
             s,
-            "| state | truth ″ | estimate ″ | error ″ | σ filter ″ | σ_CRLB ″ | σ/σ_CRLB | verdict | paper | agrees |\n|---|---:|---:|---:|---:|---:|---:|---|---|---|"
+            "| state | unit | truth | estimate | error | σ filter | σ_CRLB | σ/σ_CRLB | verdict | paper | agrees |\n|---|---|---:|---:|---:|---:|---:|---:|---|---|---|"
         );
         for st in &c.states {
             let paper = match st.paper_observable {
@@ -461,18 +455,13 @@ pub fn summary_markdown(p: &Paper) -> String {
                 Some(false) => "**no**",
                 None => "—",
             };
-            // Angles in ″; an instrument state in its printed unit, named
-            // after it.
+            // Every state in its printed unit, named in the unit column.
             let show = |v| printed_value(st.info.group, v);
-            let name = if st.info.group.is_instrument() {
-                format!("{} ({})", st.name, st.info.printed_scale().1)
-            } else {
-                st.name.to_string()
-            };
             let _ = writeln!(
                 s,
-                "| {} | {:.3} | {:.3} | {:.4} | {:.4} | {:.4} | {:.3} | {} | {} | {} |",
-                name,
+                "| {} | {} | {:.3} | {:.3} | {:.4} | {:.4} | {:.4} | {:.3} | {} | {} | {} |",
+                st.name,
+                printed_unit(st.info.group),
                 show(st.truth_rad),
                 show(st.estimate_rad),
                 show(st.error_rad),

@@ -568,14 +568,7 @@ pub fn report_of_run(
 pub fn state_verdicts(r: &RunResult) -> Vec<Verdict> {
     r.states
         .iter()
-        .map(|s| {
-            crate::analysis::runner::verdict(
-                r.config,
-                s,
-                crate::output::report::group_of(s.group),
-                s.prior,
-            )
-        })
+        .map(crate::analysis::verdict::verdict)
         .collect()
 }
 

@@ -8,8 +8,7 @@ use rollcal::models::{ErrorModel, Group};
 
 use crate::analysis::checks::{Judgement, FALSE_ALARM};
 use crate::analysis::runner::{RunResult, StateResult};
-use crate::sim::instruments::printed_value;
-use crate::sim::scenario::ARCSEC;
+use crate::sim::instruments::{printed_unit, printed_value};
 
 /// The `run` JSON document: configuration, seed, Earth rate, duration and
 /// the final states (names and units are an interface: `*_rad`).
@@ -50,6 +49,10 @@ fn csv_unit(s: &StateResult) -> String {
     crate::sim::instruments::ascii_unit(s.info.group).replace('/', "_")
 }
 
+/// Width of the unit column of the tables (`″`, `°/h`, `°/h/g`, `ppm`,
+/// `µg`, …: characters, not bytes).
+pub const UNIT_WIDTH: usize = 6;
+
 /// Writes `value` pretty-printed to `path`, with a message naming the path on failure.
 pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<(), String> {
     let text = serde_json::to_string_pretty(value).map_err(|e| e.to_string())?;
@@ -70,10 +73,11 @@ pub fn write_csv(path: &Path, r: &RunResult) -> std::io::Result<()> {
     for (t, x, sig) in &r.history {
         let mut row = vec![format!("{t}")];
         for ((a, b), s) in x.iter().zip(sig).zip(&r.states) {
-            let k = if s.info.group.is_instrument() {
-                s.info.printed_scale().0
-            } else {
+            // Angles in rad (the `_rad` columns), the others in their printed unit.
+            let k = if s.info.group.unit() == "rad" {
                 1.0
+            } else {
+                s.info.printed_scale().0
             };
             row.push(format!("{:e}", a * k));
             row.push(format!("{:e}", b * k));
@@ -89,43 +93,40 @@ pub fn print_table(r: &RunResult, crlb: &[f64]) {
     let _ = write_table(&mut std::io::stdout().lock(), r, crlb);
 }
 
-/// Writes the final table of a run with the Cramér–Rao σ of every state.
+/// Writes the final table of a run with the Cramér–Rao σ of every state,
+/// each in its printed unit (the `unit` column; [`printed_value`]), and
+/// the verdict against the truth ([`crate::analysis::verdict::verdict`]).
 pub fn write_table(out: &mut dyn Write, r: &RunResult, crlb: &[f64]) -> std::io::Result<()> {
     writeln!(
         out,
-        "{:<11} {:>12} {:>12} {:>10} {:>10} {:>8} {:>10} {:>8}  verdict",
-        "state", "truth ″", "estimate ″", "error ″", "σ ″", "|err|/σ", "σ_CRLB ″", "σ/σ_CRLB"
+        "{:<11} {:<UNIT_WIDTH$} {:>12} {:>12} {:>10} {:>10} {:>8} {:>10} {:>8}  verdict",
+        "state", "unit", "truth", "estimate", "error", "σ", "|err|/σ", "σ_CRLB", "σ/σ_CRLB"
     )?;
     for (s, c) in r.states.iter().zip(crlb) {
-        let group = s.info.group;
-        let verdict = crate::analysis::runner::verdict(r.config, s, group, s.prior);
-        let unit = if s.info.group.is_instrument() {
-            format!(" ({})", s.info.printed_scale().1)
-        } else {
-            String::new()
-        };
+        let g = s.info.group;
         writeln!(
             out,
-            "{:<11} {:>12.3} {:>12.3} {:>10.4} {:>10.4} {:>8.2} {:>10.4} {:>8.3}  {}{unit}",
+            "{:<11} {:<UNIT_WIDTH$} {:>12.3} {:>12.3} {:>10.4} {:>10.4} {:>8.2} {:>10.4} {:>8.3}  {}",
             s.name,
-            printed_value(s.info.group, s.truth_rad),
-            printed_value(s.info.group, s.estimate_rad),
-            printed_value(s.info.group, s.error()),
-            printed_value(s.info.group, s.sigma_rad),
+            printed_unit(g),
+            printed_value(g, s.truth_rad),
+            printed_value(g, s.estimate_rad),
+            printed_value(g, s.error()),
+            printed_value(g, s.sigma_rad),
             s.ratio(),
-            printed_value(s.info.group, *c),
+            printed_value(g, *c),
             s.sigma_rad / c,
-            verdict
+            crate::analysis::verdict::verdict(s)
         )?;
     }
     write_failures_and_nis(out, r)
 }
 
-/// Writes the final table of a run without a truth: per state the
-/// estimate and σ, the bound σ at the estimate along the received path
-/// (`bound`), σ/bound and the observability verdict of that bound
-/// (`verdicts`: [`crate::analysis::verdict::Verdict::of_bound`]); never a truth
-/// column or `FAILED`. Then the failures and the mean NIS as
+/// Writes the final table of a run without a truth: per state, in its
+/// printed unit, the estimate and σ, the bound σ at the estimate along the
+/// received path (`bound`), σ/bound and the observability verdict of that
+/// bound (`verdicts`: [`crate::analysis::verdict::Verdict::of_bound`]);
+/// never a truth column or `FAILED`. Then the failures and the mean NIS as
 /// [`write_table`].
 pub fn write_table_no_truth(
     out: &mut dyn Write,
@@ -135,17 +136,19 @@ pub fn write_table_no_truth(
 ) -> std::io::Result<()> {
     writeln!(
         out,
-        "{:<11} {:>12} {:>10} {:>10} {:>8}  verdict (the bound at the estimate, received path)",
-        "state", "estimate ″", "σ ″", "bound ″", "σ/bound"
+        "{:<11} {:<UNIT_WIDTH$} {:>12} {:>10} {:>10} {:>8}  verdict (the bound at the estimate, received path)",
+        "state", "unit", "estimate", "σ", "bound", "σ/bound"
     )?;
     for ((s, b), v) in r.states.iter().zip(bound).zip(verdicts) {
+        let g = s.info.group;
         writeln!(
             out,
-            "{:<11} {:>12.3} {:>10.4} {:>10.4} {:>8.3}  {}",
+            "{:<11} {:<UNIT_WIDTH$} {:>12.3} {:>10.4} {:>10.4} {:>8.3}  {}",
             s.name,
-            s.estimate_rad / ARCSEC,
-            s.sigma_rad / ARCSEC,
-            b / ARCSEC,
+            printed_unit(g),
+            printed_value(g, s.estimate_rad),
+            printed_value(g, s.sigma_rad),
+            printed_value(g, *b),
             s.sigma_rad / b,
             v
         )?;

@@ -74,7 +74,7 @@ fn clean_stream_is_consistent_without_failed_or_nan() {
     assert!(!text.contains("FAILED"), "{text}");
     assert!(!text.contains("NaN"), "{text}");
     assert!(text.contains("data verdict: consistent"), "{text}");
-    assert!(text.contains("bound ″") && text.contains("observable in practice"));
+    assert!(text.contains("bound ") && text.contains("observable in practice"));
     assert_eq!(v["data_verdict"]["verdict"], "consistent");
     let checks = v["checks"].as_array().unwrap();
     // 1 + 4 segments NIS, 6 whiteness, 4 × 6 bias.
@@ -259,7 +259,7 @@ fn with_a_truth_the_table_keeps_the_truth_columns_and_the_checks() {
     let text = stdout(&out);
     assert_eq!(out.status.code(), Some(0), "{text}");
     assert!(
-        text.contains("truth ″") && text.contains("converged"),
+        text.contains("truth ") && text.contains("converged"),
         "{text}"
     );
     assert_eq!(v["data_verdict"]["verdict"], "consistent");

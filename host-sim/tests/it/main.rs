@@ -32,3 +32,4 @@ mod plots;
 mod report;
 mod robustness;
 mod serial;
+mod tables;
