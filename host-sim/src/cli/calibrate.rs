@@ -36,19 +36,27 @@
 use std::path::PathBuf;
 use std::time::{Duration, Instant as Clock};
 
+use std::io::Write;
+
 use nalgebra::RealField;
 use rollcal::models::{ConfigId, ErrorModel};
+use rollcal::session::Request;
 use rollcal::wire::{FrameDecoder, FrameError, Message};
 
 use super::args::parse_config;
-use super::Error;
-use crate::analysis::calibration::{platform_config, Calibration, Host, LogStorage};
-use crate::analysis::checks::DataVerdict;
+use super::{Error, NoAnswer};
+use crate::analysis::calibration::rejects::SampleSource;
+use crate::analysis::calibration::trust::NO_ANSWER_EXIT;
+use crate::analysis::calibration::{
+    platform_config, Calibration, CalibrationError, Context, Host, LogStorage,
+};
+use crate::analysis::checks::WARNING_EXIT;
 use crate::analysis::runner::Precision;
 use crate::io::input::{CsvInput, Input, InputOptions};
+use crate::io::replies::{ReplySink, ReplyTarget};
 use crate::io::sidecar::read_sidecar;
-use crate::io::stream::{read_input, Format};
-use crate::output::calibration::{json, report_header, write_results, Source};
+use crate::io::stream::{is_device, read_input, write_device, Format};
+use crate::output::calibration::{json, report_header, write_findings, write_results, Source};
 use crate::output::progress::Progress;
 use crate::output::report::write_json;
 
@@ -117,24 +125,84 @@ pub struct CalibrateArgs {
     /// checks. The figures need the final passes (none with --passes 1).
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
+    /// Send the calibrator's replies as wire frames (docs/wire.md): the
+    /// periodic Estimates, the answer to every request (EstimateRequest,
+    /// CheckpointRequest, Finish) and the refusals (Refused), and at the
+    /// end of the input the answer to a Finish unless one was answered: to
+    /// a file, to standard output (`-`; the tables then go to standard
+    /// error) or back on the serial device of --input (`serial`).
+    #[arg(long, value_name = "PATH|-|serial", value_parser = crate::io::replies::parse_target)]
+    pub replies: Option<ReplyTarget>,
 }
 
-/// `host-sim calibrate`, returning the verdict of the data checks
-/// ([`crate::analysis::checks::judge`]; [`super::main`] exits with
-/// [`crate::analysis::checks::WARNING_EXIT`] on a warning).
-pub fn command(args: &CalibrateArgs) -> Result<DataVerdict, Error> {
+/// `host-sim calibrate`, returning its exit status: 0 an answer whose data
+/// fit the model, [`WARNING_EXIT`] an answer with a data warning,
+/// [`NO_ANSWER_EXIT`] a result that is not an answer (the reasons printed;
+/// the outputs still written); errors are 1 ([`super::main`]).
+pub fn command(args: &CalibrateArgs) -> Result<u8, Error> {
+    check_options(args)?;
     match args.precision {
         Precision::F64 => calibrate_in::<f64>(args),
         Precision::F32 => calibrate_in::<f32>(args),
     }
 }
 
-/// `host-sim calibrate` with the calibrator's covariance arithmetic in `T`.
-fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<DataVerdict, Error> {
-    let t0 = Clock::now();
-    if let Some(dir) = &args.report {
-        crate::output::html::prepare_dir(dir)?;
+/// Refuses, before any input is read, an option combination that cannot
+/// be served: replies back on a serial device that is not the input, binary
+/// replies into a terminal, a report directory that is a file, an output
+/// whose directory does not exist.
+fn check_options(args: &CalibrateArgs) -> Result<(), Error> {
+    use std::io::IsTerminal;
+    match &args.replies {
+        Some(ReplyTarget::Serial) if !is_device(&args.input) => {
+            return Err(format!(
+                "--replies serial writes back on the serial device of --input, and {} is not one",
+                args.input
+            )
+            .into())
+        }
+        Some(ReplyTarget::Stdout) if std::io::stdout().is_terminal() => {
+            return Err(
+                "--replies - writes binary frames: redirect or pipe stdout, or give --replies FILE"
+                    .into(),
+            )
+        }
+        _ => {}
     }
+    if let Some(dir) = args.report.as_ref().filter(|d| d.exists() && !d.is_dir()) {
+        return Err(format!("--report {}: exists and is not a directory", dir.display()).into());
+    }
+    let files = [
+        ("--json", args.json.as_deref()),
+        ("--matrices", args.matrices.matrices.as_deref()),
+        ("--matrices-txt", args.matrices.matrices_txt.as_deref()),
+        ("--report", args.report.as_deref()),
+        (
+            "--replies",
+            match &args.replies {
+                Some(ReplyTarget::File(p)) => Some(p.as_path()),
+                _ => None,
+            },
+        ),
+    ];
+    for (opt, path) in files {
+        let Some(path) = path else { continue };
+        let parent = path.parent().filter(|p| !p.as_os_str().is_empty());
+        if let Some(dir) = parent.filter(|d| !d.is_dir()) {
+            return Err(format!(
+                "{opt} {}: the directory {} does not exist",
+                path.display(),
+                dir.display()
+            )
+            .into());
+        }
+    }
+    Ok(())
+}
+
+/// `host-sim calibrate` with the calibrator's covariance arithmetic in `T`.
+fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<u8, Error> {
+    let t0 = Clock::now();
     let input = Input::resolve(&InputOptions {
         path: &args.input,
         format: args.format,
@@ -154,9 +222,11 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<DataVerdict
             )
         }),
         input.source.clone(),
+        args.passes,
     );
     host.errors = args.errors;
     host.log.storage = args.log;
+    let mut replies = ReplySink::open(args.replies.as_ref())?;
     let mut decoder = FrameDecoder::new();
     let runs = input.expected.map_or_else(
         || "the stream's configuration".to_string(),
@@ -173,7 +243,16 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<DataVerdict
     } else {
         None
     };
-    feed(args, &input, &mut host, &mut decoder, csv, total)?;
+    let lines = csv.as_ref().map(|c| (c.lines.clone(), c.has_gimbal));
+    feed(
+        args,
+        &input,
+        &mut host,
+        &mut decoder,
+        &mut replies,
+        csv,
+        total,
+    )?;
     let stats = *decoder.stats();
     let id = host.configured(&stats)?;
     // Read after the stream: `record --truth T | calibrate --truth T` works.
@@ -188,54 +267,145 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<DataVerdict
             decoder.pending()
         );
     }
-    if host_errors(&host) == Some(ErrorModel::Full) && args.report.is_some() {
-        return Err("--report is not available with --errors full yet".into());
-    }
-    let c = Calibration::of(&mut host, stats, sidecar, args.passes)?;
+    let ctx = Context {
+        passes: args.passes,
+        source: SampleSource {
+            lines: lines.as_ref().map(|l| l.0.as_slice()),
+            has_gimbal: lines.as_ref().map(|l| l.1),
+        },
+        latitude_deg: Some(input.platform.site.latitude_deg),
+    };
+    let mut out = console(args);
+    let c = match Calibration::of(&mut host, stats, sidecar, &ctx) {
+        Ok(c) => c,
+        Err(CalibrationError::NoneAccepted {
+            findings,
+            rejected,
+            bad_frames,
+        }) => {
+            write_findings(&mut out, &findings)?;
+            let e = CalibrationError::NoneAccepted {
+                findings,
+                rejected,
+                bad_frames,
+            };
+            return Err(NoAnswer(e.to_string()).into());
+        }
+        Err(e) => return Err(e.into()),
+    };
     for note in &c.notes {
         eprintln!("{note}");
+    }
+    // The answer to a Finish, unless the stream's last one was answered.
+    if args.replies.is_some() && !host.finished {
+        let reply = host.handle(Request::Finish.message())?;
+        let back = replies.send(&reply)?;
+        if !back.is_empty() {
+            write_device(&args.input, args.baud, &back)?;
+        }
     }
     let src = Source {
         input: &args.input,
         format: input.format,
         precision: args.precision.as_str(),
         truth: args.truth.as_deref(),
+        replies: args.replies.as_ref().map(|_| replies.frames),
     };
-    write_results(&mut std::io::stdout().lock(), &c, &src)?;
+    write_results(&mut out, &c, &src)?;
     eprintln!("done in {:.2} s", t0.elapsed().as_secs_f64());
-    if let Some(path) = &args.json {
-        write_json(path, &json(&c, &src))?;
+    write_outputs(args, &c, &src, &mut out)?;
+    if let Some(first) = c.not_an_answer.first() {
+        let more = match c.not_an_answer.len() - 1 {
+            0 => String::new(),
+            n => format!(" (and {n} more reason(s), the `answer:` lines above)"),
+        };
+        eprintln!("host-sim: error: not an answer: {first}{more}");
+        return Ok(NO_ANSWER_EXIT);
     }
-    args.matrices.write(&c.r)?;
+    Ok(if c.judgement.verdict.is_warning() {
+        WARNING_EXIT
+    } else {
+        0
+    })
+}
+
+/// Where the tables go: standard output, or standard error when the
+/// replies take standard output.
+fn console(args: &CalibrateArgs) -> Box<dyn Write> {
+    if args.replies == Some(ReplyTarget::Stdout) {
+        Box::new(std::io::stderr())
+    } else {
+        Box::new(std::io::stdout())
+    }
+}
+
+/// Writes every output asked for (`--json`, `--matrices`, `--report`), each
+/// whatever became of the others; the first failure is returned after all
+/// were tried, every one printed. A report directory that could not be
+/// written is not left behind empty.
+fn write_outputs(
+    args: &CalibrateArgs,
+    c: &Calibration,
+    src: &Source<'_>,
+    out: &mut dyn Write,
+) -> Result<(), Error> {
+    let mut failed: Vec<String> = Vec::new();
+    if let Some(path) = &args.json {
+        if let Err(e) = write_json(path, &json(c, src)) {
+            failed.push(e);
+        }
+    }
+    if let Err(e) = args.matrices.write_to(&c.r, out) {
+        failed.push(e.to_string());
+    }
     if let Some(dir) = &args.report {
+        match report(c, src, dir) {
+            Ok(page) => eprintln!("report: {}", page.display()),
+            Err(e) => failed.push(e.to_string()),
+        }
+    }
+    for e in failed.iter().skip(1) {
+        eprintln!("host-sim: error: {e}");
+    }
+    match failed.into_iter().next() {
+        Some(e) => Err(e.into()),
+        None => Ok(()),
+    }
+}
+
+/// The HTML report of `--report DIR`: the directory is created here, and
+/// removed again when it stayed empty because the report failed.
+fn report(c: &Calibration, src: &Source<'_>, dir: &std::path::Path) -> Result<PathBuf, Error> {
+    let existed = dir.exists();
+    let result = (|| -> Result<PathBuf, Error> {
         let crlb_history = c.crlb_history()?;
         let crlb = c.sidecar.as_ref().map(|_| c.crlb.as_slice());
-        let page = crate::output::html::report_of_calibration(
+        Ok(crate::output::html::report_of_calibration(
             dir,
-            &c.r,
+            c,
             crlb,
             crlb_history.as_deref(),
-            c.sidecar.is_some(),
-            &c.judgement,
-            report_header(&c, &src),
-        )?;
-        eprintln!("report: {}", page.display());
+            report_header(c, src),
+        )?)
+    })();
+    if result.is_err() && !existed {
+        let _ = std::fs::remove_dir(dir);
     }
-    Ok(c.judgement.verdict.clone())
+    result
 }
 
-/// The error model of the session's calibrator, once configured.
-fn host_errors<T: RealField + Copy>(host: &Host<T>) -> Option<ErrorModel> {
-    host.session.calibrator().map(|c| c.settings().errors)
-}
-
-/// [`Host::handle`], then its notes printed.
-fn handle<T: RealField + Copy>(host: &mut Host<T>, m: Message) -> Result<(), String> {
+/// [`Host::handle`], then its notes printed; the replies sent.
+fn handle<T: RealField + Copy>(
+    host: &mut Host<T>,
+    replies: &mut ReplySink,
+    m: Message,
+) -> Result<Vec<u8>, String> {
     let result = host.handle(m);
     for note in host.notes.drain(..) {
         eprintln!("{note}");
     }
-    result
+    let msgs = result.map_err(|e| e.to_string())?;
+    replies.send(&msgs).map_err(|e| e.to_string())
 }
 
 /// Accepted samples and the progress text of the session.
@@ -254,12 +424,13 @@ fn detail<T: RealField + Copy>(host: &Host<T>, decoder: &FrameDecoder) -> (u64, 
 
 /// Reads the input into the session: the CSV log's `Configure` and
 /// samples (`csv`), else the frames of the input, with the progress line
-/// (`total` samples expected).
+/// (`total` samples expected); the replies sent as they come.
 fn feed<T: RealField + Copy>(
     args: &CalibrateArgs,
     input: &Input,
     host: &mut Host<T>,
     decoder: &mut FrameDecoder,
+    replies: &mut ReplySink,
     csv: Option<CsvInput>,
     total: u64,
 ) -> Result<(), Error> {
@@ -269,12 +440,12 @@ fn feed<T: RealField + Copy>(
     let read = match csv {
         // Driven exactly as a frame stream: the Configure, then the samples.
         Some(csv) => {
-            let mut result = handle(host, Message::Configure(csv.settings));
+            let mut result = handle(host, replies, Message::Configure(csv.settings)).map(|_| ());
             for (k, s) in csv.samples.into_iter().enumerate() {
                 if result.is_err() {
                     break;
                 }
-                result = handle(host, Message::Sample(s));
+                result = handle(host, replies, Message::Sample(s)).map(|_| ());
                 if k % 256 == 0 {
                     let (accepted, text) = detail(host, decoder);
                     progress.update(accepted, &text);
@@ -283,9 +454,16 @@ fn feed<T: RealField + Copy>(
             result
         }
         None => read_input(&args.input, args.baud, idle, |bytes| {
-            let mut result = Ok(());
+            let mut result = Ok(Vec::new());
             decoder.feed_results(bytes, |r| match r {
-                Ok(m) if result.is_ok() => result = handle(host, m),
+                Ok(m) => {
+                    if let Ok(back) = &mut result {
+                        match handle(host, replies, m) {
+                            Ok(b) => back.extend(b),
+                            Err(e) => result = Err(e),
+                        }
+                    }
+                }
                 Err(FrameError::WrongVersion(v)) => host.other_version = Some(v),
                 _ => {}
             });

@@ -31,6 +31,13 @@ pub enum Error {
         /// Why.
         source: std::io::Error,
     },
+    /// A write failed (`cannot write PATH: …`).
+    Write {
+        /// The file or device.
+        path: String,
+        /// Why.
+        source: std::io::Error,
+    },
     /// What the bytes were fed to refused them (e.g. the calibrator's
     /// session): its message.
     Stopped(String),
@@ -88,6 +95,7 @@ impl fmt::Display for Error {
                 write!(f, "cannot open serial device {path} at {baud} Bd: {source}")
             }
             Error::Read { path, source } => write!(f, "cannot read {path}: {source}"),
+            Error::Write { path, source } => write!(f, "cannot write {path}: {source}"),
             Error::Stopped(m) | Error::Csv(m) | Error::Settings(m) => f.write_str(m),
             Error::Encode(e) => write!(f, "{e}"),
             Error::NotSidecar { path, source } => {
@@ -113,7 +121,9 @@ impl fmt::Display for Error {
 impl std::error::Error for Error {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         match self {
-            Error::Open { source, .. } | Error::Read { source, .. } => Some(source),
+            Error::Open { source, .. }
+            | Error::Read { source, .. }
+            | Error::Write { source, .. } => Some(source),
             Error::OpenSerial { source, .. } => Some(source),
             Error::NotSidecar { source, .. } => Some(source),
             _ => None,

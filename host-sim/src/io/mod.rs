@@ -5,12 +5,14 @@
 //!   reading a file, stdin or a serial port;
 //! - [`csvlog`]: the CSV log (docs/csv.md);
 //! - [`input`]: what `calibrate` reads and with which settings;
+//! - [`replies`]: where `calibrate --replies` sends the calibrator's replies;
 //! - [`Error`]: why an input or output failed;
 //! - [`sidecar`]: the truth sidecar of a recorded stream.
 
 pub mod csvlog;
 mod error;
 pub mod input;
+pub mod replies;
 pub mod sidecar;
 pub mod stream;
 

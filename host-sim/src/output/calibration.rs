@@ -9,7 +9,9 @@ use std::io::Write;
 
 use rollcal::wire::EstimateKind;
 
-use crate::analysis::calibration::Calibration;
+use crate::analysis::calibration::rejects::RejectFinding;
+use crate::analysis::calibration::trust::Gated;
+use crate::analysis::calibration::{name_of, Calibration, Refused};
 use crate::io::stream::{frames_json, reject_json, Format};
 use crate::output::report::{run_json, write_judgement, write_table, write_table_no_truth};
 
@@ -24,6 +26,8 @@ pub struct Source<'a> {
     pub precision: &'a str,
     /// The truth sidecar's path, when given.
     pub truth: Option<&'a std::path::Path>,
+    /// The reply frames sent (`--replies`), when asked for.
+    pub replies: Option<u64>,
 }
 
 /// Writes the table, the data checks and the stream's counters.
@@ -33,9 +37,10 @@ pub fn write_results(
     src: &Source<'_>,
 ) -> std::io::Result<()> {
     let (r, p) = (&c.r, &c.est.progress);
-    match &c.at_estimate {
-        Some((b, v)) => write_table_no_truth(out, r, b, v)?,
-        None => write_table(out, r, &c.crlb)?,
+    match (&c.at_estimate, &c.sidecar) {
+        (Some((b, v)), _) => write_table_no_truth(out, r, Some((b, v)))?,
+        (None, None) => write_table_no_truth(out, r, None)?,
+        (None, Some(_)) => write_table(out, r, &c.crlb)?,
     }
     write_judgement(out, &c.judgement)?;
     let rj = reject_json(&p.rejects);
@@ -63,6 +68,83 @@ pub fn write_results(
             "lost data: {} gap(s) with unknown motion re-acquired the attitude ({} periods), {} clock step(s) re-anchored",
             p.reacquired, p.reacquired_periods, p.clock_steps
         )?;
+    }
+    write_findings(out, &c.rejects)?;
+    write_gated(out, &c.gated)?;
+    write_refusals(out, &c.refusals)?;
+    if let Some(n) = src.replies {
+        writeln!(out, "replies: {n} frames sent")?;
+    }
+    if c.not_an_answer.is_empty() {
+        writeln!(out, "answer: an answer (enough samples accepted, the final passes and the data checks run, every state the configuration observes observed)")?;
+    } else {
+        for why in &c.not_an_answer {
+            writeln!(out, "answer: NOT an answer: {why}")?;
+        }
+    }
+    Ok(())
+}
+
+/// The rejected samples by reason: count, the first one, the likely cause.
+pub fn write_findings(out: &mut dyn Write, findings: &[RejectFinding]) -> std::io::Result<()> {
+    for f in findings {
+        write!(
+            out,
+            "rejected: {:<15} {:>6}  first: {}",
+            f.reason, f.count, f.first
+        )?;
+        match &f.likely_cause {
+            Some(c) => writeln!(out, "; likely cause: {c}")?,
+            None => writeln!(out)?,
+        }
+    }
+    Ok(())
+}
+
+/// The gated updates and their share, with the hint when above a clean
+/// log's.
+fn write_gated(out: &mut dyn Write, g: &Gated) -> std::io::Result<()> {
+    if g.gate <= 0.0 {
+        return writeln!(out, "gated: no NIS gate");
+    }
+    let share = |n: u32| 100.0 * f64::from(n) / f64::from(g.updates.max(1));
+    write!(
+        out,
+        "gated (NIS > {}): pass 1 {} of {} updates ({:.2} %)",
+        g.gate,
+        g.pass1,
+        g.updates,
+        share(g.pass1)
+    )?;
+    if let Some(n) = g.last_pass {
+        write!(out, ", last pass {n} ({:.2} %)", share(n))?;
+    }
+    writeln!(out)?;
+    if let Some(h) = &g.hint {
+        writeln!(out, "  hint: {h}")?;
+    }
+    Ok(())
+}
+
+/// The messages the session refused (the calibrator left as it was).
+fn write_refusals(out: &mut dyn Write, refusals: &[Refused]) -> std::io::Result<()> {
+    let mut seen: Vec<(u8, String)> = Vec::new();
+    for r in refusals {
+        let key = (r.message, r.error.to_string());
+        if seen.contains(&key) {
+            continue;
+        }
+        let n = refusals
+            .iter()
+            .filter(|x| x.message == r.message && x.error.to_string() == key.1)
+            .count();
+        writeln!(
+            out,
+            "refused: {} ×{n}: {} (the calibrator as it was; wire: Refused)",
+            name_of(r.message),
+            key.1
+        )?;
+        seen.push(key);
     }
     Ok(())
 }
@@ -124,6 +206,15 @@ pub fn json(c: &Calibration, src: &Source<'_>) -> serde_json::Value {
         "estimate_rad": est.state.to_vec(),
         "sigma_rad": est.sigma.to_vec(),
     });
+    json["answer"]["usable"] = c.not_an_answer.is_empty().into();
+    json["answer"]["not_an_answer"] = serde_json::json!(c.not_an_answer);
+    json["rejected"] = serde_json::json!(c.rejects);
+    json["gated"] = serde_json::json!(c.gated);
+    json["refused"] = c
+        .refusals
+        .iter()
+        .map(|r| serde_json::json!({"message": name_of(r.message), "reason": r.error.to_string()}))
+        .collect();
     json["stream"] = serde_json::json!({
         "format": if src.format == Format::Csv { "csv" } else { "frames" },
         "frames": frames_json(&c.stats),

@@ -4,6 +4,7 @@
 //! ([`progress`]). Rendering only: the numbers come computed.
 
 pub mod calibration;
+pub mod groups;
 pub mod html;
 pub mod plots;
 pub mod progress;

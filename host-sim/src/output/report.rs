@@ -131,15 +131,22 @@ pub fn write_table(out: &mut dyn Write, r: &RunResult, crlb: &[f64]) -> std::io:
 pub fn write_table_no_truth(
     out: &mut dyn Write,
     r: &RunResult,
-    bound: &[f64],
-    verdicts: &[crate::analysis::verdict::Verdict],
+    bound: Option<(&[f64], &[crate::analysis::verdict::Verdict])>,
 ) -> std::io::Result<()> {
     writeln!(
         out,
         "{:<11} {:<UNIT_WIDTH$} {:>12} {:>10} {:>10} {:>8}  verdict (the bound at the estimate, received path)",
         "state", "unit", "estimate", "σ", "bound", "σ/bound"
     )?;
-    for ((s, b), v) in r.states.iter().zip(bound).zip(verdicts) {
+    for (i, s) in r.states.iter().enumerate() {
+        let b = bound
+            .and_then(|(b, _)| b.get(i))
+            .copied()
+            .unwrap_or(f64::NAN);
+        let v = bound.and_then(|(_, v)| v.get(i)).map_or_else(
+            || "— (no bound at the estimate)".to_string(),
+            ToString::to_string,
+        );
         let g = s.info.group;
         writeln!(
             out,
@@ -148,7 +155,7 @@ pub fn write_table_no_truth(
             printed_unit(g),
             printed_value(g, s.estimate_rad),
             printed_value(g, s.sigma_rad),
-            printed_value(g, *b),
+            printed_value(g, b),
             s.sigma_rad / b,
             v
         )?;

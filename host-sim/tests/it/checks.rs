@@ -182,12 +182,26 @@ fn a_log_near_gimbal_lock_is_flagged() {
         let v = json_file(&json);
         let text = stdout(&out);
         if id == ConfigId::M1Pa {
-            assert_eq!(out.status.code(), Some(0), "{text}");
+            // No path check for M1-pa; a turn about Up alone observes
+            // little of it: not an answer.
+            assert_eq!(out.status.code(), Some(4), "{text}");
             assert!(v["path_check"].is_null(), "{}", v["path_check"]);
             assert!(!text.contains("path: "), "{text}");
             continue;
         }
-        assert_eq!(out.status.code(), Some(i32::from(WARNING_EXIT)), "{text}");
+        // The path turns about Up alone: the warning, and M2-ps's claimed
+        // states (θgC, θaC, λx, λz) unobserved, so not an answer (exit 4
+        // outranks 3).
+        assert_eq!(out.status.code(), Some(4), "{text}");
+        assert!(
+            v["data_verdict"]["verdict"] == "warning",
+            "{}",
+            v["data_verdict"]
+        );
+        assert!(
+            text.contains("answer: NOT an answer") && text.contains("kept σ ≥ 0.01"),
+            "{text}"
+        );
         let path = &v["path_check"];
         assert_eq!(path["name"], "gimbal_lock");
         assert_eq!(path["passed"], false, "{path}");

@@ -169,14 +169,27 @@ fn run_errors_full_on_the_command_line() {
         .unwrap();
     support::assert_success(&first);
     assert!(support::stderr(&first).contains("first pass alone is biased"));
+    // The full model's report: every instrument group with its figure.
     let report = support::host_sim()
         .args(["run", "--config", "M1-pa", "--errors", "full", "--report"])
         .arg(dir.join("rep"))
         .output()
         .unwrap();
-    assert!(!report.status.success());
-    let err = support::stderr(&report);
-    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    support::assert_success(&report);
+    let page = std::fs::read_to_string(dir.join("rep").join("index.html")).unwrap();
+    for group in ["dg", "Dg", "kg", "ba", "ka"] {
+        assert!(
+            page.contains(&format!("sigma-{group}.png")),
+            "σ(t) of {group}"
+        );
+        assert!(
+            page.contains(&format!("error-{group}.png")),
+            "error of {group}"
+        );
+    }
+    assert!(
+        page.contains("<td class=\"l\">µg</td>") && page.contains("<td class=\"l\">°/h/g</td>")
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -24,6 +24,7 @@ mod f32;
 mod firmware_check;
 mod full_model;
 mod golden;
+mod ground_station;
 mod innovations;
 mod instruments;
 mod observability;

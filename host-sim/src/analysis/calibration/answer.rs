@@ -11,7 +11,10 @@ use rollcal::models::{ConfigId, ErrorModel};
 use rollcal::wire::{CalibratorConfig, DecoderStats, Estimate, EstimateKind, VERSION};
 
 use super::bound::{bound_at_estimate, CalibratorView};
-use super::host::{Final, Host};
+use super::diagnose;
+use super::host::{Final, Host, Refused};
+use super::rejects::{findings, RejectFinding, SampleSource};
+use super::trust::{self, Gated, NotAnAnswer};
 use crate::analysis::checks::{self, Judgement};
 use crate::analysis::runner::{self, Passes, RunResult};
 use crate::analysis::verdict::Verdict;
@@ -55,6 +58,25 @@ pub struct Calibration {
     pub judgement: Judgement,
     /// Notes for the user (how the bound was taken, an incomplete answer).
     pub notes: Vec<String>,
+    /// The rejected samples by reason, largest first.
+    pub rejects: Vec<RejectFinding>,
+    /// The updates the NIS gate refused.
+    pub gated: Gated,
+    /// What the result lacks to be an answer (empty: an answer).
+    pub not_an_answer: Vec<NotAnAnswer>,
+    /// The messages the session refused.
+    pub refusals: Vec<Refused>,
+}
+
+/// What [`Calibration::of`] needs besides the session.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Context<'a> {
+    /// At most this many passes (1: the calibrator's pass 1, asked for).
+    pub passes: u8,
+    /// Where the samples came from (CSV lines), for naming a sample.
+    pub source: SampleSource<'a>,
+    /// The platform's latitude (°), for the likely cause of a warning.
+    pub latitude_deg: Option<f64>,
 }
 
 /// Why the session gave no calibration to report.
@@ -74,13 +96,17 @@ pub enum CalibrationError {
         /// Frames rejected.
         rejected: u32,
     },
-    /// The calibrator accepted no sample.
+    /// The calibrator accepted no sample: why each was rejected.
     NoneAccepted {
         /// Samples rejected.
         rejected: u32,
         /// Frames rejected.
         bad_frames: u32,
+        /// The rejected samples by reason, largest first.
+        findings: Vec<RejectFinding>,
     },
+    /// The stream's `Configure` was refused, and no calibrator ran.
+    ConfigureRefused(String),
     /// The bound of the received samples could not be computed.
     Bound(String),
     /// The bound at the estimate could not be computed.
@@ -101,9 +127,23 @@ impl fmt::Display for CalibrationError {
             CalibrationError::NoneAccepted {
                 rejected,
                 bad_frames,
-            } => write!(
+                findings,
+            } => {
+                write!(
+                    f,
+                    "no sample accepted ({rejected} rejected, {bad_frames} bad frames"
+                )?;
+                if let Some(top) = findings.first() {
+                    write!(f, "; {} {}", top.reason, top.count)?;
+                    if let Some(c) = &top.likely_cause {
+                        write!(f, ": {c}")?;
+                    }
+                }
+                f.write_str(")")
+            }
+            CalibrationError::ConfigureRefused(e) => write!(
                 f,
-                "no sample accepted ({rejected} rejected, {bad_frames} bad frames)"
+                "the stream's Configure was refused ({e}): no calibrator ran"
             ),
             CalibrationError::Bound(e) => write!(f, "Cramér–Rao bound of the received samples: {e}"),
             CalibrationError::Analysis(e) => write!(f, "{e}"),
@@ -123,6 +163,12 @@ impl<T: RealField + Copy> Host<T> {
                 frames: stats.wrong_version,
             });
         }
+        if let (None, Some(r)) = (
+            self.session.calibrator(),
+            self.refusals.iter().find(|r| r.message == 3),
+        ) {
+            return Err(CalibrationError::ConfigureRefused(r.error.to_string()));
+        }
         self.session
             .calibrator()
             .map(|c| c.settings().config)
@@ -141,8 +187,9 @@ impl Calibration {
         host: &mut Host<T>,
         stats: DecoderStats,
         sidecar: Option<Sidecar>,
-        passes: u8,
+        ctx: &Context<'_>,
     ) -> Result<Self, CalibrationError> {
+        let passes = ctx.passes;
         let id = host.configured(&stats)?;
         let Some(cal) = host.session.calibrator_mut() else {
             return Err(CalibrationError::NoSamples {
@@ -154,10 +201,17 @@ impl Calibration {
         let settings = *cal.settings();
         let layout = id.layout_with(settings.errors);
         let est = cal.estimate();
+        let rejects = findings(
+            &est.progress.rejects,
+            &host.first_rejects,
+            &settings,
+            ctx.source,
+        );
         if est.progress.accepted == 0 {
             return Err(CalibrationError::NoneAccepted {
                 rejected: est.progress.rejects.total(),
                 bad_frames: stats.errors(),
+                findings: rejects,
             });
         }
         // The running filter's covariance (the answer when the passes do not run).
@@ -200,18 +254,56 @@ impl Calibration {
             .as_ref()
             .is_some_and(|f| matches!(f.estimate.kind, EstimateKind::Final { .. }));
         let mut notes = Vec::new();
-        if let Some(EstimateKind::SinglePass { reason, .. }) = fin.as_ref().map(|f| f.estimate.kind)
-        {
-            notes.push(format!(
-                "note: {reason}: the final answer is the calibrator's pass 1"
-            ));
-        }
+        let single = match fin.as_ref().map(|f| f.estimate.kind) {
+            Some(EstimateKind::SinglePass { reason, .. }) => {
+                notes.push(format!(
+                    "note: {reason}: the final answer is the calibrator's pass 1"
+                ));
+                Some(reason.to_string())
+            }
+            Some(_) => None,
+            None => Some("--passes 1".to_string()),
+        };
         let records = host.log.records_f64();
+        // Without a truth, the bound at the estimate; an estimate the bound
+        // cannot be linearised at (data far from the model) is noted, and
+        // the checks still judge the data.
         let at_estimate = match &sidecar {
-            None => Some(at_estimate(&settings, &est, &r, &records, &mut notes)?),
+            None => match at_estimate(&settings, &est, &r, &records, &mut notes) {
+                Ok(b) => Some(b),
+                Err(e) => {
+                    notes.push(format!("note: no bound at the estimate ({e})"));
+                    None
+                }
+            },
             Some(_) => None,
         };
-        let judgement = checks::judge(&r).with_path(checks::gimbal_lock_check(id, &records));
+        let mut judgement = checks::judge(&r).with_path(checks::gimbal_lock_check(id, &records));
+        if judgement.verdict.is_warning() {
+            judgement.cause = diagnose::likely_cause(
+                &settings,
+                &records,
+                &r.updates,
+                &judgement,
+                ctx.latitude_deg,
+            );
+        }
+        let measured = records.iter().filter(|r| r.observation.is_some()).count();
+        let gated = Gated::of(
+            settings.options.nis_gate,
+            layout.z(),
+            est.progress.gated,
+            fin.as_ref().filter(|_| final_answer).map(|f| f.gated),
+            u32::try_from(measured).unwrap_or(u32::MAX),
+        );
+        let not_an_answer = trust::reasons(
+            &r,
+            est.progress.accepted,
+            &rejects,
+            single.as_deref(),
+            &judgement.verdict,
+            passes == 1,
+        );
         Ok(Calibration {
             id,
             settings,
@@ -229,6 +321,10 @@ impl Calibration {
             at_estimate,
             judgement,
             notes,
+            rejects,
+            gated,
+            not_an_answer,
+            refusals: host.refusals.clone(),
         })
     }
 }
@@ -270,13 +366,14 @@ impl Calibration {
     /// the log, when it was computed (a truth sidecar with the initial
     /// state and a complete log).
     pub fn crlb_history(&self) -> Result<Option<Vec<Vec<f64>>>, CalibrationError> {
-        match self.sidecar.as_ref().and_then(|s| s.truth0.as_ref()) {
+        let errors = self.settings.errors;
+        match self.sidecar.as_ref().and_then(|s| s.truth0_of(errors)) {
             Some(t0) if self.received_bound.is_some() => runner::bound_history(
                 self.id,
-                ErrorModel::Installation,
+                errors,
                 FilterConfig::<f64>::from(&self.settings),
-                t0,
-                &[self.settings.prior_sigma_rad],
+                &t0,
+                &runner::prior_sigma_of(&self.settings),
                 &self.records,
             )
             .map(Some)

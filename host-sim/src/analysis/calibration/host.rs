@@ -10,9 +10,10 @@ use rollcal::estimator::{
     EstimatorOptions, LogError, LogRecord, PackedLayout, PassEvent, SampleLog,
 };
 use rollcal::models::{ConfigId, ErrorModel, Model};
-use rollcal::session::{Covariance, PassObserver, Reply, Session};
+use rollcal::session::{Covariance, PassObserver, Reply, Session, SessionError};
 use rollcal::wire::{CalibratorConfig, Estimate, Message};
 
+use super::rejects::FirstRejects;
 use crate::analysis::runner;
 
 /// How the host's sample log keeps a record.
@@ -101,7 +102,43 @@ pub struct Final {
     /// Covariance of the final filter, row-major (rad²; empty when the
     /// passes did not run).
     pub covariance: Vec<f64>,
+    /// Updates of the last pass refused by the NIS gate.
+    pub gated: u32,
 }
+
+/// A message the session refused (the calibrator left as it was): the
+/// message's tag ([`Message::tag`]) and why.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Refused {
+    /// The refused message's tag.
+    pub message: u8,
+    /// Why.
+    pub error: SessionError,
+}
+
+/// Why the host stops reading a stream.
+#[derive(Clone, Debug, PartialEq)]
+pub enum HostError {
+    /// A sample before any `Configure`, and no settings of the host's own.
+    NoConfigure,
+    /// The stream configures another configuration than the one asked for
+    /// (`--config`, the platform file).
+    Contradiction(SessionError),
+    /// The host's own settings (platform file, scenario) were refused.
+    Settings(SessionError),
+}
+
+impl std::fmt::Display for HostError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            HostError::NoConfigure => f.write_str("the stream has no Configure message: give --config (and --platform FILE for the platform's settings)"),
+            HostError::Contradiction(e) => write!(f, "{e}"),
+            HostError::Settings(e) => write!(f, "calibrator: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for HostError {}
 
 /// The no_std session (the protocol, once) with the host's log and records
 /// for the report.
@@ -118,27 +155,41 @@ pub struct Host<T: RealField + Copy> {
     pub failures: Vec<(u32, ekf::Error)>,
     /// Where the fallback settings come from, for the note.
     pub fallback_of: String,
-    /// Notes for the user (a missing `Configure`, a restart), to print
-    /// after each [`Host::handle`].
+    /// Notes for the user (a missing `Configure`, a restart, a refusal),
+    /// to print after each [`Host::handle`].
     pub notes: Vec<String>,
     /// The error model every `Configure` is run with (`calibrate
     /// --errors`), whatever it asks for; `None`: the message's.
     pub errors: Option<ErrorModel>,
     /// The protocol version of the last frame of another version seen.
     pub other_version: Option<u8>,
+    /// The first rejected sample of each reason since the last (re)start.
+    pub first_rejects: FirstRejects,
+    /// Every message the session refused.
+    pub refusals: Vec<Refused>,
+    /// Whether a `Configure` came in the stream.
+    pub configure_seen: bool,
+    /// Whether a `Finish` was answered after the last sample.
+    pub finished: bool,
 }
 
 impl<T: RealField + Copy> Host<T> {
     /// A host of a fresh session expecting configuration `expected` (if
     /// known), with the settings `fallback` for a stream without a
-    /// `Configure`, taken from `fallback_of`.
+    /// `Configure`, taken from `fallback_of`; a `Finish` in the stream runs
+    /// at most `passes` passes.
     pub fn new(
         expected: Option<ConfigId>,
         fallback: Option<CalibratorConfig>,
         fallback_of: String,
+        passes: u8,
     ) -> Self {
+        let passes = EstimatorOptions {
+            max_passes: passes,
+            ..EstimatorOptions::default()
+        };
         Self {
-            session: Session::new(expected, EstimatorOptions::default()),
+            session: Session::new(expected, passes),
             fallback,
             log: VecLog::default(),
             nis: Vec::new(),
@@ -147,60 +198,110 @@ impl<T: RealField + Copy> Host<T> {
             notes: Vec::new(),
             errors: None,
             other_version: None,
+            first_rejects: FirstRejects::default(),
+            refusals: Vec::new(),
+            configure_seen: false,
+            finished: false,
         }
     }
 
     /// Hands message `m` to the session (configuring it with the fallback
-    /// settings at a first sample without a `Configure`), keeping the NIS
-    /// and the failures of the accepted samples.
-    pub fn handle(&mut self, m: Message) -> Result<(), String> {
+    /// settings at a first sample of a stream without a `Configure`),
+    /// keeping the NIS and the failures of the accepted samples and the
+    /// first rejected sample of each reason; returns what a calibrator sends
+    /// back: the session's replies (estimates, checkpoints) and the wire
+    /// form of a refusal ([`Message::Refused`]). A refused message leaves
+    /// the session as it was and the stream goes on; only a stream the host
+    /// cannot run at all stops it ([`HostError`]).
+    pub fn handle(&mut self, m: Message) -> Result<Vec<Message>, HostError> {
         let m = match (m, self.errors) {
             (Message::Configure(settings), Some(errors)) => {
                 Message::Configure(CalibratorConfig { errors, ..settings })
             }
             (m, _) => m,
         };
-        match &m {
-            Message::Sample(_) if self.session.calibrator().is_none() => {
-                let Some(fallback) = self.fallback else {
-                    return Err("the stream has no Configure message: give --config (and --platform FILE for the platform's settings)".into());
-                };
-                self.notes.push(format!(
-                    "note: the stream has no Configure message; using the settings of {}",
-                    self.fallback_of
-                ));
-                self.session
-                    .configure(fallback)
-                    .map_err(|e| format!("calibrator: {e}"))?;
-            }
-            Message::Configure(_) | Message::Reset => {
-                if self.session.calibrator().is_some() {
-                    self.notes.push(format!(
-                        "\nnote: {} mid-stream: restarting the calibrator",
-                        tag(&m)
-                    ));
-                }
-                self.nis.clear();
-                self.failures.clear();
-            }
-            _ => {}
+        if matches!(m, Message::Sample(_))
+            && self.session.calibrator().is_none()
+            && !self.configure_seen
+        {
+            let fallback = self.fallback.ok_or(HostError::NoConfigure)?;
+            self.notes.push(format!(
+                "note: the stream has no Configure message; using the settings of {}",
+                self.fallback_of
+            ));
+            self.session
+                .configure(fallback)
+                .map_err(HostError::Settings)?;
         }
+        let running = self.session.calibrator().is_some();
+        let last = self.session.calibrator().and_then(|c| {
+            let p = c.progress();
+            p.last_seq.zip(p.last_t_us)
+        });
+        self.configure_seen |= matches!(m, Message::Configure(_));
+        let mut out = Vec::new();
         match self.session.handle(&m, &mut self.log) {
-            Reply::Error(e) => return Err(format!("{e}")),
-            Reply::Rejected(RejectReason::Filter(e)) => {
-                if let Message::Sample(s) = &m {
-                    self.failures.push((s.seq, e));
-                }
+            Reply::Error(e @ SessionError::ConfigMismatch { .. })
+                if matches!(m, Message::Configure(_)) =>
+            {
+                return Err(HostError::Contradiction(e));
             }
-            Reply::Nothing | Reply::Send(_) | Reply::Rejected(_) => {
-                if let (Message::Sample(s), Some(cal)) = (&m, self.session.calibrator()) {
-                    if cal.progress().last_seq == Some(s.seq) {
-                        self.nis.push(cal.progress().last_nis);
+            Reply::Error(e) => {
+                self.refused(&m, e);
+                out.push(Message::Refused(e.refusal(m.tag())));
+            }
+            Reply::Send(reply) => {
+                self.finished |= matches!(m, Message::Finish);
+                out.push(reply);
+            }
+            Reply::Rejected(r) => {
+                if let Message::Sample(s) = &m {
+                    self.first_rejects.note(&r, s, last);
+                    if let RejectReason::Filter(e) = r {
+                        self.failures.push((s.seq, e));
                     }
                 }
             }
+            Reply::Nothing => {
+                if matches!(m, Message::Configure(_) | Message::Reset) {
+                    if running {
+                        self.notes.push(format!(
+                            "\nnote: {} mid-stream: restarting the calibrator",
+                            tag(&m)
+                        ));
+                    }
+                    self.nis.clear();
+                    self.failures.clear();
+                    self.first_rejects.first.clear();
+                }
+            }
         }
-        Ok(())
+        if let Message::Sample(s) = &m {
+            self.first_rejects.samples += 1;
+            self.finished = false;
+            if let Some(cal) = self.session.calibrator() {
+                if cal.progress().last_seq == Some(s.seq) && last.map(|l| l.0) != Some(s.seq) {
+                    self.nis.push(cal.progress().last_nis);
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// Notes the refusal of `m` (the first of each message and reason
+    /// printed, every one counted).
+    fn refused(&mut self, m: &Message, error: SessionError) {
+        let r = Refused {
+            message: m.tag(),
+            error,
+        };
+        if !self.refusals.contains(&r) {
+            self.notes.push(format!(
+                "note: {} refused ({error}); the calibrator is as it was",
+                tag(m)
+            ));
+        }
+        self.refusals.push(r);
     }
 
     /// The estimator of record over the log, at most `passes` passes,
@@ -218,6 +319,7 @@ impl<T: RealField + Copy> Host<T> {
             nis,
             updates,
             history,
+            gated,
             ..
         } = last;
         let covariance = covariance.to_vec();
@@ -227,6 +329,7 @@ impl<T: RealField + Copy> Host<T> {
             updates,
             history,
             covariance,
+            gated,
         })
     }
 }
@@ -248,6 +351,8 @@ struct LastPass {
     updates: Vec<runner::Update>,
     /// Time (s), estimate (rad) and σ (rad) after every record of the pass.
     history: Vec<(f64, Vec<f64>, Vec<f64>)>,
+    /// Updates of the pass refused by the NIS gate.
+    gated: u32,
 }
 
 impl<T: RealField + Copy> PassObserver<T> for LastPass {
@@ -259,8 +364,11 @@ impl<T: RealField + Copy> PassObserver<T> for LastPass {
         self.t_s = if e.index == 0 { 0.0 } else { self.t_s } + e.record.dt;
         let t = self.t_s;
         if e.pass != self.pass {
-            (self.pass, self.nis, self.updates, self.history) =
-                (e.pass, Vec::new(), Vec::new(), Vec::new());
+            (self.pass, self.nis, self.updates, self.history, self.gated) =
+                (e.pass, Vec::new(), Vec::new(), Vec::new(), 0);
+        }
+        if matches!(e.result, Err(ekf::Error::Gated)) {
+            self.gated += 1;
         }
         if let Ok(Some(i)) = &e.result {
             let u = runner::Update::of(e.index, t, i);
@@ -275,10 +383,23 @@ impl<T: RealField + Copy> PassObserver<T> for LastPass {
     }
 }
 
-fn tag(m: &Message) -> &'static str {
-    match m {
-        Message::Configure(_) => "Configure",
-        Message::Reset => "Reset",
+/// The name of a message, for the notes.
+pub fn tag(m: &Message) -> &'static str {
+    name_of(m.tag())
+}
+
+/// The name of the message of tag `tag` ([`Message::tag`]).
+pub fn name_of(tag: u8) -> &'static str {
+    match tag {
+        0 => "Sample",
+        1 => "Estimate",
+        2 => "Checkpoint (restore)",
+        3 => "Configure",
+        4 => "Reset",
+        5 => "CheckpointRequest",
+        6 => "EstimateRequest",
+        7 => "Finish",
+        8 => "Refused",
         _ => "message",
     }
 }

@@ -6,11 +6,17 @@
 //! - [`answer`]: what the session answered after the stream, as a
 //!   [`Calibration`] (everything the outputs need, computed once);
 //! - [`bound`]: the bound at the estimate without a truth;
+//! - [`rejects`]: why samples were rejected, and the likely cause;
+//! - [`trust`]: when the result is an answer, and the gated updates;
+//! - [`diagnose`]: the likely cause of a data warning;
 //! - here: the calibrator settings of a scenario or platform file.
 
 mod answer;
 mod bound;
+pub mod diagnose;
 mod host;
+pub mod rejects;
+pub mod trust;
 
 use rollcal::ekf::Options;
 use rollcal::models::{ConfigId, ErrorModel};
@@ -19,9 +25,9 @@ use rollcal::wire::CalibratorConfig;
 use crate::analysis::runner;
 use crate::sim::scenario::{Platform, Scenario, DEG};
 
-pub use answer::{Calibration, CalibrationError};
+pub use answer::{Calibration, CalibrationError, Context};
 pub use bound::{bound_at_estimate, CalibratorView};
-pub use host::{Final, Host, LogStorage, VecLog};
+pub use host::{name_of, Final, Host, HostError, LogStorage, Refused, VecLog};
 
 /// Calibrator settings equal to `runner::filter_config` of the scenario
 /// (so that the stream's filter is `run`'s filter), for error model
