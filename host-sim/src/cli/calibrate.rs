@@ -319,7 +319,14 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<u8, Error> 
             0 => String::new(),
             n => format!(" (and {n} more reason(s), the `answer:` lines above)"),
         };
-        eprintln!("host-sim: error: not an answer: {first}{more}");
+        let data = match (&c.judgement.cause, c.judgement.verdict.is_warning()) {
+            (Some(cause), true) => format!(
+                "; the data warning's likely cause: {}",
+                cause.trim_start_matches("likely cause: ")
+            ),
+            _ => String::new(),
+        };
+        eprintln!("host-sim: error: not an answer: {first}{more}{data}");
         return Ok(NO_ANSWER_EXIT);
     }
     Ok(if c.judgement.verdict.is_warning() {

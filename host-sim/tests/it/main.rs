@@ -27,6 +27,7 @@ mod golden;
 mod ground_station;
 mod innovations;
 mod instruments;
+mod mistakes;
 mod observability;
 mod packed_log;
 mod plots;

@@ -143,12 +143,22 @@ fn confirm(c: &Candidate, records: &[LogRecord<f64>], base: f64) -> Option<Strin
     let j = checks::judge_updates(&t.updates, &segments);
     matches!(j.verdict, DataVerdict::Consistent).then(|| {
         format!(
-            "likely cause: {} (with it the data fit the model: mean NIS {:.3}, not {:.3})",
+            "likely cause: {} (with it the data fit the model: mean NIS {}, not {})",
             c.cause,
-            mean_nis(&t.updates),
-            base
+            shown(mean_nis(&t.updates)),
+            shown(base)
         )
     })
+}
+
+/// A mean NIS as printed: 3 decimals, or 4 digits in exponent form when
+/// huge.
+fn shown(nis: f64) -> String {
+    if nis.abs() >= 1e5 {
+        format!("{nis:.3e}")
+    } else {
+        format!("{nis:.3}")
+    }
 }
 
 fn mean_nis(updates: &[Update]) -> f64 {
@@ -174,10 +184,10 @@ fn fit_noise(
             DataVerdict::Consistent
         ) {
             return Some(format!(
-                "likely cause: {} (with it the data fit the model: mean NIS {:.3}, not {:.3})",
+                "likely cause: {} (with it the data fit the model: mean NIS {}, not {})",
                 c.cause,
-                mean_nis(&t.updates),
-                base
+                shown(mean_nis(&t.updates)),
+                shown(base)
             ));
         }
         c = noise_candidate(settings, &c.settings, &t.updates)?;
