@@ -216,12 +216,27 @@ def main(argv):
     counts = {}
     with reader.lock:
         replies = list(reader.frames)
+    run = []  # consecutive running estimates, printed as one line
+
+    def flush():
+        if len(run) == 1:
+            print("<- %s" % describe(run[0]))
+        elif run:
+            seqs = [wire_decode.decode_frame(f[:-1])[1]["seq"] for f in run]
+            print("<- Estimate Running x%d: seq %d ... %d" % (len(run), seqs[0], seqs[-1]))
+        run.clear()
+
     for f in replies:
-        print("<- %s" % describe(f))
         k = kind(f)
         if k == "Estimate":
             k = "Estimate " + wire_decode.decode_frame(f[:-1])[1]["kind"].split("(")[0]
         counts[k] = counts.get(k, 0) + 1
+        if k == "Estimate Running":
+            run.append(f)
+            continue
+        flush()
+        print("<- %s" % describe(f))
+    flush()
     print("replies: " + " ".join("%s=%d" % kv for kv in sorted(counts.items())))
     print("calibrate exit status %d" % status)
     want = {"Checkpoint": 1, "Refused": 2, "Estimate Final": 1}

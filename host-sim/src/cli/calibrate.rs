@@ -200,73 +200,16 @@ fn check_options(args: &CalibrateArgs) -> Result<(), Error> {
     Ok(())
 }
 
-/// `host-sim calibrate` with the calibrator's covariance arithmetic in `T`.
+/// `host-sim calibrate` with the calibrator's covariance arithmetic in `T`:
+/// the session opened, the input read into it, its answer, then what is
+/// printed and written, and the exit status.
 fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<u8, Error> {
     let t0 = Clock::now();
-    let input = Input::resolve(&InputOptions {
-        path: &args.input,
-        format: args.format,
-        platform: args.platform.as_deref(),
-        scenario: args.scenario.as_deref(),
-        config: args.config,
-        errors: args.errors,
-    })?;
-    let mut host = Host::<T>::new(
-        input.expected,
-        input.expected.map(|id| {
-            platform_config(
-                &input.platform,
-                id,
-                input.errors.unwrap_or_default(),
-                input.platform.site.earth_rate,
-            )
-        }),
-        input.source.clone(),
-        args.passes,
-    );
-    host.errors = args.errors;
-    host.log.storage = args.log;
+    let (input, mut host, csv) = open::<T>(args)?;
     let mut replies = ReplySink::open(args.replies.as_ref())?;
     let mut decoder = FrameDecoder::new();
-    let runs = input.expected.map_or_else(
-        || "the stream's configuration".to_string(),
-        |id| id.to_string(),
-    );
-    eprintln!("calibrating {runs} from {}…", args.input);
-    // The expected number of samples: the platform's (scenario's) periods.
-    let mut total = input.platform.periods() as u64;
-    let csv = if input.format == Format::Csv {
-        let csv = input.read_csv(host.fallback)?;
-        total = csv.samples.len() as u64;
-        eprintln!("settings of {}", input.source);
-        Some(csv)
-    } else {
-        None
-    };
     let lines = csv.as_ref().map(|c| (c.lines.clone(), c.has_gimbal));
-    feed(
-        args,
-        &input,
-        &mut host,
-        &mut decoder,
-        &mut replies,
-        csv,
-        total,
-    )?;
-    let stats = *decoder.stats();
-    let id = host.configured(&stats)?;
-    // Read after the stream: `record --truth T | calibrate --truth T` works.
-    let sidecar = args
-        .truth
-        .as_deref()
-        .map(|p| read_sidecar(p, id))
-        .transpose()?;
-    if decoder.pending() > 0 {
-        eprintln!(
-            "note: {} bytes of an unfinished frame at the end of the stream",
-            decoder.pending()
-        );
-    }
+    feed(args, &input, &mut host, &mut decoder, &mut replies, csv)?;
     let ctx = Context {
         passes: args.passes,
         source: SampleSource {
@@ -276,30 +219,10 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<u8, Error> 
         latitude_deg: Some(input.platform.site.latitude_deg),
     };
     let mut out = console(args);
-    let c = match Calibration::of(&mut host, stats, sidecar, &ctx) {
-        Ok(c) => c,
-        Err(CalibrationError::NoneAccepted {
-            findings,
-            rejected,
-            bad_frames,
-        }) => {
-            write_findings(&mut out, &findings)?;
-            let e = CalibrationError::NoneAccepted {
-                findings,
-                rejected,
-                bad_frames,
-            };
-            return Err(NoAnswer(e.to_string()).into());
-        }
-        Err(e) => return Err(e.into()),
-    };
-    for note in &c.notes {
-        eprintln!("{note}");
-    }
+    let c = answer(args, &mut host, &decoder, &ctx, &mut out)?;
     // The answer to a Finish, unless the stream's last one was answered.
     if args.replies.is_some() && !host.finished {
-        let reply = host.handle(Request::Finish.message())?;
-        let back = replies.send(&reply)?;
+        let back = replies.send(&host.handle(Request::Finish.message())?)?;
         if !back.is_empty() {
             write_device(&args.input, args.baud, &back)?;
         }
@@ -314,26 +237,109 @@ fn calibrate_in<T: RealField + Copy>(args: &CalibrateArgs) -> Result<u8, Error> 
     write_results(&mut out, &c, &src)?;
     eprintln!("done in {:.2} s", t0.elapsed().as_secs_f64());
     write_outputs(args, &c, &src, &mut out)?;
-    if let Some(first) = c.not_an_answer.first() {
-        let more = match c.not_an_answer.len() - 1 {
-            0 => String::new(),
-            n => format!(" (and {n} more reason(s), the `answer:` lines above)"),
-        };
-        let data = match (&c.judgement.cause, c.judgement.verdict.is_warning()) {
-            (Some(cause), true) => format!(
-                "; the data warning's likely cause: {}",
-                cause.trim_start_matches("likely cause: ")
-            ),
-            _ => String::new(),
-        };
-        eprintln!("host-sim: error: not an answer: {first}{more}{data}");
-        return Ok(NO_ANSWER_EXIT);
-    }
-    Ok(if c.judgement.verdict.is_warning() {
-        WARNING_EXIT
+    Ok(exit_status(&c))
+}
+
+/// The input and its settings, the host's session for them, and the
+/// samples of a CSV log (read whole).
+fn open<T: RealField + Copy>(
+    args: &CalibrateArgs,
+) -> Result<(Input, Host<T>, Option<CsvInput>), Error> {
+    let input = Input::resolve(&InputOptions {
+        path: &args.input,
+        format: args.format,
+        platform: args.platform.as_deref(),
+        scenario: args.scenario.as_deref(),
+        config: args.config,
+        errors: args.errors,
+    })?;
+    let fallback = input.expected.map(|id| {
+        platform_config(
+            &input.platform,
+            id,
+            input.errors.unwrap_or_default(),
+            input.platform.site.earth_rate,
+        )
+    });
+    let mut host = Host::<T>::new(input.expected, fallback, input.source.clone(), args.passes);
+    host.errors = args.errors;
+    host.log.storage = args.log;
+    let runs = input.expected.map_or_else(
+        || "the stream's configuration".to_string(),
+        |id| id.to_string(),
+    );
+    eprintln!("calibrating {runs} from {}…", args.input);
+    let csv = if input.format == Format::Csv {
+        let csv = input.read_csv(host.fallback)?;
+        eprintln!("settings of {}", input.source);
+        Some(csv)
     } else {
-        0
-    })
+        None
+    };
+    Ok((input, host, csv))
+}
+
+/// The session's answer after the stream (the truth sidecar read now:
+/// `record --truth T | calibrate --truth T` works); with no sample
+/// accepted, the rejected samples by reason printed and [`NoAnswer`].
+fn answer<T: RealField + Copy>(
+    args: &CalibrateArgs,
+    host: &mut Host<T>,
+    decoder: &FrameDecoder,
+    ctx: &Context<'_>,
+    out: &mut dyn Write,
+) -> Result<Calibration, Error> {
+    let stats = *decoder.stats();
+    let id = host.configured(&stats)?;
+    let sidecar = args
+        .truth
+        .as_deref()
+        .map(|p| read_sidecar(p, id))
+        .transpose()?;
+    if decoder.pending() > 0 {
+        eprintln!(
+            "note: {} bytes of an unfinished frame at the end of the stream",
+            decoder.pending()
+        );
+    }
+    match Calibration::of(host, stats, sidecar, ctx) {
+        Ok(c) => {
+            for note in &c.notes {
+                eprintln!("{note}");
+            }
+            Ok(c)
+        }
+        Err(e @ CalibrationError::NoneAccepted { .. }) => {
+            if let CalibrationError::NoneAccepted { findings, .. } = &e {
+                write_findings(out, findings)?;
+            }
+            Err(NoAnswer(e.to_string()).into())
+        }
+        Err(e) => Err(e.into()),
+    }
+}
+
+/// The exit status of calibration `c`: [`NO_ANSWER_EXIT`] (its first
+/// reason printed as the one-line error, with a data warning's likely
+/// cause), else [`WARNING_EXIT`] on a data warning, else 0.
+fn exit_status(c: &Calibration) -> u8 {
+    let warning = c.judgement.verdict.is_warning();
+    let Some(first) = c.not_an_answer.first() else {
+        return if warning { WARNING_EXIT } else { 0 };
+    };
+    let more = match c.not_an_answer.len() - 1 {
+        0 => String::new(),
+        n => format!(" (and {n} more reason(s), the `answer:` lines above)"),
+    };
+    let data = match (&c.judgement.cause, warning) {
+        (Some(cause), true) => format!(
+            "; the data warning's likely cause: {}",
+            cause.trim_start_matches("likely cause: ")
+        ),
+        _ => String::new(),
+    };
+    eprintln!("host-sim: error: not an answer: {first}{more}{data}");
+    NO_ANSWER_EXIT
 }
 
 /// Where the tables go: standard output, or standard error when the
@@ -430,8 +436,8 @@ fn detail<T: RealField + Copy>(host: &Host<T>, decoder: &FrameDecoder) -> (u64, 
 }
 
 /// Reads the input into the session: the CSV log's `Configure` and
-/// samples (`csv`), else the frames of the input, with the progress line
-/// (`total` samples expected); the replies sent as they come.
+/// samples (`csv`), else the frames of the input, with the progress line;
+/// the replies sent as they come.
 fn feed<T: RealField + Copy>(
     args: &CalibrateArgs,
     input: &Input,
@@ -439,8 +445,12 @@ fn feed<T: RealField + Copy>(
     decoder: &mut FrameDecoder,
     replies: &mut ReplySink,
     csv: Option<CsvInput>,
-    total: u64,
 ) -> Result<(), Error> {
+    // The expected number of samples: the log's, else the platform's
+    // (scenario's) periods.
+    let total = csv
+        .as_ref()
+        .map_or(input.platform.periods(), |c| c.samples.len()) as u64;
     let progress = Progress::stderr("calibrate", total, "samples accepted");
     let idle = Duration::from_secs_f64(args.idle_timeout.max(0.1));
     let csv_read = csv.is_some();

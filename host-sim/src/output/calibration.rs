@@ -275,5 +275,12 @@ pub fn report_header(c: &Calibration, src: &Source<'_>) -> Vec<(String, String)>
                 |t| t.display().to_string(),
             ),
         ),
+        (
+            "answer".into(),
+            match c.not_an_answer.first() {
+                None => "an answer (exit status 0, or 3 with a data warning)".into(),
+                Some(why) => format!("NOT an answer (exit status 4): {why}"),
+            },
+        ),
     ]
 }

@@ -119,23 +119,18 @@ fn num(v: f64) -> String {
 }
 
 /// A value shown beside its σ: with as many decimals as keep the rounding
-/// within 0.1σ (half the last digit ≤ 0.1σ: `10^-d ≤ 0.2σ`), at least
-/// four significant digits; `—` when not finite.
+/// within 0.1σ ([`crate::output::report::decimals`]), at least four
+/// significant digits; `—` when not finite.
 fn to_sigma(v: f64, sigma: f64) -> String {
     if !v.is_finite() {
         return "—".into();
     }
-    let by_sigma = if sigma.is_finite() && sigma > 0.0 {
-        (-(0.2 * sigma).log10()).ceil().max(0.0) as usize
-    } else {
-        0
-    };
     let by_size = if v != 0.0 {
         (3 - v.abs().log10().floor() as i32).max(0) as usize
     } else {
         0
     };
-    let d = by_sigma.max(by_size).min(12);
+    let d = crate::output::report::decimals(sigma, by_size.min(9));
     format!("{v:.d$}")
 }
 

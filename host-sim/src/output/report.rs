@@ -49,6 +49,17 @@ fn csv_unit(s: &StateResult) -> String {
     crate::sim::instruments::ascii_unit(s.info.group).replace('/', "_")
 }
 
+/// The decimals of a value printed beside its σ (`sigma`, printed unit):
+/// at least `min`, and enough that the rounding stays within 0.1σ (half
+/// the last digit ≤ 0.1σ: `10^-d ≤ 0.2σ`; at most 9).
+pub fn decimals(sigma: f64, min: usize) -> usize {
+    if sigma.is_finite() && sigma > 0.0 {
+        ((-(0.2 * sigma).log10()).ceil().max(0.0) as usize).clamp(min, 9)
+    } else {
+        min
+    }
+}
+
 /// Width of the unit column of the tables (`″`, `°/h`, `°/h/g`, `ppm`,
 /// `µg`, …: characters, not bytes).
 pub const UNIT_WIDTH: usize = 6;
@@ -104,9 +115,13 @@ pub fn write_table(out: &mut dyn Write, r: &RunResult, crlb: &[f64]) -> std::io:
     )?;
     for (s, c) in r.states.iter().zip(crlb) {
         let g = s.info.group;
+        let (d3, d4) = {
+            let sigma = printed_value(g, s.sigma_rad);
+            (decimals(sigma, 3), decimals(sigma, 4))
+        };
         writeln!(
             out,
-            "{:<11} {:<UNIT_WIDTH$} {:>12.3} {:>12.3} {:>10.4} {:>10.4} {:>8.2} {:>10.4} {:>8.3}  {}",
+            "{:<11} {:<UNIT_WIDTH$} {:>12.d3$} {:>12.d3$} {:>10.d4$} {:>10.4} {:>8.2} {:>10.4} {:>8.3}  {}",
             s.name,
             printed_unit(g),
             printed_value(g, s.truth_rad),
@@ -148,9 +163,10 @@ pub fn write_table_no_truth(
             ToString::to_string,
         );
         let g = s.info.group;
+        let d3 = decimals(printed_value(g, s.sigma_rad), 3);
         writeln!(
             out,
-            "{:<11} {:<UNIT_WIDTH$} {:>12.3} {:>10.4} {:>10.4} {:>8.3}  {}",
+            "{:<11} {:<UNIT_WIDTH$} {:>12.d3$} {:>10.4} {:>10.4} {:>8.3}  {}",
             s.name,
             printed_unit(g),
             printed_value(g, s.estimate_rad),

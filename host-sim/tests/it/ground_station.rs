@@ -49,6 +49,7 @@ fn a_ground_station_from_the_page_gets_every_reply_over_a_pty() {
     // Every reply, in order of the requests: two periodic estimates before
     // the requests (60 and 120 samples), the requested one, the checkpoint,
     // the two refusals, two more periodic ones, the final answer.
+    // (Consecutive running estimates are printed as one line.)
     let replies: Vec<&str> = text.lines().filter(|l| l.starts_with("<- ")).collect();
     let kinds: Vec<String> = replies
         .iter()
@@ -58,15 +59,24 @@ fn a_ground_station_from_the_page_gets_every_reply_over_a_pty() {
         kinds,
         [
             "<- Estimate Running",
-            "<- Estimate Running",
-            "<- Estimate Running",
             "<- Checkpoint config=M1-pa",
             "<- Refused message=3",
             "<- Refused message=2",
             "<- Estimate Running",
-            "<- Estimate Running",
             "<- Estimate Final(passes=3,",
         ],
+        "{text}"
+    );
+    assert!(
+        text.contains("<- Estimate Running x3: seq 60 ... 120"),
+        "{text}"
+    );
+    assert!(
+        text.contains("<- Estimate Running x2: seq 180 ... 240"),
+        "{text}"
+    );
+    assert!(
+        text.contains("replies: Checkpoint=1 Estimate Final=1 Estimate Running=5 Refused=2"),
         "{text}"
     );
     assert!(

@@ -191,34 +191,8 @@ impl Calibration {
     ) -> Result<Self, CalibrationError> {
         let passes = ctx.passes;
         let id = host.configured(&stats)?;
-        let Some(cal) = host.session.calibrator_mut() else {
-            return Err(CalibrationError::NoSamples {
-                ok: stats.ok,
-                rejected: stats.errors(),
-            });
-        };
-        cal.set_frame_errors(stats.errors());
-        let settings = *cal.settings();
+        let (settings, est, running_covariance, rejects) = running(host, &stats, ctx)?;
         let layout = id.layout_with(settings.errors);
-        let est = cal.estimate();
-        let rejects = findings(
-            &est.progress.rejects,
-            &host.first_rejects,
-            &settings,
-            ctx.source,
-        );
-        if est.progress.accepted == 0 {
-            return Err(CalibrationError::NoneAccepted {
-                rejected: est.progress.rejects.total(),
-                bad_frames: stats.errors(),
-                findings: rejects,
-            });
-        }
-        // The running filter's covariance (the answer when the passes do not run).
-        let running_covariance = crate::analysis::compensation::covariance_of_packed_ud(
-            layout.n(),
-            &cal.checkpoint().factor,
-        );
         let nan = vec![f64::NAN; layout.n()];
         let received_bound = received_bound(&settings, sidecar.as_ref(), &est, host)?;
         // The sidecar's bound is the installation model's: not the full model's.
@@ -254,16 +228,7 @@ impl Calibration {
             .as_ref()
             .is_some_and(|f| matches!(f.estimate.kind, EstimateKind::Final { .. }));
         let mut notes = Vec::new();
-        let single = match fin.as_ref().map(|f| f.estimate.kind) {
-            Some(EstimateKind::SinglePass { reason, .. }) => {
-                notes.push(format!(
-                    "note: {reason}: the final answer is the calibrator's pass 1"
-                ));
-                Some(reason.to_string())
-            }
-            Some(_) => None,
-            None => Some("--passes 1".to_string()),
-        };
+        let single = single_pass(fin.as_ref(), &mut notes);
         let records = host.log.records_f64();
         // Without a truth, the bound at the estimate; an estimate the bound
         // cannot be linearised at (data far from the model) is noted, and
@@ -278,16 +243,7 @@ impl Calibration {
             },
             Some(_) => None,
         };
-        let mut judgement = checks::judge(&r).with_path(checks::gimbal_lock_check(id, &records));
-        if judgement.verdict.is_warning() {
-            judgement.cause = diagnose::likely_cause(
-                &settings,
-                &records,
-                &r.updates,
-                &judgement,
-                ctx.latitude_deg,
-            );
-        }
+        let judgement = judge(&settings, &r, &records, ctx.latitude_deg);
         let measured = records.iter().filter(|r| r.observation.is_some()).count();
         let gated = Gated::of(
             settings.options.nis_gate,
@@ -327,6 +283,75 @@ impl Calibration {
             refusals: host.refusals.clone(),
         })
     }
+}
+
+/// The session's calibrator after the stream: its settings, its running
+/// estimate (pass 1), the running filter's covariance (the answer when the
+/// final passes do not run) and the rejected samples by reason; with no
+/// sample accepted, [`CalibrationError::NoneAccepted`].
+#[allow(clippy::type_complexity)]
+fn running<T: RealField + Copy>(
+    host: &mut Host<T>,
+    stats: &DecoderStats,
+    ctx: &Context<'_>,
+) -> Result<(CalibratorConfig, Estimate, Vec<f64>, Vec<RejectFinding>), CalibrationError> {
+    let Some(cal) = host.session.calibrator_mut() else {
+        return Err(CalibrationError::NoSamples {
+            ok: stats.ok,
+            rejected: stats.errors(),
+        });
+    };
+    cal.set_frame_errors(stats.errors());
+    let settings = *cal.settings();
+    let est = cal.estimate();
+    let n = settings.config.layout_with(settings.errors).n();
+    let covariance =
+        crate::analysis::compensation::covariance_of_packed_ud(n, &cal.checkpoint().factor);
+    let rejects = findings(
+        &est.progress.rejects,
+        &host.first_rejects,
+        &settings,
+        ctx.source,
+    );
+    if est.progress.accepted == 0 {
+        return Err(CalibrationError::NoneAccepted {
+            rejected: est.progress.rejects.total(),
+            bad_frames: stats.errors(),
+            findings: rejects,
+        });
+    }
+    Ok((settings, est, covariance, rejects))
+}
+
+/// Why the final passes are not the answer (`None` when they are), noted
+/// for the user when the calibrator says why.
+fn single_pass(fin: Option<&Final>, notes: &mut Vec<String>) -> Option<String> {
+    match fin.map(|f| f.estimate.kind) {
+        Some(EstimateKind::SinglePass { reason, .. }) => {
+            notes.push(format!(
+                "note: {reason}: the final answer is the calibrator's pass 1"
+            ));
+            Some(reason.to_string())
+        }
+        Some(_) => None,
+        None => Some("--passes 1".to_string()),
+    }
+}
+
+/// The data judged against the model ([`checks::judge`]) with the path's
+/// distance from gimbal lock, and a warning's likely cause
+/// ([`diagnose::likely_cause`]).
+fn judge(
+    settings: &CalibratorConfig,
+    r: &RunResult,
+    records: &[LogRecord<f64>],
+    latitude_deg: Option<f64>,
+) -> Judgement {
+    let mut j = checks::judge(r).with_path(checks::gimbal_lock_check(settings.config, records));
+    if j.verdict.is_warning() {
+        j.cause = diagnose::likely_cause(settings, records, &r.updates, &j, latitude_deg);
+    }
+    j
 }
 
 /// The bound at the estimate and its verdicts, for a calibration without

@@ -143,7 +143,14 @@ fn draw_innovations<'a>(
         vec![(680, y - 9), (680, y + 9)],
         SWITCH_COLOUR.stroke_width(2),
     ))?;
-    header.draw(&Text::new("segment switch", (695, y), label))?;
+    header.draw(&Text::new("segment switch", (695, y), label.clone()))?;
+    header.draw(&plotters::element::DashedPathElement::new(
+        vec![(830, y), (860, y)],
+        2,
+        3,
+        CRLB_COLOUR.stroke_width(1),
+    ))?;
+    header.draw(&Text::new(format!("expected {}", u.dof), (868, y), label))?;
     let (top, bottom) = body.split_vertically(300);
     draw_nis_panel(&top, u, avg, t, switches)?;
     let (strip, bottom) = bottom.split_vertically(24);
