@@ -190,9 +190,34 @@ def configure(r):
     return c
 
 
+FILTER_ERRORS = ["NonFiniteInput", "InvalidPeriod", "MissingGimbal", "GimbalLock",
+                 "InnovationNotPositiveDefinite", "CovarianceNotPositiveDefinite",
+                 "NonFiniteState", "Gated", "NoPrediction", "OutOfRange",
+                 "UnsupportedOption"]
+
+
+def refusal_reason(r):
+    k = r.enum(6)
+    if k == 0:
+        return "NotConfigured"
+    if k == 1:
+        return "ConfigMismatch(expected=%s, found=%s)" % (CONFIG_IDS[r.enum(7)], CONFIG_IDS[r.enum(7)])
+    if k == 2:
+        return "ErrorModelMismatch(expected=%s, found=%s)" % (ERROR_MODELS[r.enum(2)], ERROR_MODELS[r.enum(2)])
+    if k == 3:
+        return "CheckpointDimension"
+    if k == 4:
+        return "CheckpointInvalid"
+    return "Filter(%s)" % FILTER_ERRORS[r.enum(len(FILTER_ERRORS))]
+
+
+def refused(r):
+    return dict(message=r.u8(), reason=refusal_reason(r))
+
+
 MESSAGES = [("Sample", sample), ("Estimate", estimate), ("Checkpoint", checkpoint),
             ("Configure", configure), ("Reset", None), ("CheckpointRequest", None),
-            ("EstimateRequest", None), ("Finish", None)]
+            ("EstimateRequest", None), ("Finish", None), ("Refused", refused)]
 
 
 def decode_frame(frame):

@@ -1015,7 +1015,7 @@ impl<T: RealField + Copy> Harness<'_, T> {
                     }
                 }
             }
-            Message::Estimate(_) => {
+            Message::Estimate(_) | Message::Refused(_) => {
                 assert_eq!(reply, Reply::Nothing);
                 self.tally.ignored += 1;
                 unchanged();

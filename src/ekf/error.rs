@@ -1,8 +1,11 @@
 //! The filter's errors ([`Error`]): what a step, a construction or a
 //! restore refuses, and why.
 
-/// Errors of the estimator.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Errors of the estimator. A refusal on the wire carries one
+/// (`wire::RefusalReason::Filter`): its postcard index is the variant's
+/// declaration index (docs/wire.md §Refused), so variants are only ever
+/// appended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[non_exhaustive]
 pub enum Error {

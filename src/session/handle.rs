@@ -117,7 +117,7 @@ impl<T: RealField + Copy> Session<T> {
                     Err(e) => Reply::Error(e),
                 }
             }
-            Message::Estimate(_) => {
+            Message::Estimate(_) | Message::Refused(_) => {
                 self.stats.ignored = self.stats.ignored.saturating_add(1);
                 *reply = Reply::Nothing;
             }

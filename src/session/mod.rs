@@ -11,7 +11,11 @@
 //! | `CheckpointRequest` | — | a `Checkpoint` |
 //! | `Checkpoint` | restore from it; the log is taken back to the records it counted (a log that survived a device reset continues) | — |
 //! | `Reset` | restart from the prior (its first sample empties the log) | — |
-//! | `Estimate` | ignored (a calibrator's own output) | — |
+//! | `Estimate`, `Refused` | ignored (a calibrator's own output) | — |
+//!
+//! A message the session cannot act on leaves it as it was and answers
+//! [`Reply::Error`]; its wire form, which a calibrator sends back, is
+//! [`SessionError::refusal`] ([`Message::Refused`]).
 //!
 //! A `Sample` before any `Configure` cannot be processed: it is counted in
 //! [`SessionStats::unconfigured`] (the host may [`Session::configure`] with
@@ -67,7 +71,7 @@ use nalgebra::RealField;
 use crate::calibrator::{self, RejectReason};
 use crate::estimator::EstimatorOptions;
 use crate::models::ConfigId;
-use crate::wire::{CalibratorConfig, Message};
+use crate::wire::{CalibratorConfig, Message, Refusal, RefusalReason};
 
 pub use any::{AnyCalibrator, AnyFilter};
 pub use covariance::{Covariance, PassObserver};
@@ -143,6 +147,48 @@ impl core::fmt::Display for SessionError {
 }
 
 impl core::error::Error for SessionError {}
+
+impl SessionError {
+    /// The wire form of this error as the answer to the message tagged
+    /// `message` ([`Message::tag`]): what a calibrator sends back
+    /// ([`Message::Refused`], docs/wire.md §Refused).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use rollcal::estimator::{EstimatorOptions, SliceLog};
+    /// use rollcal::session::{Reply, Session};
+    /// use rollcal::wire::{Message, RefusalReason};
+    ///
+    /// let mut session = Session::<f64>::new(None, EstimatorOptions::default());
+    /// let mut log = SliceLog::new(&mut []);
+    /// let Reply::Error(e) = session.handle(&Message::Finish, &mut log) else {
+    ///     unreachable!("a Finish before any Configure is refused")
+    /// };
+    /// let refusal = e.refusal(Message::Finish.tag());
+    /// assert_eq!((refusal.message, refusal.reason), (7, RefusalReason::NotConfigured));
+    /// ```
+    pub fn refusal(&self, message: u8) -> Refusal {
+        let reason = match *self {
+            SessionError::NotConfigured => RefusalReason::NotConfigured,
+            SessionError::ConfigMismatch { expected, found }
+            | SessionError::Calibrator(calibrator::Error::ConfigMismatch { expected, found }) => {
+                RefusalReason::ConfigMismatch { expected, found }
+            }
+            SessionError::Calibrator(calibrator::Error::ErrorModelMismatch { expected, found }) => {
+                RefusalReason::ErrorModelMismatch { expected, found }
+            }
+            SessionError::Calibrator(calibrator::Error::CheckpointDimension) => {
+                RefusalReason::CheckpointDimension
+            }
+            SessionError::Calibrator(calibrator::Error::CheckpointInvalid) => {
+                RefusalReason::CheckpointInvalid
+            }
+            SessionError::Calibrator(calibrator::Error::Filter(e)) => RefusalReason::Filter(e),
+        };
+        Refusal { message, reason }
+    }
+}
 
 /// What a message did.
 // A Checkpoint reply is ~3 KB (~12.5 KB with `full-model`); no heap to box it.

@@ -36,6 +36,7 @@ const RESET: u32 = 4;
 const CHECKPOINT_REQUEST: u32 = 5;
 const ESTIMATE_REQUEST: u32 = 6;
 const FINISH: u32 = 7;
+const REFUSED: u32 = 8;
 
 /// The names serde's `deserialize_enum` and `deserialize_struct` take
 /// (postcard reads neither: they are for self-describing formats).
@@ -48,6 +49,7 @@ const MESSAGE_VARIANTS: &[&str] = &[
     "CheckpointRequest",
     "EstimateRequest",
     "Finish",
+    "Refused",
 ];
 const CHECKPOINT_FIELDS: &[&str] = &[
     "config",
@@ -113,10 +115,11 @@ impl<'de> Visitor<'de> for MessageInto<'_> {
                 variant.unit_variant()?;
                 Message::Finish
             }
+            REFUSED => Message::Refused(variant.newtype_variant()?),
             other => {
                 return Err(de::Error::invalid_value(
                     de::Unexpected::Unsigned(u64::from(other)),
-                    &"variant index 0 <= i < 8",
+                    &"variant index 0 <= i < 9",
                 ))
             }
         };

@@ -571,8 +571,8 @@ impl Checkpoint {
 
 /// Every message of the protocol. The postcard tag is the variant's index
 /// (a varint): `Sample` 0, `Estimate` 1, `Checkpoint` 2, `Configure` 3,
-/// `Reset` 4, `CheckpointRequest` 5, `EstimateRequest` 6, `Finish` 7. New variants are
-/// only ever appended.
+/// `Reset` 4, `CheckpointRequest` 5, `EstimateRequest` 6, `Finish` 7,
+/// `Refused` 8. New variants are only ever appended.
 // A large variant is the price of no heap (a Checkpoint is ~3 KB, ~12.5 KB
 // with the `full-model` feature).
 #[allow(clippy::large_enum_variant)]
@@ -595,4 +595,112 @@ pub enum Message {
     /// Host → calibrator: the run is over; run the final passes over the
     /// sample log and reply with the final `Estimate`.
     Finish,
+    /// Calibrator → host: a message the calibrator could not act on, and
+    /// why; the calibrator is as it was before the message (a refused
+    /// `Configure` or restore changes nothing). Appended in version 6.
+    Refused(Refusal),
+}
+
+impl Message {
+    /// The message's postcard tag (its variant index, docs/wire.md
+    /// §Messages): `Sample` 0 … `Finish` 7, `Refused` 8.
+    pub const fn tag(&self) -> u8 {
+        match self {
+            Message::Sample(_) => 0,
+            Message::Estimate(_) => 1,
+            Message::Checkpoint(_) => 2,
+            Message::Configure(_) => 3,
+            Message::Reset => 4,
+            Message::CheckpointRequest => 5,
+            Message::EstimateRequest => 6,
+            Message::Finish => 7,
+            Message::Refused(_) => 8,
+        }
+    }
+}
+
+/// The calibrator's answer to a message it could not act on
+/// ([`Message::Refused`]): which message, and why. The calibrator is left as
+/// it was.
+///
+/// # Examples
+///
+/// ```
+/// use rollcal::wire::{decode_frame, encode, Message, Refusal, RefusalReason, MAX_FRAME_LEN};
+///
+/// // A Finish before any Configure.
+/// let refused = Message::Refused(Refusal {
+///     message: Message::Finish.tag(),
+///     reason: RefusalReason::NotConfigured,
+/// });
+/// let mut buf = [0u8; MAX_FRAME_LEN];
+/// let n = encode(&refused, &mut buf).unwrap();
+/// assert_eq!(n, 10); // 8 bytes of frame for the message's 3 bytes, then the delimiter
+/// assert_eq!(decode_frame(&mut buf[..n - 1]), Ok(refused));
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Refusal {
+    /// The tag of the refused message ([`Message::tag`]: 0 a `Sample`
+    /// before any `Configure`, 2 a `Checkpoint` to restore, 3 `Configure`,
+    /// 4 `Reset`, 5 `CheckpointRequest`, 6 `EstimateRequest`, 7 `Finish`).
+    pub message: u8,
+    /// Why it was refused.
+    pub reason: RefusalReason,
+}
+
+/// Why a message was refused ([`Refusal`]; docs/wire.md §Refused). New
+/// reasons are only ever appended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum RefusalReason {
+    /// A message that needs a calibrator came before any `Configure`.
+    NotConfigured,
+    /// A `Configure` or a checkpoint names another configuration than the
+    /// one the calibrator (or the session) runs.
+    ConfigMismatch {
+        /// The configuration run.
+        expected: ConfigId,
+        /// The one the message names.
+        found: ConfigId,
+    },
+    /// A `Configure` or a checkpoint names another error model than the
+    /// calibrator's, or one this build leaves out.
+    ErrorModelMismatch {
+        /// The calibrator's (or the build's) error model.
+        expected: ErrorModel,
+        /// The one the message names.
+        found: ErrorModel,
+    },
+    /// A checkpoint's vectors have the wrong lengths for its configuration.
+    CheckpointDimension,
+    /// A checkpoint's values are not a filter's (a factor entry below the
+    /// diagonal that is not `+0.0`, a frame that is not a rotation).
+    CheckpointInvalid,
+    /// The filter refused the settings or the checkpoint's values
+    /// ([`crate::ekf::Error`], its index in docs/wire.md).
+    Filter(crate::ekf::Error),
+}
+
+impl core::fmt::Display for RefusalReason {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            RefusalReason::NotConfigured => f.write_str("no Configure message yet"),
+            RefusalReason::ConfigMismatch { expected, found } => write!(
+                f,
+                "configuration {} where {} runs",
+                found.as_str(),
+                expected.as_str()
+            ),
+            RefusalReason::ErrorModelMismatch { expected, found } => write!(
+                f,
+                "error model {} where the {} model runs",
+                found.as_str(),
+                expected.as_str()
+            ),
+            RefusalReason::CheckpointDimension => f.write_str("checkpoint dimensions do not match"),
+            RefusalReason::CheckpointInvalid => f.write_str("checkpoint is not a filter's"),
+            RefusalReason::Filter(e) => write!(f, "filter: {e}"),
+        }
+    }
 }

@@ -63,11 +63,13 @@ pub use encode::encode;
 pub use error::{EncodeError, FrameError};
 pub use messages::{
     CalibratorConfig, Checkpoint, Estimate, EstimateKind, InstrumentPrior, Limits, Message,
-    Progress, RejectCounts, Sample, SinglePassReason, INSTRUMENT_STATES, MAX_COVARIANCE,
-    MAX_STATES,
+    Progress, Refusal, RefusalReason, RejectCounts, Sample, SinglePassReason, INSTRUMENT_STATES,
+    MAX_COVARIANCE, MAX_STATES,
 };
 
-/// Protocol version carried in the first byte of every frame.
+/// Protocol version carried in the first byte of every frame (6: the full
+/// model with the errors that wander, and the `Refused` reply; docs/wire.md
+/// §Version policy).
 pub const VERSION: u8 = 6;
 
 /// Length of the CRC trailer (bytes).

@@ -20,8 +20,8 @@ use std::path::PathBuf;
 use rollcal::calibrator::Calibrator;
 use rollcal::models::{ConfigId, M1Pa, M2Ps};
 use rollcal::wire::{
-    crc32, encode, CalibratorConfig, EstimateKind, FrameDecoder, Message, Sample, SinglePassReason,
-    MAX_FRAME_LEN, VERSION,
+    crc32, encode, CalibratorConfig, EstimateKind, FrameDecoder, Message, Refusal, RefusalReason,
+    Sample, SinglePassReason, MAX_FRAME_LEN, VERSION,
 };
 
 fn frame(m: &Message) -> Vec<u8> {
@@ -97,6 +97,13 @@ fn seeds() -> Vec<(String, Vec<u8>)> {
         ("checkpoint-request", Message::CheckpointRequest),
         ("estimate-request", Message::EstimateRequest),
         ("finish", Message::Finish),
+        (
+            "refused",
+            Message::Refused(Refusal {
+                message: 3,
+                reason: RefusalReason::Filter(rollcal::ekf::Error::OutOfRange),
+            }),
+        ),
     ];
     let mut out = Vec::new();
     for id in ConfigId::ALL {

@@ -7,11 +7,13 @@
 //! `WIRE_DOC_PRINT=1 cargo test --release -p rollcal --test it wire_doc --
 //! --nocapture` prints the examples in the page's format.
 
+use rollcal::estimator::{EstimatorOptions, SliceLog};
 use rollcal::models::{ConfigId, ErrorModel};
-use rollcal::session::AnyCalibrator;
+use rollcal::session::{AnyCalibrator, Reply, Session};
 use rollcal::wire::{
     crc32, decode_frame, encode, CalibratorConfig, Checkpoint, Estimate, EstimateKind, Message,
-    Progress, RejectCounts, Sample, SinglePassReason, MAX_FRAME_LEN, VERSION,
+    Progress, Refusal, RefusalReason, RejectCounts, Sample, SinglePassReason, MAX_FRAME_LEN,
+    VERSION,
 };
 use serde::Serialize;
 
@@ -143,7 +145,55 @@ fn examples() -> Vec<(&'static str, Message)> {
         ("CheckpointRequest", Message::CheckpointRequest),
         ("EstimateRequest", Message::EstimateRequest),
         ("Finish", Message::Finish),
+        ("Refused, Configure", refused_configure()),
+        ("Refused, restore", refused_restore()),
     ]
+}
+
+/// What a session configured with `CalibratorConfig::paper(M1-pa)` sends
+/// back for a `Configure` whose Earth rate is 2e-3 rad/s (above
+/// `ekf::MAX_EARTH_RATE`): the session's own refusal, in its wire form.
+fn refused_configure() -> Message {
+    let mut session = Session::<f64>::new(None, EstimatorOptions::default());
+    let mut log = SliceLog::new(&mut []);
+    let paper = CalibratorConfig::paper(ConfigId::M1Pa);
+    assert_eq!(
+        session.handle(&Message::Configure(paper), &mut log),
+        Reply::Nothing
+    );
+    let bad = Message::Configure(CalibratorConfig {
+        earth_rate_n: [2e-3, 0.0, 0.0],
+        ..paper
+    });
+    let checkpoint = |s: &Session<f64>| pc(&s.calibrator().unwrap().checkpoint());
+    let before = checkpoint(&session);
+    let Reply::Error(e) = session.handle(&bad, &mut log) else {
+        panic!("the Configure is refused")
+    };
+    assert_eq!(
+        checkpoint(&session),
+        before,
+        "the session as it was, bit for bit"
+    );
+    Message::Refused(e.refusal(bad.tag()))
+}
+
+/// What the same session sends back for the checkpoint of an M2-ps
+/// calibrator (a restore of another configuration).
+fn refused_restore() -> Message {
+    let mut session = Session::<f64>::new(None, EstimatorOptions::default());
+    let mut log = SliceLog::new(&mut []);
+    let paper = CalibratorConfig::paper(ConfigId::M1Pa);
+    assert_eq!(
+        session.handle(&Message::Configure(paper), &mut log),
+        Reply::Nothing
+    );
+    let other = AnyCalibrator::<f64>::new(CalibratorConfig::paper(ConfigId::M2Ps)).unwrap();
+    let restore = Message::Checkpoint(other.checkpoint());
+    let Reply::Error(e) = session.handle(&restore, &mut log) else {
+        panic!("the restore is refused")
+    };
+    Message::Refused(e.refusal(restore.tag()))
 }
 
 /// The hex block after the line `KIND (NAME): N bytes` (the page's stated
@@ -422,6 +472,20 @@ fn the_pages_frame_sizes_are_measured() {
             Message::Reset,
             Message::Finish,
         ),
+        (
+            "`Refused`".into(),
+            Message::Refused(Refusal {
+                message: 0,
+                reason: RefusalReason::NotConfigured,
+            }),
+            Message::Refused(Refusal {
+                message: u8::MAX,
+                reason: RefusalReason::ConfigMismatch {
+                    expected: ConfigId::M4Ps,
+                    found: ConfigId::M4Ps,
+                },
+            }),
+        ),
     ];
     let mut missing = Vec::new();
     for (name, small, large) in rows {
@@ -515,6 +579,13 @@ fn annotated(msg: &Message) -> Vec<(Vec<u8>, String)> {
         f(pc(r), format!("progress.rejects (12 varints): {others}"));
     };
     match msg {
+        Message::Refused(r) => {
+            f(
+                pc(&r.message),
+                format!("message = {} (u8: the refused message's tag)", r.message),
+            );
+            f(pc(&r.reason), format!("reason = {:?}", r.reason));
+        }
         Message::Sample(s) => {
             f(pc(&s.seq), format!("seq = {} (varint)", s.seq));
             f(pc(&s.t_us), format!("t_us = {} (varint)", s.t_us));
@@ -837,6 +908,15 @@ fn a_python_decoder_written_from_the_page_reads_the_stream_and_every_example() {
                     bits(&c.wander.accel_random_walk)
                 ),
             ],
+            Message::Refused(r) => {
+                let reason = match r.reason {
+                    RefusalReason::ConfigMismatch { expected, found } => {
+                        format!("ConfigMismatch(expected={expected}, found={found})")
+                    }
+                    other => format!("{other:?}"),
+                };
+                vec![format!("Refused message={} reason={reason}", r.message)]
+            }
             other => vec![format!("{other:?}")],
         };
         for e in expect {

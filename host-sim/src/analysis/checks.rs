@@ -276,12 +276,18 @@ pub fn judge_updates(
     let z = updates.iter().map(|u| u.white.len()).max().unwrap_or(0);
     let ups: Vec<&Update> = updates.iter().filter(|u| u.white.len() == z).collect();
     if z == 0 || ups.len() < 2 {
+        let reason = if ups.is_empty() {
+            "no innovations of a final pass: the checks need the final passes (not run with --passes 1, or when the log is not the whole run)".to_string()
+        } else {
+            format!(
+                "{} update(s) in the final pass: too few to check",
+                ups.len()
+            )
+        };
         return Judgement {
             checks: Vec::new(),
             path: None,
-            verdict: DataVerdict::NotChecked {
-                reason: "no innovations of a final pass: the checks need the final passes (not run with --passes 1, or when the log is not the whole run)".into(),
-            },
+            verdict: DataVerdict::NotChecked { reason },
             alpha_each: f64::NAN,
             cause: None,
         };
@@ -406,9 +412,9 @@ fn bias_checks(groups: &[Group<'_>], names: &[String], zq: f64, checks: &mut Vec
     }
 }
 
-/// How far outside its band a check's statistic is, in band half-widths
-/// (NaN: infinitely far).
-fn excess(c: &Check) -> f64 {
+/// How far from its band's middle a check's statistic is, in band
+/// half-widths (1: on the edge; NaN: infinitely far).
+pub fn excess(c: &Check) -> f64 {
     let half = 0.5 * (c.band.1 - c.band.0);
     let mid = 0.5 * (c.band.1 + c.band.0);
     let e = (c.statistic - mid).abs() / half;
@@ -646,6 +652,8 @@ mod tests {
                     index: k,
                     t_s: k as f64 + 1.0,
                     nis: w.iter().map(|v| v * v).sum(),
+                    nu: w.clone(),
+                    s_diag: vec![1.0; z],
                     white: w,
                 }
             })

@@ -6,15 +6,15 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
-use rollcal::models::{ConfigId, ErrorModel, Group};
+use rollcal::models::{ConfigId, ErrorModel, Group, StateInfo};
 
 use crate::analysis::observe::{self, ConfigObs};
 use crate::analysis::runner::{expected_observable, Estimator, RunResult, SimulatedRun};
 use crate::analysis::verdict::Verdict;
 use crate::analysis::Error;
 use crate::output::plots::{plot_group_marked, Curve};
-use crate::sim::instruments::printed_value;
-use crate::sim::scenario::{Scenario, ARCSEC};
+use crate::sim::instruments::{printed_unit, printed_value};
+use crate::sim::scenario::Scenario;
 use crate::sim::truth::{simulate, SimOptions, Simulation};
 
 /// One state of the summary.
@@ -107,25 +107,10 @@ const GROUPS: [(Group, &str); 6] = [
 ];
 
 fn figure_title(id: ConfigId, g: Group) -> String {
-    let what = match g {
-        Group::ThetaAT => "accelerometer non-orthogonality θaT",
-        Group::ThetaAC => "accelerometer axis rotation θaC",
-        Group::ThetaGT => "gyro non-orthogonality θgT",
-        Group::ThetaGC => "gyro axis rotation θgC",
-        Group::Lambda => "base mounting λ",
-        Group::Attitude => "attitude",
-        Group::GyroDrift => "gyro drift dg",
-        Group::GyroGDrift => "g-sensitive gyro drift Dg",
-        Group::GyroScale => "gyro scale factor kg",
-        Group::AccelBias => "accelerometer bias ba",
-        Group::AccelScale => "accelerometer scale factor ka",
-        Group::AccelSecondOrder => "accelerometer second-order term k2",
-        Group::GyroMarkov => "Gauss–Markov part of the gyro drift",
-        Group::AccelMarkov => "Gauss–Markov part of the accelerometer bias",
-        Group::GyroWarmup => "warm-up of the gyro drift",
-        Group::AccelWarmup => "warm-up of the accelerometer bias",
-    };
-    format!("{id}: {what} — estimation error, ±3σ filter, ±3σ_CRLB")
+    format!(
+        "{id}: {} — estimation error, ±3σ filter, ±3σ_CRLB",
+        crate::output::groups::title(g)
+    )
 }
 
 /// Writes the figures of one run; returns their file names.
@@ -138,17 +123,21 @@ fn figures(
     let id = run.config;
     let t: Vec<f64> = run.history.iter().map(|h| h.0).collect();
     let mut names = Vec::new();
-    for (g, stem) in GROUPS {
-        let idx: Vec<usize> = id
-            .states()
-            .iter()
-            .enumerate()
-            .filter(|(_, s)| s.group == g)
-            .map(|(i, _)| i)
-            .collect();
+    // The installation groups in the paper's order, then every other group
+    // of the run (the full model's instrument terms) in state order.
+    let infos: Vec<StateInfo> = run.states.iter().map(|s| s.info).collect();
+    let mut groups: Vec<(Group, &str)> = GROUPS.to_vec();
+    for g in crate::output::groups::in_order(infos.iter().map(|s| s.group)) {
+        if !groups.iter().any(|(h, _)| *h == g) {
+            groups.push((g, g.as_str()));
+        }
+    }
+    for (g, stem) in groups {
+        let idx: Vec<usize> = (0..infos.len()).filter(|&i| infos[i].group == g).collect();
         if idx.is_empty() {
             continue;
         }
+        let show = |v: f64| printed_value(g, v);
         let series: Vec<(Vec<f64>, Vec<f64>, Vec<f64>)> = idx
             .iter()
             .map(|&i| {
@@ -156,10 +145,21 @@ fn figures(
                     .history
                     .iter()
                     .zip(truth)
-                    .map(|(h, tr)| rollcal::geometry::wrap_angle(h.1[i] - tr[i]) / ARCSEC)
+                    .map(|(h, tr)| {
+                        let d = h.1[i] - tr.get(i).copied().unwrap_or(f64::NAN);
+                        show(if g.unit() == "rad" {
+                            rollcal::geometry::wrap_angle(d)
+                        } else {
+                            d
+                        })
+                    })
                     .collect();
-                let sig = run.history.iter().map(|h| h.2[i] / ARCSEC).collect();
-                let crlb = obs.crlb_history.iter().map(|c| c[i] / ARCSEC).collect();
+                let sig = run.history.iter().map(|h| show(h.2[i])).collect();
+                let crlb = obs
+                    .crlb_history
+                    .iter()
+                    .map(|c| c.get(i).map_or(f64::NAN, |v| show(*v)))
+                    .collect();
                 (err, sig, crlb)
             })
             .collect();
@@ -167,7 +167,8 @@ fn figures(
             .iter()
             .zip(&series)
             .map(|(&i, (e, s, c))| Curve {
-                label: id.states()[i].name,
+                label: infos[i].name,
+                unit: printed_unit(g),
                 error: e,
                 sigma: s,
                 crlb: c,
@@ -203,13 +204,8 @@ fn summarise(
         .map(|(i, s)| {
             let group = s.info.group;
             let observable = at_run.states[i].observable;
-            let verdict = if !observable {
-                Verdict::NotObservable
-            } else if s.ratio() <= 4.0 {
-                Verdict::Converged
-            } else {
-                Verdict::Failed
-            };
+            let verdict = crate::analysis::verdict::special(group, s.prior)
+                .unwrap_or_else(|| crate::analysis::verdict::against_truth(observable, s.ratio()));
             // The paper claims nothing per attitude axis, nor of the
             // instruments' own errors (taken as calibrated).
             let paper = (group != Group::Attitude && !group.is_instrument())
@@ -453,7 +449,7 @@ pub fn summary_markdown(p: &Paper) -> String {
         );
         let _ = writeln!(
             s,
-            "| state | truth ″ | estimate ″ | error ″ | σ filter ″ | σ_CRLB ″ | σ/σ_CRLB | verdict | paper | agrees |\n|---|---:|---:|---:|---:|---:|---:|---|---|---|"
+            "| state | unit | truth | estimate | error | σ filter | σ_CRLB | σ/σ_CRLB | verdict | paper | agrees |\n|---|---|---:|---:|---:|---:|---:|---:|---|---|---|"
         );
         for st in &c.states {
             let paper = match st.paper_observable {
@@ -466,18 +462,13 @@ pub fn summary_markdown(p: &Paper) -> String {
                 Some(false) => "**no**",
                 None => "—",
             };
-            // Angles in ″; an instrument state in its printed unit, named
-            // after it.
+            // Every state in its printed unit, named in the unit column.
             let show = |v| printed_value(st.info.group, v);
-            let name = if st.info.group.is_instrument() {
-                format!("{} ({})", st.name, st.info.printed_scale().1)
-            } else {
-                st.name.to_string()
-            };
             let _ = writeln!(
                 s,
-                "| {} | {:.3} | {:.3} | {:.4} | {:.4} | {:.4} | {:.3} | {} | {} | {} |",
-                name,
+                "| {} | {} | {:.3} | {:.3} | {:.4} | {:.4} | {:.4} | {:.3} | {} | {} | {} |",
+                st.name,
+                printed_unit(st.info.group),
                 show(st.truth_rad),
                 show(st.estimate_rad),
                 show(st.error_rad),

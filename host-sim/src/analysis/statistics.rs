@@ -61,3 +61,79 @@ pub fn chi2_quantile(p: f64, k: f64) -> f64 {
     let c = 1.0 - a + normal_quantile(p) * a.sqrt();
     k * c.max(0.0).powi(3)
 }
+
+/// The upper tail `P(χ²(k) > x)` for a whole number of degrees of freedom
+/// `k ≥ 1` (the regularised upper incomplete gamma `Q(k/2, x/2)`: its
+/// series below `a + 1`, its continued fraction above; relative error
+/// below 1e-12). The share of clean updates an NIS gate at `x` refuses.
+///
+/// # Examples
+///
+/// ```
+/// use host_sim::analysis::statistics::chi2_upper_tail;
+///
+/// assert!((chi2_upper_tail(2.0, 2) - (-1.0f64).exp()).abs() < 1e-14);
+/// // The calibrator's gate of 30 on 3 and 6 degrees of freedom.
+/// assert!((chi2_upper_tail(30.0, 3) / 1.380057031e-6 - 1.0).abs() < 1e-9);
+/// assert!((chi2_upper_tail(30.0, 6) / 3.930844818e-5 - 1.0).abs() < 1e-9);
+/// ```
+pub fn chi2_upper_tail(x: f64, k: usize) -> f64 {
+    if k == 0 || x.is_nan() {
+        return f64::NAN;
+    }
+    if x <= 0.0 {
+        return 1.0;
+    }
+    let (a, x) = (k as f64 / 2.0, x / 2.0);
+    // ln Γ(a) for a whole or half-whole a.
+    let mut ln_gamma = if k.is_multiple_of(2) {
+        0.0
+    } else {
+        0.5 * std::f64::consts::PI.ln()
+    };
+    let mut t = if k.is_multiple_of(2) { 1.0 } else { 0.5 };
+    while t < a - 0.25 {
+        ln_gamma += t.ln();
+        t += 1.0;
+    }
+    let front = (-x + a * x.ln() - ln_gamma).exp();
+    if x < a + 1.0 {
+        // P(a, x) by its series; Q = 1 − P.
+        let (mut term, mut sum, mut n) = (1.0 / a, 1.0 / a, a);
+        for _ in 0..1000 {
+            n += 1.0;
+            term *= x / n;
+            sum += term;
+            if term.abs() < sum.abs() * 1e-16 {
+                break;
+            }
+        }
+        1.0 - sum * front
+    } else {
+        // Q(a, x) by Lentz's continued fraction.
+        let tiny = 1e-300;
+        let mut b = x + 1.0 - a;
+        let mut c = 1.0 / tiny;
+        let mut d = 1.0 / b;
+        let mut h = d;
+        for i in 1..1000 {
+            let an = -(i as f64) * (i as f64 - a);
+            b += 2.0;
+            d = an * d + b;
+            if d.abs() < tiny {
+                d = tiny;
+            }
+            c = b + an / c;
+            if c.abs() < tiny {
+                c = tiny;
+            }
+            d = 1.0 / d;
+            let delta = d * c;
+            h *= delta;
+            if (delta - 1.0).abs() < 1e-16 {
+                break;
+            }
+        }
+        front * h
+    }
+}

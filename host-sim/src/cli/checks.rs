@@ -8,7 +8,7 @@ use rollcal::models::ConfigId;
 
 use super::args::load_scenario;
 use super::Error;
-use crate::analysis::checks::{cases, rates, Case, Judgement, FALSE_ALARM};
+use crate::analysis::checks::{cases, rates, Case, FALSE_ALARM};
 use crate::output::progress::Progress;
 use crate::output::report::write_json;
 
@@ -160,53 +160,4 @@ pub fn command(args: &ChecksArgs) -> Result<(), Error> {
         return Err("some runs failed (see the errors column)".into());
     }
     Ok(())
-}
-
-/// Prints the checks as a compact table (the failed ones marked) and the
-/// verdict line.
-pub fn print_judgement(j: &Judgement) {
-    if !j.checks.is_empty() {
-        println!(
-            "data against the model ({} checks, each at α = {:.1e}: a clean log is flagged with probability ≤ {}):",
-            j.checks.len(),
-            j.alpha_each,
-            FALSE_ALARM
-        );
-        println!(
-            "  {:<10} {:<42} {:>10} {:>22}  result",
-            "check", "scope", "statistic", "band"
-        );
-        // Every NIS and whiteness check, and the failed bias checks; the
-        // passed bias checks as one line.
-        let mut passed_bias = 0;
-        for c in &j.checks {
-            if c.name == "bias" && c.passed {
-                passed_bias += 1;
-                continue;
-            }
-            println!(
-                "  {:<10} {:<42} {:>10.4} {:>22}  {}",
-                c.name,
-                c.scope,
-                c.statistic,
-                format!("[{:.4}, {:.4}]", c.band.0, c.band.1),
-                if c.passed { "pass" } else { "FAIL" }
-            );
-        }
-        if passed_bias > 0 {
-            println!("  bias       {passed_bias} segment × component checks passed");
-        }
-    }
-    if let Some(c) = &j.path {
-        println!(
-            "path: {} ({}): {}",
-            c.name,
-            c.detail,
-            if c.passed { "pass" } else { "FAIL" }
-        );
-    }
-    println!("data verdict: {}", j.verdict);
-    if let Some(cause) = &j.cause {
-        println!("{cause}");
-    }
 }

@@ -17,6 +17,7 @@ pub fn write_outputs(
     prior_sigma: f64,
     json: Option<&Path>,
     txt: Option<&Path>,
+    out: &mut dyn std::io::Write,
 ) -> Result<(), Error> {
     if let Some(path) = json {
         write_json(path, &c.to_json())?;
@@ -24,10 +25,7 @@ pub fn write_outputs(
     match (json, txt) {
         (_, Some(path)) => std::fs::write(path, c.text(prior_sigma))
             .map_err(|e| format!("cannot write {}: {e}", path.display()).into()),
-        (Some(_), None) => {
-            print!("{}", c.text(prior_sigma));
-            Ok(())
-        }
+        (Some(_), None) => Ok(write!(out, "{}", c.text(prior_sigma))?),
         (None, None) => Ok(()),
     }
 }
@@ -54,6 +52,12 @@ impl MatricesArgs {
     /// model (`r.errors`: the installation model's document, or the full
     /// model's with the instrument terms).
     pub fn write(&self, r: &RunResult) -> Result<(), Error> {
+        self.write_to(r, &mut std::io::stdout().lock())
+    }
+
+    /// [`MatricesArgs::write`] with the text to `out` instead of stdout
+    /// (when it goes to neither file).
+    pub fn write_to(&self, r: &RunResult, out: &mut dyn std::io::Write) -> Result<(), Error> {
         if self.matrices.is_none() && self.matrices_txt.is_none() {
             return Ok(());
         }
@@ -63,6 +67,7 @@ impl MatricesArgs {
             r.prior_sigma_rad,
             self.matrices.as_deref(),
             self.matrices_txt.as_deref(),
+            out,
         )
     }
 }

@@ -28,6 +28,20 @@ pub mod summary;
 /// message), printed by [`main`] as one line, `host-sim: error: …`.
 pub type Error = Box<dyn std::error::Error>;
 
+/// A result that is not an answer and has nothing to write (e.g. no sample
+/// accepted): printed as `host-sim: error: not an answer: …`, exit status
+/// [`crate::analysis::calibration::trust::NO_ANSWER_EXIT`].
+#[derive(Debug)]
+pub struct NoAnswer(pub String);
+
+impl std::fmt::Display for NoAnswer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "not an answer: {}", self.0)
+    }
+}
+
+impl std::error::Error for NoAnswer {}
+
 #[derive(Parser)]
 #[command(
     name = "host-sim",
@@ -82,9 +96,10 @@ enum Command {
 
 /// `host-sim`: parses the command line, runs the subcommand (`paper`
 /// without one) and turns its outcome into the exit status: 0, 1 with the
-/// one-line message `host-sim: error: …` on stderr, or
+/// one-line message `host-sim: error: …` on stderr,
 /// [`crate::analysis::checks::WARNING_EXIT`] when `calibrate`'s data checks
-/// warn (2, bad arguments, is clap's).
+/// warn, [`crate::analysis::calibration::trust::NO_ANSWER_EXIT`] when its
+/// result is not an answer (2, bad arguments, is clap's).
 pub fn main() -> ExitCode {
     // Die quietly on a closed pipe (`host-sim | head`) like other Unix tools,
     // instead of panicking in println!.
@@ -105,12 +120,10 @@ pub fn main() -> ExitCode {
         Some(Command::Design(args)) => design::command(&args).map_err(Error::from),
         Some(Command::Record(args)) => record::command(&args),
         Some(Command::Calibrate(args)) => match calibrate::command(&args) {
-            // A data-model warning: its own exit status (docs/own-platform.md,
-            // "Judging a calibration without a truth").
-            Ok(v) if v.is_warning() => {
-                return ExitCode::from(crate::analysis::checks::WARNING_EXIT)
-            }
-            r => r.map(|_| ()),
+            // A data-model warning or a result that is not an answer: their
+            // own exit statuses (docs/own-platform.md, "Exit status").
+            Ok(status) => return ExitCode::from(status),
+            Err(e) => Err(e),
         },
         Some(Command::Checks(args)) => checks::command(&args),
         None => paper::command(&paper::PaperArgs {
@@ -124,7 +137,11 @@ pub fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("host-sim: error: {e}");
-            ExitCode::FAILURE
+            if e.is::<NoAnswer>() {
+                ExitCode::from(crate::analysis::calibration::trust::NO_ANSWER_EXIT)
+            } else {
+                ExitCode::FAILURE
+            }
         }
     }
 }

@@ -12,7 +12,8 @@ use crate::analysis::montecarlo::{monte_carlo, Consistency, MonteCarlo};
 use crate::analysis::runner::{Estimator, Precision};
 use crate::output::progress::Progress;
 use crate::output::report::write_json;
-use crate::sim::instruments::printed_value;
+use crate::output::report::UNIT_WIDTH;
+use crate::sim::instruments::{printed_unit, printed_value};
 
 /// Arguments of `host-sim montecarlo`.
 #[derive(clap::Args)]
@@ -98,20 +99,16 @@ fn print_monte_carlo(mc: &MonteCarlo) {
         mc.wall_s
     );
     println!(
-        "{:<10} {:>11} {:>11} {:>11} {:>11} {:>9}  block",
-        "state", "RMS err ″", "mean err ″", "mean σ ″", "σ_CRLB ″", "RMS/CRLB"
+        "{:<10} {:<UNIT_WIDTH$} {:>11} {:>11} {:>11} {:>11} {:>9}  block",
+        "state", "unit", "RMS err", "mean err", "mean σ", "σ_CRLB", "RMS/CRLB"
     );
     for s in &mc.states {
-        // Angles in ″ as always; instrument states in their printed unit.
+        // Every state in its printed unit, named in the unit column.
         let show = |v: f64| printed_value(s.info.group, v);
-        let unit = if s.info.group.is_instrument() {
-            format!(" ({})", s.info.printed_scale().1)
-        } else {
-            String::new()
-        };
         println!(
-            "{:<10} {:>11.4} {:>11.4} {:>11.4} {:>11.4} {:>9.3}  {}{unit}",
+            "{:<10} {:<UNIT_WIDTH$} {:>11.4} {:>11.4} {:>11.4} {:>11.4} {:>9.3}  {}",
             s.name,
+            printed_unit(s.info.group),
             show(s.rms_error_rad),
             show(s.mean_error_rad),
             show(s.mean_sigma_rad),

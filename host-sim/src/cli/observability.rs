@@ -15,7 +15,8 @@ use crate::analysis::observe::{
     analyse_all_with, changes, format_combination, report_json, verdict_matrix_markdown, ConfigObs,
 };
 use crate::output::report::write_json;
-use crate::sim::instruments::printed_value;
+use crate::output::report::UNIT_WIDTH;
+use crate::sim::instruments::{printed_unit, printed_value};
 
 /// Arguments of `host-sim observability`.
 #[derive(clap::Args)]
@@ -169,20 +170,15 @@ fn print_report(configs: &[ConfigObs], earth_rate: bool) {
             println!("  unobservable #{}: {}", i + 1, format_combination(comb));
         }
         println!(
-            "  {:<10} {:>12} {:>10}  verdict",
-            "state", "σ_CRLB ″", "σ/σ_prior"
+            "  {:<10} {:<UNIT_WIDTH$} {:>12} {:>10}  verdict",
+            "state", "unit", "σ_CRLB", "σ/σ_prior"
         );
         for s in &c.states {
-            let show = |v| printed_value(s.group, v);
-            let unit = if s.group.is_instrument() {
-                format!(" ({})", s.group.printed_scale().1)
-            } else {
-                String::new()
-            };
             println!(
-                "  {:<10} {:>12.4} {:>10.2e}  {}{unit}",
+                "  {:<10} {:<UNIT_WIDTH$} {:>12.4} {:>10.2e}  {}",
                 s.name,
-                show(s.sigma_crlb_rad),
+                printed_unit(s.group),
+                printed_value(s.group, s.sigma_crlb_rad),
                 s.ratio,
                 s.verdict
             );

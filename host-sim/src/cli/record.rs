@@ -40,13 +40,16 @@ pub struct RecordArgs {
     /// Also write the truth (final true states, Cramér–Rao σ) as JSON to PATH.
     #[arg(long, value_name = "PATH")]
     pub truth: Option<PathBuf>,
-    /// Estimate cadence written into the `Configure` message (samples).
-    #[arg(long, default_value_t = 60)]
-    pub estimate_every: u32,
+    /// Estimate cadence written into the `Configure` message (samples;
+    /// default 60). Frames only: a CSV log has no `Configure`.
+    #[arg(long)]
+    pub estimate_every: Option<u32>,
     /// The error model the stream's `Configure` asks the calibrator for
-    /// (`installation` or `full`; `calibrate --errors` overrides it).
-    #[arg(long, default_value = "installation", value_parser = super::args::parse_errors)]
-    pub errors: rollcal::models::ErrorModel,
+    /// (`installation`, the default, or `full`; `calibrate --errors`
+    /// overrides it). Frames only: a CSV log has no `Configure` (its error
+    /// model is the platform file's `errors` or `calibrate --errors`).
+    #[arg(long, value_parser = super::args::parse_errors)]
+    pub errors: Option<rollcal::models::ErrorModel>,
     /// Impairments of the link and the platform (lost frames, clock steps,
     /// bit flips, outliers), applied after the simulation.
     #[command(flatten)]
@@ -62,6 +65,22 @@ pub fn command(args: &RecordArgs) -> Result<(), Error> {
     let csv = args.format == Format::Csv;
     if csv && args.impair.bit_flips > 0.0 {
         return Err("--bit-flips impairs the frame bytes: not with --format csv".into());
+    }
+    // What only the frames' Configure carries: refused, not ignored.
+    if let (true, Some(e)) = (csv, args.errors) {
+        return Err(format!(
+            "--errors {}: a CSV log has no Configure to carry it (give errors = \"{}\" in the platform file, or calibrate --errors {}): not with --format csv",
+            e.as_str(),
+            e.as_str(),
+            e.as_str()
+        )
+        .into());
+    }
+    if csv && args.estimate_every.is_some() {
+        return Err(
+            "--estimate-every: a CSV log has no Configure to carry it: not with --format csv"
+                .into(),
+        );
     }
     if !csv {
         refuse_terminal(&args.out, std::io::stdout().is_terminal())?;
@@ -93,8 +112,13 @@ pub fn command(args: &RecordArgs) -> Result<(), Error> {
         },
     );
     check_gimbal_lock(args.config, &sim)?;
-    let mut settings = calibrator_config(&sc, args.config, args.errors, earth_rate);
-    settings.estimate_every = args.estimate_every;
+    let mut settings = calibrator_config(
+        &sc,
+        args.config,
+        args.errors.unwrap_or_default(),
+        earth_rate,
+    );
+    settings.estimate_every = args.estimate_every.unwrap_or(60);
     let mut samples: Vec<Sample> = sim.samples.iter().map(to_sample).collect();
     let mut applied = Applied::default();
     let imp = &args.impair;

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use rollcal::models::{ConfigId, ErrorModel};
+use rollcal::models::ConfigId;
 
 use super::args::{load_scenario, parse_config, CommonArgs};
 use super::Error;
@@ -38,9 +38,6 @@ pub struct RunArgs {
 /// `host-sim run`.
 pub fn command(args: &RunArgs) -> Result<(), Error> {
     let c = &args.common;
-    if c.errors == ErrorModel::Full && args.report.is_some() {
-        return Err("--report is not available with --errors full yet".into());
-    }
     let scenario = load_scenario(c.scenario.as_deref())?;
     super::args::note_instrument_prior(&scenario, c.errors);
     super::args::warn_full_first_pass(c);

@@ -85,6 +85,11 @@ pub struct Log {
     /// The header's columns that are none of [`COLUMNS`] (a temperature, a
     /// status word, …), in file order: read past, not used.
     pub ignored: Vec<String>,
+    /// Whether the log had the gimbal columns.
+    pub has_gimbal: bool,
+    /// The line of each sample in the file (1-based, counting every line),
+    /// for messages about a sample.
+    pub lines: Vec<usize>,
 }
 
 impl Log {
@@ -116,13 +121,17 @@ pub fn parse(text: &str) -> Result<Log, Error> {
     };
     let h = parse_header(hline, head).map_err(Error::Csv)?;
     let mut samples = Vec::new();
+    let mut numbers = Vec::new();
     for (n, l) in lines {
         samples.push(parse_line(&h, n, l).map_err(Error::Csv)?);
+        numbers.push(n);
     }
     Ok(Log {
         samples,
         has_frames: h.has_frames,
         ignored: h.ignored,
+        has_gimbal: h.has_gimbal,
+        lines: numbers,
     })
 }
 

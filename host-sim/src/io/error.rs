@@ -31,6 +31,13 @@ pub enum Error {
         /// Why.
         source: std::io::Error,
     },
+    /// A write failed (`cannot write PATH: …`).
+    Write {
+        /// The file or device.
+        path: String,
+        /// Why.
+        source: std::io::Error,
+    },
     /// What the bytes were fed to refused them (e.g. the calibrator's
     /// session): its message.
     Stopped(String),
@@ -38,6 +45,10 @@ pub enum Error {
     Encode(rollcal::wire::EncodeError),
     /// A CSV log that cannot be read: the line and column, and why.
     Csv(String),
+    /// The settings of an input cannot be had: a platform file or scenario
+    /// that does not load, options that contradict it, a CSV log without a
+    /// configuration.
+    Settings(String),
     /// A file that is not a truth sidecar.
     NotSidecar {
         /// The file.
@@ -84,7 +95,8 @@ impl fmt::Display for Error {
                 write!(f, "cannot open serial device {path} at {baud} Bd: {source}")
             }
             Error::Read { path, source } => write!(f, "cannot read {path}: {source}"),
-            Error::Stopped(m) | Error::Csv(m) => f.write_str(m),
+            Error::Write { path, source } => write!(f, "cannot write {path}: {source}"),
+            Error::Stopped(m) | Error::Csv(m) | Error::Settings(m) => f.write_str(m),
             Error::Encode(e) => write!(f, "{e}"),
             Error::NotSidecar { path, source } => {
                 write!(f, "{path} is not a truth sidecar: {source}")
@@ -109,7 +121,9 @@ impl fmt::Display for Error {
 impl std::error::Error for Error {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         match self {
-            Error::Open { source, .. } | Error::Read { source, .. } => Some(source),
+            Error::Open { source, .. }
+            | Error::Read { source, .. }
+            | Error::Write { source, .. } => Some(source),
             Error::OpenSerial { source, .. } => Some(source),
             Error::NotSidecar { source, .. } => Some(source),
             _ => None,

@@ -56,16 +56,82 @@ pub fn push_frame(out: &mut Vec<u8>, m: &Message) -> Result<(), Error> {
     Ok(())
 }
 
+/// Whether `input` is a character device (a serial port, a
+/// pseudo-terminal), not a file or `-`.
+pub fn is_device(input: &str) -> bool {
+    if input == "-" {
+        return false;
+    }
+    let Ok(meta) = std::fs::metadata(input) else {
+        return false;
+    };
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        meta.file_type().is_char_device()
+    }
+    #[cfg(not(unix))]
+    {
+        !meta.is_file()
+    }
+}
+
+/// A byte source being read: a serial port can be written back to.
+trait Source: Read {
+    /// Writes `bytes` back (a serial port); elsewhere there is nowhere to
+    /// write them.
+    fn write_back(&mut self, bytes: &[u8]) -> std::io::Result<()>;
+}
+
+impl<R: Read> Source for ReadOnly<R> {
+    fn write_back(&mut self, bytes: &[u8]) -> std::io::Result<()> {
+        if bytes.is_empty() {
+            return Ok(());
+        }
+        Err(std::io::Error::other(
+            "replies can be written back only to a serial device",
+        ))
+    }
+}
+
+/// A file or stdin: read only.
+struct ReadOnly<R>(R);
+
+impl<R: Read> Read for ReadOnly<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        self.0.read(buf)
+    }
+}
+
+/// A serial port, written back to.
+struct Port(Box<dyn serialport::SerialPort>);
+
+impl Read for Port {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        self.0.read(buf)
+    }
+}
+
+impl Source for Port {
+    fn write_back(&mut self, bytes: &[u8]) -> std::io::Result<()> {
+        use std::io::Write;
+        self.0.write_all(bytes)?;
+        self.0.flush()
+    }
+}
+
 /// Reads an input until its end (or, for a serial port, until it has been
-/// idle for `idle`: then `Some(idle)`), feeding `on_bytes`.
+/// idle for `idle`: then `Some(idle)`), feeding `on_bytes`; what it returns
+/// is written back to a serial port (replies; it must return nothing for a
+/// file or stdin).
 pub fn read_input(
     input: &str,
     baud: u32,
     idle: Duration,
-    mut on_bytes: impl FnMut(&[u8]) -> Result<(), String>,
+    mut on_bytes: impl FnMut(&[u8]) -> Result<Vec<u8>, String>,
 ) -> Result<Option<Duration>, Error> {
     let mut buf = vec![0u8; 4096];
-    let mut drain = |r: &mut dyn Read, serial: bool| -> Result<Option<Duration>, Error> {
+    let mut drain = |r: &mut dyn Source, serial: bool| -> Result<Option<Duration>, Error> {
         let mut last = Clock::now();
         loop {
             match r.read(&mut buf) {
@@ -74,7 +140,12 @@ pub fn read_input(
                     if n > 0 {
                         last = Clock::now();
                     }
-                    on_bytes(buf.get(..n).unwrap_or_default()).map_err(Error::Stopped)?;
+                    let back =
+                        on_bytes(buf.get(..n).unwrap_or_default()).map_err(Error::Stopped)?;
+                    r.write_back(&back).map_err(|source| Error::Write {
+                        path: input.into(),
+                        source,
+                    })?;
                 }
                 Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
                 Err(e) if serial && e.kind() == std::io::ErrorKind::TimedOut => {}
@@ -91,22 +162,15 @@ pub fn read_input(
         }
     };
     if input == "-" {
-        return drain(&mut std::io::stdin().lock(), false);
+        return drain(&mut ReadOnly(std::io::stdin().lock()), false);
     }
     let open = |source| Error::Open {
         path: input.into(),
         source,
     };
-    let meta = std::fs::metadata(input).map_err(open)?;
-    #[cfg(unix)]
-    let is_device = {
-        use std::os::unix::fs::FileTypeExt;
-        meta.file_type().is_char_device()
-    };
-    #[cfg(not(unix))]
-    let is_device = !meta.is_file();
-    if is_device {
-        let mut port = serialport::new(input, baud)
+    std::fs::metadata(input).map_err(open)?;
+    if is_device(input) {
+        let port = serialport::new(input, baud)
             .timeout(Duration::from_millis(100))
             .open()
             .map_err(|source| Error::OpenSerial {
@@ -114,10 +178,10 @@ pub fn read_input(
                 baud,
                 source,
             })?;
-        drain(&mut port, true)
+        drain(&mut Port(port), true)
     } else {
-        let mut f = std::fs::File::open(input).map_err(open)?;
-        drain(&mut f, false)
+        let f = std::fs::File::open(input).map_err(open)?;
+        drain(&mut ReadOnly(f), false)
     }
 }
 
@@ -148,4 +212,24 @@ pub fn reject_json(c: &rollcal::wire::RejectCounts) -> serde_json::Value {
 /// The decoder's frame counters as JSON.
 pub fn frames_json(s: &DecoderStats) -> serde_json::Value {
     serde_json::to_value(s).unwrap_or_default()
+}
+
+/// Writes `bytes` to the serial device `input` (opened again at `baud`):
+/// what is sent back after the stream has ended.
+pub fn write_device(input: &str, baud: u32, bytes: &[u8]) -> Result<(), Error> {
+    use std::io::Write;
+    let mut port = serialport::new(input, baud)
+        .timeout(Duration::from_millis(1000))
+        .open()
+        .map_err(|source| Error::OpenSerial {
+            path: input.into(),
+            baud,
+            source,
+        })?;
+    port.write_all(bytes)
+        .and_then(|()| port.flush())
+        .map_err(|source| Error::Write {
+            path: input.into(),
+            source,
+        })
 }

@@ -21,10 +21,13 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use crate::analysis::checks::{Check, Judgement};
+use rollcal::models::Group;
+
+use crate::analysis::calibration::Calibration;
+use crate::analysis::checks::Check;
 use crate::analysis::runner::{RunResult, Verdict};
 use crate::output::plots::{self, Curve, Innovations, SigmaSeries};
-use crate::sim::scenario::ARCSEC;
+use crate::sim::instruments::{printed_unit, printed_value};
 use crate::sim::segments::switch_times;
 
 /// Everything the report shows.
@@ -115,28 +118,38 @@ fn num(v: f64) -> String {
     }
 }
 
-/// The groups of the configuration's states in state order, with the
-/// indices of their states.
-fn groups(r: &RunResult) -> Vec<(&'static str, Vec<usize>)> {
-    let mut out: Vec<(&'static str, Vec<usize>)> = Vec::new();
-    for (i, s) in r.states.iter().enumerate() {
-        match out.iter_mut().find(|(g, _)| *g == s.group) {
-            Some((_, v)) => v.push(i),
-            None => out.push((s.group, vec![i])),
-        }
+/// A value shown beside its σ: with as many decimals as keep the rounding
+/// within 0.1σ ([`crate::output::report::decimals`]), at least four
+/// significant digits; `—` when not finite.
+fn to_sigma(v: f64, sigma: f64) -> String {
+    if !v.is_finite() {
+        return "—".into();
     }
-    out
+    let by_size = if v != 0.0 {
+        (3 - v.abs().log10().floor() as i32).max(0) as usize
+    } else {
+        0
+    };
+    let d = crate::output::report::decimals(sigma, by_size.min(9));
+    format!("{v:.d$}")
 }
 
-fn group_title(g: &str) -> &'static str {
-    match g {
-        "thaT" => "accelerometer non-orthogonality θaT",
-        "thaC" => "accelerometer axis rotation θaC",
-        "thgT" => "gyro non-orthogonality θgT",
-        "thgC" => "gyro axis rotation θgC",
-        "lam" => "base mounting λ",
-        _ => "attitude",
-    }
+/// The groups of the configuration's states in state order, with the
+/// indices of their states.
+fn groups(r: &RunResult) -> Vec<(Group, Vec<usize>)> {
+    crate::output::groups::in_order(r.states.iter().map(|s| s.info.group))
+        .into_iter()
+        .map(|g| {
+            let idx = (0..r.states.len())
+                .filter(|&i| r.states[i].info.group == g)
+                .collect();
+            (g, idx)
+        })
+        .collect()
+}
+
+fn group_title(g: Group) -> String {
+    crate::output::groups::title(g)
 }
 
 /// A figure of the page: file name and caption.
@@ -164,19 +177,22 @@ fn write_figures(dir: &Path, rep: &Report<'_>) -> Result<[Vec<Figure>; 3], Strin
     Ok(out)
 }
 
-/// Filter σ of state `i` per record of the history (″).
+/// Filter σ of state `i` per record of the history (its printed unit).
 fn sigma_col(r: &RunResult, i: usize) -> Vec<f64> {
+    let g = r.states[i].info.group;
     r.history
         .iter()
-        .map(|h| h.2.get(i).copied().unwrap_or(f64::NAN) / ARCSEC)
+        .map(|h| printed_value(g, h.2.get(i).copied().unwrap_or(f64::NAN)))
         .collect()
 }
 
-/// σ_CRLB of state `i` per record of the history (″), when known.
-fn crlb_col(crlb_hist: Option<&[Vec<f64>]>, i: usize) -> Option<Vec<f64>> {
+/// σ_CRLB of state `i` per record of the history (its printed unit), when
+/// known.
+fn crlb_col(r: &RunResult, crlb_hist: Option<&[Vec<f64>]>, i: usize) -> Option<Vec<f64>> {
+    let g = r.states[i].info.group;
     crlb_hist.map(|c| {
         c.iter()
-            .map(|v| v.get(i).copied().unwrap_or(f64::NAN) / ARCSEC)
+            .map(|v| printed_value(g, v.get(i).copied().unwrap_or(f64::NAN)))
             .collect()
     })
 }
@@ -192,7 +208,7 @@ fn convergence_figures(
     let id = r.config;
     let mut out = Vec::new();
     let sigma_col = |i: usize| sigma_col(r, i);
-    let crlb_col = |i: usize| crlb_col(crlb_hist, i);
+    let crlb_col = |i: usize| crlb_col(r, crlb_hist, i);
     for (g, idx) in groups(r) {
         let sig: Vec<Vec<f64>> = idx.iter().map(|&i| sigma_col(i)).collect();
         let cr: Vec<Option<Vec<f64>>> = idx.iter().map(|&i| crlb_col(i)).collect();
@@ -202,11 +218,12 @@ fn convergence_figures(
             .zip(&cr)
             .map(|((&i, s), c)| SigmaSeries {
                 label: r.states[i].name,
+                unit: printed_unit(g),
                 sigma: s,
                 crlb: c.as_deref(),
             })
             .collect();
-        let file = format!("sigma-{g}.png");
+        let file = format!("sigma-{}.png", g.as_str());
         plots::plot_convergence(
             &dir.join(&file),
             &format!("{id}: {} — σ(t)", group_title(g)),
@@ -217,9 +234,10 @@ fn convergence_figures(
         out.push(Figure {
             file,
             caption: format!(
-                "σ(t) of {} ({}): filter σ{}, log scale over the whole run; vertical lines: path segment switches.",
-                group_title(g),
-                esc(g),
+                "σ(t) of {} ({}, in {}): filter σ{}, log scale over the whole run; vertical lines: path segment switches.",
+                esc(&group_title(g)),
+                esc(g.as_str()),
+                esc(printed_unit(g)),
                 if crlb_hist.is_some() { " over σ_CRLB (dashed)" } else { " (σ_CRLB(t) not known for this input)" }
             ),
         });
@@ -240,9 +258,9 @@ fn error_figures(
     let id = r.config;
     let mut out = Vec::new();
     let sigma_col = |i: usize| sigma_col(r, i);
-    let crlb_col = |i: usize| crlb_col(crlb_hist, i);
+    let crlb_col = |i: usize| crlb_col(r, crlb_hist, i);
     for (g, idx) in groups(r) {
-        let attitude = g == "attitude";
+        let attitude = g == Group::Attitude;
         if attitude && rep.truth_history.is_none() {
             continue;
         }
@@ -261,9 +279,15 @@ fn error_figures(
                             .and_then(|th| th.get(k))
                             .and_then(|v| v.get(i).copied())
                             .unwrap_or(r.states[i].truth_rad);
-                        rollcal::geometry::wrap_angle(
-                            h.1.get(i).copied().unwrap_or(f64::NAN) - truth,
-                        ) / ARCSEC
+                        let d = h.1.get(i).copied().unwrap_or(f64::NAN) - truth;
+                        printed_value(
+                            g,
+                            if g.unit() == "rad" {
+                                rollcal::geometry::wrap_angle(d)
+                            } else {
+                                d
+                            },
+                        )
                     })
                     .collect()
             })
@@ -279,12 +303,13 @@ fn error_figures(
             .enumerate()
             .map(|(j, &i)| Curve {
                 label: r.states[i].name,
+                unit: printed_unit(g),
                 error: &err[j],
                 sigma: &sig[j],
                 crlb: &cr[j],
             })
             .collect();
-        let file = format!("error-{g}.png");
+        let file = format!("error-{}.png", g.as_str());
         plots::plot_group_marked(
             &dir.join(&file),
             &format!("{id}: {} — error, ±3σ filter, ±3σ_CRLB", group_title(g)),
@@ -295,8 +320,9 @@ fn error_figures(
         out.push(Figure {
             file,
             caption: format!(
-                "Estimation error of {} against the truth: left |error| and 3σ on a log scale over the whole run, right the signed error in the shaded ±3σ band over the converged part; the ±3σ_CRLB dashes lie under the filter's line{}.",
-                group_title(g),
+                "Estimation error of {} ({}) against the truth: left |error| and 3σ on a log scale over the whole run, right the signed error in the shaded ±3σ band over the converged part; the ±3σ_CRLB dashes lie under the filter's line{}.",
+                esc(&group_title(g)),
+                esc(printed_unit(g)),
                 if crlb_hist.is_some() { "" } else { " (not known for this input: absent)" }
             ),
         });
@@ -315,6 +341,8 @@ fn innovations_figure(dir: &Path, r: &RunResult, switches: &[f64]) -> Result<Vec
         let nis: Vec<f64> = u.iter().map(|u| u.nis).collect();
         let white: Vec<Vec<f64>> = u.iter().map(|u| u.white.clone()).collect();
         let window = u.len().clamp(1, 100);
+        let names = crate::analysis::checks::component_names(dof);
+        let components: Vec<&str> = names.iter().map(String::as_str).collect();
         let file = "innovations.png".to_string();
         plots::plot_innovations(
             &dir.join(&file),
@@ -326,13 +354,15 @@ fn innovations_figure(dir: &Path, r: &RunResult, switches: &[f64]) -> Result<Vec
                 dof,
                 window,
                 band: nis_band(window, dof),
+                components: &components,
             },
             switches,
         )?;
         out.push(Figure {
             file,
             caption: format!(
-                "Top: moving mean of the NIS over {window} updates with its 99 % χ² band (shaded) and the expected value {dof} (dotted). Bottom: the {dof} whitened innovation components (unit variance when the model holds) with ±3 dashed. Vertical lines: path segment switches."
+                "Top: moving mean of the NIS over {window} updates with its 99 % χ² band (shaded) and the expected value {dof} (dotted). Bottom: the {dof} whitened innovation components ({}; unit variance when the model holds, colours in the legend above the panel) with ±3 dashed. Vertical lines: path segment switches.",
+                esc(&names.join(", "))
             ),
         });
     }
@@ -382,10 +412,19 @@ pub fn write_report(dir: &Path, rep: &Report<'_>) -> Result<PathBuf, String> {
         "<dt>verdict on the data</dt><dd class=\"{verdict_class}\">{}</dd></dl>",
         esc(rep.verdict)
     );
-    // Warnings: the given ones and every failed check.
+    // Warnings: the given ones and every failed check with its statistic
+    // and band.
     let mut warnings = rep.warnings.clone();
     for c in rep.checks.iter().filter(|c| !c.passed) {
-        warnings.push(format!("{} ({}): {}", c.name, c.scope, c.detail));
+        warnings.push(format!(
+            "{} ({}): {} outside [{}, {}]; {}",
+            c.name,
+            c.scope,
+            num(c.statistic),
+            num(c.band.0),
+            num(c.band.1),
+            c.detail
+        ));
     }
     if !warnings.is_empty() {
         h.push_str("<h2 id=\"warnings\">Warnings</h2>\n");
@@ -402,35 +441,40 @@ pub fn write_report(dir: &Path, rep: &Report<'_>) -> Result<PathBuf, String> {
     Ok(page)
 }
 
-/// The parameter table (`crlb`: the σ_CRLB column, when known).
+/// The parameter table (`crlb`: the σ_CRLB column, when known): every
+/// state in its printed unit (the unit column), each value with the digits
+/// that keep its rounding within 0.1σ.
 fn parameter_table(h: &mut String, rep: &Report<'_>, crlb: Option<&[f64]>) {
     let r = rep.result;
-    // Parameter table.
-    h.push_str("<h2 id=\"parameters\">Parameters</h2>\n<p>Final estimate (arcseconds; the attitude states at the final time).</p>\n<table><tr><th class=\"l\">state</th><th class=\"l\">group</th><th>estimate ″</th><th>σ ″</th>");
+    h.push_str("<h2 id=\"parameters\">Parameters</h2>\n<p>Final estimate of every state in its unit (angles in arcseconds; the attitude states at the final time), with the digits that keep the rounding within 0.1σ.</p>\n<table><tr><th class=\"l\">state</th><th class=\"l\">group</th><th class=\"l\">unit</th><th>estimate</th><th>σ</th>");
     if crlb.is_some() {
-        h.push_str("<th>σ_CRLB ″</th><th>σ/σ_CRLB</th>");
+        h.push_str("<th>σ_CRLB</th><th>σ/σ_CRLB</th>");
     }
     if rep.has_truth {
-        h.push_str("<th>truth ″</th><th>error ″</th><th>|err|/σ</th><th class=\"l\">verdict</th>");
+        h.push_str("<th>truth</th><th>error</th><th>|err|/σ</th><th class=\"l\">verdict</th>");
     } else {
         h.push_str("<th>σ/σ_prior</th>");
     }
     h.push_str("</tr>\n");
     for (i, s) in r.states.iter().enumerate() {
+        let g = s.info.group;
+        let show = |v: f64| printed_value(g, v);
+        let sigma = show(s.sigma_rad);
         let _ = write!(
             h,
-            "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td>",
+            "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td>",
             esc(s.name),
             esc(s.group),
-            num(s.estimate_rad / ARCSEC),
-            num(s.sigma_rad / ARCSEC)
+            esc(printed_unit(g)),
+            to_sigma(show(s.estimate_rad), sigma),
+            num(sigma)
         );
         if let Some(c) = crlb {
             let c = c.get(i).copied().unwrap_or(f64::NAN);
             let _ = write!(
                 h,
                 "<td>{}</td><td>{}</td>",
-                num(c / ARCSEC),
+                num(show(c)),
                 num(s.sigma_rad / c)
             );
         }
@@ -448,8 +492,8 @@ fn parameter_table(h: &mut String, rep: &Report<'_>, crlb: Option<&[f64]>) {
             let _ = write!(
                 h,
                 "<td>{}</td><td>{}</td><td>{}</td><td class=\"l{class}\">{}</td>",
-                num(s.truth_rad / ARCSEC),
-                num(s.error() / ARCSEC),
+                to_sigma(show(s.truth_rad), sigma),
+                to_sigma(show(s.error()), sigma),
                 num(s.ratio()),
                 esc(&v.to_string())
             );
@@ -545,6 +589,8 @@ pub fn report_of_run(
     let truth_history = run.truth_history();
     let judgement = crate::analysis::checks::judge(r);
     let verdict = judgement.verdict.to_string();
+    let mut warnings = failure_warnings(r);
+    warnings.extend(judgement.cause.clone());
     write_report(
         dir,
         &Report {
@@ -558,7 +604,7 @@ pub fn report_of_run(
             checks: &judgement.checks,
             verdict: &verdict,
             state_verdicts: state_verdicts(r),
-            warnings: failure_warnings(r),
+            warnings,
         },
     )
 }
@@ -568,14 +614,7 @@ pub fn report_of_run(
 pub fn state_verdicts(r: &RunResult) -> Vec<Verdict> {
     r.states
         .iter()
-        .map(|s| {
-            crate::analysis::runner::verdict(
-                r.config,
-                s,
-                crate::output::report::group_of(s.group),
-                s.prior,
-            )
-        })
+        .map(crate::analysis::verdict::verdict)
         .collect()
 }
 
@@ -590,22 +629,55 @@ pub fn failure_warnings(r: &RunResult) -> Vec<String> {
     }
 }
 
-/// The report of `host-sim calibrate`: the truth (the sidecar's final
-/// values) when `has_truth`, σ_CRLB when known; writes `dir/index.html`.
+/// The report of `host-sim calibrate` of calibration `c`: the truth (the
+/// sidecar's final values) when given, σ_CRLB when known (`crlb`,
+/// `crlb_history`); the warnings: whether the result is an answer, the
+/// rejected samples with their likely cause, the gated share's hint, the
+/// refused messages, failed updates, the path near gimbal lock, the data
+/// verdict's likely cause, every failed check with its statistic. Writes
+/// `dir/index.html`.
 pub fn report_of_calibration(
     dir: &Path,
-    r: &RunResult,
+    c: &Calibration,
     crlb: Option<&[f64]>,
     crlb_history: Option<&[Vec<f64>]>,
-    has_truth: bool,
-    judgement: &Judgement,
     header: Vec<(String, String)>,
 ) -> Result<PathBuf, String> {
+    let (r, judgement) = (&c.r, &c.judgement);
+    let has_truth = c.sidecar.is_some();
     let verdict = judgement.verdict.to_string();
-    let mut warnings = failure_warnings(r);
-    if let Some(c) = judgement.path.as_ref().filter(|c| !c.passed) {
-        warnings.push(format!("the path nears gimbal lock: {}", c.detail));
+    let mut warnings: Vec<String> = c
+        .not_an_answer
+        .iter()
+        .map(|w| format!("not an answer: {w}"))
+        .collect();
+    for f in &c.rejects {
+        warnings.push(format!(
+            "{} samples rejected for {} (first: {}){}",
+            f.count,
+            f.reason,
+            f.first,
+            f.likely_cause
+                .as_ref()
+                .map_or_else(String::new, |c| format!("; likely cause: {c}"))
+        ));
     }
+    warnings.extend(c.gated.hint.clone());
+    for r in &c.refusals {
+        let w = format!(
+            "{} refused: {} (the calibrator as it was)",
+            crate::analysis::calibration::name_of(r.message),
+            r.error
+        );
+        if !warnings.contains(&w) {
+            warnings.push(w);
+        }
+    }
+    warnings.extend(failure_warnings(r));
+    if let Some(p) = judgement.path.as_ref().filter(|p| !p.passed) {
+        warnings.push(format!("the path nears gimbal lock: {}", p.detail));
+    }
+    warnings.extend(judgement.cause.clone());
     write_report(
         dir,
         &Report {

@@ -65,7 +65,9 @@ pub struct AccelDefects {
     pub accel_noise_scale: f64,
     /// A constant accelerometer bias X,Y,Z (µg, instrument frame), added to
     /// the scenario's accelerometer bias (ba_ug of its instruments table;
-    /// the truth sidecar records the sum), which no configuration models yet.
+    /// the truth sidecar records the sum). The installation model does not
+    /// model it; the full model (calibrate --errors full) estimates it as
+    /// ba.
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_triple, allow_hyphen_values = true)]
     pub accel_bias_ug: Option<[f64; 3]>,
 }

@@ -14,7 +14,7 @@
 
 use rollcal::models::{ConfigId, ErrorModel, Group, PlatformFrame, StateInfo};
 
-use crate::sim::scenario::{ARCSEC, DEG};
+use crate::sim::scenario::DEG;
 use crate::sim::truth::TruthParams;
 use crate::sim::wander::WanderTruth;
 
@@ -36,48 +36,38 @@ fn instrument_infos(id: ConfigId) -> &'static [StateInfo] {
     all.get(id.layout().n()..).unwrap_or(&[])
 }
 
-/// The ASCII form of the printed unit of an instrument group, as the
-/// sidecar and the CSV columns write it (`deg_h`-style names use
-/// [`ascii_unit`] with `/` turned into `_`): `deg/h`, `deg/h/g`, `ppm`,
-/// `ug`, `ug/g2`; `rad` for the angles.
-pub fn ascii_unit(group: Group) -> &'static str {
-    match group {
-        Group::GyroDrift | Group::GyroMarkov | Group::GyroWarmup => "deg/h",
-        Group::GyroGDrift => "deg/h/g",
-        Group::AccelBias | Group::AccelMarkov | Group::AccelWarmup => "ug",
-        Group::GyroScale | Group::AccelScale => "ppm",
-        Group::AccelSecondOrder => "ug/g2",
-        _ => "rad",
+/// The ASCII form of the unit a state of group `group` is written in by
+/// the CSV columns and the sidecar: `rad` for the angles (the CSV keeps
+/// them in radians), else the printed unit of [`Group::printed_scale`]
+/// spelled in ASCII (`°` → `deg`, `µ` → `u`, `²` → `2`): `deg/h`,
+/// `deg/h/g`, `ppm`, `ug`. Derived from the group's printed unit, so a new
+/// group is named right without a change here.
+pub fn ascii_unit(group: Group) -> String {
+    if group.unit() == "rad" {
+        return "rad".into();
     }
+    group
+        .printed_scale()
+        .1
+        .replace('°', "deg")
+        .replace('µ', "u")
+        .replace('²', "2")
+        .replace('³', "3")
+        .replace('″', "arcsec")
 }
 
 /// The printed value of `v` (internal unit) of a state of group `group`:
-/// arcseconds for the angles (`v / ARCSEC`, as every table has always
-/// printed them), the unit of [`Group::printed_scale`] (°/h, °/h/g, ppm,
-/// µg) for the instrument states. The one conversion of the tables.
+/// `v` times the group's factor of [`Group::printed_scale`] (arcseconds for
+/// the angles, °/h, °/h/g, ppm, µg, … for the instrument terms). The one
+/// conversion of the tables, keyed by the group alone.
 pub fn printed_value(group: Group, v: f64) -> f64 {
-    if group.is_instrument() {
-        v * group.printed_scale().0
-    } else {
-        v / ARCSEC
-    }
+    v * group.printed_scale().0
 }
 
-/// The printed unit of instrument state `i` (`deg/h`, `deg/h/g`, `ppm`,
-/// `ug`, `ppm`).
-pub fn printed_unit(i: usize) -> &'static str {
-    instrument_infos(ConfigId::M2Ps)
-        .get(i)
-        .map_or("", |s| ascii_unit(s.group))
-}
-
-/// The factor internal → printed of instrument state `i` (multiply an
-/// internal value by it: rad/s → °/h, rad/s/g → °/h/g, 1 → ppm, g → µg;
-/// core's [`Group::printed_scale`]).
-pub fn printed_factor(i: usize) -> f64 {
-    instrument_infos(ConfigId::M2Ps)
-        .get(i)
-        .map_or(f64::NAN, |s| s.group.printed_scale().0)
+/// The printed unit of a state of group `group` (`″`, `°/h`, `°/h/g`,
+/// `ppm`, `µg`, …; [`Group::printed_scale`]).
+pub fn printed_unit(group: Group) -> &'static str {
+    group.printed_scale().1
 }
 
 /// The 36 names of configuration `id` (`Dgpa_*` in the pa frame).
@@ -86,9 +76,12 @@ pub fn instrument_names(id: ConfigId) -> [&'static str; INSTRUMENT_STATES] {
     core::array::from_fn(|i| infos.get(i).map_or("", |s| s.name))
 }
 
-/// The 36 printed units, in state order.
+/// The internal units of the 36 instrument states, in state order
+/// (`rad/s`, `rad/s/g`, `1`, `g`, `1/g`; [`Group::unit`]): the units of
+/// the sidecar's `instrument_truth`.
 pub fn instrument_units() -> [&'static str; INSTRUMENT_STATES] {
-    core::array::from_fn(printed_unit)
+    let infos = instrument_infos(ConfigId::M2Ps);
+    core::array::from_fn(|i| infos.get(i).map_or("", |s| s.unit))
 }
 
 /// The true instrument states of configuration `id` (internal units, the
@@ -127,6 +120,7 @@ pub fn instrument_truth_state(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sim::scenario::ARCSEC;
 
     #[test]
     fn names_units_and_factors_line_up() {
@@ -138,10 +132,17 @@ mod tests {
         assert_eq!(instrument_names(ConfigId::M1Pa)[35], "ba_wu_z");
         let u = instrument_units();
         assert_eq!(
-            (u[0], u[3], u[12], u[15], u[18], u[21], u[24], u[27]),
-            ("deg/h", "deg/h/g", "ppm", "ug", "ppm", "ug/g2", "deg/h", "ug")
+            (u[0], u[3], u[12], u[15], u[18], u[21], u[24], u[27], u[30]),
+            ("rad/s", "rad/s/g", "1", "g", "1", "1/g", "rad/s", "g", "rad/s")
         );
-        assert!((printed_factor(0) * DEG_H - 1.0).abs() < 1e-15);
-        assert!((printed_factor(16) * 30e-6 - 30.0).abs() < 1e-12);
+        let ascii: Vec<String> = [Group::GyroDrift, Group::GyroGDrift, Group::GyroScale]
+            .into_iter()
+            .chain([Group::AccelBias, Group::AccelScale, Group::ThetaAT])
+            .map(ascii_unit)
+            .collect();
+        assert_eq!(ascii, ["deg/h", "deg/h/g", "ppm", "ug", "ppm", "rad"]);
+        assert!((printed_value(Group::GyroDrift, DEG_H) - 1.0).abs() < 1e-15);
+        assert!((printed_value(Group::AccelBias, 30e-6) - 30.0).abs() < 1e-12);
+        assert!((printed_value(Group::ThetaGC, ARCSEC) - 1.0).abs() < 1e-15);
     }
 }

@@ -238,7 +238,7 @@ fn printed_verdicts_are_the_words_the_readme_defines() {
 
     let dir = scratch("defects-verdicts");
     let sc = short_scenario(&dir, "180.0");
-    // `run`: the last column after name and seven numbers.
+    // `run`: the last column after name, unit and seven numbers.
     let out = host_sim()
         .args(["run", "--config", "m2-ps", "--scenario"])
         .arg(&sc)
@@ -253,10 +253,10 @@ fn printed_verdicts_are_the_words_the_readme_defines() {
         .skip(1)
     {
         let cols: Vec<&str> = line.split_whitespace().collect();
-        if cols.len() < 9 || !cols[0].contains('_') {
+        if cols.len() < 10 || !cols[0].contains('_') {
             break;
         }
-        let verdict = cols[8..].join(" ");
+        let verdict = cols[9..].join(" ");
         assert!(
             words.contains(&verdict),
             "run verdict '{verdict}' not in {words:?}"
@@ -264,7 +264,7 @@ fn printed_verdicts_are_the_words_the_readme_defines() {
         seen += 1;
     }
     assert_eq!(seen, 18, "{text}");
-    // `observability`: the last column after name and two numbers.
+    // `observability`: the last column after name, unit and two numbers.
     let out = host_sim()
         .args(["observability", "--scenario"])
         .arg(&sc)
@@ -280,8 +280,8 @@ fn printed_verdicts_are_the_words_the_readme_defines() {
             continue;
         }
         let cols: Vec<&str> = line.split_whitespace().collect();
-        if in_table && cols.len() >= 4 && cols[0].contains('_') {
-            let verdict = cols[3..].join(" ");
+        if in_table && cols.len() >= 5 && cols[0].contains('_') {
+            let verdict = cols[4..].join(" ");
             assert!(
                 words.contains(&verdict),
                 "observability verdict '{verdict}' not in {words:?}"

@@ -423,6 +423,11 @@ fn sidecar_records_the_instrument_truth() {
             json["instrument_units"],
             serde_json::json!(instrument_units().to_vec())
         );
+        // The labels are the units of the numbers: internal (rad/s, g, …).
+        assert_eq!(
+            (&json["instrument_units"][0], &json["instrument_units"][15]),
+            (&serde_json::json!("rad/s"), &serde_json::json!("g"))
+        );
         let mut with_bias = sc.clone();
         for (a, b) in with_bias.instruments.ba_ug.iter_mut().zip(bias) {
             *a += b;

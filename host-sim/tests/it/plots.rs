@@ -94,6 +94,7 @@ fn curves<'a>(labels: &[&'a str], data: &'a [[Vec<f64>; 3]]) -> Vec<Curve<'a>> {
         .zip(data)
         .map(|(label, [error, sigma, crlb])| Curve {
             label,
+            unit: "″",
             error,
             sigma,
             crlb,
@@ -152,6 +153,7 @@ fn non_finite_zero_and_degenerate_data_still_draw() {
     let zeros = vec![0.0; n];
     let z = [Curve {
         label: "zero",
+        unit: "″",
         error: &zeros,
         sigma: &zeros,
         crlb: &zeros,
@@ -164,6 +166,7 @@ fn non_finite_zero_and_degenerate_data_still_draw() {
     let nan = vec![f64::NAN; n];
     let all_nan = [Curve {
         label: "nan",
+        unit: "″",
         error: &nan,
         sigma: &nan,
         crlb: &nan,
@@ -171,6 +174,7 @@ fn non_finite_zero_and_degenerate_data_still_draw() {
     plot_group(&dir.join("allnan.png"), "all NaN", &t, &all_nan).unwrap();
     let one = [Curve {
         label: "one",
+        unit: "″",
         error: &[2.0],
         sigma: &[-1.0],
         crlb: &[0.5],
@@ -197,6 +201,7 @@ fn bad_input_is_an_error_not_a_panic() {
     let short = &data[0][1][..99];
     let bad = [Curve {
         label: "thgC_x",
+        unit: "″",
         error: &data[0][0],
         sigma: short,
         crlb: &data[0][2],
@@ -323,6 +328,7 @@ fn convergence_and_innovation_figures_have_their_size_and_content() {
         .zip(["x", "y", "z"])
         .map(|(d, label)| SigmaSeries {
             label,
+            unit: "″",
             sigma: &d[1],
             crlb: Some(&d[2]),
         })
@@ -338,12 +344,14 @@ fn convergence_and_innovation_figures_have_their_size_and_content() {
     // Without σ_CRLB, and errors on bad input.
     let bare = [SigmaSeries {
         label: "x",
+        unit: "″",
         sigma: &data[0][1],
         crlb: None,
     }];
     plot_convergence(&dir.join("bare.png"), "σ", &t, &bare, &[]).unwrap();
     let short = [SigmaSeries {
         label: "x",
+        unit: "″",
         sigma: &data[0][1][..5],
         crlb: None,
     }];
@@ -378,6 +386,7 @@ fn convergence_and_innovation_figures_have_their_size_and_content() {
         dof: 3,
         window: 100,
         band: host_sim::output::html::nis_band(100, 3),
+        components: &["accel x", "accel y", "accel z"],
     };
     plot_innovations(&path, "innovations", &u, &[500.0, 1500.0]).unwrap();
     let img = decode(&path);
@@ -451,6 +460,7 @@ fn real_run_figures() {
             .filter(|&i| states[i].group.as_str() == g)
             .map(|i| Curve {
                 label: states[i].name,
+                unit: "″",
                 error: &err[i],
                 sigma: &sig[i],
                 crlb: &cr[i],

@@ -7,11 +7,17 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use support::{assert_success, host_sim, paper_with_path, scratch};
 
-/// The paper's scenario with a short path (90° about South, East, Up at
-/// 1 °/s: 270 periods, two switches).
+/// The paper's scenario on a short path that observes every claimed state
+/// (the paper's path at 3× and 1.5× the rate: 180° about South at 3 °/s,
+/// 90° about East at 1.5 °/s, twice: 240 periods, three switches).
 fn short_scenario(dir: &Path) -> PathBuf {
-    let segments = [("south", 90.0, 1.0), ("east", 90.0, 1.0), ("up", 90.0, 1.0)];
-    paper_with_path(dir, "short", &segments, "270.0")
+    let segments = [
+        ("south", 180.0, 3.0),
+        ("east", 90.0, 1.5),
+        ("south", 180.0, 3.0),
+        ("east", 90.0, 1.5),
+    ];
+    paper_with_path(dir, "short", &segments, "240.0")
 }
 
 fn ok(cmd: &mut Command) -> String {
@@ -61,13 +67,15 @@ fn run_report_has_table_figures_and_checks() {
         assert!(!s.contains('/') && !s.starts_with("http"), "{s}");
     }
     for want in [
-        "<th>truth ″</th>",
-        "<th>σ_CRLB ″</th>",
+        "<th>truth</th>",
+        "<th>σ_CRLB</th>",
+        "<th class=\"l\">unit</th>",
+        "<td class=\"l\">″</td>",
         "Consistency checks",
         "<td class=\"l\">nis</td>",
         "<td class=\"l\">whiteness</td>",
         "data-report-check=\"pending\"",
-        "3 path segment(s)",
+        "4 path segment(s)",
     ] {
         assert!(page.contains(want), "missing {want}");
     }
@@ -104,7 +112,14 @@ fn calibrate_report_without_truth_has_no_truth_columns() {
         .arg("--report")
         .arg(&with));
     let page = std::fs::read_to_string(bare.join("index.html")).unwrap();
-    for absent in ["truth ″", "error ″", "|err|/σ", "σ_CRLB ″", "NaN", "error-"] {
+    for absent in [
+        "<th>truth</th>",
+        "<th>error</th>",
+        "|err|/σ",
+        "<th>σ_CRLB</th>",
+        "NaN",
+        "error-",
+    ] {
         assert!(!page.contains(absent), "{absent} without a truth");
     }
     let (srcs, n) = figures(&page);
@@ -112,7 +127,7 @@ fn calibrate_report_without_truth_has_no_truth_columns() {
     assert!(srcs.contains(&"innovations.png".to_string()));
     assert!(srcs.iter().all(|s| is_png(&bare.join(s))));
     let page = std::fs::read_to_string(with.join("index.html")).unwrap();
-    assert!(page.contains("<th>truth ″</th>") && page.contains("<th>σ_CRLB ″</th>"));
+    assert!(page.contains("<th>truth</th>") && page.contains("<th>σ_CRLB</th>"));
     let (srcs, n) = figures(&page);
     // With the truth sidecar: error figures of the three parameter groups
     // (the attitude's truth over time is not in the sidecar).

@@ -76,6 +76,14 @@ pub struct Update {
     /// accelerometer x, y, z; the accelerometer alone otherwise); empty
     /// when `S` was not positive definite.
     pub white: Vec<f64>,
+    /// The innovation `ν` itself (measurement units: rad, g); not in the
+    /// JSON.
+    #[serde(skip)]
+    pub nu: Vec<f64>,
+    /// The diagonal of its covariance `S` (squared measurement units); not
+    /// in the JSON.
+    #[serde(skip)]
+    pub s_diag: Vec<f64>,
 }
 
 impl Update {
@@ -96,6 +104,8 @@ impl Update {
             t_s,
             nis: f64_of(i.nis),
             white,
+            nu: nu.iter().copied().collect(),
+            s_diag: s.diagonal().iter().copied().collect(),
         }
     }
 }

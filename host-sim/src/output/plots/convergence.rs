@@ -11,15 +11,17 @@ use plotters::prelude::*;
 use super::style::*;
 use super::style::{Area, DrawResult};
 
-/// One parameter's σ(t) for [`plot_convergence`], in the display unit
-/// (arcseconds), per point of the shared time axis.
+/// One parameter's σ(t) for [`plot_convergence`], in its display unit
+/// `unit`, per point of the shared time axis.
 #[derive(Clone, Copy, Debug)]
 pub struct SigmaSeries<'a> {
-    /// State name: the panel label.
+    /// State name: the panel label (with the unit).
     pub label: &'a str,
-    /// Filter σ (″).
+    /// The display unit (″ for the angles; °/h, ppm, µg, …).
+    pub unit: &'a str,
+    /// Filter σ.
     pub sigma: &'a [f64],
-    /// σ_CRLB (″), when known.
+    /// σ_CRLB, when known.
     pub crlb: Option<&'a [f64]>,
 }
 
@@ -103,7 +105,7 @@ fn draw_convergence<'a>(
         vec![(40, y), (70, y)],
         FILTER_COLOUR.stroke_width(2),
     ))?;
-    header.draw(&Text::new("filter σ [″]", (78, y), label.clone()))?;
+    header.draw(&Text::new("filter σ", (78, y), label.clone()))?;
     if series.iter().any(|s| s.crlb.is_some()) {
         header.draw(&DashedPathElement::new(
             vec![(260, y), (290, y)],
@@ -111,7 +113,7 @@ fn draw_convergence<'a>(
             4,
             CRLB_COLOUR.stroke_width(CRLB_WIDTH),
         ))?;
-        header.draw(&Text::new("σ_CRLB [″]", (298, y), label.clone()))?;
+        header.draw(&Text::new("σ_CRLB", (298, y), label.clone()))?;
     }
     header.draw(&PathElement::new(
         vec![(475, y - 9), (475, y + 9)],
@@ -148,7 +150,7 @@ fn draw_convergence_panel<'a>(
     let (lo, hi) = finite_min_max(vals.into_iter()).unwrap_or((1e-3, 1.0));
     let (lo, hi) = ((lo / 1.5).min(hi / 10.0), hi * 1.5);
     let mut chart = ChartBuilder::on(area)
-        .caption(s.label, font(15.0))
+        .caption(format!("{} [{}]", s.label, s.unit), font(15.0))
         .margin(6)
         .x_label_area_size(28)
         .y_label_area_size(56)

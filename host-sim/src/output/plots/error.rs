@@ -13,16 +13,19 @@ use super::error_panels::{draw_log_panel, draw_zoom_panel};
 use super::style::*;
 use super::style::{Area, DrawResult};
 
-/// One state's time history, all in the display unit (arcseconds).
+/// One state's time history, all in its display unit `unit` (″ for the
+/// angles; °/h, ppm, µg, … for the instrument terms).
 #[derive(Clone, Copy, Debug)]
 pub struct Curve<'a> {
     /// State name, e.g. `"thaT_1"`: the panel label.
     pub label: &'a str,
-    /// Estimate − truth per period (″).
+    /// The display unit of the values, named on the axes.
+    pub unit: &'a str,
+    /// Estimate − truth per period.
     pub error: &'a [f64],
-    /// Filter σ per period (″): drawn as the ±3σ band.
+    /// Filter σ per period: drawn as the ±3σ band.
     pub sigma: &'a [f64],
-    /// σ_CRLB per period (″): drawn as the ±3σ_CRLB lines.
+    /// σ_CRLB per period: drawn as the ±3σ_CRLB lines.
     pub crlb: &'a [f64],
 }
 
@@ -214,16 +217,18 @@ fn draw_row<'a>(
     draw_zoom_panel(&right, t_s, t, c, switches)
 }
 
-/// "final: error …″, 3σ …″, 3σ_CRLB …″" from the last finite values.
+/// "final: error … ″, 3σ … ″, 3σ_CRLB … ″" (in the curve's unit) from the
+/// last finite values.
 fn final_summary(c: &Curve<'_>) -> Option<String> {
     let last = |v: &[f64]| v.iter().rev().copied().find(|x| x.is_finite());
+    let u = c.unit;
     let e = last(c.error)?;
-    let mut s = format!("final: error {}″", fmt_value(e));
+    let mut s = format!("final: error {} {u}", fmt_value(e));
     if let Some(sig) = last(c.sigma) {
-        s.push_str(&format!(", 3σ {}″", fmt_value(3.0 * sig)));
+        s.push_str(&format!(", 3σ {} {u}", fmt_value(3.0 * sig)));
     }
     if let Some(cr) = last(c.crlb) {
-        s.push_str(&format!(", 3σ_CRLB {}″", fmt_value(3.0 * cr)));
+        s.push_str(&format!(", 3σ_CRLB {} {u}", fmt_value(3.0 * cr)));
     }
     Some(s)
 }

@@ -40,7 +40,7 @@ pub(super) fn draw_log_panel<'a>(
         .x_label_formatter(&|v| fmt_tick(*v))
         .y_label_formatter(&|v| fmt_log_tick(*v))
         .x_desc("t [s]")
-        .y_desc("|error|, 3σ [″]")
+        .y_desc(format!("|error|, 3σ [{}]", c.unit))
         .label_style(font(12.0))
         .axis_desc_style(font(13.0))
         .draw()?;
@@ -124,7 +124,7 @@ pub(super) fn draw_zoom_panel<'a>(
             "t [s] (converged part, from {} s)",
             fmt_tick(t.start)
         ))
-        .y_desc("error [″]")
+        .y_desc(format!("error [{}]", c.unit))
         .label_style(font(12.0))
         .axis_desc_style(font(13.0))
         .draw()?;

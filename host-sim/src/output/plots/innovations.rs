@@ -26,6 +26,9 @@ pub struct Innovations<'a> {
     pub window: usize,
     /// The two-sided 99 % band of a mean of `window` NIS values.
     pub band: (f64, f64),
+    /// The names of the whitened components, in order (e.g. `accel x`),
+    /// for the legend of the bottom panel (`component k` when absent).
+    pub components: &'a [&'a str],
 }
 
 /// Size (width, height) in pixels of the figure of [`plot_innovations`].
@@ -140,10 +143,55 @@ fn draw_innovations<'a>(
         vec![(680, y - 9), (680, y + 9)],
         SWITCH_COLOUR.stroke_width(2),
     ))?;
-    header.draw(&Text::new("segment switch", (695, y), label))?;
+    header.draw(&Text::new("segment switch", (695, y), label.clone()))?;
+    header.draw(&plotters::element::DashedPathElement::new(
+        vec![(830, y), (860, y)],
+        2,
+        3,
+        CRLB_COLOUR.stroke_width(1),
+    ))?;
+    header.draw(&Text::new(format!("expected {}", u.dof), (868, y), label))?;
     let (top, bottom) = body.split_vertically(300);
     draw_nis_panel(&top, u, avg, t, switches)?;
+    let (strip, bottom) = bottom.split_vertically(24);
+    draw_component_legend(&strip, u)?;
     draw_white_panel(&bottom, u, t, switches)
+}
+
+/// The legend of the whitened components: each component's colour and
+/// name, then the ±3 dashes.
+fn draw_component_legend<'a>(strip: &Area<'a>, u: &Innovations<'_>) -> DrawResult<'a> {
+    let label = legend_label();
+    let y = 12;
+    let mut x = 40;
+    let z = u
+        .white
+        .iter()
+        .map(Vec::len)
+        .max()
+        .unwrap_or(0)
+        .min(COMPONENT_COLOURS.len());
+    for (k, colour) in COMPONENT_COLOURS.iter().enumerate().take(z) {
+        let name = u
+            .components
+            .get(k)
+            .map_or_else(|| format!("component {}", k + 1), |n| (*n).to_string());
+        strip.draw(&Circle::new((x + 6, y), 4, colour.filled()))?;
+        let advance = strip
+            .estimate_text_size(&name, &label)
+            .map(|(w, _)| i32::try_from(w).unwrap_or(80))
+            .unwrap_or(80);
+        strip.draw(&Text::new(name, (x + 16, y), label.clone()))?;
+        x += 16 + advance + 24;
+    }
+    strip.draw(&plotters::element::DashedPathElement::new(
+        vec![(x, y), (x + 30, y)],
+        5,
+        3,
+        CRLB_COLOUR.stroke_width(1),
+    ))?;
+    strip.draw(&Text::new("±3", (x + 38, y), label))?;
+    Ok(())
 }
 
 /// Top: the NIS moving mean (log scale) in its band, the dof dotted.

@@ -1,0 +1,68 @@
+//! The calibrator run on a stream, as `calibrate` drives it:
+//!
+//! - [`host`]: the no_std session ([`rollcal::session::Session`]) with the
+//!   host's sample log, the NIS and failures of every accepted sample, the
+//!   estimator of record's final passes with their covariance;
+//! - [`answer`]: what the session answered after the stream, as a
+//!   [`Calibration`] (everything the outputs need, computed once);
+//! - [`bound`]: the bound at the estimate without a truth;
+//! - [`rejects`]: why samples were rejected, and the likely cause;
+//! - [`trust`]: when the result is an answer, and the gated updates;
+//! - [`diagnose`]: the likely cause of a data warning;
+//! - here: the calibrator settings of a scenario or platform file.
+
+mod answer;
+mod bound;
+pub mod diagnose;
+mod host;
+pub mod rejects;
+pub mod trust;
+
+use rollcal::ekf::Options;
+use rollcal::models::{ConfigId, ErrorModel};
+use rollcal::wire::CalibratorConfig;
+
+use crate::analysis::runner;
+use crate::sim::scenario::{Platform, Scenario, DEG};
+
+pub use answer::{Calibration, CalibrationError, Context};
+pub use bound::{bound_at_estimate, state_at_start, truth_at_start, CalibratorView};
+pub use host::{name_of, Final, Host, HostError, LogStorage, Refused, VecLog};
+
+/// Calibrator settings equal to `runner::filter_config` of the scenario
+/// (so that the stream's filter is `run`'s filter), for error model
+/// `errors` with the scenario's instrument prior.
+pub fn calibrator_config(
+    sc: &Scenario,
+    id: ConfigId,
+    errors: ErrorModel,
+    earth_rate: bool,
+) -> CalibratorConfig {
+    platform_config(&Platform::of_scenario(sc), id, errors, earth_rate)
+}
+
+/// Calibrator settings of a platform file (the `Configure` message a
+/// platform with these settings would send), for error model `errors`.
+pub fn platform_config(
+    p: &Platform,
+    id: ConfigId,
+    errors: ErrorModel,
+    earth_rate: bool,
+) -> CalibratorConfig {
+    let f = runner::filter_config_of(&p.site, &p.noise, earth_rate, Options::default());
+    let mut c = CalibratorConfig::paper(id);
+    c.sigma_accel_g = f.sigma_accel;
+    c.sigma_gyro_rad_s = f.sigma_gyro;
+    c.sigma_gimbal_rad = f.sigma_gimbal;
+    c.earth_rate_n = f.env.earth_rate_n.into();
+    c.gravity_n = f.env.gravity_n.into();
+    c.prior_sigma_rad = p.prior.sigma_deg * DEG;
+    c.limits.period_s = p.timing.period_s;
+    c.errors = errors;
+    c.instrument_prior = p.instruments.prior.to_wire();
+    c.wander = match errors {
+        ErrorModel::Installation => rollcal::models::Wander::none(),
+        ErrorModel::Full => p.instruments.wander.to_model(),
+    };
+    c
+}
