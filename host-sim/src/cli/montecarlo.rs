@@ -9,6 +9,7 @@ use rollcal::models::{ConfigId, ErrorModel};
 use super::args::{load_scenario, parse_config, parse_errors};
 use super::Error;
 use crate::analysis::montecarlo::{monte_carlo, Consistency, MonteCarlo};
+use crate::analysis::remedies::Remedy;
 use crate::analysis::runner::{Estimator, Precision};
 use crate::output::progress::Progress;
 use crate::output::report::write_json;
@@ -40,6 +41,11 @@ pub struct MonteCarloArgs {
     /// calibrator reports while a run goes on.
     #[arg(long, value_parser = clap::value_parser!(u8).range(1..=16))]
     pub passes: Option<u8>,
+    /// The running filter's cold-start remedy (docs/estimator.md, "The
+    /// cold start"; `remedies` compares them): the default is the
+    /// estimator of record's.
+    #[arg(long, value_enum, default_value_t = Remedy::SecondOrder)]
+    pub remedy: Remedy,
     /// Write the statistics as JSON to PATH.
     #[arg(long, value_name = "PATH")]
     pub json: Option<PathBuf>,
@@ -67,7 +73,7 @@ pub fn command(args: &MonteCarloArgs) -> Result<(), Error> {
         Estimator {
             precision: args.precision,
             passes: args.passes.unwrap_or(Estimator::default().passes),
-            ..Estimator::default()
+            options: args.remedy.options(),
         },
         &|n| {
             done.fetch_max(n as u64, Ordering::Relaxed);

@@ -40,6 +40,11 @@ pub struct RecordArgs {
     /// Also write the truth (final true states, Cramér–Rao σ) as JSON to PATH.
     #[arg(long, value_name = "PATH")]
     pub truth: Option<PathBuf>,
+    /// With --truth: also every state at the end of every period (the
+    /// history of the errors that wander), `history_rad` and
+    /// `instrument_history` in the sidecar.
+    #[arg(long, requires = "truth")]
+    pub truth_history: bool,
     /// Estimate cadence written into the `Configure` message (samples;
     /// default 60). Frames only: a CSV log has no `Configure`.
     #[arg(long)]
@@ -158,7 +163,14 @@ pub fn command(args: &RecordArgs) -> Result<(), Error> {
         eprintln!("{} frames, {} bytes", samples.len() + 1, bytes.len());
     }
     if let Some(path) = &args.truth {
-        let json = truth_json(args.config, &sc, &sim, args.seed, earth_rate)?;
+        let json = truth_json(
+            args.config,
+            &sc,
+            &sim,
+            args.seed,
+            earth_rate,
+            args.truth_history,
+        )?;
         write_json(path, &json)?;
     }
     Ok(())

@@ -5,7 +5,7 @@
 
 use std::path::Path;
 
-use rollcal::models::{ConfigId, ErrorModel};
+use rollcal::models::{ConfigId, ErrorModel, Group};
 
 use super::Error;
 use crate::analysis::runner::SimulatedRun;
@@ -13,25 +13,40 @@ use crate::sim::instruments::{
     instrument_names, instrument_truth_state, instrument_units, INSTRUMENT_STATES,
 };
 use crate::sim::scenario::Scenario;
-use crate::sim::truth::Simulation;
+use crate::sim::truth::{truth_state, Simulation};
 
 /// The sidecar of configuration `id` on the simulated run `sim` of
 /// `sc` (seed `seed`, Earth rate `earth_rate`). Besides the configuration's
-/// states it holds the 21 true instrument errors of the run
-/// (`instrument_names`, `instrument_units` (printed units) and
-/// `instrument_truth` in internal units: rad/s, rad/s/g, 1, g, 1).
+/// states it holds the 36 true instrument errors of the run at its end
+/// (`instrument_names`, `instrument_units` (internal units: rad/s, rad/s/g,
+/// 1, g, 1, 1/g) and `instrument_truth`: the wandering errors' persistent
+/// parts and their nuisances then), the attitude states at the end of every
+/// period (`attitude_history_rad`: they move, so a log that ends before the
+/// path does is judged at its own end), and with `history` every state at
+/// the end of every period (`history_rad`, `instrument_history`).
 pub fn truth_json(
     id: ConfigId,
     sc: &Scenario,
     sim: &Simulation,
     seed: u64,
     earth_rate: bool,
+    history: bool,
 ) -> Result<serde_json::Value, Error> {
     let run = SimulatedRun::new(id, sc, sim, earth_rate);
     let truth = run.truth_at_end();
     let truth0 = run.truth_at_start();
     let crlb = run.crlb().map_err(Error::Bound)?;
-    Ok(serde_json::json!({
+    let attitude = attitude_indices(id);
+    let installation: Vec<Vec<f64>> = sim
+        .samples
+        .iter()
+        .map(|s| truth_state(id, &sim.params, &s.truth))
+        .collect();
+    let attitude_history: Vec<Vec<f64>> = installation
+        .iter()
+        .map(|x| attitude.iter().map(|&i| x[i]).collect())
+        .collect();
+    let mut json = serde_json::json!({
         "config": id.as_str(),
         "scenario": sc.name,
         "seed": seed,
@@ -44,7 +59,29 @@ pub fn truth_json(
         "instrument_names": instrument_names(id).to_vec(),
         "instrument_units": instrument_units().to_vec(),
         "instrument_truth": instrument_truth_state(id, &sim.params, &sim.final_wander()).to_vec(),
-    }))
+        "attitude_history_rad": attitude_history,
+    });
+    if history {
+        let instruments: Vec<Vec<f64>> = sim
+            .samples
+            .iter()
+            .map(|s| instrument_truth_state(id, &sim.params, &s.wander).to_vec())
+            .collect();
+        json["history_rad"] = serde_json::json!(installation);
+        json["instrument_history"] = serde_json::json!(instruments);
+    }
+    Ok(json)
+}
+
+/// The indices of configuration `id`'s attitude states (the states that
+/// move along the path).
+fn attitude_indices(id: ConfigId) -> Vec<usize> {
+    id.states()
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s.group == Group::Attitude)
+        .map(|(i, _)| i)
+        .collect()
 }
 
 /// The truth sidecar written by `record --truth`.
@@ -63,6 +100,14 @@ pub struct Sidecar {
     /// [`crate::sim::instruments`]); zero for a sidecar written before they
     /// were recorded.
     pub instruments: [f64; INSTRUMENT_STATES],
+    /// The attitude states (rad) at the end of every period, when recorded.
+    pub attitude_history: Option<Vec<Vec<f64>>>,
+    /// Every installation state (rad) and every instrument error (internal
+    /// units) at the end of every period, when recorded (`record
+    /// --truth-history`).
+    pub history: Option<(Vec<Vec<f64>>, Vec<Vec<f64>>)>,
+    /// The configuration.
+    pub config: ConfigId,
 }
 
 impl Sidecar {
@@ -70,6 +115,37 @@ impl Sidecar {
     /// states, then (full model) the instrument errors.
     pub fn truth_of(&self, errors: ErrorModel) -> Vec<f64> {
         with_instruments(&self.truth, &self.instruments, errors)
+    }
+
+    /// The true state of the model of `errors` at the end of period `k`
+    /// (1-based) of the recorded path: the final state when `k` is the
+    /// path's last period (or the periods were not recorded); otherwise
+    /// the recorded history's, else the final state with the attitude
+    /// states of period `k` (the parameters' truth is the path's end then).
+    /// `None` when the sidecar does not reach period `k`.
+    pub fn truth_at_period(&self, errors: ErrorModel, k: u32) -> Option<Vec<f64>> {
+        let i = usize::try_from(k).ok()?.checked_sub(1)?;
+        let periods = self
+            .attitude_history
+            .as_ref()
+            .or(self.history.as_ref().map(|h| &h.0));
+        match periods {
+            None => return Some(self.truth_of(errors)),
+            Some(p) if i + 1 == p.len() => return Some(self.truth_of(errors)),
+            Some(p) if i >= p.len() => return None,
+            Some(_) => {}
+        }
+        if let Some((installation, instruments)) = &self.history {
+            let x = installation.get(i)?;
+            let w = instruments.get(i)?;
+            return Some(with_instruments(x, w, errors));
+        }
+        let attitude = self.attitude_history.as_ref()?.get(i)?;
+        let mut x = self.truth.clone();
+        for (&j, &v) in attitude_indices(self.config).iter().zip(attitude) {
+            *x.get_mut(j)? = v;
+        }
+        Some(with_instruments(&x, &self.instruments, errors))
     }
 
     /// The true initial state of the model of `errors`, when recorded.
@@ -136,7 +212,21 @@ pub fn read_sidecar(path: &Path, id: ConfigId) -> Result<Sidecar, Error> {
             })?
         }
     };
+    let rows = |key: &str| -> Option<Vec<Vec<f64>>> {
+        v.get(key)?
+            .as_array()?
+            .iter()
+            .map(|row| {
+                row.as_array()
+                    .map(|r| r.iter().map(|x| x.as_f64().unwrap_or(f64::NAN)).collect())
+            })
+            .collect()
+    };
+    let history = rows("history_rad").zip(rows("instrument_history"));
     Ok(Sidecar {
+        attitude_history: rows("attitude_history_rad"),
+        history,
+        config: id,
         truth: floats("truth_rad")?,
         truth0: floats("truth0_rad").ok(),
         crlb: floats("crlb_sigma_rad")?,

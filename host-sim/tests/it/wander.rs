@@ -159,3 +159,47 @@ fn the_second_order_term_on_a_known_attitude() {
         "{m}"
     );
 }
+
+/// `record --truth-history`: the sidecar holds every state at the end of
+/// every period (the installation states in rad, the 36 instrument errors
+/// in internal units); the last period's are the final truth, and the
+/// persistent drift walks (its random walk) while the Gauss–Markov part
+/// wanders about zero. Without the flag only the attitude's history.
+#[test]
+fn the_truth_sidecar_gives_the_history_on_request() {
+    let dir = crate::support::scratch("truth-history");
+    let sc = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/realistic.toml");
+    let record = |name: &str, extra: &[&str]| {
+        let truth = dir.join(name);
+        let out = crate::support::host_sim()
+            .args(["record", "--config", "M2-ps", "--seed", "2", "--scenario"])
+            .arg(&sc)
+            .args(["--out", "-", "--truth"])
+            .arg(&truth)
+            .args(extra)
+            .output()
+            .unwrap();
+        crate::support::assert_success(&out);
+        crate::support::json_file(&truth)
+    };
+    let full = record("full.json", &["--truth-history"]);
+    let rows = |v: &serde_json::Value, k: &str| v[k].as_array().unwrap().clone();
+    let history = rows(&full, "history_rad");
+    let instruments = rows(&full, "instrument_history");
+    assert_eq!(history.len(), 5400);
+    assert_eq!(instruments.len(), 5400);
+    assert_eq!(history[5399], full["truth_rad"]);
+    assert_eq!(instruments[5399], full["instrument_truth"]);
+    assert_eq!(instruments[0].as_array().unwrap().len(), 36);
+    // dg_x (index 0) takes the random walk; dg_gm_x (index 24) the
+    // Gauss–Markov part: both move over the run.
+    let at = |k: usize, i: usize| instruments[k][i].as_f64().unwrap();
+    assert_ne!(at(0, 0), at(5399, 0));
+    assert_ne!(at(0, 24), at(5399, 24));
+    let plain = record("plain.json", &[]);
+    assert!(plain.get("history_rad").is_none());
+    let attitude = rows(&plain, "attitude_history_rad");
+    assert_eq!(attitude.len(), 5400);
+    assert_eq!(attitude[5399].as_array().unwrap().len(), 3);
+    std::fs::remove_dir_all(&dir).ok();
+}

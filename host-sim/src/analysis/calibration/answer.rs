@@ -219,7 +219,7 @@ impl Calibration {
         };
         let truth = sidecar
             .as_ref()
-            .map_or_else(|| nan.clone(), |s| s.truth_of(settings.errors));
+            .map_or_else(|| nan.clone(), |s| log_end_truth(s, &settings, &est));
         let sigma0 = runner::prior_sigma_of(&settings);
         let r = result(
             &settings,
@@ -438,7 +438,10 @@ fn received<T: RealField + Copy>(
         (Some(s), None) => truth_at_start(
             settings,
             &start,
-            (s.truth0_of(settings.errors), &s.truth_of(settings.errors)),
+            (
+                s.truth0_of(settings.errors),
+                &log_end_truth(s, settings, est),
+            ),
             &records,
         )
         .map_err(CalibrationError::Analysis)?,
@@ -461,6 +464,17 @@ fn received<T: RealField + Copy>(
         })
         .transpose()?;
     Ok((start, truth_start, bound))
+}
+
+/// The true state at the end of the log (its last sample's period, by its
+/// sequence number: a recording numbers its periods from 1): the sidecar's
+/// final state, or, for a log that lost its last samples, the state at
+/// that period ([`Sidecar::truth_at_period`]: the attitude moved since).
+fn log_end_truth(s: &Sidecar, settings: &CalibratorConfig, est: &Estimate) -> Vec<f64> {
+    est.progress
+        .last_seq
+        .and_then(|k| s.truth_at_period(settings.errors, k))
+        .unwrap_or_else(|| s.truth_of(settings.errors))
 }
 
 /// The answer as a run's result: the final passes' estimate, σ,

@@ -42,7 +42,9 @@ pub fn calibrator_config(
 }
 
 /// Calibrator settings of a platform file (the `Configure` message a
-/// platform with these settings would send), for error model `errors`.
+/// platform with these settings would send), for error model `errors`,
+/// with the platform's instrument prior and errors that wander whichever
+/// the model (the installation model does not use them).
 pub fn platform_config(
     p: &Platform,
     id: ConfigId,
@@ -60,9 +62,9 @@ pub fn platform_config(
     c.limits.period_s = p.timing.period_s;
     c.errors = errors;
     c.instrument_prior = p.instruments.prior.to_wire();
-    c.wander = match errors {
-        ErrorModel::Installation => rollcal::models::Wander::none(),
-        ErrorModel::Full => p.instruments.wander.to_model(),
-    };
+    // The platform's figures travel whatever the model: the installation
+    // model ignores them, as it ignores the instrument prior, and a
+    // stream `calibrate --errors full` reads keeps them.
+    c.wander = p.instruments.wander.to_model();
     c
 }
