@@ -84,6 +84,10 @@ fn attitude_indices(id: ConfigId) -> Vec<usize> {
         .collect()
 }
 
+/// Every state at the end of every period: the installation states (rad)
+/// and the instrument errors (internal units), one row per period.
+pub type History = (Vec<Vec<f64>>, Vec<Vec<f64>>);
+
 /// The truth sidecar written by `record --truth`.
 pub struct Sidecar {
     /// True final state (rad).
@@ -105,7 +109,7 @@ pub struct Sidecar {
     /// Every installation state (rad) and every instrument error (internal
     /// units) at the end of every period, when recorded (`record
     /// --truth-history`).
-    pub history: Option<(Vec<Vec<f64>>, Vec<Vec<f64>>)>,
+    pub history: Option<History>,
     /// The configuration.
     pub config: ConfigId,
 }
