@@ -64,7 +64,8 @@ pub struct ConfigObs {
     pub errors: ErrorModel,
     /// Number of states of the structural analysis: those the model
     /// estimates as constants (not those of prior σ zero, held at zero, nor
-    /// the Gauss–Markov nuisances of errors that wander).
+    /// the nuisances of errors that wander: the Gauss–Markov parts and the
+    /// warm-ups).
     pub n: usize,
     /// Numerical rank of the information matrix (zero-state linearisation).
     pub rank: usize,
@@ -124,15 +125,22 @@ fn analyse_typed<M: Model<N, Z>, const N: usize, const Z: usize>(
     let prior = SVector::<f64, N>::from_iterator(run.prior_sigma());
     // The structure is that of the states the model holds constant: the
     // information matrix of the initial state has no process noise, and the
-    // Gauss–Markov nuisances of errors that wander (whose information the
-    // model forgets at the rate 1/τ) are left out of it (prior σ 0, no
-    // wander), as are the states it does not estimate.
+    // nuisances of errors that wander are left out of it (prior σ 0, no
+    // wander), as are the states it does not estimate: the Gauss–Markov
+    // parts (whose information the model forgets at the rate 1/τ) and the
+    // warm-ups (told from a constant only by their decay, which the
+    // structure's model without wander does not have).
     let layout = M::LAYOUT;
     let nuisance = |i: usize| {
-        [layout.dg_gm(), layout.ba_gm()]
-            .into_iter()
-            .flatten()
-            .any(|first| (first..first + 3).contains(&i))
+        [
+            layout.dg_gm(),
+            layout.ba_gm(),
+            layout.dg_wu(),
+            layout.ba_wu(),
+        ]
+        .into_iter()
+        .flatten()
+        .any(|first| (first..first + 3).contains(&i))
     };
     let mut prior_struct = prior;
     for (i, p) in prior_struct.iter_mut().enumerate() {

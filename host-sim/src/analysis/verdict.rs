@@ -37,8 +37,9 @@ pub enum Verdict {
     /// a Gauss–Markov part without a bias instability).
     NotEstimated,
     /// A nuisance of the full model that wanders (the Gauss–Markov parts
-    /// of the drift and the bias): estimated to keep the others honest,
-    /// reported at the final time, not a value to compensate or judge.
+    /// of the drift and the bias, and their warm-ups): estimated to keep
+    /// the others honest, reported at the final time, not a value to
+    /// compensate or judge.
     Nuisance,
 }
 

@@ -81,7 +81,7 @@ pub fn note_instrument_prior(scenario: &Scenario, errors: ErrorModel) {
     use crate::sim::scenario::InstrumentPrior;
     if errors == ErrorModel::Full && scenario.instruments.prior == InstrumentPrior::default() {
         eprintln!(
-            "instrument priors: the defaults of docs/model.md (1 °/h, 1 °/h/g, 2000 ppm, 1000 µg, 1000 ppm); \
+            "instrument priors: the defaults of docs/model.md (1 °/h, 1 °/h/g, 2000 ppm, 1000 µg, 1000 ppm, 100 µg/g²); \
              [instruments.prior] of the scenario sets others"
         );
     }

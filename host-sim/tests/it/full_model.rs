@@ -308,6 +308,48 @@ fn full_model_observability_on_the_paper_path() {
     }
 }
 
+/// With errors that wander (the realistic scenario) the structure is that
+/// of the constant terms: the nuisances (Gauss–Markov parts and warm-ups)
+/// are left out of the rank, so no constant term is reported in a null
+/// space with a warm-up (a warm-up seen without its decay is a constant:
+/// left in, `dg_x` and `dg_wu_x` shared a null direction), and every
+/// constant instrument term of M2-ps and M1-pa keeps a finite bound.
+#[test]
+fn full_model_observability_with_errors_that_wander() {
+    use host_sim::analysis::observe::{analyse_run, Verdict};
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/realistic.toml");
+    let scenario = Scenario::load(Some(std::path::Path::new(path))).unwrap();
+    let sim = simulate(
+        &scenario,
+        SimOptions {
+            seed: 0,
+            noise: false,
+            earth_rate: true,
+        },
+    );
+    for (id, n) in [(ConfigId::M2Ps, 42), (ConfigId::M1Pa, 36)] {
+        let obs = analyse_run(
+            SimulatedRun::new(id, &scenario, &sim, true).with_errors(ErrorModel::Full),
+            false,
+        )
+        .unwrap();
+        assert_eq!((obs.n, obs.rank), (n, n), "{id:?}");
+        assert!(obs.null_space.is_empty(), "{id:?}: {:?}", obs.null_space);
+        for s in obs.states.iter().filter(|s| s.group.is_instrument()) {
+            if s.group.is_nuisance() {
+                assert_eq!(s.verdict, Verdict::Nuisance, "{id:?} {}", s.name);
+            } else {
+                assert_ne!(
+                    s.verdict,
+                    Verdict::StructurallyUnobservable,
+                    "{id:?} {}",
+                    s.name
+                );
+            }
+        }
+    }
+}
+
 /// `paper --errors full`: the observability tables of the seven full
 /// models (Earth rate off and on, with the instrument columns), the runs,
 /// and the summary with the instrument states in their units; the paper's
