@@ -203,3 +203,80 @@ fn the_truth_sidecar_gives_the_history_on_request() {
     assert_eq!(attitude[5399].as_array().unwrap().len(), 3);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The data-sheet example of docs/model.md §Errors that wander: its
+/// platform-file fragment (the page's ```toml block that starts with
+/// `name = "data-sheet example"`) read as `calibrate --platform` reads it,
+/// and every per-period figure the page's table quotes, as the code
+/// derives it (`Noise::normalise`, `Wander::to_model`, `Wander::step`,
+/// `InstrumentPrior::sigma`). Prints the table (`-- --nocapture`).
+#[test]
+fn the_data_sheet_example_of_the_model_page() {
+    use host_sim::sim::scenario::Platform;
+    let page = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/model.md");
+    let text = std::fs::read_to_string(page).unwrap();
+    let start = text.find("```toml\nname = \"data-sheet example\"").unwrap() + "```toml\n".len();
+    let end = start + text[start..].find("```").unwrap();
+    let p = Platform::from_toml(&text[start..end]).unwrap();
+    let t = p.timing.period_s;
+    let w = p.instruments.wander.to_model();
+    let step = w.step(t);
+    let sigma0 = p.instruments.prior.to_wire().sigma(&w);
+    let ug = |g: f64| g * 1e6;
+    let deg_h = |r: f64| r / DEG_H;
+    let log_s: f64 = 5400.0;
+    let rows = [
+        ("period T (s)", t),
+        ("noise.gyro_deg_h (°/h)", p.noise.gyro_deg_h),
+        ("noise.accel_g (µg)", ug(p.noise.accel_g)),
+        ("gyro GM σ (rad/s)", w.gyro_markov_sigma),
+        ("gyro GM φ", step.gyro_phi),
+        (
+            "gyro GM driving σ per period (°/h)",
+            deg_h(step.gyro_markov_q.sqrt()),
+        ),
+        ("gyro RW K (rad/s/√s)", w.gyro_random_walk),
+        ("gyro RW σ per period (°/h)", deg_h(step.gyro_walk_q.sqrt())),
+        (
+            "gyro RW σ over 5400 s (°/h)",
+            deg_h(w.gyro_random_walk * log_s.sqrt()),
+        ),
+        ("accel GM σ (g)", w.accel_markov_sigma),
+        ("accel GM φ", step.accel_phi),
+        (
+            "accel GM driving σ per period (µg)",
+            ug(step.accel_markov_q.sqrt()),
+        ),
+        ("accel RW K (g/√s)", w.accel_random_walk),
+        ("accel RW σ per period (µg)", ug(step.accel_walk_q.sqrt())),
+        (
+            "accel RW σ over 5400 s (µg)",
+            ug(w.accel_random_walk * log_s.sqrt()),
+        ),
+        ("warm-up φ_w", step.warmup_phi),
+        (
+            "warm-up left after 3600 s",
+            (-3600.0 / w.warmup_tau_s).exp(),
+        ),
+        ("prior σ k2 (1/g)", sigma0[21]),
+        ("prior σ dg_gm (°/h)", deg_h(sigma0[24])),
+        ("prior σ ba_gm (µg)", ug(sigma0[27])),
+        ("prior σ dg_wu (°/h)", deg_h(sigma0[30])),
+        ("prior σ ba_wu (µg)", ug(sigma0[33])),
+    ];
+    for (name, v) in rows {
+        println!("{name:40} {v:.6e}");
+    }
+    // The figures the page quotes, to the digits it prints.
+    let want = [
+        1.0, 0.102, 1.0, 1.4544e-8, 0.998335, 1.7306e-4, 1.6160e-10, 3.3333e-5, 2.4495e-3, 2e-6,
+        0.998890, 0.094229, 1.6667e-8, 0.016667, 1.2247, 0.999167, 0.049787, 1.5e-5, 0.003, 2.0,
+        0.005, 3.0,
+    ];
+    for ((name, got), want) in rows.iter().zip(want) {
+        assert!(
+            (got / want - 1.0).abs() < 5e-5,
+            "{name}: {got:e}, the page says {want:e}"
+        );
+    }
+}
