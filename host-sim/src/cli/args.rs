@@ -88,14 +88,14 @@ pub fn note_instrument_prior(scenario: &Scenario, errors: ErrorModel) {
 }
 
 /// Warns on stderr when the full model is asked for its first pass alone
-/// (`--passes 1`): from a zero start that pass ends biased by tens of σ on
+/// (`--passes 1`): from a zero start that pass ends biased by several σ on
 /// the instrument terms (docs/model.md §Instrument errors), and the later
 /// passes of the estimator of record are what remove it.
 pub fn warn_full_first_pass(c: &CommonArgs) {
     if c.errors == ErrorModel::Full && c.passes == 1 {
         eprintln!(
             "warning: the full model's first pass alone is biased from a zero start \
-             (tens of σ on ba, ka); leave --passes at its default for the estimator of record"
+             (several σ on ba, ka, k2: 7-13σ on the instrumented scenario); leave --passes at its default for the estimator of record"
         );
     }
 }
