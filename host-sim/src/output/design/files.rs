@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use rollcal::models::ErrorModel;
 
-use crate::design::{floor_of, scenario_toml, Goal, Outcome, Problem, Run, Speed};
+use crate::design::{floor_of, scenario_toml, Goal, Outcome, Problem, Run, Speed, StateFloor};
 use crate::output::plots::{plot_sigma_comparison_in, SigmaCurve};
 use crate::sim::instruments::printed_value;
 
@@ -40,10 +40,11 @@ pub fn write_scenario(r: &Run, out: &Path) -> Result<(), String> {
 
 /// One σ(t) curve per target of `targets` (of `problem`'s states): the
 /// designed path `a` against the reference path `b`, each in the state's
-/// printed unit.
+/// printed unit, with the state's floor of `floors` when it has one.
 fn sigma_curves(
     problem: &Problem,
     targets: &[(usize, f64)],
+    floors: &[StateFloor],
     a: &Outcome,
     b: &Outcome,
 ) -> Vec<SigmaCurve> {
@@ -59,6 +60,7 @@ fn sigma_curves(
         .map(|&(i, t)| SigmaCurve {
             label: names[i].name,
             target: printed_value(names[i].group, t),
+            floor: floor_of(floors, i).map(|f| printed_value(names[i].group, f.limit)),
             a: curve(a, i),
             b: curve(b, i),
         })
@@ -73,7 +75,7 @@ pub fn write_figure(r: &Run, fig: &Path) -> Result<(), String> {
     let id = r.request.config;
     let names = id.states_with(problem.errors);
     let targets = r.all_targets();
-    let series = sigma_curves(problem, &targets, &r.fine, &r.ref_out);
+    let series = sigma_curves(problem, &targets, &r.floors, &r.fine, &r.ref_out);
     let (angles, instruments): (Vec<_>, Vec<_>) = series
         .into_iter()
         .zip(&targets)
