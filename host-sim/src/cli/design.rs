@@ -49,7 +49,12 @@ pub struct DesignArgs {
     /// `[instruments.prior]`). With `full`, a target out of reach is
     /// reported with the σ reached and what time or rate reaches it, and
     /// when no path reaches every target the search falls back to the best
-    /// worst-case σ/target within the duration limit.
+    /// worst-case σ/target within the duration limit. With errors that
+    /// wander (`[instruments.wander]`), each drift and bias target shows
+    /// the floor no path of any length gets below and the log length past
+    /// which rolling longer does not help; a target below its floor is
+    /// listed out of reach with it and not searched for (exit status 1,
+    /// the path to every other target written).
     /// Default: the platform file's `errors`, else `installation`.
     #[arg(long, value_parser = super::args::parse_errors)]
     pub errors: Option<ErrorModel>,
@@ -281,6 +286,23 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
         crate::output::report::write_json(p, &json)?;
     }
     eprintln!("design: done in {:.1} s", t_all.elapsed().as_secs_f64());
+    exit_status(&r, &out)
+}
+
+/// The exit status of a finished design: an error (status 1) when the
+/// written path misses a target it was to meet: in the observability
+/// check, out of reach within the limits (the shortest path to every
+/// target was asked for and the budget search stood in), or below the
+/// floor the wandering errors leave (out of reach of every path). A
+/// budget (`--budget-s`) asks for the best path within it, not for the
+/// targets: it succeeds whichever it meets.
+fn exit_status(r: &Run, out: &std::path::Path) -> Result<(), String> {
+    let below = r.below_floor.len();
+    let of_them = if below > 0 {
+        format!("; {below} of them below the floor the wandering errors leave, out of reach of any path")
+    } else {
+        String::new()
+    };
     match r.goal {
         Goal::Reach { .. } if !r.checked.met => {
             Err("the designed path misses a target in the observability check".into())
@@ -289,8 +311,13 @@ pub fn command(args: &DesignArgs) -> Result<(), String> {
         // within the limits: the best path within them is written, and the
         // exit status says the goal was not reached.
         Goal::Budget { .. } if r.fallback => Err(format!(
-            "{} target(s) out of reach within the limits (listed above): the best path within them is written to {}",
-            r.unreached.len(),
+            "{} target(s) out of reach within the limits (listed above): the best path within them is written to {}{of_them}",
+            r.unreached.len() + below,
+            out.display()
+        )),
+        Goal::Reach { .. } if below > 0 => Err(format!(
+            "{below} target(s) below the floor the wandering errors leave, out of reach of any path (listed above): {} to every other target is written to {}",
+            if r.fallback { "a path" } else { "the shortest path" },
             out.display()
         )),
         _ => Ok(()),

@@ -41,10 +41,25 @@
 //! middle gimbal angle |β| exceeds the limit before it reaches the targets
 //! is infeasible.
 //!
+//! **The floor.** With the full model and errors that wander (a
+//! Gauss–Markov drift or bias and a random walk), the persistent part of
+//! a drift or a bias cannot be known better than a floor however the
+//! platform rolls and for however long ([`crate::analysis::floor`], the
+//! floors `host-sim observability --errors full` prints). Each target of
+//! such a state carries its floor and the log length past which rolling
+//! longer does not help; a target below its floor is out of reach of every
+//! path, so it is set apart and reported with its floor, not searched for
+//! ([`split_below_floor`]).
+//!
+//! **The fallback.** When the full model's shortest-path search finds no
+//! path, its stage 1 (every candidate run to the duration limit) is scored
+//! for the budget search that stands in rather than evaluated again
+//! ([`search_reusing`]).
+//!
 //! The library part lives here, by concern: the axes ([`NamedAxis`]), the
 //! paths ([`Pattern`]), the problem and its outcomes ([`Problem`],
 //! [`Outcome`]), the bound evaluation (`Problem::evaluate`), the candidate
-//! moves and the search ([`search`]), the targets, the information shares
+//! moves and the search ([`search`]), the targets and their floors, the information shares
 //! ([`contributions`]), the checks of the designed path and the speed
 //! measurement, and one design from start to end ([`run`]). It prints
 //! nothing and returns [`DesignError`]; `crate::output::design` prints and
@@ -57,6 +72,7 @@ mod candidates;
 mod check;
 mod error;
 mod explain;
+mod floors;
 mod nominal;
 mod pattern;
 mod probe;
@@ -78,13 +94,16 @@ pub use check::{
 };
 pub use error::DesignError;
 pub use explain::{contributions, target_groups, Contribution};
+pub use floors::{floor_of, split_below_floor, state_floors, BelowFloor, StateFloor};
 pub use nominal::{nominal_scenario, TRUTH_STEPS_PER_PERIOD};
 pub use pattern::{pattern_of, Pattern, Piece, Rotation};
 pub use probe::{dwell_probe, DwellProbe};
 pub use problem::{Goal, Outcome, Problem};
 pub use reach::{out_of_reach, OutOfReach, FASTER_RATES_DEG_S};
 pub use run::{run, Note, Observer, Request, Run, Silent, OUT_OF_REACH_HORIZON};
-pub use search::{best_of, score_all, search, Design, Scored, StageStats};
+pub use search::{
+    best_of, score_all, search, search_reusing, Design, Scored, StageStats, UnreachedStageOne,
+};
 pub use speed::{measure_speed, Speed};
 pub use targets::{
     default_target_states, parse_target, targets, targets_with, InstrumentTargets, TargetArg,

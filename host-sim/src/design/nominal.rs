@@ -33,11 +33,13 @@ fn nominal_truth() -> Truth {
 }
 
 /// A platform file as the reference scenario of a design: its site, noise,
-/// period and prior, the instruments' prior, the nominal values (zero
-/// installation errors, initial gimbal angles and instrument terms) and
-/// its `[[path]]` as the reference path, or the paper's when it has none
-/// (then also the paper's duration; returned `true`). The duration is the
-/// file's `timing.duration_s`, else the path's.
+/// period and prior, the instruments' prior and errors that wander (the
+/// full model's wander states and the floors they leave), the nominal
+/// values (zero installation errors, initial gimbal angles and instrument
+/// terms, no warm-up) and its `[[path]]` as the reference path, or the
+/// paper's when it has none (then also the paper's duration; returned
+/// `true`). The duration is the file's `timing.duration_s`, else the
+/// path's.
 pub fn nominal_scenario(p: &Platform) -> Result<(Scenario, bool), DesignError> {
     let paper = Scenario::paper();
     let paper_path = p.path.is_empty();
@@ -67,6 +69,7 @@ pub fn nominal_scenario(p: &Platform) -> Result<(Scenario, bool), DesignError> {
         prior: p.prior.clone(),
         instruments: Instruments {
             prior: p.instruments.prior.clone(),
+            wander: p.instruments.wander.clone(),
             ..Instruments::default()
         },
     };

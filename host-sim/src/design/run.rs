@@ -1,5 +1,6 @@
 //! One design from start to end ([`run`]): the limits and targets of a
-//! [`Request`], the reference path's bound, the search (repeated with
+//! [`Request`] (those below the floor the wandering errors leave set
+//! apart), the reference path's bound, the search (repeated with
 //! shorter coarse steps until they hold, and for the full model the budget
 //! search when no path reaches every target), the check of the written
 //! scenario, the dwell probe and the targets out of reach. It prints
@@ -12,9 +13,10 @@ use rollcal::models::{ConfigId, ErrorModel};
 
 use super::{
     check_designed, coarse_check, dwell_probe, measure_speed, observability_sigma, out_of_reach,
-    pattern_of, scenario_with, search, targets_with, Checked, CoarseCheck, Design, DesignError,
-    DwellProbe, Goal, InstrumentTargets, NamedAxis, OutOfReach, Outcome, Pattern, Problem, Space,
-    Speed, TargetArg, DWELL_STEPS_S,
+    pattern_of, scenario_with, search_reusing, split_below_floor, state_floors, targets_with,
+    BelowFloor, Checked, CoarseCheck, Design, DesignError, DwellProbe, Goal, InstrumentTargets,
+    NamedAxis, OutOfReach, Outcome, Pattern, Problem, Space, Speed, StateFloor, TargetArg,
+    UnreachedStageOne, DWELL_STEPS_S,
 };
 use crate::sim::scenario::{Scenario, MAX_PERIODS};
 
@@ -84,8 +86,10 @@ pub enum Note {
         full: bool,
         /// The reference scenario's name.
         scenario: String,
-        /// Number of targets.
+        /// Number of targets searched for.
         targets: usize,
+        /// Number of targets below their floor (not searched for).
+        below_floor: usize,
         /// Largest rate (°/s).
         max_rate: f64,
         /// Largest duration (s).
@@ -126,6 +130,7 @@ impl fmt::Display for Note {
                 full,
                 scenario,
                 targets,
+                below_floor,
                 max_rate,
                 max_duration,
                 max_beta_deg,
@@ -135,8 +140,13 @@ impl fmt::Display for Note {
                 threads,
             } => write!(
                 f,
-                "design: {config}{} on '{scenario}': {targets} targets, max rate {max_rate} °/s, {max_duration} s at most, |β| ≤ {max_beta_deg}°, axes {}{}, {}; {threads} threads",
+                "design: {config}{} on '{scenario}': {targets} targets{}, max rate {max_rate} °/s, {max_duration} s at most, |β| ≤ {max_beta_deg}°, axes {}{}, {}; {threads} threads",
                 if *full { " (full model)" } else { "" },
+                if *below_floor > 0 {
+                    format!(" ({below_floor} more below the floor the wandering errors leave: not searched for)")
+                } else {
+                    String::new()
+                },
                 axes.join(","),
                 if *tilted { " (+ tilted)" } else { "" },
                 if *dwells { "dwells" } else { "no dwells" },
@@ -247,17 +257,19 @@ fn space_of(req: &Request, l: &Limits) -> Space {
 
 /// The search, its progress to `obs`, repeated with coarse steps half as
 /// long while they move σ by more than 1 % (the result is then recomputed
-/// period by period anyway).
+/// period by period anyway). `kept`: stage 1 of a shortest-path search
+/// that found no path, kept for the budget search ([`search_reusing`]).
 fn search_until_fine(
     problem: &mut Problem,
     space: &Space,
     goal: Goal,
     max_periods: u64,
+    kept: &mut Option<UnreachedStageOne>,
     obs: &dyn Observer,
 ) -> Result<(Design, CoarseCheck), DesignError> {
     loop {
         obs.search_started();
-        let design = search(problem, space, goal, &|st, d, t| obs.stage(st, d, t));
+        let design = search_reusing(problem, space, goal, kept, &|st, d, t| obs.stage(st, d, t));
         obs.search_finished();
         let design = design?;
         let cc = coarse_check(problem, &design, goal, max_periods)?;
@@ -274,16 +286,30 @@ fn search_until_fine(
     }
 }
 
+/// The reference path's bound and the floors of the targets
+/// ([`reference_targets`]).
+struct Reference {
+    /// The reference path period by period (recorded).
+    out: Outcome,
+    /// σ_CRLB of every state at its end.
+    sigma: Vec<f64>,
+    /// The floors of the wandering terms' states.
+    floors: Vec<StateFloor>,
+    /// The targets below their floor (not on `problem`).
+    below_floor: Vec<BelowFloor>,
+}
+
 /// The reference path period by period, and the default targets: the
 /// reference scenario's σ_CRLB exactly as `host-sim observability
-/// --scenario` computes it, scaled and overridden by `req` (set on
-/// `problem`). Returns the reference outcome (recorded) and σ.
+/// --scenario` computes it, scaled and overridden by `req`; those above
+/// their floor (every target without a wander) set on `problem`, those
+/// below it returned apart.
 fn reference_targets(
     req: &Request,
     base: &Scenario,
     problem: &mut Problem,
     reference: &Pattern,
-) -> Result<(Outcome, Vec<f64>), DesignError> {
+) -> Result<Reference, DesignError> {
     let id = req.config;
     let ref_out = problem.evaluate(
         reference,
@@ -311,7 +337,7 @@ fn reference_targets(
         observability_sigma(&p, base)
     };
     let inst_sigma = sigma_of(problem, ErrorModel::Installation)?;
-    problem.targets = targets_with(
+    let targets = targets_with(
         id,
         problem.errors,
         &inst_sigma,
@@ -319,17 +345,28 @@ fn reference_targets(
         req.target_scale,
         &req.targets,
     )?;
+    // A target below the floor its wandering term leaves is out of reach
+    // of every path: set apart, not searched for.
+    let floors = state_floors(id, problem.errors, base);
+    let (reachable, below_floor) = split_below_floor(targets, &floors);
+    problem.targets = reachable;
     // The reference σ shown: the bound of the model searched.
     let ref_sigma = match problem.errors {
         ErrorModel::Installation => inst_sigma,
         errors => sigma_of(problem, errors)?,
     };
-    Ok((ref_out, ref_sigma))
+    Ok(Reference {
+        out: ref_out,
+        sigma: ref_sigma,
+        floors,
+        below_floor,
+    })
 }
 
 /// The search towards `goal`; for the full model, when no path reaches
 /// every target, the budget search within the duration limit instead
-/// (`true` returned), whose best path, when it meets every target after
+/// (`true` returned; its stage 1 is the shortest-path search's, scored for
+/// the budget), whose best path, when it meets every target after
 /// all, is cut period by period where it does (the goal returned is then
 /// a reach again: a path to every target, not the shortest).
 fn search_with_fallback(
@@ -340,7 +377,8 @@ fn search_with_fallback(
     max_periods: u64,
     obs: &dyn Observer,
 ) -> Result<(Design, CoarseCheck, Goal, bool), DesignError> {
-    let within_s = match search_until_fine(problem, space, goal, max_periods, obs) {
+    let mut kept = None;
+    let within_s = match search_until_fine(problem, space, goal, max_periods, &mut kept, obs) {
         Err(DesignError::NoPathReaches { within_s })
             if problem.errors == ErrorModel::Full && req.budget_s.is_none() =>
         {
@@ -352,7 +390,8 @@ fn search_with_fallback(
     let budget = Goal::Budget {
         periods: max_periods,
     };
-    let (design, mut coarse) = search_until_fine(problem, space, budget, max_periods, obs)?;
+    let (design, mut coarse) =
+        search_until_fine(problem, space, budget, max_periods, &mut kept, obs)?;
     let reach = Goal::Reach {
         cutoff: max_periods,
     };
@@ -397,8 +436,15 @@ pub struct Run {
     pub fine: Outcome,
     /// The best single dwell move, when dwells are searched.
     pub probe: Option<DwellProbe>,
-    /// The full model's targets out of reach.
+    /// The full model's targets out of reach within the limits (above
+    /// their floor, missed by the designed path).
     pub unreached: Vec<OutOfReach>,
+    /// The floor of every state of a wandering term (the full model with
+    /// a wander; else empty).
+    pub floors: Vec<StateFloor>,
+    /// The targets below their floor: out of reach of every path, not
+    /// searched for (not on [`Run::problem`]).
+    pub below_floor: Vec<BelowFloor>,
     /// The shortest-path search found no path reaching every target; the
     /// result is the budget search's within the duration limit, or, when
     /// its best path meets every target ([`Run::goal`] then
@@ -446,6 +492,25 @@ impl Run {
         self.ref_periods() as f64 * self.period_s()
     }
 
+    /// Every target asked for, `(state, σ)` by state: those searched for
+    /// ([`Run::problem`]) and those below their floor.
+    pub fn all_targets(&self) -> Vec<(usize, f64)> {
+        let mut t = self.problem.targets.clone();
+        t.extend(self.below_floor.iter().map(|b| (b.state, b.target)));
+        t.sort_by_key(|(i, _)| *i);
+        t
+    }
+
+    /// What the targets searched for are, in words: "every target", or,
+    /// when some are below their floor, "every target above its floor".
+    pub fn every_target(&self) -> &'static str {
+        if self.below_floor.is_empty() {
+            "every target"
+        } else {
+            "every target above its floor"
+        }
+    }
+
     /// The speed of one bound evaluation against one estimator run on the
     /// search's own candidate (before the polish): what every candidate
     /// of the search costs (`--measure-speed`). Returns the candidate, its
@@ -470,7 +535,12 @@ pub fn run(req: &Request, base: Scenario, obs: &dyn Observer) -> Result<Run, Des
     let id = req.config;
     let mut problem = Problem::with_errors(id, req.errors, &base, req.max_beta_deg);
     problem.step_deg = req.step_deg;
-    let (ref_out, ref_sigma) = reference_targets(req, &base, &mut problem, &reference)?;
+    let Reference {
+        out: ref_out,
+        sigma: ref_sigma,
+        floors,
+        below_floor,
+    } = reference_targets(req, &base, &mut problem, &reference)?;
     let goal = goal_of(req, base.timing.period_s, l.max_periods)?;
     let space = space_of(req, &l);
     obs.note(&Note::Searching {
@@ -478,6 +548,7 @@ pub fn run(req: &Request, base: Scenario, obs: &dyn Observer) -> Result<Run, Des
         full: problem.errors == ErrorModel::Full,
         scenario: base.name.clone(),
         targets: problem.targets.len(),
+        below_floor: below_floor.len(),
         max_rate: l.max_rate,
         max_duration: l.max_duration,
         max_beta_deg: req.max_beta_deg,
@@ -543,6 +614,8 @@ pub fn run(req: &Request, base: Scenario, obs: &dyn Observer) -> Result<Run, Des
         fine,
         probe,
         unreached,
+        floors,
+        below_floor,
         fallback,
         max_rate: l.max_rate,
         max_duration: l.max_duration,

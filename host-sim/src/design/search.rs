@@ -136,6 +136,21 @@ pub struct Design {
     pub searched: Scored,
 }
 
+/// Stage 1 of a shortest-path search that found no path: every candidate
+/// of the coarse grammar evaluated to the cutoff (or its gimbal limit),
+/// kept for the budget search over the same limit that stands in
+/// ([`search_reusing`]), which would evaluate them again to the same end.
+#[derive(Clone, Debug)]
+pub struct UnreachedStageOne {
+    /// The search space's patterns, scored (every one, in order).
+    scored: Vec<Scored>,
+    /// The stage's statistics.
+    stats: StageStats,
+    /// What the outcomes depend on besides the pattern: the cutoff
+    /// (periods), the problem's largest coarse step (°, periods).
+    key: (u64, f64, u64),
+}
+
 /// Searches `space` towards `goal`: stage 1 exhaustive over the coarse
 /// grammar with branch and bound, stage 2 hill climbing from the best
 /// `refine_starts` stage-1 patterns, stage 2b (with `space.dwell_steps`)
@@ -148,12 +163,46 @@ pub fn search(
     goal: Goal,
     progress: &(dyn Fn(&str, usize, usize) + Sync),
 ) -> Result<Design, DesignError> {
+    search_reusing(problem, space, goal, &mut None, progress)
+}
+
+/// [`search`], keeping stage 1 of a shortest-path search that finds no
+/// path in `unreached`, and, for a budget of the same periods as that
+/// search's cutoff on the same coarse steps, scoring those candidates'
+/// outcomes for the budget instead of evaluating them again. No candidate
+/// of such a stage 1 met the targets, so each ran to the cutoff or to its
+/// gimbal limit, exactly as the budget runs it when its coarse step is the
+/// same (a candidate whose step the budget's length changes is evaluated
+/// again): the result is the budget search's own.
+pub fn search_reusing(
+    problem: &Problem,
+    space: &Space,
+    goal: Goal,
+    unreached: &mut Option<UnreachedStageOne>,
+    progress: &(dyn Fn(&str, usize, usize) + Sync),
+) -> Result<Design, DesignError> {
     let cutoff = match goal {
         Goal::Reach { cutoff } => cutoff,
         Goal::Budget { periods } => periods,
     };
+    let key = (cutoff, problem.step_deg, problem.max_step_periods);
     let incumbent = AtomicU64::new(cutoff);
-    let (starts, pool, s1) = stage_one(problem, space, goal, &incumbent, progress);
+    let kept = match (goal, unreached.take()) {
+        (Goal::Budget { .. }, Some(u)) if u.key == key => Some(u),
+        _ => None,
+    };
+    let (all, s1) = match kept {
+        Some(u) => rescored(problem, goal, u),
+        None => stage_one_scored(problem, space, goal, &incumbent, progress),
+    };
+    if matches!(goal, Goal::Reach { .. }) && all.iter().all(|s| s.outcome.reach.is_none()) {
+        *unreached = Some(UnreachedStageOne {
+            scored: all.clone(),
+            stats: s1.clone(),
+            key,
+        });
+    }
+    let (starts, pool) = stage_one_starts(space, all);
     let mut stages = vec![s1];
     let climbed = climb_stages(
         problem,
@@ -198,32 +247,80 @@ pub fn search(
 }
 
 /// Stage 1: every pattern of the coarse grammar scored with branch and
-/// bound. Returns the hill-climbing starts (the best distinct `refine_starts`
-/// patterns), the pool of the best [`FINAL_CHECKS`] and the stage's
+/// bound. Returns every candidate scored, in order, and the stage's
 /// statistics.
-fn stage_one(
+fn stage_one_scored(
     problem: &Problem,
     space: &Space,
     goal: Goal,
     incumbent: &AtomicU64,
     progress: &(dyn Fn(&str, usize, usize) + Sync),
-) -> (Vec<Scored>, Vec<Scored>, StageStats) {
+) -> (Vec<Scored>, StageStats) {
     let patterns = coarse_patterns(space, problem.period_s);
     let total = patterns.len();
-    let (mut scored, s1) = score_all(
+    score_all(
         problem,
         patterns,
         goal,
         incumbent,
         "stage 1: exhaustive over the coarse grammar",
         &|n| progress("stage 1", n, total),
-    );
-    // Hill-climbing starts: the best distinct stage-1 patterns.
+    )
+}
+
+/// Stage 1 of a budget from the kept stage 1 of a shortest-path search
+/// that found no path ([`search_reusing`]): each outcome scored for the
+/// budget, evaluated again where the budget's length changes its coarse
+/// step. The statistics are the kept stage's (its candidates, periods and
+/// wall time: they were evaluated once), the re-evaluated ones added.
+fn rescored(problem: &Problem, goal: Goal, u: UnreachedStageOne) -> (Vec<Scored>, StageStats) {
+    let extra = match goal {
+        Goal::Budget { periods } => periods,
+        Goal::Reach { .. } => 0,
+    };
+    let t0 = std::time::Instant::now();
+    let mut stats = u.stats;
+    let again = AtomicU64::new(0);
+    let scored: Vec<Scored> = u
+        .scored
+        .into_par_iter()
+        .map(|s| {
+            let outcome = if problem.step_periods(&s.pattern, extra, false) == s.outcome.k {
+                s.outcome
+            } else {
+                let o = problem.evaluate(&s.pattern, goal, false, false);
+                again.fetch_add(o.periods, Ordering::Relaxed);
+                o
+            };
+            let score = outcome.score(goal);
+            Scored {
+                pattern: s.pattern,
+                outcome,
+                score,
+            }
+        })
+        .collect();
+    stats.name = "stage 1: exhaustive over the coarse grammar (the shortest-path search's candidates, scored for the budget)".into();
+    stats.periods += again.load(Ordering::Relaxed);
+    stats.wall_s += t0.elapsed().as_secs_f64();
+    stats.pruned = 0;
+    stats.infeasible = scored
+        .iter()
+        .filter(|s| s.outcome.gimbal_lock.is_some())
+        .count();
+    stats.best_score = scored.iter().map(|s| s.score).fold(f64::INFINITY, f64::min);
+    (scored, stats)
+}
+
+/// The hill-climbing starts of stage 1's scored candidates (the best
+/// distinct `refine_starts` patterns) and the pool of the best
+/// [`FINAL_CHECKS`].
+fn stage_one_starts(space: &Space, mut scored: Vec<Scored>) -> (Vec<Scored>, Vec<Scored>) {
     scored.retain(|s| s.score.is_finite());
     scored.sort_by(|a, b| a.score.total_cmp(&b.score));
     let starts: Vec<Scored> = scored.iter().take(space.refine_starts).cloned().collect();
     let pool: Vec<Scored> = scored.into_iter().take(FINAL_CHECKS).collect();
-    (starts, pool, s1)
+    (starts, pool)
 }
 
 /// What the hill climbing of stages 2 and 2b leaves: the finite candidates

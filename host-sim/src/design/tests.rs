@@ -1,6 +1,6 @@
 //! Unit tests of the path design.
 
-use rollcal::models::ConfigId;
+use rollcal::models::{ConfigId, ErrorModel};
 
 use super::*;
 use crate::sim::scenario::Scenario;
@@ -187,4 +187,112 @@ fn targets_parse_and_override() {
         }]
     )
     .is_err());
+}
+
+/// The budget search that stands in for a shortest-path search that found
+/// no path scores that search's stage 1 for the budget instead of
+/// evaluating it again: its result is the budget search's own, with a
+/// budget whose length keeps every coarse step (1800 periods) and one that
+/// changes some (1234: those are evaluated again).
+#[test]
+fn the_budget_search_reuses_an_unreached_stage_one() {
+    let id = ConfigId::M1Pa;
+    let mut problem = Problem::new(id, &Scenario::paper(), 60.0);
+    // Targets no path meets.
+    problem.targets = default_target_states(id)
+        .into_iter()
+        .map(|i| (i, 1e-12))
+        .collect();
+    let space = Space {
+        axes: ["north", "east"]
+            .iter()
+            .map(|n| NamedAxis::named(n).unwrap())
+            .collect(),
+        tilted: false,
+        max_rate_deg_s: 1.0,
+        max_duration_s: 1800.0,
+        max_rotations: 2,
+        refine_starts: 1,
+        dwell_steps: Vec::new(),
+    };
+    let quiet = |_: &str, _: usize, _: usize| {};
+    for periods in [1800, 1234] {
+        let mut kept = None;
+        let reach = search_reusing(
+            &problem,
+            &space,
+            Goal::Reach { cutoff: periods },
+            &mut kept,
+            &quiet,
+        );
+        assert!(
+            matches!(reach, Err(DesignError::NoPathReaches { .. })),
+            "{reach:?}"
+        );
+        assert!(kept.is_some());
+        let budget = Goal::Budget { periods };
+        let reused = search_reusing(&problem, &space, budget, &mut kept, &quiet).unwrap();
+        assert!(kept.is_none());
+        assert!(reused.stages[0].name.contains("scored for the budget"));
+        let fresh = search(&problem, &space, budget, &quiet).unwrap();
+        assert_eq!(reused.best.pattern, fresh.best.pattern, "{periods}");
+        assert_eq!(reused.best.score, fresh.best.score, "{periods}");
+        assert_eq!(reused.searched.pattern, fresh.searched.pattern);
+        for (a, b) in reused.stages.iter().zip(&fresh.stages) {
+            assert_eq!(a.candidates, b.candidates, "{}", a.name);
+            assert_eq!(a.infeasible, b.infeasible, "{}", a.name);
+            assert_eq!(a.best_score, b.best_score, "{}", a.name);
+        }
+        // The periods propagated: the shortest-path search's, and those of
+        // the candidates evaluated again.
+        let (a, b) = (reused.stages[0].periods, fresh.stages[0].periods);
+        if periods == 1800 {
+            assert_eq!(a, b);
+        } else {
+            assert!(a > b, "{a} {b}");
+        }
+    }
+}
+
+/// The floors of the targets are `analysis::floor`'s, laid on the drift
+/// and bias states of the full model only (none without a wander, none
+/// for the installation model), and a target below its floor is set apart
+/// with it before any search.
+#[test]
+fn targets_below_their_floor_are_set_apart_with_it() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/realistic.toml");
+    let s = Scenario::from_file(std::path::Path::new(path)).unwrap();
+    let id = ConfigId::M2Ps;
+    let floors = state_floors(id, ErrorModel::Full, &s);
+    let by_group = crate::analysis::floor::scenario_floors(&s);
+    let names = id.states_with(ErrorModel::Full);
+    let named: Vec<&str> = floors.iter().map(|f| names[f.state].name).collect();
+    assert_eq!(named, ["dg_x", "dg_y", "dg_z", "ba_x", "ba_y", "ba_z"]);
+    for f in &floors {
+        let g = names[f.state].group.as_str();
+        let want = by_group.iter().find(|b| b.0 == g).unwrap().2;
+        assert_eq!(f.floor, want, "{g}");
+    }
+    assert!(state_floors(id, ErrorModel::Installation, &s).is_empty());
+    assert!(state_floors(id, ErrorModel::Full, &Scenario::paper()).is_empty());
+    let ba_x = floors[3];
+    let dg_y = floors[1];
+    let targets = vec![
+        (0, 1e-6),
+        (dg_y.state, dg_y.floor.limit * 1.01),
+        (ba_x.state, ba_x.floor.limit * 0.99),
+    ];
+    let (reachable, below) = split_below_floor(targets, &floors);
+    assert_eq!(
+        reachable,
+        [(0, 1e-6), (dg_y.state, dg_y.floor.limit * 1.01)]
+    );
+    assert_eq!(
+        below,
+        [BelowFloor {
+            state: ba_x.state,
+            target: ba_x.floor.limit * 0.99,
+            floor: ba_x.floor
+        }]
+    );
 }

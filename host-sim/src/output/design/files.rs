@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use rollcal::models::ErrorModel;
 
-use crate::design::{scenario_toml, Goal, Outcome, Problem, Run, Speed};
+use crate::design::{floor_of, scenario_toml, Goal, Outcome, Problem, Run, Speed, StateFloor};
 use crate::output::plots::{plot_sigma_comparison_in, SigmaCurve};
 use crate::sim::instruments::printed_value;
 
@@ -22,7 +22,7 @@ pub fn write_scenario(r: &Run, out: &Path) -> Result<(), String> {
         "# Designed by `host-sim design --config {id}{full}` (rollcal): {}\n# reaches {} in {} s (reference path: {} s); check with\n#   host-sim observability{full} --scenario {}\n",
         r.best().describe(),
         match r.goal {
-            Goal::Reach { .. } => "every target".to_string(),
+            Goal::Reach { .. } => r.every_target().to_string(),
             Goal::Budget { .. } if r.fallback => {
                 "the best worst-case σ/target within the limit (not every target)".to_string()
             }
@@ -38,9 +38,16 @@ pub fn write_scenario(r: &Run, out: &Path) -> Result<(), String> {
     Ok(())
 }
 
-/// One σ(t) curve per target of `problem`: the designed path `a` against
-/// the reference path `b`, each in the state's printed unit.
-fn sigma_curves(problem: &Problem, a: &Outcome, b: &Outcome) -> Vec<SigmaCurve> {
+/// One σ(t) curve per target of `targets` (of `problem`'s states): the
+/// designed path `a` against the reference path `b`, each in the state's
+/// printed unit, with the state's floor of `floors` when it has one.
+fn sigma_curves(
+    problem: &Problem,
+    targets: &[(usize, f64)],
+    floors: &[StateFloor],
+    a: &Outcome,
+    b: &Outcome,
+) -> Vec<SigmaCurve> {
     let names = problem.config.states_with(problem.errors);
     let curve = |o: &Outcome, i: usize| {
         o.history
@@ -48,12 +55,12 @@ fn sigma_curves(problem: &Problem, a: &Outcome, b: &Outcome) -> Vec<SigmaCurve> 
             .map(|h| (h.0, printed_value(names[i].group, h.1[i])))
             .collect()
     };
-    problem
-        .targets
+    targets
         .iter()
         .map(|&(i, t)| SigmaCurve {
             label: names[i].name,
             target: printed_value(names[i].group, t),
+            floor: floor_of(floors, i).map(|f| printed_value(names[i].group, f.limit)),
             a: curve(a, i),
             b: curve(b, i),
         })
@@ -67,10 +74,11 @@ pub fn write_figure(r: &Run, fig: &Path) -> Result<(), String> {
     let problem = &r.problem;
     let id = r.request.config;
     let names = id.states_with(problem.errors);
-    let series = sigma_curves(problem, &r.fine, &r.ref_out);
+    let targets = r.all_targets();
+    let series = sigma_curves(problem, &targets, &r.floors, &r.fine, &r.ref_out);
     let (angles, instruments): (Vec<_>, Vec<_>) = series
         .into_iter()
-        .zip(&problem.targets)
+        .zip(&targets)
         .partition(|(_, &(i, _))| !names[i].group.is_instrument());
     let title = format!(
         "{id}: σ_CRLB(t), designed path ({} s) vs reference path ({} s)",
@@ -99,24 +107,43 @@ pub fn write_figure(r: &Run, fig: &Path) -> Result<(), String> {
     Ok(())
 }
 
-/// Writes σ(t) of every target state, designed and reference, as CSV.
+/// Writes σ(t) of every target state, designed and reference, as CSV
+/// (rows `designed` and `reference`, time `t_s`); with errors that wander,
+/// then a `target` row and a `floor` row (no time; the floor empty for a
+/// state without one).
 pub fn write_sigma_csv(path: &Path, r: &Run) -> Result<(), String> {
     use std::fmt::Write;
     let problem = &r.problem;
     let names = problem.config.states_with(problem.errors);
+    let targets = r.all_targets();
     let mut text = String::from("path,t_s");
-    for &(i, _) in &problem.targets {
+    for &(i, _) in &targets {
         let _ = write!(text, ",{}_sigma_rad", names[i].name);
     }
     text.push('\n');
     for (label, o) in [("designed", &r.fine), ("reference", &r.ref_out)] {
         for h in &o.history {
             let _ = write!(text, "{label},{}", h.0);
-            for &(i, _) in &problem.targets {
+            for &(i, _) in &targets {
                 let _ = write!(text, ",{:e}", h.1[i]);
             }
             text.push('\n');
         }
+    }
+    // With errors that wander: the targets, and the floor of each drift
+    // and bias state (empty for a state without one), the floor the σ of
+    // no path gets below; a target below its floor is out of reach.
+    if !r.floors.is_empty() {
+        let _ = write!(text, "target,");
+        for &(_, t) in &targets {
+            let _ = write!(text, ",{t:e}");
+        }
+        let _ = write!(text, "\nfloor,");
+        for &(i, _) in &targets {
+            let f = floor_of(&r.floors, i).map_or(String::new(), |f| format!("{:e}", f.limit));
+            let _ = write!(text, ",{f}");
+        }
+        text.push('\n');
     }
     std::fs::write(path, text).map_err(|e| format!("cannot write {}: {e}", path.display()))
 }
@@ -138,8 +165,8 @@ pub fn result_json(r: &Run, speed: serde_json::Value, wall_s: f64) -> serde_json
         "pattern": r.best(),
         "duration_s": r.t_design(),
         "reference_duration_s": r.t_ref(),
-        "all_targets_met": r.checked.met,
-        "targets": problem.targets.iter().map(|&(i, t)| serde_json::json!({
+        "all_targets_met": r.checked.met && r.below_floor.is_empty(),
+        "targets": r.all_targets().iter().map(|&(i, t)| serde_json::json!({
             "state": names[i].name, "target_rad": t, "reference_sigma_rad": r.ref_sigma[i],
             "designed_sigma_rad": r.checked.sigma[i]})).collect::<Vec<_>>(),
         "path": r.checked.scenario.path,
@@ -158,25 +185,44 @@ pub fn result_json(r: &Run, speed: serde_json::Value, wall_s: f64) -> serde_json
         if let Some(m) = json.as_object_mut() {
             m.insert("errors".into(), problem.errors.as_str().into());
             m.insert("fallback".into(), r.fallback.into());
+            // Met: every target searched for (those above their floor).
+            m.insert("targets_above_floor_met".into(), r.checked.met.into());
             if let Some(serde_json::Value::Array(ts)) = m.get_mut("targets") {
-                for (t, &(i, _)) in ts.iter_mut().zip(&problem.targets) {
-                    if let (Some(t), true) = (t.as_object_mut(), names[i].group.is_instrument()) {
+                for (t, (i, target)) in ts.iter_mut().zip(r.all_targets()) {
+                    let Some(t) = t.as_object_mut() else { continue };
+                    if names[i].group.is_instrument() {
                         t.insert("unit".into(), names[i].unit.into());
                     }
+                    let f = floor_of(&r.floors, i);
+                    t.insert("floor".into(), f.map(|f| f.limit).into());
+                    t.insert("flat_after_s".into(), f.and_then(|f| f.flat_after_s).into());
+                    t.insert(
+                        "below_floor".into(),
+                        f.is_some_and(|f| target < f.limit).into(),
+                    );
                 }
             }
+            // Every target the written path misses: those out of reach
+            // within the limits, then those below their floor (out of reach
+            // of every path, not searched for).
+            let within = r.unreached.iter().map(|u| {
+                let f = floor_of(&r.floors, u.state);
+                serde_json::json!({
+                "state": names[u.state].name, "target": u.target, "sigma": u.sigma,
+                "time_s": u.time_s, "horizon_s": u.horizon_s,
+                "rate_deg_s": u.rate.map(|r| r.0), "sigma_at_rate": u.rate.map(|r| r.1),
+                "below_floor": false, "floor": f.map(|f| f.limit),
+                "flat_after_s": f.and_then(|f| f.flat_after_s)})
+            });
+            let below = r.below_floor.iter().map(|b| {
+                serde_json::json!({
+                "state": names[b.state].name, "target": b.target, "sigma": r.checked.sigma[b.state],
+                "time_s": null, "horizon_s": null, "rate_deg_s": null, "sigma_at_rate": null,
+                "below_floor": true, "floor": b.floor.limit, "flat_after_s": b.floor.flat_after_s})
+            });
             m.insert(
                 "out_of_reach".into(),
-                r.unreached
-                    .iter()
-                    .map(|u| {
-                        serde_json::json!({
-                        "state": names[u.state].name, "target": u.target, "sigma": u.sigma,
-                        "time_s": u.time_s, "horizon_s": u.horizon_s,
-                        "rate_deg_s": u.rate.map(|r| r.0), "sigma_at_rate": u.rate.map(|r| r.1)})
-                    })
-                    .collect::<Vec<_>>()
-                    .into(),
+                within.chain(below).collect::<Vec<_>>().into(),
             );
         }
     }

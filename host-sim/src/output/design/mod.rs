@@ -10,7 +10,10 @@ pub use files::{result_json, speed_json, write_figure, write_scenario, write_sig
 
 use rollcal::models::ErrorModel;
 
-use crate::design::{contributions, target_groups, Goal, Outcome, Pattern, Problem, Run, Speed};
+use crate::design::{
+    contributions, floor_of, target_groups, BelowFloor, Goal, OutOfReach, Outcome, Pattern,
+    Problem, Run, Speed,
+};
 use crate::sim::instruments::printed_value;
 use crate::sim::scenario::Axis;
 
@@ -49,17 +52,24 @@ fn print_headline(r: &Run) {
         r.request.max_beta_deg
     );
     let (t_design, t_ref) = (r.t_design(), r.t_ref());
-    let gave_up = "the shortest-path search found none (no pattern of its stage 1, the coarse grammar, reaches every target within the duration limit, and its refinement starts from those)";
+    let every = r.every_target();
+    let gave_up = format!("the shortest-path search found none (no pattern of its stage 1, the coarse grammar, reaches {every} within the duration limit, and its refinement starts from those)");
+    // The worst-case σ/target is over the targets searched for.
+    let over = if r.below_floor.is_empty() {
+        ""
+    } else {
+        " (over the targets above their floor)"
+    };
     match r.goal {
         Goal::Reach { .. } if r.fallback => println!(
-            "\nA path to every target: {t_design} s ({:.1} % of the reference path's {t_ref} s){}\n  Not the shortest: {gave_up}; the budget search over the same space found this one within {} s, cut where it meets every target.",
+            "\nA path to {every}: {t_design} s ({:.1} % of the reference path's {t_ref} s){}\n  Not the shortest: {gave_up}; the budget search over the same space found this one within {} s, cut where it meets {every}.",
             100.0 * t_design / t_ref,
             if r.checked.met { "" } else { "  — WARNING: the observability check misses a target" },
             r.max_duration
         ),
         Goal::Reach { .. } => {
             println!(
-                "\nShortest path to every target: {t_design} s ({:.1} % of the reference path's {t_ref} s){}",
+                "\nShortest path to {every}: {t_design} s ({:.1} % of the reference path's {t_ref} s){}",
                 100.0 * t_design / t_ref,
                 if r.checked.met { "" } else { "  — WARNING: the observability check misses a target" }
             );
@@ -68,17 +78,69 @@ fn print_headline(r: &Run) {
             }
         }
         Goal::Budget { periods: b } if r.fallback => println!(
-            "\nNo path to every target within {} s: {gave_up}, and the budget search over the same space reaches a worst-case σ/target of {:.3} at best (the reference path in its {t_ref} s: {:.3}).",
+            "\nNo path to {every} within {} s: {gave_up}, and the budget search over the same space reaches a worst-case σ/target{over} of {:.3} at best (the reference path in its {t_ref} s: {:.3}).",
             b as f64 * r.period_s(),
             worst_ratio(&r.problem, &r.checked.sigma),
             worst_ratio(&r.problem, &r.ref_sigma)
         ),
         Goal::Budget { periods: b } => println!(
-            "\nBest worst-case σ/target within {} s: {:.3} (the reference path in its {t_ref} s: {:.3})",
+            "\nBest worst-case σ/target{over} within {} s: {:.3} (the reference path in its {t_ref} s: {:.3})",
             b as f64 * r.period_s(),
             worst_ratio(&r.problem, &r.checked.sigma),
             worst_ratio(&r.problem, &r.ref_sigma)
         ),
+    }
+    print_below_floor_headline(r);
+}
+
+/// The headline's second part when targets lie below their floor: which,
+/// the target and the floor of each (grouped where they agree).
+fn print_below_floor_headline(r: &Run) {
+    if r.below_floor.is_empty() {
+        return;
+    }
+    let names = r.request.config.states_with(r.problem.errors);
+    // Consecutive states of one target and one floor, together.
+    let mut groups: Vec<(Vec<&str>, &BelowFloor)> = Vec::new();
+    for b in &r.below_floor {
+        match groups.last_mut() {
+            Some((states, first))
+                if first.target == b.target
+                    && first.floor == b.floor
+                    && names[first.state].group == names[b.state].group =>
+            {
+                states.push(names[b.state].name)
+            }
+            _ => groups.push((vec![names[b.state].name], b)),
+        }
+    }
+    let parts: Vec<String> = groups
+        .iter()
+        .map(|(states, b)| {
+            let g = names[b.state].group;
+            let unit = g.printed_scale().1;
+            format!(
+                "{} target {:.4} {unit} < floor {:.4} {unit}{}",
+                states.join(", "),
+                printed_value(g, b.target),
+                printed_value(g, b.floor.limit),
+                flat_after(b.floor.flat_after_s, ", flat after ")
+            )
+        })
+        .collect();
+    println!(
+        "  Out of reach of any path of any length: {} target(s) below the floor the wandering errors leave (not searched for): {}.",
+        r.below_floor.len(),
+        parts.join("; ")
+    );
+}
+
+/// "`prefix`T s" of a floor's flat point, or its note that the floor keeps
+/// falling (no random walk).
+fn flat_after(flat_after_s: Option<f64>, prefix: &str) -> String {
+    match flat_after_s {
+        Some(t) => format!("{prefix}{t:.0} s"),
+        None => ", the floor keeps falling (no random walk)".to_string(),
     }
 }
 
@@ -114,26 +176,44 @@ fn print_targets(r: &Run) {
     let (problem, check) = (&r.problem, &r.checked.sigma);
     let names = r.request.config.states_with(problem.errors);
     let full = problem.errors == ErrorModel::Full;
+    let floors = !r.floors.is_empty();
     if full {
-        println!(
+        print!(
             "\n  {:<10} {:<6} {:>12} {:>14} {:>14} {:>8}",
             "state", "unit", "target", "reference", "designed", "σ/target"
         );
+        if floors {
+            print!(" {:>12} {:>10}", "floor", "flat after");
+        }
+        println!();
     } else {
         println!(
             "\n  {:<10} {:>12} {:>14} {:>14} {:>8}",
             "state", "target ″", "reference ″", "designed ″", "σ/target"
         );
     }
-    for &(i, t) in &problem.targets {
+    for (i, t) in r.all_targets() {
         let g = names[i].group;
         let unit = if full {
             format!(" {:<6}", g.printed_scale().1)
         } else {
             String::new()
         };
+        // The floor of a wandering term's state, and where it flattens; a
+        // target below it is out of reach of every path.
+        let floor = match (floors, floor_of(&r.floors, i)) {
+            (false, _) => String::new(),
+            (true, None) => format!(" {:>12} {:>10}", "—", "—"),
+            (true, Some(f)) => format!(
+                " {:>12.4} {:>10}{}",
+                printed_value(g, f.limit),
+                f.flat_after_s
+                    .map_or("—".to_string(), |t| format!("{t:.0} s")),
+                if t < f.limit { "  below the floor" } else { "" }
+            ),
+        };
         println!(
-            "  {:<10}{unit} {:>12.4} {:>14.4} {:>14.4} {:>8.3}",
+            "  {:<10}{unit} {:>12.4} {:>14.4} {:>14.4} {:>8.3}{floor}",
             names[i].name,
             printed_value(g, t),
             printed_value(g, r.ref_sigma[i]),
@@ -145,28 +225,32 @@ fn print_targets(r: &Run) {
         let scale = r.request.target_scale;
         println!("  (targets: the installation errors at the reference path's σ_CRLB of the installation model, the instrument terms at dg 0.005 °/h, Dg 0.005 °/h/g, kg 1 ppm, ba 1 µg, ka 1 ppm{}; reference and designed σ: `host-sim observability --errors full --scenario` of the reference and the written scenario)",
             if scale == 1.0 { String::new() } else { format!(", × {scale}") });
+        if floors {
+            println!("  (floor: the smallest σ any path of any length reaches on the persistent part of a wandering drift or bias, `host-sim observability --errors full`'s floor; flat after: the log length from which that floor is within 5 % of its limit, rolling longer no longer helping; —: none, or a floor that keeps falling without a random walk; docs/path-design.md, \"The floor of the errors that wander\")");
+        }
     } else {
         println!("  (designed σ: `host-sim observability --scenario` of the written scenario)");
     }
 }
 
 /// The full model: each target out of reach within the limits, the σ the
-/// bound reaches, and the time or rate that reaches it.
+/// bound reaches, and the time or rate that reaches it; then each target
+/// below its floor, with the floor.
 fn print_unreached(r: &Run) {
     let problem = &r.problem;
     let (max_rate, max_duration) = (r.max_rate, r.max_duration);
     if problem.errors != ErrorModel::Full {
         return;
     }
+    let every = capitalised(r.every_target());
+    let names = r.request.config.states_with(problem.errors);
     if r.unreached.is_empty() && matches!(r.goal, Goal::Reach { .. }) {
         // The written path is cut where it meets them all (the headline's).
         println!(
-            "\n  Every target is met within the limits (rate ≤ {max_rate} °/s, {max_duration} s), at {} s.",
+            "\n  {every} is met within the limits (rate ≤ {max_rate} °/s, {max_duration} s), at {} s.",
             r.t_design()
         );
-        return;
-    }
-    if r.unreached.is_empty() {
+    } else if r.unreached.is_empty() {
         // Period by period, when the designed pattern first meets them all.
         let first = problem
             .evaluate(
@@ -184,40 +268,75 @@ fn print_unreached(r: &Run) {
                     p as f64 * r.period_s()
                 )
             });
-        println!("\n  Every target is met within the limits (rate ≤ {max_rate} °/s, {max_duration} s){first}.");
+        println!("\n  {every} is met within the limits (rate ≤ {max_rate} °/s, {max_duration} s){first}.");
+    } else {
+        println!(
+            "\n  Out of reach within the limits (rate ≤ {max_rate} °/s, {max_duration} s), by the bound (σ_CRLB):"
+        );
+        for u in &r.unreached {
+            print_out_of_reach(r, u, names);
+        }
+    }
+    if r.below_floor.is_empty() {
         return;
     }
-    let names = r.request.config.states_with(problem.errors);
     println!(
-        "\n  Out of reach within the limits (rate ≤ {max_rate} °/s, {max_duration} s), by the bound (σ_CRLB):"
+        "\n  Out of reach of any path of any length, below the floor the wandering errors leave (not searched for):"
     );
-    for u in &r.unreached {
-        let g = names[u.state].group;
+    for b in &r.below_floor {
+        let g = names[b.state].group;
         let unit = g.printed_scale().1;
-        let time = match u.time_s {
-            Some(t) => format!("the designed pattern repeated reaches it at {t} s"),
-            None => format!(
-                "not within {} s of the designed pattern repeated",
-                u.horizon_s
-            ),
-        };
-        let rate = match u.rate {
-            Some((rate, s)) => format!(
-                "; at {rate} °/s (the same angles) it reaches {:.4} {unit} within {max_duration} s",
-                printed_value(g, s)
-            ),
-            None => format!(
-                "; no rate up to 10 °/s of the same angles reaches it within {max_duration} s"
-            ),
-        };
         println!(
-            "    {:<10} target {:.4} {unit}, reached {:.4} {unit} ({:.2}× the target): {time}{rate}",
-            names[u.state].name,
-            printed_value(g, u.target),
-            printed_value(g, u.sigma),
-            u.sigma / u.target
+            "    {:<10} target {:.4} {unit} < floor {:.4} {unit} ({:.2}× the target{}); the written path reaches {:.4} {unit}",
+            names[b.state].name,
+            printed_value(g, b.target),
+            printed_value(g, b.floor.limit),
+            b.floor.limit / b.target,
+            flat_after(b.floor.flat_after_s, "; within 5 % of it after "),
+            printed_value(g, r.checked.sigma[b.state]),
         );
     }
+}
+
+/// `s` with its first letter a capital.
+fn capitalised(s: &str) -> String {
+    let mut c = s.chars();
+    c.next()
+        .map_or(String::new(), |f| f.to_uppercase().chain(c).collect())
+}
+
+/// One target out of reach within the limits: the σ reached, and what
+/// time or rate reaches it (and its floor, when it has one).
+fn print_out_of_reach(r: &Run, u: &OutOfReach, names: &[rollcal::models::StateInfo]) {
+    let max_duration = r.max_duration;
+    let g = names[u.state].group;
+    let unit = g.printed_scale().1;
+    let time = match u.time_s {
+        Some(t) => format!("the designed pattern repeated reaches it at {t} s"),
+        None => format!(
+            "not within {} s of the designed pattern repeated",
+            u.horizon_s
+        ),
+    };
+    let rate = match u.rate {
+        Some((rate, s)) => format!(
+            "; at {rate} °/s (the same angles) it reaches {:.4} {unit} within {max_duration} s",
+            printed_value(g, s)
+        ),
+        None => {
+            format!("; no rate up to 10 °/s of the same angles reaches it within {max_duration} s")
+        }
+    };
+    let floor = floor_of(&r.floors, u.state).map_or(String::new(), |f| {
+        format!(" (its floor: {:.4} {unit})", printed_value(g, f.limit))
+    });
+    println!(
+        "    {:<10} target {:.4} {unit}, reached {:.4} {unit} ({:.2}× the target){floor}: {time}{rate}",
+        names[u.state].name,
+        printed_value(g, u.target),
+        printed_value(g, u.sigma),
+        u.sigma / u.target
+    );
 }
 
 /// The search statistics, the coarse steps and the optimality.

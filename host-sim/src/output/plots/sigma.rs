@@ -1,6 +1,7 @@
 //! The σ(t) comparison of two paths (`host-sim design`,
 //! [`plot_sigma_comparison`]): one log-scale panel per parameter, path A
-//! solid, path B dashed, the target dotted.
+//! solid, path B dashed, the target dotted, a floor (errors that wander)
+//! solid in the switch colour.
 
 use std::path::Path;
 
@@ -18,6 +19,10 @@ pub struct SigmaCurve {
     pub label: &'static str,
     /// The target σ (″, or the unit of the figure), drawn as a horizontal line.
     pub target: f64,
+    /// The floor no path gets below (same unit), drawn as a horizontal
+    /// line in the switch colour; `None`: none (a state without errors
+    /// that wander).
+    pub floor: Option<f64>,
     /// Path A (the designed one).
     pub a: Vec<(f64, f64)>,
     /// Path B (the reference).
@@ -43,6 +48,7 @@ const SIGMA_ROW_HEIGHT: u32 = 210;
 /// let curve = SigmaCurve {
 ///     label: "thgC_x",
 ///     target: 1.0,
+///     floor: None,
 ///     a: vec![(0.0, 3600.0), (600.0, 0.9)],
 ///     b: vec![(0.0, 3600.0), (1200.0, 0.9)],
 /// };
@@ -143,7 +149,18 @@ fn draw_sigma<'a>(
         3,
         CRLB_COLOUR.stroke_width(1),
     ))?;
-    header.draw(&Text::new(format!("target σ [{unit}]"), (598, y), label))?;
+    header.draw(&Text::new(
+        format!("target σ [{unit}]"),
+        (598, y),
+        label.clone(),
+    ))?;
+    if curves.iter().any(|c| c.floor.is_some()) {
+        header.draw(&PathElement::new(
+            vec![(840, y), (870, y)],
+            SWITCH_COLOUR.stroke_width(2),
+        ))?;
+        header.draw(&Text::new("floor (errors that wander)", (878, y), label))?;
+    }
     let panels = body.split_evenly((rows, SIGMA_COLUMNS));
     for (area, c) in panels.iter().zip(curves) {
         draw_sigma_panel(area, c, t_max)?;
@@ -158,6 +175,7 @@ fn draw_sigma_panel<'a>(area: &Area<'a>, c: &SigmaCurve, t_max: f64) -> DrawResu
             .chain(&c.b)
             .map(|p| p.1)
             .chain(std::iter::once(c.target))
+            .chain(c.floor)
             .filter(|v| v.is_finite() && *v > 0.0)
     };
     let lo = vals().fold(f64::INFINITY, f64::min);
@@ -166,8 +184,12 @@ fn draw_sigma_panel<'a>(area: &Area<'a>, c: &SigmaCurve, t_max: f64) -> DrawResu
     let hi_all = vals().fold(0.0, f64::max);
     let hi = (c.target * 100.0).min(hi_all).max(lo * 10.0);
     let y = (lo / 1.5)..(hi * 1.2);
+    let caption = match c.floor {
+        Some(f) if c.target < f => format!("{} (target below its floor)", c.label),
+        _ => c.label.to_string(),
+    };
     let mut chart = ChartBuilder::on(area)
-        .caption(c.label, font(15.0))
+        .caption(caption, font(15.0))
         .margin(6)
         .x_label_area_size(28)
         .y_label_area_size(56)
@@ -203,5 +225,11 @@ fn draw_sigma_panel<'a>(area: &Area<'a>, c: &SigmaCurve, t_max: f64) -> DrawResu
         3,
         CRLB_COLOUR.stroke_width(1),
     ))?;
+    if let Some(f) = c.floor {
+        chart.draw_series(LineSeries::new(
+            vec![(0.0, f), (t_max, f)],
+            SWITCH_COLOUR.stroke_width(2),
+        ))?;
+    }
     Ok(())
 }
