@@ -20,9 +20,11 @@
 //! its Cholesky factor, the gain, the Joseph form, symmetrisation), on
 //! fixed well-conditioned matrices; no model evaluation.
 //!
-//! The full models `m1pa-full/linearised` (33 states) and
-//! `m2ps-full/linearised` (39) run on the same stream with the default
-//! instrument priors (docs/model.md §Instrument errors), beside `dense/33x3` and `dense/39x6`.
+//! The full models `m1pa-full/linearised` (48 states) and
+//! `m2ps-full/linearised` (54: the installation states and the 36
+//! instrument states, those of the errors that wander included) run on the
+//! same stream with the default instrument priors (docs/model.md
+//! §Instrument errors), beside `dense/48x3` and `dense/54x6`.
 //!
 //! `cargo bench --bench filter_period -- --warm-up-time 1 --measurement-time 3`
 
@@ -160,8 +162,8 @@ fn bench_dense<const N: usize, const Z: usize>(c: &mut Criterion, name: &str) {
 fn filter_period(c: &mut Criterion) {
     bench_dense::<18, 6>(c, "dense/18x6");
     bench_dense::<12, 3>(c, "dense/12x3");
-    bench_dense::<39, 6>(c, "dense/39x6");
-    bench_dense::<33, 3>(c, "dense/33x3");
+    bench_dense::<54, 6>(c, "dense/54x6");
+    bench_dense::<48, 3>(c, "dense/48x3");
     let (settings, stream) = support::paper_stream();
     let samples: &[PeriodSample] = &stream
         .iter()
@@ -209,9 +211,9 @@ fn filter_period(c: &mut Criterion) {
             linearised,
         );
         // The full models (the installation states and the instruments'
-        // 21 errors), on the same stream: their linearised pass only. The
-        // first pass of the full models from a zero start refuses some
-        // updates at the NIS gate on this stream (M1-pa: 94 of 5400,
+        // 36 states), on the same stream: their linearised pass only. The
+        // first pass of the full models from a zero start may refuse
+        // updates at the NIS gate on this stream (M1-pa: 1 of 5400,
         // `host-sim run --config M1-pa --errors full --passes 1`), and a
         // refused step would be timed cheaper.
         if label != "linearised" {
