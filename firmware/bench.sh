@@ -15,7 +15,7 @@
 #     alone, the full model's at a size-optimised profile too (flash and the
 #     speed it costs), and the panicking calls reachable from the estimator
 #     (tools/panic-check.py);
-#   - the full model (the instruments' own errors, 39 / 33 states): its
+#   - the full model (the instruments' own errors, 54 / 48 states): its
 #     instructions per period (synthetic), its painted stack, its recorded
 #     streams (instrumented scenario) and its Finish; the sample log's
 #     bytes per period in flash (FlashLog);

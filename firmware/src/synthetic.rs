@@ -2,7 +2,10 @@
 //! rolls about South at 0.1°/s in 1 s periods and the instruments report
 //! what an error-free platform would (gravity in the computed frame, zero
 //! gimbal angles). The numbers are not a calibration, only a load of the
-//! same shape as the recorded stream.
+//! same shape as the recorded stream. The instruments do not wander here:
+//! the full model runs with [`Wander::none`] (its Gauss–Markov and warm-up
+//! states have a zero prior σ, not estimated; the state vector and the
+//! arithmetic of a period are those of the full model all the same).
 
 use core::mem::{align_of, size_of, MaybeUninit};
 use core::ptr::addr_of_mut;
@@ -11,7 +14,7 @@ use core::sync::atomic::{AtomicBool, Ordering};
 use nalgebra::{SVector, Vector3};
 use rollcal::ekf::{Filter, FilterConfig, Observation, Options};
 use rollcal::geometry::{earth_rate_n, gravity_n};
-use rollcal::models::{Environment, Model};
+use rollcal::models::{Environment, Model, Wander};
 use rollcal::session::AnyFilter;
 use rollcal::wire::InstrumentPrior;
 
@@ -35,15 +38,16 @@ pub fn filter_config(options: Options, noise_scale: u32) -> FilterConfig<Real> {
         sigma_gyro: c(0.1 * DEG / 3600.0),
         sigma_gimbal: c(10.0 * k * DEG / 3600.0),
         options,
+        wander: Wander::none(),
     }
 }
 
 /// The synthetic run's filter, in static memory: as large as the largest
-/// filter this image holds (an `AnyFilter`; the full M2-ps model's is 18 KB
-/// in f64, more than the firmware's stack budget). In the `LOG` region of
-/// `memory.x` (NOLOAD SSRAM, beside the sample log's device), not in the
-/// 128 KiB of `RAM`: the benchmark's filter is not a flight image's static
-/// memory. Only [`filter_slot`] touches it.
+/// filter this image holds (an `AnyFilter`; 58.8 KB in f64 with the full
+/// model's 54 states, more than the firmware's stack). In the `LOG` region
+/// of `memory.x` (NOLOAD SSRAM, beside the sample log's device), not in
+/// the 256 KiB of `RAM`: the benchmark's filter is not a flight image's
+/// static memory. Only [`filter_slot`] touches it.
 #[link_section = ".log"]
 static mut ARENA: MaybeUninit<AnyFilter<Real>> = MaybeUninit::uninit();
 
@@ -79,9 +83,10 @@ fn run_model<M: Model<N, Z> + 'static, const N: usize, const Z: usize>(args: &Ar
         _ => Options::default(),
     };
     // 1° for the installation states, the default prior for the instrument
-    // terms of the full model.
+    // terms of the full model (its wandering terms: 0, not estimated, as
+    // the configuration's `Wander::none`).
     let installation = M::LAYOUT.installation_n();
-    let instruments = InstrumentPrior::default().sigma();
+    let instruments = InstrumentPrior::default().sigma(&Wander::none());
     let sigma0 = SVector::<Real, N>::from_fn(|i, _| {
         let s = match i.checked_sub(installation) {
             None => 1.0 * DEG,
