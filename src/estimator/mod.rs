@@ -500,8 +500,9 @@ where
 }
 
 /// Whether no state of `filter` moved by `tolerance` σ or more from
-/// `previous`, the last pass's estimate (`false` after pass 1). Out of
-/// line (see [`run_pass`]).
+/// `previous`, the last pass's estimate (`false` after pass 1). A state
+/// the model holds (σ 0: a term not estimated) has converged when it did
+/// not move at all. Out of line (see [`run_pass`]).
 #[inline(never)]
 fn converged<T, M, const N: usize, const Z: usize>(
     filter: &Filter<T, M, N, Z>,
@@ -519,7 +520,8 @@ where
             .zip(prev.iter())
             .zip(sigma.iter())
             .all(|((a, b), s)| {
-                wrap_angle(*a - *b).abs() < tolerance * s.to_subset().unwrap_or(f64::NAN)
+                let moved = wrap_angle(*a - *b).abs();
+                moved < tolerance * s.to_subset().unwrap_or(f64::NAN) || moved == 0.0
             })
     })
 }
