@@ -238,9 +238,15 @@ pub struct Rate {
     pub flagged: usize,
     /// Seeds whose warning's likely cause names the case's defect.
     pub named: usize,
-    /// Seeds whose every estimated state is within 4σ of the truth at the
-    /// end of the log.
+    /// Seeds whose answer (every estimated state but the nuisances: the
+    /// attitude, the Gauss–Markov parts, the warm-ups) is within 4σ of
+    /// the truth at the end of the log (the persistent truth of a term
+    /// that wanders).
     pub within_4_sigma: usize,
+    /// Seeds with a nuisance state beyond 4σ of its truth (not the
+    /// answer), each with that state, its |error|/σ and whether the log
+    /// was flagged.
+    pub nuisance_beyond_4_sigma: Vec<(u64, String, f64, bool)>,
     /// Seeds judged consistent with a state beyond 4σ of the truth, each
     /// with that state and its |error|/σ.
     pub consistent_beyond_4_sigma: Vec<(u64, String, f64)>,
@@ -272,8 +278,11 @@ pub struct SeedRun {
     pub verdict: &'static str,
     /// The likely cause of a warning.
     pub cause: Option<String>,
-    /// The estimated state farthest from its truth, and its |error|/σ.
+    /// The state of the answer farthest from its truth, and its
+    /// |error|/σ.
     pub worst: (&'static str, f64),
+    /// The nuisance state farthest from its truth, and its |error|/σ.
+    pub worst_nuisance: (&'static str, f64),
     /// Every check as `[name, scope, statistic, lower, upper]`.
     pub checks: Vec<(&'static str, String, f64, f64, f64)>,
 }
@@ -287,9 +296,12 @@ pub struct Outcome {
     /// The judgement, with the likely cause of a warning as `calibrate`
     /// gives it.
     pub judgement: Judgement,
-    /// The estimated state farthest from its truth at the end of the log
-    /// and its |error|/σ.
+    /// The state of the answer (estimated, not a nuisance) farthest from
+    /// its truth at the end of the log and its |error|/σ.
     pub worst: (&'static str, f64),
+    /// The estimated nuisance state (the attitude, a Gauss–Markov part, a
+    /// warm-up) farthest from its truth, and its |error|/σ.
+    pub worst_nuisance: (&'static str, f64),
 }
 
 /// The judgement of one simulated run of configuration `id` with `defect`
@@ -362,13 +374,18 @@ pub fn run_case(
     } else {
         judge(&r).with_path(gimbal_lock_check(id, &records))
     };
-    let worst = r
-        .states
-        .iter()
-        .filter(|s| s.estimated())
-        .map(|s| (s.name, s.ratio()))
-        .fold(("", 0.0), |w, s| if s.1 > w.1 { s } else { w });
-    Ok(Outcome { judgement, worst })
+    let farthest = |nuisance: bool| {
+        r.states
+            .iter()
+            .filter(|s| s.estimated() && s.info.group.is_nuisance() == nuisance)
+            .map(|s| (s.name, s.ratio()))
+            .fold(("", 0.0), |w, s| if s.1 > w.1 { s } else { w })
+    };
+    Ok(Outcome {
+        judgement,
+        worst: farthest(false),
+        worst_nuisance: farthest(true),
+    })
 }
 
 /// The accelerometer means of `sim` given a bias that creeps linearly from
@@ -509,6 +526,14 @@ fn rate_of(case: &Case, mine: &[(u64, &Option<Outcome>)]) -> Rate {
             .filter(|(_, o)| o.worst.1 > ANSWER_SIGMA)
             .map(|(s, o)| (*s, o.worst.0.to_string(), o.worst.1, warned(o)))
             .collect(),
+        nuisance_beyond_4_sigma: done
+            .iter()
+            .filter(|(_, o)| o.worst_nuisance.1 > ANSWER_SIGMA)
+            .map(|(s, o)| {
+                let w = o.worst_nuisance;
+                (*s, w.0.to_string(), w.1, warned(o))
+            })
+            .collect(),
         by_check,
         errors: mine.len() - done.len(),
         flagged_seeds,
@@ -521,6 +546,7 @@ fn rate_of(case: &Case, mine: &[(u64, &Option<Outcome>)]) -> Rate {
                     verdict: o.judgement.verdict.word(),
                     cause: o.judgement.cause.clone(),
                     worst: o.worst,
+                    worst_nuisance: o.worst_nuisance,
                     checks: o
                         .judgement
                         .checks
@@ -533,6 +559,7 @@ fn rate_of(case: &Case, mine: &[(u64, &Option<Outcome>)]) -> Rate {
                     verdict: "error",
                     cause: None,
                     worst: ("", f64::NAN),
+                    worst_nuisance: ("", f64::NAN),
                     checks: Vec::new(),
                 },
             })

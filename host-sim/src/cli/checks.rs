@@ -205,7 +205,7 @@ fn print_table(out: &[Rate], b: [f64; 3]) {
         );
     }
     println!(
-        "(cause named: the warning's likely cause names the case's defect; within 4σ: every estimated state within {ANSWER_SIGMA}σ of the truth at the end of the log; cons. >4σ: judged consistent with a state beyond; nis, whiteness, bias, left_out: in how many seeds that check failed)"
+        "(cause named: the warning's likely cause names the case's defect; within 4σ: every state of the answer (the nuisances, attitude, Gauss–Markov parts and warm-ups, apart) within {ANSWER_SIGMA}σ of the persistent truth at the end of the log; cons. >4σ: judged consistent with a state beyond; nis, whiteness, bias, left_out: in how many seeds that check failed)"
     );
     for r in out {
         for (cause, n) in &r.causes {
@@ -219,6 +219,13 @@ fn print_table(out: &[Rate], b: [f64; 3]) {
         for (seed, state, ratio, flagged) in &r.beyond_4_sigma {
             let verdict = if *flagged { "flagged" } else { "consistent" };
             println!("{} seed {seed} {verdict}, {state} {ratio:.2}σ off", r.key);
+        }
+        for (seed, state, ratio, flagged) in &r.nuisance_beyond_4_sigma {
+            let verdict = if *flagged { "flagged" } else { "consistent" };
+            println!(
+                "{} seed {seed} {verdict}, nuisance {state} {ratio:.2}σ off (not the answer)",
+                r.key
+            );
         }
     }
 }

@@ -57,7 +57,7 @@ pub struct Calibration {
     /// Without a truth: the bound at the estimate along the received path
     /// and its verdict per state ([`bound_at_estimate`]).
     pub at_estimate: Option<(Vec<f64>, Vec<Verdict>)>,
-    /// The data judged against the model ([`checks::judge`]) with the
+    /// The data judged against the model ([`crate::analysis::checks::judge`]) with the
     /// path's distance from gimbal lock.
     pub judgement: Judgement,
     /// Notes for the user (how the bound was taken, an incomplete answer).

@@ -1,11 +1,11 @@
 //! The calibrator run on a stream, as `calibrate` drives it:
 //!
-//! - [`host`]: the no_std session ([`rollcal::session::Session`]) with the
+//! - `host`: the no_std session ([`rollcal::session::Session`]) with the
 //!   host's sample log, the NIS and failures of every accepted sample, the
 //!   estimator of record's final passes with their covariance;
-//! - [`answer`]: what the session answered after the stream, as a
+//! - `answer`: what the session answered after the stream, as a
 //!   [`Calibration`] (everything the outputs need, computed once);
-//! - [`bound`]: the bound at the estimate without a truth;
+//! - `bound`: the bound at the estimate without a truth;
 //! - [`rejects`]: why samples were rejected, and the likely cause;
 //! - [`trust`]: when the result is an answer, and the gated updates;
 //! - [`diagnose`]: the likely cause of a data warning;
