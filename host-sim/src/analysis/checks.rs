@@ -17,12 +17,17 @@
 //! - **`bias`**: the mean of every whitened component per path segment,
 //!   `≈ N(0, 1/n_seg)`, against `±z/√n_seg` (an unmodelled constant error:
 //!   the estimator absorbs what it can of it into the installation angles,
-//!   but not the same way on every segment).
+//!   but not the same way on every segment);
+//! - **`left_out`** (full model, when the platform file leaves a term with
+//!   a fixed signature out): the Wald statistic `x̂ᵀP⁻¹x̂ ~ χ²(d)` of the
+//!   term estimated in one more run ([`Wald`],
+//!   [`crate::analysis::calibration::left_out`]), one-sided (a term the
+//!   data have and the model lacks).
 //!
-//! Every check is two-sided at the same significance `α / m`, `m` the
-//! number of checks made (Bonferroni), so the whole judgement of a clean
-//! log raises a false alarm with probability at most [`FALSE_ALARM`]. The
-//! thresholds are here and nowhere else.
+//! Every check is at the same significance `α / m` (two-sided but
+//! `left_out`), `m` the number of checks made (Bonferroni), so the whole
+//! judgement of a clean log raises a false alarm with probability at most
+//! [`FALSE_ALARM`]. The thresholds are here and nowhere else.
 
 use std::fmt;
 
@@ -44,7 +49,8 @@ pub const WARNING_EXIT: u8 = 3;
 /// One check of the data against the model.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Check {
-    /// `"nis"`, `"whiteness"` or `"bias"`.
+    /// `"nis"`, `"whiteness"`, `"bias"` or `"left_out"` (and the path's
+    /// `"gimbal_lock"`).
     pub name: &'static str,
     /// Where: `"overall"` or `"segment 2 (t 1800–2700 s)"`, with the
     /// component for whiteness and bias, e.g. `"overall, accel y"`.
@@ -263,15 +269,49 @@ struct Group<'a> {
 /// The checks of the last pass's updates of `r` and the verdict
 /// (see the [module docs](self)).
 pub fn judge(r: &RunResult) -> Judgement {
-    let mut j = judge_updates(&r.updates, &r.segments);
+    judge_with(r, &[])
+}
+
+/// [`judge`] with the tests `left_out` of the terms the model leaves out
+/// (each one more of the `m` checks).
+pub fn judge_with(r: &RunResult, left_out: &[Wald]) -> Judgement {
+    let mut j = judge_updates_with(&r.updates, &r.segments, left_out);
     j.cause = likely_cause(r.errors, &j.verdict);
     j
+}
+
+/// The Wald test of a term the model leaves out
+/// ([`crate::analysis::calibration::left_out`]): its statistic `x̂ᵀP⁻¹x̂`,
+/// `χ²(dof)` at most when the data have no such term. Its band, `[0,
+/// χ²₁₋α(dof)]` at the judgement's `α`, is set by [`judge_updates_with`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Wald {
+    /// The term and the platform file's key, e.g. `"k2
+    /// (instruments.prior.sigma_k2_ug_g2 = 0)"`.
+    pub scope: String,
+    /// `x̂ᵀP⁻¹x̂`.
+    pub statistic: f64,
+    /// Its degrees of freedom: the term's number of states.
+    pub dof: usize,
+    /// The estimate with its σ, and the distribution.
+    pub detail: String,
 }
 
 /// [`judge`] of updates and segments.
 pub fn judge_updates(
     updates: &[Update],
     segments: &[crate::sim::segments::CommandSegment],
+) -> Judgement {
+    judge_updates_with(updates, segments, &[])
+}
+
+/// [`judge_updates`] with the tests `left_out` of the terms the model
+/// leaves out: `m` counts them too, each one-sided (`left_out`: the
+/// statistic above `χ²₁₋α(dof)` fails).
+pub fn judge_updates_with(
+    updates: &[Update],
+    segments: &[crate::sim::segments::CommandSegment],
+    left_out: &[Wald],
 ) -> Judgement {
     let z = updates.iter().map(|u| u.white.len()).max().unwrap_or(0);
     let ups: Vec<&Update> = updates.iter().filter(|u| u.white.len() == z).collect();
@@ -297,13 +337,22 @@ pub fn judge_updates(
     // m checks: NIS per group, whiteness per component overall, bias per
     // component per segment group.
     let segs = groups.len() - 1;
-    let m = groups.len() + z + z * segs;
+    let m = groups.len() + z + z * segs + left_out.len();
     let alpha = FALSE_ALARM / m as f64;
     let zq = normal_quantile(1.0 - alpha / 2.0);
     let mut checks = Vec::with_capacity(m);
     nis_checks(&groups, z, alpha, &mut checks);
     whiteness_checks(&groups[0].updates, &names, zq, &mut checks);
     bias_checks(&groups, &names, zq, &mut checks);
+    for w in left_out {
+        checks.push(check(
+            "left_out",
+            w.scope.clone(),
+            w.statistic,
+            (0.0, chi2_quantile(1.0 - alpha, w.dof as f64)),
+            w.detail.clone(),
+        ));
+    }
     let mut failed: Vec<Check> = checks.iter().filter(|c| !c.passed).cloned().collect();
     failed.sort_by(|a, b| excess(b).total_cmp(&excess(a)));
     let verdict = if failed.is_empty() {
@@ -442,169 +491,8 @@ fn check(
     }
 }
 
-/// The cases of [`rates`]: a clean stream and the two defects of issue 11.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
-pub struct Case {
-    /// Label, e.g. `"accel noise 3×"`.
-    pub label: &'static str,
-    /// The defect applied to the simulated accelerometer means.
-    #[serde(skip)]
-    pub defect: crate::sim::impair::AccelDefects,
-}
-
-/// The three cases: clean, accelerometer noise 3× the platform's, an
-/// unmodelled constant bias of `bias_ug` (µg per axis, instrument frame).
-pub fn cases(bias_ug: [f64; 3]) -> [Case; 3] {
-    use crate::sim::impair::AccelDefects;
-    [
-        Case {
-            label: "clean",
-            defect: AccelDefects::default(),
-        },
-        Case {
-            label: "accel noise 3×",
-            defect: AccelDefects {
-                accel_noise_scale: 3.0,
-                accel_bias_ug: None,
-            },
-        },
-        Case {
-            label: "accel bias",
-            defect: AccelDefects {
-                accel_noise_scale: 1.0,
-                accel_bias_ug: Some(bias_ug),
-            },
-        },
-    ]
-}
-
-/// The outcome of one case over the seeds.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct Rate {
-    /// The case.
-    pub case: String,
-    /// Seeds run.
-    pub seeds: usize,
-    /// Seeds whose judgement was a warning.
-    pub flagged: usize,
-    /// Per check name, the seeds in which that check failed.
-    pub by_check: Vec<(&'static str, usize)>,
-    /// Seeds whose estimator failed (counted as not flagged).
-    pub errors: usize,
-    /// The flagged seeds, each with its worst failed check
-    /// (`"<name> <scope>: <statistic> outside [lo, hi]"`).
-    pub flagged_seeds: Vec<(u64, String)>,
-}
-
-/// The judgement of one simulated run of configuration `id` with `defect`
-/// on its accelerometer means, the estimator (error model `errors`) told
-/// the scenario's noise.
-pub fn judge_simulated(
-    id: rollcal::models::ConfigId,
-    errors: rollcal::models::ErrorModel,
-    scenario: &crate::sim::scenario::Scenario,
-    seed: u64,
-    defect: &crate::sim::impair::AccelDefects,
-) -> Result<Judgement, crate::analysis::Error> {
-    use crate::sim::truth::{simulate, SimOptions};
-    let earth_rate = scenario.site.earth_rate;
-    // The bias is the truth simulator's (added to the scenario's `ba`).
-    let mut sim = simulate(
-        &defect.biased(scenario),
-        SimOptions {
-            seed,
-            noise: true,
-            earth_rate,
-        },
-    );
-    let offsets = defect.offsets(sim.samples.len(), scenario.noise.accel_g, seed);
-    for (s, o) in sim.samples.iter_mut().zip(offsets) {
-        for (a, d) in s.accel_mean.iter_mut().zip(o) {
-            *a += d;
-        }
-    }
-    let r = crate::analysis::runner::SimulatedRun::new(id, scenario, &sim, earth_rate)
-        .with_errors(errors)
-        .run(crate::analysis::runner::Estimator::default(), None, false)
-        .map_err(|e| crate::analysis::Error::filter(format_args!("{id} seed {seed}"), e))?;
-    Ok(judge(&r))
-}
-
-/// False-alarm and detection rates: every case over seeds `1..=seeds`, in
-/// parallel (rayon), `progress` called after every run.
-pub fn rates(
-    id: rollcal::models::ConfigId,
-    errors: rollcal::models::ErrorModel,
-    scenario: &crate::sim::scenario::Scenario,
-    seeds: u64,
-    cases: &[Case],
-    progress: &(dyn Fn() + Sync),
-) -> Vec<Rate> {
-    use rayon::prelude::*;
-    let jobs: Vec<(usize, u64)> = (0..cases.len())
-        .flat_map(|c| (1..=seeds).map(move |s| (c, s)))
-        .collect();
-    let out: Vec<(usize, u64, Option<Judgement>)> = jobs
-        .par_iter()
-        .map(|&(c, seed)| {
-            let j = judge_simulated(id, errors, scenario, seed, &cases[c].defect).ok();
-            progress();
-            (c, seed, j)
-        })
-        .collect();
-    cases
-        .iter()
-        .enumerate()
-        .map(|(c, case)| {
-            let mine: Vec<&Option<Judgement>> = out
-                .iter()
-                .filter(|(k, _, _)| *k == c)
-                .map(|(_, _, j)| j)
-                .collect();
-            let flagged_seeds = out
-                .iter()
-                .filter(|(k, _, _)| *k == c)
-                .filter_map(|(_, seed, j)| match j.as_ref().map(|j| &j.verdict) {
-                    Some(DataVerdict::Warning { failed }) => failed.first().map(|f| {
-                        (
-                            *seed,
-                            format!(
-                                "{} {}: {:.4} outside [{:.4}, {:.4}]",
-                                f.name, f.scope, f.statistic, f.band.0, f.band.1
-                            ),
-                        )
-                    }),
-                    _ => None,
-                })
-                .collect();
-            let by_check = ["nis", "whiteness", "bias"]
-                .into_iter()
-                .map(|name| {
-                    let n = mine
-                        .iter()
-                        .filter(|j| {
-                            j.as_ref().is_some_and(|j| {
-                                j.checks.iter().any(|k| k.name == name && !k.passed)
-                            })
-                        })
-                        .count();
-                    (name, n)
-                })
-                .collect();
-            Rate {
-                case: case.label.to_string(),
-                seeds: mine.len(),
-                flagged: mine
-                    .iter()
-                    .filter(|j| j.as_ref().is_some_and(|j| j.verdict.is_warning()))
-                    .count(),
-                by_check,
-                errors: mine.iter().filter(|j| j.is_none()).count(),
-                flagged_seeds,
-            }
-        })
-        .collect()
-}
+// The cases of `host-sim checks` and their rates: one module of their own.
+pub use crate::analysis::check_rates::{cases, judge_simulated, rates, Case, Rate};
 
 #[cfg(test)]
 mod tests {

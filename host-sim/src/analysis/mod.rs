@@ -8,6 +8,8 @@
 //! - [`calibration`]: the calibrator run on a stream (`calibrate`'s session);
 //! - [`checks`]: the data judged against the model without a truth (NIS,
 //!   whiteness, bias);
+//! - [`check_rates`]: the cases of `host-sim checks` (a defect of the
+//!   stream, a term the model leaves out) and their rates over seeds;
 //! - [`compensation`]: the calibrated matrices and the compensation of the
 //!   raw outputs (`--matrices`);
 //! - [`statistics`]: the normal and χ² quantiles;
@@ -17,6 +19,7 @@
 //! - [`remedies`]: the cold-start remedies and their study.
 
 pub mod calibration;
+pub mod check_rates;
 pub mod checks;
 pub mod compensation;
 mod error;

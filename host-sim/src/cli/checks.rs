@@ -1,6 +1,6 @@
 //! `host-sim checks`: false-alarm and detection rates of `calibrate`'s data
-//! checks over seeds ([`crate::analysis::checks::rates`]), and the printed
-//! table of one judgement.
+//! checks over seeds ([`crate::analysis::check_rates::rates`]): how often
+//! each case is flagged, its likely cause named, its answer within 4σ.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -8,7 +8,8 @@ use rollcal::models::ConfigId;
 
 use super::args::load_scenario;
 use super::Error;
-use crate::analysis::checks::{cases, rates, Case, FALSE_ALARM};
+use crate::analysis::check_rates::{all_cases, rates, Case, Rate, ANSWER_SIGMA};
+use crate::analysis::checks::FALSE_ALARM;
 use crate::output::progress::Progress;
 use crate::output::report::write_json;
 
@@ -38,8 +39,19 @@ pub struct ChecksArgs {
     /// The unmodelled bias of the bias case (µg per axis, instrument frame).
     #[arg(long, value_name = "X,Y,Z", default_value = "10,10,10", value_parser = parse_bias, allow_hyphen_values = true)]
     pub bias_ug: [f64; 3],
-    /// Only these cases (repeatable): clean, noise, bias (default: all three).
-    #[arg(long = "case", value_name = "CASE", value_parser = ["clean", "noise", "bias"])]
+    /// Only these cases (repeatable, or comma-separated; default: clean,
+    /// noise, bias). The stream's defects: clean (the truth is the model),
+    /// noise (accelerometer noise 3× the platform's), bias (an unmodelled
+    /// accelerometer bias, --bias-ug). A term of the truth the model (the
+    /// scenario as the platform file) leaves out, everything else matched:
+    /// k2 (10 µg/g² on every accelerometer; sigma_k2_ug_g2 = 0), accel-rw
+    /// (a bias random walk of 1 µg/√h; accel_random_walk_ug_rt_h = 0),
+    /// warmup (an accelerometer warm-up of 2 µg, τ 1200 s; accel_warmup_ug
+    /// = 0), gyro-instability (a Gauss–Markov drift of 0.005 °/h;
+    /// gyro_bias_instability_deg_h = 0); creep (an accelerometer bias
+    /// creeping linearly by 2 µg over the log: a term no model has). Give
+    /// them --errors full and --scenario scenarios/realistic.toml.
+    #[arg(long = "case", value_name = "CASE", value_delimiter = ',', value_parser = CASE_KEYS)]
     pub cases: Vec<String>,
     /// Also write the rates as JSON to PATH.
     #[arg(long, value_name = "PATH")]
@@ -58,17 +70,35 @@ fn parse_bias(s: &str) -> Result<[f64; 3], String> {
     }
 }
 
+/// The `--case` names, in the table's order.
+const CASE_KEYS: [&str; 8] = [
+    "clean",
+    "noise",
+    "bias",
+    "k2",
+    "accel-rw",
+    "warmup",
+    "gyro-instability",
+    "creep",
+];
+
+/// The cases run without `--case`.
+const DEFAULT_CASES: [&str; 3] = ["clean", "noise", "bias"];
+
 /// `host-sim checks`: false-alarm and detection rates of
 /// [`crate::analysis::checks::judge`] over
-/// seeds, in process (simulate, defect, estimate, judge; no files).
+/// seeds, in process (simulate, defect, estimate, judge, diagnose; no files).
 pub fn command(args: &ChecksArgs) -> Result<(), Error> {
     let scenario = load_scenario(args.scenario.as_deref())?;
-    let keys = ["clean", "noise", "bias"];
-    let cases: Vec<Case> = cases(args.bias_ug)
+    let cases: Vec<Case> = all_cases(args.bias_ug)
         .into_iter()
-        .zip(keys)
-        .filter(|(_, k)| args.cases.is_empty() || args.cases.iter().any(|c| c == k))
-        .map(|(c, _)| c)
+        .filter(|c| {
+            if args.cases.is_empty() {
+                DEFAULT_CASES.contains(&c.key)
+            } else {
+                args.cases.iter().any(|k| k == c.key)
+            }
+        })
         .collect();
     let total = args.seeds * cases.len() as u64;
     eprintln!(
@@ -95,7 +125,6 @@ pub fn command(args: &ChecksArgs) -> Result<(), Error> {
         },
     );
     progress.finish(done.load(Ordering::Relaxed), "");
-    let b = args.bias_ug;
     println!(
         "{}{} on '{}', seeds 1..={}; the estimator told the scenario's noise; judgement at a stated false-alarm rate of {FALSE_ALARM}",
         args.config,
@@ -106,44 +135,7 @@ pub fn command(args: &ChecksArgs) -> Result<(), Error> {
         scenario.name,
         args.seeds
     );
-    println!(
-        "{:<28} {:>8} {:>14}   {:>5} {:>9} {:>5}  errors",
-        "case", "seeds", "flagged", "nis", "whiteness", "bias"
-    );
-    for r in &out {
-        let label = if r.case == "accel bias" {
-            format!("accel bias ({}, {}, {}) µg", b[0], b[1], b[2])
-        } else {
-            r.case.clone()
-        };
-        let by = |n: &str| {
-            r.by_check
-                .iter()
-                .find(|(k, _)| *k == n)
-                .map_or(0, |(_, v)| *v)
-        };
-        println!(
-            "{:<28} {:>8} {:>14}   {:>5} {:>9} {:>5}  {}",
-            label,
-            r.seeds,
-            format!(
-                "{}/{} {:.1} %",
-                r.flagged,
-                r.seeds,
-                100.0 * r.flagged as f64 / r.seeds.max(1) as f64
-            ),
-            by("nis"),
-            by("whiteness"),
-            by("bias"),
-            r.errors
-        );
-    }
-    println!("(nis, whiteness, bias: in how many seeds that check failed)");
-    if let Some(clean) = out.iter().find(|r| r.case == "clean") {
-        for (seed, what) in &clean.flagged_seeds {
-            println!("clean seed {seed} flagged: {what}");
-        }
-    }
+    print_table(&out, args.bias_ug);
     if let Some(path) = &args.json {
         let v = serde_json::json!({
             "config": args.config.as_str(),
@@ -160,4 +152,80 @@ pub fn command(args: &ChecksArgs) -> Result<(), Error> {
         return Err("some runs failed (see the errors column)".into());
     }
     Ok(())
+}
+
+/// The rates as a table, then every flagged clean seed and every seed
+/// judged consistent with a state beyond 4σ.
+fn print_table(out: &[Rate], b: [f64; 3]) {
+    let pct =
+        |n: usize, of: usize| format!("{n}/{of} {:.1} %", 100.0 * n as f64 / of.max(1) as f64);
+    println!(
+        "{:<36} {:>5} {:>14} {:>14} {:>14} {:>10}   {:>5} {:>9} {:>5} {:>8}  errors",
+        "case",
+        "seeds",
+        "flagged",
+        "cause named",
+        "within 4σ",
+        "cons. >4σ",
+        "nis",
+        "whiteness",
+        "bias",
+        "left_out"
+    );
+    for r in out {
+        let label = if r.key == "bias" {
+            format!("accel bias ({}, {}, {}) µg", b[0], b[1], b[2])
+        } else {
+            r.case.clone()
+        };
+        let by = |n: &str| {
+            r.by_check
+                .iter()
+                .find(|(k, _)| *k == n)
+                .map_or(0, |(_, v)| *v)
+        };
+        let named = if r.key == "clean" {
+            "-".to_string()
+        } else {
+            pct(r.named, r.seeds)
+        };
+        println!(
+            "{:<36} {:>5} {:>14} {:>14} {:>14} {:>10}   {:>5} {:>9} {:>5} {:>8}  {}",
+            label,
+            r.seeds,
+            pct(r.flagged, r.seeds),
+            named,
+            pct(r.within_4_sigma, r.seeds),
+            r.consistent_beyond_4_sigma.len(),
+            by("nis"),
+            by("whiteness"),
+            by("bias"),
+            by("left_out"),
+            r.errors
+        );
+    }
+    println!(
+        "(cause named: the warning's likely cause names the case's defect; within 4σ: every state of the answer (the nuisances, attitude, Gauss–Markov parts and warm-ups, apart) within {ANSWER_SIGMA}σ of the persistent truth at the end of the log; cons. >4σ: judged consistent with a state beyond; nis, whiteness, bias, left_out: in how many seeds that check failed)"
+    );
+    for r in out {
+        for (cause, n) in &r.causes {
+            println!("{}: {n} × likely cause: {cause}", r.key);
+        }
+        if r.key == "clean" {
+            for (seed, what) in &r.flagged_seeds {
+                println!("clean seed {seed} flagged: {what}");
+            }
+        }
+        for (seed, state, ratio, flagged) in &r.beyond_4_sigma {
+            let verdict = if *flagged { "flagged" } else { "consistent" };
+            println!("{} seed {seed} {verdict}, {state} {ratio:.2}σ off", r.key);
+        }
+        for (seed, state, ratio, flagged) in &r.nuisance_beyond_4_sigma {
+            let verdict = if *flagged { "flagged" } else { "consistent" };
+            println!(
+                "{} seed {seed} {verdict}, nuisance {state} {ratio:.2}σ off (not the answer)",
+                r.key
+            );
+        }
+    }
 }

@@ -11,7 +11,7 @@ use host_sim::io::Error;
 use host_sim::sim::instruments::{
     instrument_names, instrument_truth_state, instrument_units, DEG_H, PPM, UG,
 };
-use host_sim::sim::scenario::{Scenario, DEG, PAPER_TOML};
+use host_sim::sim::scenario::{Platform, Scenario, DEG, PAPER_TOML};
 use host_sim::sim::truth::{simulate, SimOptions, Simulation, TruthParams};
 use host_sim::sim::wander::WanderTruth;
 use nalgebra::{Matrix3, Vector3};
@@ -481,4 +481,122 @@ fn sidecar_records_the_instrument_truth() {
     let e = read_sidecar(&old, ConfigId::M2Ps).err().unwrap();
     assert!(matches!(e, Error::SidecarArray { .. }), "{e}");
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The keys of the errors that wander, in a scenario file and in a
+/// platform file alike: a negative σ, a zero or negative correlation or
+/// warm-up time where its term is given, an absurd magnitude or time, and
+/// a prior σ of k2 below zero are refused naming the key.
+#[test]
+fn wandering_keys_are_validated_naming_the_field() {
+    let w = "[instruments.wander]\n";
+    let wander_cases = [
+        (
+            "gyro_bias_instability_deg_h = -0.003\ngyro_correlation_time_s = 600.0",
+            "instruments.wander.gyro_bias_instability_deg_h = -0.003",
+        ),
+        (
+            "accel_bias_instability_ug = -2.0\naccel_correlation_time_s = 900.0",
+            "instruments.wander.accel_bias_instability_ug = -2",
+        ),
+        (
+            "accel_random_walk_ug_rt_h = -1.0",
+            "instruments.wander.accel_random_walk_ug_rt_h = -1",
+        ),
+        (
+            "gyro_warmup_deg_h = -0.005\nwarmup_time_constant_s = 1200.0",
+            "instruments.wander.gyro_warmup_deg_h = -0.005",
+        ),
+        (
+            "accel_warmup_ug = nan\nwarmup_time_constant_s = 1200.0",
+            "instruments.wander.accel_warmup_ug = NaN",
+        ),
+        // Zero or negative correlation time with its instability given.
+        (
+            "gyro_bias_instability_deg_h = 0.003\ngyro_correlation_time_s = 0.0",
+            "instruments.wander.gyro_correlation_time_s = 0 s: a bias instability",
+        ),
+        (
+            "gyro_bias_instability_deg_h = 0.003\ngyro_correlation_time_s = -600.0",
+            "instruments.wander.gyro_correlation_time_s = -600 must be finite, ≥ 0",
+        ),
+        (
+            "accel_bias_instability_ug = 2.0\naccel_correlation_time_s = -900.0",
+            "instruments.wander.accel_correlation_time_s = -900 must be finite, ≥ 0",
+        ),
+        (
+            "accel_warmup_ug = 3.0\nwarmup_time_constant_s = 0.0",
+            "instruments.wander.warmup_time_constant_s = 0 s: a warm-up",
+        ),
+        (
+            "accel_warmup_ug = 3.0\nwarmup_time_constant_s = -1200.0",
+            "instruments.wander.warmup_time_constant_s = -1200 must be finite, ≥ 0",
+        ),
+        // Absurd magnitudes and times.
+        (
+            "gyro_bias_instability_deg_h = 1e6\ngyro_correlation_time_s = 600.0",
+            "instruments.wander.gyro_bias_instability_deg_h = 1000000 must be finite, ≥ 0 and ≤",
+        ),
+        (
+            "accel_warmup_ug = 1e9\nwarmup_time_constant_s = 1200.0",
+            "instruments.wander.accel_warmup_ug = 1000000000 must be finite, ≥ 0 and ≤",
+        ),
+        (
+            "accel_bias_instability_ug = 2.0\naccel_correlation_time_s = 1e12",
+            "instruments.wander.accel_correlation_time_s = 1000000000000 must be finite, ≥ 0 and ≤",
+        ),
+        (
+            "gyro_warmup_deg_h = 0.005\nwarmup_time_constant_s = inf",
+            "instruments.wander.warmup_time_constant_s = inf must be finite",
+        ),
+    ];
+    let cases: Vec<(String, &str)> = wander_cases
+        .iter()
+        .map(|(t, f)| (format!("{w}{t}\n"), *f))
+        .chain([
+            (
+                "[instruments.prior]\nsigma_k2_ug_g2 = -100.0\n".to_string(),
+                "instruments.prior.sigma_k2_ug_g2",
+            ),
+            (
+                "[instruments.prior]\nsigma_dg_deg_h = 0.0\n[instruments.wander]\ngyro_rate_random_walk_deg_h_rt_h = 0.002\n".to_string(),
+                "instruments.prior.sigma_dg_deg_h = 0 (not estimated)",
+            ),
+        ])
+        .collect();
+    let platform_head =
+        "config = \"M2-ps\"\nerrors = \"full\"\n[site]\nlatitude_deg = 34.25\nearth_rate = true\n\
+                         [noise]\naccel_g = 1e-6\ngyro_deg_h = 0.1\ngimbal_arcsec = 10.0\n\
+                         [timing]\nperiod_s = 1.0\n[prior]\nsigma_deg = 1.0\n";
+    for (table, field) in &cases {
+        let e = Scenario::from_toml(&format!("{PAPER_TOML}\n{table}")).unwrap_err();
+        assert!(e.0.contains(field), "scenario {table}: {e}");
+        let e = Platform::from_toml(&format!("{platform_head}{table}")).unwrap_err();
+        assert!(e.0.contains(field), "platform {table}: {e}");
+    }
+    // The truth's warm-up (a scenario's alone): a negative or zero time
+    // constant with a warm-up, an absurd amplitude.
+    for (table, field) in [
+        (
+            "[instruments.warmup]\naccel_ug = [2.0, 2.0, 2.0]\ntime_constant_s = -1200.0\n",
+            "instruments.warmup.time_constant_s = -1200",
+        ),
+        (
+            "[instruments.warmup]\ngyro_deg_h = [0.005, 0.0, 0.0]\ntime_constant_s = 0.0\n",
+            "instruments.warmup.time_constant_s = 0",
+        ),
+        (
+            "[instruments.warmup]\ngyro_deg_h = [1e6, 0.0, 0.0]\ntime_constant_s = 1200.0\n",
+            "instruments.warmup.gyro_deg_h",
+        ),
+    ] {
+        let e = Scenario::from_toml(&format!("{PAPER_TOML}\n{table}")).unwrap_err();
+        assert!(e.0.contains(field), "scenario {table}: {e}");
+    }
+    // A platform file has no truth: a warm-up's values are refused there.
+    let e = Platform::from_toml(&format!(
+        "{platform_head}[instruments.warmup]\naccel_ug = [2.0, 2.0, 2.0]\ntime_constant_s = 1200.0\n"
+    ))
+    .unwrap_err();
+    assert!(e.0.contains("unknown field `warmup`"), "{e}");
 }

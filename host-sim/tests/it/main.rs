@@ -28,6 +28,7 @@ mod golden;
 mod ground_station;
 mod innovations;
 mod instruments;
+mod left_out;
 mod mid_path;
 mod mistakes;
 mod observability;

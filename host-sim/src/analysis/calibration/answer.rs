@@ -11,11 +11,10 @@ use rollcal::models::{ConfigId, ErrorModel};
 use rollcal::wire::{CalibratorConfig, DecoderStats, Estimate, EstimateKind, VERSION};
 
 use super::bound::{bound_at_estimate, state_at_start, truth_at_start, CalibratorView};
-use super::diagnose;
 use super::host::{Final, Host, Refused};
 use super::rejects::{findings, RejectFinding, SampleSource};
 use super::trust::{self, Gated, NotAnAnswer};
-use crate::analysis::checks::{self, Judgement};
+use crate::analysis::checks::Judgement;
 use crate::analysis::runner::{self, Passes, RunResult};
 use crate::analysis::verdict::Verdict;
 use crate::io::sidecar::Sidecar;
@@ -58,7 +57,7 @@ pub struct Calibration {
     /// Without a truth: the bound at the estimate along the received path
     /// and its verdict per state ([`bound_at_estimate`]).
     pub at_estimate: Option<(Vec<f64>, Vec<Verdict>)>,
-    /// The data judged against the model ([`checks::judge`]) with the
+    /// The data judged against the model ([`crate::analysis::checks::judge`]) with the
     /// path's distance from gimbal lock.
     pub judgement: Judgement,
     /// Notes for the user (how the bound was taken, an incomplete answer).
@@ -249,7 +248,7 @@ impl Calibration {
             },
             Some(_) => None,
         };
-        let judgement = judge(&settings, &r, &records, ctx.latitude_deg);
+        let judgement = super::judge(&settings, &r, &records, ctx.latitude_deg);
         let measured = records.iter().filter(|r| r.observation.is_some()).count();
         let gated = Gated::of(
             settings.options.nis_gate,
@@ -348,22 +347,6 @@ fn single_pass(fin: Option<&Final>, notes: &mut Vec<String>) -> Option<String> {
         Some(_) => None,
         None => Some("--passes 1".to_string()),
     }
-}
-
-/// The data judged against the model ([`checks::judge`]) with the path's
-/// distance from gimbal lock, and a warning's likely cause
-/// ([`diagnose::likely_cause`]).
-fn judge(
-    settings: &CalibratorConfig,
-    r: &RunResult,
-    records: &[LogRecord<f64>],
-    latitude_deg: Option<f64>,
-) -> Judgement {
-    let mut j = checks::judge(r).with_path(checks::gimbal_lock_check(settings.config, records));
-    if j.verdict.is_warning() {
-        j.cause = diagnose::likely_cause(settings, records, &r.updates, &j, latitude_deg);
-    }
-    j
 }
 
 /// The bound at the estimate and its verdicts, for a calibration without

@@ -10,19 +10,22 @@
 //!    part `S − R`), fitted again to the innovations of a run with it;
 //! 2. **the error model**: the full model (the instruments' own errors)
 //!    where the installation model ran;
-//! 3. **the Earth rate or a sign**: the Earth rate off (or on, at the
+//! 3. **a term the platform file leaves out** (full model): a failed
+//!    `left_out` check ([`super::left_out`]), confirmed when the data fit
+//!    the model with the term (the run that tested it);
+//! 4. **the Earth rate or a sign**: the Earth rate off (or on, at the
 //!    platform file's latitude), the latitude's sign; one accelerometer
 //!    axis, gimbal angle or commanded-increment axis negated, two
 //!    accelerometer axes swapped: screened by pass 1's mean NIS over the
 //!    last 80 % of the log (the first 20 % is the cold start), the two
 //!    best run in full;
-//! 4. **the latitude**: the one whose pass 1 fits best (a 10° grid, then
+//! 5. **the latitude**: the one whose pass 1 fits best (a 10° grid, then
 //!    refined), run in full.
 //!
 //! A candidate is run in full only when the ones before it did not fit; a candidate is the cause when the estimator of
 //! record with it gives data that pass every check ([`checks::judge_updates`]).
-//! When none does, the cause named is the failed checks' signature: a term
-//! the model lacks.
+//! When none does, the cause named is a failed `left_out` check's term, or
+//! else the failed checks' signature: a term the model lacks.
 
 use nalgebra::Vector3;
 use rollcal::ekf::FilterConfig;
@@ -31,6 +34,7 @@ use rollcal::geometry::earth_rate_n;
 use rollcal::models::{ErrorModel, Model};
 use rollcal::wire::CalibratorConfig;
 
+use super::left_out::LeftOut;
 use crate::analysis::checks::{self, DataVerdict, Judgement};
 use crate::analysis::runner::{self, Update};
 use crate::sim::segments::command_segments;
@@ -44,11 +48,17 @@ const SCREEN_SKIP: f64 = 0.2;
 /// mistakes of the candidates below hundreds of times.
 pub const MARGINAL: f64 = 1.5;
 
-/// What a candidate gave: the last pass's updates and pass 1's screening
-/// NIS.
-struct Trial {
-    updates: Vec<Update>,
-    screen_nis: f64,
+/// What a candidate gave: the last pass's updates, pass 1's screening
+/// NIS, and the state and covariance at the end of the last pass.
+pub(super) struct Trial {
+    /// The last pass's accepted updates.
+    pub updates: Vec<Update>,
+    /// Pass 1's mean NIS over the last 80 % of the log.
+    pub screen_nis: f64,
+    /// The state at the end of the last pass (internal units).
+    pub state: Vec<f64>,
+    /// Its covariance, row-major (internal units²).
+    pub covariance: Vec<f64>,
 }
 
 /// One candidate: what it changes, and the settings and records with it.
@@ -60,8 +70,9 @@ struct Candidate {
 
 /// The likely cause of the data warning of `judgement` (the calibration
 /// of `records` with `settings`; `updates`: its last pass's;
-/// `latitude_deg`: the platform's, for switching an absent Earth rate on),
-/// or `None` when the verdict is not a warning or the warning is the
+/// `latitude_deg`: the platform's, for switching an absent Earth rate on;
+/// `left_out`: the test of the terms the platform file leaves out, when
+/// made), or `None` when the verdict is not a warning or the warning is the
 /// path's alone.
 pub fn likely_cause(
     settings: &CalibratorConfig,
@@ -69,6 +80,7 @@ pub fn likely_cause(
     updates: &[Update],
     judgement: &Judgement,
     latitude_deg: Option<f64>,
+    left_out: Option<&LeftOut>,
 ) -> Option<String> {
     let DataVerdict::Warning { failed } = &judgement.verdict else {
         return None;
@@ -107,6 +119,20 @@ pub fn likely_cause(
             return Some(found);
         }
     }
+    let missing = left_out.map(|l| lacking(l, failed)).unwrap_or_default();
+    if let Some(l) = left_out.filter(|_| !missing.is_empty()) {
+        let segments = command_segments(records.iter().map(|r| (r.dt, r.dtheta_cmd.into())));
+        if matches!(
+            checks::judge_updates(&l.updates, &segments).verdict,
+            DataVerdict::Consistent
+        ) {
+            return Some(format!(
+                "likely cause: {missing} (with it the data fit the model: mean NIS {}, not {})",
+                shown(mean_nis(&l.updates)),
+                shown(base)
+            ));
+        }
+    }
     let by_screening = |cands: Vec<Candidate>| -> Vec<Candidate> {
         let mut s: Vec<(f64, Candidate)> = cands
             .into_iter()
@@ -131,7 +157,38 @@ pub fn likely_cause(
     {
         return Some(found);
     }
+    if !missing.is_empty() {
+        return Some(format!(
+            "likely cause: {missing} (with it the data do not fit the model either: another cause too)"
+        ));
+    }
     Some(signature(failed, settings.errors))
+}
+
+/// The terms of the failed `left_out` checks of `failed`, as a cause:
+/// what each is, the platform file's key, its estimate, and the remedy;
+/// empty when none failed.
+fn lacking(l: &LeftOut, failed: &[checks::Check]) -> String {
+    let named: Vec<String> = l
+        .findings
+        .iter()
+        .filter_map(|f| {
+            let c = failed
+                .iter()
+                .find(|c| c.name == "left_out" && c.scope == f.wald.scope)?;
+            Some(format!(
+                "{} ({}.{} = 0): estimated, the data give {} (x̂ᵀP⁻¹x̂ = {:.1}, above {:.1}): give it its σ",
+                f.term.what, f.term.table, f.term.key, f.estimate, c.statistic, c.band.1
+            ))
+        })
+        .collect();
+    if named.is_empty() {
+        return String::new();
+    }
+    format!(
+        "a term the platform file leaves out: {}",
+        named.join("; and ")
+    )
 }
 
 /// The candidate's cause when the data fit with it (every check passes),
@@ -438,9 +495,14 @@ fn signature(failed: &[checks::Check], errors: ErrorModel) -> String {
 }
 
 /// The estimator of record over `records` with `settings`, at most
-/// `passes` passes: the last pass's updates and pass 1's mean NIS over the
-/// last 80 % of the log. `None` when the estimator refuses.
-fn trial(settings: &CalibratorConfig, records: &[LogRecord<f64>], passes: u8) -> Option<Trial> {
+/// `passes` passes: the last pass's updates, pass 1's mean NIS over the
+/// last 80 % of the log, the final state and covariance. `None` when the
+/// estimator refuses.
+pub(super) fn trial(
+    settings: &CalibratorConfig,
+    records: &[LogRecord<f64>],
+    passes: u8,
+) -> Option<Trial> {
     fn typed<M: Model<N, Z>, const N: usize, const Z: usize>(
         settings: &CalibratorConfig,
         records: &[LogRecord<f64>],
@@ -463,7 +525,7 @@ fn trial(settings: &CalibratorConfig, records: &[LogRecord<f64>], passes: u8) ->
             max_passes: passes,
             ..EstimatorOptions::default()
         };
-        estimator::estimate::<f64, M, N, Z, _, _>(
+        let out = estimator::estimate::<f64, M, N, Z, _, _>(
             &cfg,
             &nalgebra::SVector::zeros(),
             &s0,
@@ -487,6 +549,14 @@ fn trial(settings: &CalibratorConfig, records: &[LogRecord<f64>], passes: u8) ->
         .ok()?;
         Some(Trial {
             updates,
+            state: out.filter.state().iter().copied().collect(),
+            covariance: out
+                .filter
+                .covariance()
+                .transpose()
+                .iter()
+                .copied()
+                .collect(),
             screen_nis: if screened == 0 {
                 f64::INFINITY
             } else {

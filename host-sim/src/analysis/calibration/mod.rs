@@ -1,28 +1,32 @@
 //! The calibrator run on a stream, as `calibrate` drives it:
 //!
-//! - [`host`]: the no_std session ([`rollcal::session::Session`]) with the
+//! - `host`: the no_std session ([`rollcal::session::Session`]) with the
 //!   host's sample log, the NIS and failures of every accepted sample, the
 //!   estimator of record's final passes with their covariance;
-//! - [`answer`]: what the session answered after the stream, as a
+//! - `answer`: what the session answered after the stream, as a
 //!   [`Calibration`] (everything the outputs need, computed once);
-//! - [`bound`]: the bound at the estimate without a truth;
+//! - `bound`: the bound at the estimate without a truth;
 //! - [`rejects`]: why samples were rejected, and the likely cause;
 //! - [`trust`]: when the result is an answer, and the gated updates;
 //! - [`diagnose`]: the likely cause of a data warning;
+//! - [`left_out`]: the terms the platform file leaves out, tested;
 //! - here: the calibrator settings of a scenario or platform file.
 
 mod answer;
 mod bound;
 pub mod diagnose;
 mod host;
+pub mod left_out;
 pub mod rejects;
 pub mod trust;
 
 use rollcal::ekf::Options;
+use rollcal::estimator::LogRecord;
 use rollcal::models::{ConfigId, ErrorModel};
 use rollcal::wire::CalibratorConfig;
 
-use crate::analysis::runner;
+use crate::analysis::checks::{self, Judgement, Wald};
+use crate::analysis::runner::{self, RunResult};
 use crate::sim::scenario::{Platform, Scenario, DEG};
 
 pub use answer::{Calibration, CalibrationError, Context};
@@ -67,4 +71,36 @@ pub fn platform_config(
     // stream `calibrate --errors full` reads keeps them.
     c.wander = p.instruments.wander.to_model();
     c
+}
+
+/// The data of a calibration judged against the model as `calibrate`
+/// judges them: the checks of the last pass's innovations (`r`), the test
+/// of every term the platform file leaves out ([`left_out::test`], one
+/// more run of the estimator over `records` when there is one), the path's
+/// distance from gimbal lock, and a warning's likely cause
+/// ([`diagnose::likely_cause`]; `latitude_deg`: the platform's).
+pub fn judge(
+    settings: &CalibratorConfig,
+    r: &RunResult,
+    records: &[LogRecord<f64>],
+    latitude_deg: Option<f64>,
+) -> Judgement {
+    let left = left_out::test(settings, records);
+    let walds: Vec<Wald> = left
+        .iter()
+        .flat_map(|l| l.findings.iter().map(|f| f.wald.clone()))
+        .collect();
+    let mut j = checks::judge_with(r, &walds)
+        .with_path(checks::gimbal_lock_check(settings.config, records));
+    if j.verdict.is_warning() {
+        j.cause = diagnose::likely_cause(
+            settings,
+            records,
+            &r.updates,
+            &j,
+            latitude_deg,
+            left.as_ref(),
+        );
+    }
+    j
 }
