@@ -94,8 +94,8 @@ pub struct Wander<T> {
     pub warmup_tau_s: T,
 }
 
-/// What one period of length `T` does to the wandering states (see the
-/// [module docs](self)): the Gauss–Markov states are multiplied by `φ` and
+/// What one period of length `T` does to the wandering states (see
+/// [`Wander`]): the Gauss–Markov states are multiplied by `φ` and
 /// gain the variance `q`, the random walks gain their `q`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct WanderStep<T> {
