@@ -114,6 +114,38 @@ pub fn format_combination(terms: &[Term]) -> String {
         .join(" ")
 }
 
+/// The prior of the structural analysis. The structure is that of the
+/// states the model holds constant: the information matrix of the initial
+/// state has no process noise, and the nuisances of errors that wander are
+/// left out of it (prior σ 0, no wander), as are the states it does not
+/// estimate: the Gauss–Markov parts (whose information the model forgets
+/// at the rate 1/τ) and the warm-ups (told from a constant only by their
+/// decay, which the structure's model without wander does not have).
+fn structure_prior<const N: usize>(
+    layout: &rollcal::models::Layout,
+    prior: SVector<f64, N>,
+) -> SVector<f64, N> {
+    let nuisances = [
+        layout.dg_gm(),
+        layout.ba_gm(),
+        layout.dg_wu(),
+        layout.ba_wu(),
+    ];
+    let nuisance = |i: usize| {
+        nuisances
+            .into_iter()
+            .flatten()
+            .any(|first| (first..first + 3).contains(&i))
+    };
+    let mut p = prior;
+    for (i, v) in p.iter_mut().enumerate() {
+        if nuisance(i) {
+            *v = 0.0;
+        }
+    }
+    p
+}
+
 fn analyse_typed<M: Model<N, Z>, const N: usize, const Z: usize>(
     run: SimulatedRun,
     keep_history: bool,
@@ -123,31 +155,7 @@ fn analyse_typed<M: Model<N, Z>, const N: usize, const Z: usize>(
     let truth0 = run.truth_at_start();
     let x0 = SVector::<f64, N>::from_iterator(truth0.iter().copied());
     let prior = SVector::<f64, N>::from_iterator(run.prior_sigma());
-    // The structure is that of the states the model holds constant: the
-    // information matrix of the initial state has no process noise, and the
-    // nuisances of errors that wander are left out of it (prior σ 0, no
-    // wander), as are the states it does not estimate: the Gauss–Markov
-    // parts (whose information the model forgets at the rate 1/τ) and the
-    // warm-ups (told from a constant only by their decay, which the
-    // structure's model without wander does not have).
-    let layout = M::LAYOUT;
-    let nuisance = |i: usize| {
-        [
-            layout.dg_gm(),
-            layout.ba_gm(),
-            layout.dg_wu(),
-            layout.ba_wu(),
-        ]
-        .into_iter()
-        .flatten()
-        .any(|first| (first..first + 3).contains(&i))
-    };
-    let mut prior_struct = prior;
-    for (i, p) in prior_struct.iter_mut().enumerate() {
-        if nuisance(i) {
-            *p = 0.0;
-        }
-    }
+    let prior_struct = structure_prior(&M::LAYOUT, prior);
     let cfg_struct = ekf::FilterConfig {
         wander: rollcal::models::Wander::none(),
         ..cfg
