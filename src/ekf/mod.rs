@@ -181,6 +181,14 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// angles in M2). A constant, so that the views at it fold at compile
     /// time (a runtime offset keeps nalgebra's bounds assert).
     const ACCEL_ROW: usize = if M::LAYOUT.gimbal_obs { 3 } else { 0 };
+    /// The first state that may be held at zero variance (a term the model
+    /// does not estimate: an instrument state); `N` for a layout without
+    /// instrument states. The states before it keep `D > 0`, so the
+    /// factor's zero-variance tests are compiled out for them.
+    const HELD_FROM: usize = match M::LAYOUT.instruments() {
+        Some(first) => first,
+        None => N,
+    };
 }
 
 fn all_finite<T: RealField + Copy>(it: impl IntoIterator<Item = T>) -> bool {

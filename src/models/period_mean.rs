@@ -144,7 +144,10 @@ impl Layout {
                 let mut small = Vector3::<J>::zeros();
                 for ((theta, f_turn), w) in att.iter().zip(f_turns).zip(weights) {
                     let node = f_turn + dcm_deviation(&to_t::<J, 3, 1>(theta)) * (f0_j + f_turn);
-                    square(&(f0 + to_f64(&node)), w);
+                    if full {
+                        // (Not formed for the installation layout.)
+                        square(&(f0 + to_f64(&node)), w);
+                    }
                     let w: J = nalgebra::convert(w);
                     small += node * w;
                 }
