@@ -309,13 +309,15 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
     /// `false` (and the factor unchanged) unless there are `N·N` entries,
     /// all finite in `T`, every `D` is positive or zero, and the column of
     /// `U` above a zero `D` and its row to the right are zero (a state the
-    /// model does not estimate, as the filter keeps it).
-    pub fn set_packed_rows(&mut self, rows: &[f64]) -> bool {
+    /// model does not estimate, as the filter keeps it); a zero `D` only at
+    /// states `held_from..N` (those before it keep `D > 0`:
+    /// [`Ud::update_into`]).
+    pub fn set_packed_rows(&mut self, rows: &[f64], held_from: usize) -> bool {
         let t = |v: f64| -> T { nalgebra::convert(v) };
         let at = |r: usize, c: usize| rows.get(r * N + c).map(|v| t(*v));
         let diagonal_valid = (0..N).all(|i| match at(i, i) {
             Some(d) if d > T::zero() => true,
-            Some(d) if d == T::zero() => {
+            Some(d) if d == T::zero() && i >= held_from => {
                 (0..i).all(|r| at(r, i) == Some(T::zero()))
                     && (i + 1..N).all(|c| at(i, c) == Some(T::zero()))
             }
@@ -504,7 +506,7 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
     #[cfg(test)]
     pub fn update(&mut self, h: &SVector<T, N>, r: T) -> Option<ScalarUpdate<T, N>> {
         let mut gain = [T::zero(); N];
-        let alpha = self.update_into(h, r, &mut gain)?;
+        let alpha = self.update_into(h, r, &mut gain, 0)?;
         Some(ScalarUpdate {
             gain: SVector::from(gain),
             alpha,
@@ -524,8 +526,20 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
     /// same operations in the same order both times. No gain-sized value is
     /// returned by value (0.3 KB of f64 on a Cortex-M's stack for 39
     /// states).
+    ///
+    /// States `held_from..N` may have `D = 0` (not estimated: they stay
+    /// so); those before it must have `D > 0` (the filter's invariant: its
+    /// prior and checkpoints give a zero variance only to instrument
+    /// states), so their zero tests are left out (with a constant
+    /// `held_from`, at compile time: `N` for the installation model).
     #[inline(always)]
-    pub fn update_into(&mut self, h: &SVector<T, N>, r: T, b: &mut [T; N]) -> Option<T> {
+    pub fn update_into(
+        &mut self,
+        h: &SVector<T, N>,
+        r: T,
+        b: &mut [T; N],
+        held_from: usize,
+    ) -> Option<T> {
         if !(r > T::zero()) {
             return None;
         }
@@ -546,7 +560,7 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
                 // non-positive or infinite: one test below covers them. A
                 // state of zero variance (not estimated) stays at zero.
                 let d = a[j][j] * (beta / alpha);
-                let pinned = a[j][j] == T::zero() && alpha.is_finite();
+                let pinned = j >= held_from && a[j][j] == T::zero() && alpha.is_finite();
                 if !(d > T::zero() || pinned) {
                     return None;
                 }
@@ -564,7 +578,7 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         in_runs::<N>(|j| {
             let beta = alpha;
             let col = &mut a[j];
-            if col[j] == T::zero() {
+            if j >= held_from && col[j] == T::zero() {
                 // A state of zero variance (not estimated): its column of U
                 // stays zero (it multiplies D_j = 0), its gain is zero.
                 b[j] = T::zero();

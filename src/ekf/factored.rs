@@ -192,7 +192,10 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         for (row, nu_i) in h_w.row_iter().zip(nu_w.iter()) {
             let row = row.transpose();
             let resid = *nu_i - row.dot(&*dx);
-            let Some(alpha) = self.ud.update_into(&row, T::one(), &mut gain) else {
+            let Some(alpha) = self
+                .ud
+                .update_into(&row, T::one(), &mut gain, Self::HELD_FROM)
+            else {
                 return Err(Error::CovarianceNotPositiveDefinite);
             };
             nis += resid * resid / alpha;

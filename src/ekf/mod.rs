@@ -181,6 +181,15 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// angles in M2). A constant, so that the views at it fold at compile
     /// time (a runtime offset keeps nalgebra's bounds assert).
     const ACCEL_ROW: usize = if M::LAYOUT.gimbal_obs { 3 } else { 0 };
+    /// The first state whose variance the factor's updates test for zero
+    /// (a term the model does not estimate, held): `N` for a layout
+    /// without instrument states, whose states all keep `D > 0` (the
+    /// tests compiled out), `0` (every state tested) for one with them.
+    const HELD_FROM: usize = if M::LAYOUT.instruments().is_some() {
+        0
+    } else {
+        N
+    };
 }
 
 fn all_finite<T: RealField + Copy>(it: impl IntoIterator<Item = T>) -> bool {

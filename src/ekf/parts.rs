@@ -176,7 +176,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         {
             return Err(Error::NonFiniteInput);
         }
-        if !self.ud.set_packed_rows(parts.factor) {
+        if !self.ud.set_packed_rows(parts.factor, Self::HELD_FROM) {
             return Err(Error::CovarianceNotPositiveDefinite);
         }
         self.x = *parts.x;

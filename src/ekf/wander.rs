@@ -72,6 +72,11 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// the factor and the estimate's Gauss–Markov states move (see the
     /// [module docs](self)). Cannot fail.
     pub(super) fn wander_jump(&mut self, dt: f64) {
+        // Nothing to do (as `apply` finds): skipped before the work vector
+        // is cleared; statically for a layout without wandering states.
+        if Self::LAYOUT.dg_gm().is_none() || self.config.wander.is_none() {
+            return;
+        }
         let mut work = [T::zero(); N];
         apply(
             &Self::LAYOUT,

@@ -127,10 +127,8 @@ impl Layout {
         let full = self.errors == ErrorModel::Full;
         let mut mean_sq = Vector3::<f64>::zeros();
         let mut square = |f_j: &Vector3<f64>, w: f64| {
-            if full {
-                let u = a * f_j;
-                mean_sq += u.component_mul(&u) * w;
-            }
+            let u = a * f_j;
+            mean_sq += u.component_mul(&u) * w;
         };
         match self.attitude {
             AttitudeKind::Misalignment => {
@@ -144,7 +142,9 @@ impl Layout {
                 let mut small = Vector3::<J>::zeros();
                 for ((theta, f_turn), w) in att.iter().zip(f_turns).zip(weights) {
                     let node = f_turn + dcm_deviation(&to_t::<J, 3, 1>(theta)) * (f0_j + f_turn);
-                    square(&(f0 + to_f64(&node)), w);
+                    if full {
+                        square(&(f0 + to_f64(&node)), w);
+                    }
                     let w: J = nalgebra::convert(w);
                     small += node * w;
                 }
@@ -163,7 +163,9 @@ impl Layout {
                 ];
                 for (trig, w) in nodes.iter().zip(weights) {
                     let f_j = trig.rotate(&f);
-                    square(&f_j, w);
+                    if full {
+                        square(&f_j, w);
+                    }
                     mean += f_j * w;
                 }
             }
