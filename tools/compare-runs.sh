@@ -41,8 +41,12 @@ for old in sorted(glob.glob(out + "/old-*.json")):
         ]
     a = states(old)
     b = states(old.replace("/old-", "/new-"))
-    dx = max(abs(x["estimate_rad"] - y["estimate_rad"]) / x["sigma_rad"] for x, y in zip(a, b))
-    ds = max(abs(y["sigma_rad"] / x["sigma_rad"] - 1) for x, y in zip(a, b))
+    # A term with σ = 0 is not estimated: its difference counts as 0 when
+    # there is none, else as infinite.
+    def rel(d, s):
+        return abs(d) / s if s else (0.0 if d == 0 else float("inf"))
+    dx = max(rel(x["estimate_rad"] - y["estimate_rad"], x["sigma_rad"]) for x, y in zip(a, b))
+    ds = max(rel(y["sigma_rad"] - x["sigma_rad"], x["sigma_rad"]) for x, y in zip(a, b))
     same = open(old, "rb").read() == open(old.replace("/old-", "/new-"), "rb").read()
     differ = differ or not same
     print(f"{old.split('old-')[1][:-5]:<24} max |dx|/sigma {dx:.2e}   max |sigma ratio - 1| {ds:.2e}   {'identical' if same else 'DIFFER'}")

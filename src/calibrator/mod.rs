@@ -63,7 +63,7 @@ use core::marker::PhantomData;
 
 use nalgebra::{RealField, SVector, Vector3};
 
-use crate::ekf::Filter;
+use crate::ekf::{Filter, FilterConfig};
 use crate::estimator::LogStart;
 use crate::models::Model;
 use crate::wire::{CalibratorConfig, Progress};
@@ -168,7 +168,8 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     Calibrator<T, M, N, Z>
 {
     /// A calibrator at the prior (zero estimate, σ = `prior_sigma_rad`).
-    /// (The session builds its calibrator in place instead:
+    /// (A value of the calibrator's size: the session builds its
+    /// calibrator in place instead,
     /// [`crate::session::AnyCalibrator::build_into`].)
     pub fn new(settings: CalibratorConfig) -> Result<Self, Error> {
         let variance = Self::prior_variance(&settings)?;
@@ -185,13 +186,10 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     }
 
     /// [`Calibrator::new`] once [`Calibrator::prior_variance`] has
-    /// accepted `settings`: it cannot fail, so the session builds it
-    /// straight into its slot.
+    /// accepted `settings`: it cannot fail. (By value: the session builds
+    /// its calibrator in place, [`Calibrator::init_in_place`].)
     #[inline(always)]
-    pub(crate) fn with_prior_variance(
-        settings: CalibratorConfig,
-        variance: &SVector<T, N>,
-    ) -> Self {
+    fn with_prior_variance(settings: CalibratorConfig, variance: &SVector<T, N>) -> Self {
         let (config, x0, _) = Self::prior(&settings);
         Self {
             filter: Filter::with_prior_variance(config, x0, variance),
@@ -201,6 +199,39 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
             start: LogStart::aligned(),
             _model: PhantomData,
         }
+    }
+
+    /// A calibrator whose filter is [`Filter::placeholder`]'s zeros: not a
+    /// calibrator to run, but the value a slot is filled with before
+    /// [`Calibrator::init_in_place`] makes it one (the session's
+    /// `Configure`: [`crate::session::AnyCalibrator::build_into`]).
+    #[inline(always)]
+    pub(crate) fn placeholder(settings: CalibratorConfig) -> Self {
+        Self {
+            filter: Filter::placeholder(FilterConfig::from(&settings)),
+            settings,
+            progress: Progress::default(),
+            frame_errors: 0,
+            start: LogStart::aligned(),
+            _model: PhantomData,
+        }
+    }
+
+    /// Makes this calibrator equal to [`Calibrator::new`]`(settings)`, in
+    /// place, whatever it held (no calibrator-sized temporary: the filter
+    /// is made from the prior in its own storage,
+    /// [`Filter::init_in_place`]). `variance` is what
+    /// [`Calibrator::prior_variance`] returned for `settings`, so this
+    /// cannot fail. Out of line: the prior's vectors are in its frame, not
+    /// in the caller's.
+    #[inline(never)]
+    pub(crate) fn init_in_place(&mut self, settings: CalibratorConfig, variance: &SVector<T, N>) {
+        let (config, x0, _) = Self::prior(&settings);
+        self.filter.init_in_place(config, x0, variance);
+        self.settings = settings;
+        self.progress = Progress::default();
+        self.frame_errors = 0;
+        self.start = LogStart::aligned();
     }
 
     /// Restarts from the prior with the current settings (counters cleared).

@@ -70,11 +70,16 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         Ok(Self::with_prior_variance(config, x0, &variance))
     }
 
-    /// [`Filter::new`] built straight into `slot` (whatever it held), and
-    /// returned there: a firmware that keeps its filter in static memory
-    /// has no filter-sized value on its stack (18 KB for the full M2-ps
-    /// model in f64, more than a Cortex-M's whole stack budget of 16 KB).
-    /// On error `slot` is unchanged.
+    /// [`Filter::new`] built in `slot` (whatever it held), and returned
+    /// there: a filter in the slot is re-initialised in place, an empty
+    /// slot first receives a placeholder of zeros (`Filter::placeholder`), written
+    /// straight into it. A firmware that keeps its filter in static memory
+    /// has no filter-sized value on its stack (59 KB for the full M2-ps
+    /// model in f64, more than a Cortex-M's whole stack budget of 16 KB;
+    /// built by value, this function's frame was 29.7 KB on the M7; now
+    /// the largest frame of the path, the placeholder's, is 3.4 KB:
+    /// `python3 tools/stack-usage.py ELF 'new_in|place_in'` on
+    /// `firmware/run-qemu.sh`'s M7 image). On error `slot` is unchanged.
     ///
     /// # Examples
     ///
@@ -107,8 +112,77 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         sigma0: SVector<T, N>,
     ) -> Result<&mut Self, Error> {
         let variance = Self::prior_variance(&config, &x0, &sigma0)?;
-        *slot = Some(Self::with_prior_variance(config, x0, &variance));
-        slot.as_mut().ok_or(Error::NonFiniteInput)
+        if slot.is_none() {
+            Self::place_in(slot, config);
+        }
+        match slot {
+            Some(f) => {
+                f.init_in_place(config, x0, &variance);
+                Ok(f)
+            }
+            // Not reached: `place_in` has just filled the slot.
+            None => Err(Error::NonFiniteInput),
+        }
+    }
+
+    /// Puts [`Filter::placeholder`] into `slot`, in a frame of its own:
+    /// the caller then makes it a filter in place
+    /// ([`Filter::init_in_place`]).
+    #[inline(never)]
+    fn place_in(slot: &mut Option<Self>, config: FilterConfig<T>) {
+        *slot = Some(Self::placeholder(config));
+    }
+
+    /// A filter whose storage is all zeros but for `config` and the
+    /// computed frame: not a filter to run, but the value a slot is
+    /// filled with before [`Filter::init_in_place`] makes it one. Its
+    /// large parts (the factor, the saved factor, the pending period) are
+    /// constant zeros, which the compiler writes straight into the slot
+    /// (a memset of the destination, not a filter-sized temporary on the
+    /// stack copied into it, as a factor built from the prior's
+    /// variances was: 23 KB for the full M2-ps model in f64).
+    #[inline(always)]
+    pub(crate) fn placeholder(config: FilterConfig<T>) -> Self {
+        Self {
+            x: SVector::zeros(),
+            ud: Ud::zeros(),
+            command: CommandFrame::aligned(config.env.earth_rate_n),
+            config,
+            pending: PendingSlot::empty(),
+            reference: None,
+            updates: 0,
+            gated_run: 0,
+            gate_open: false,
+            matrices: MatricesCache::new(Self::LAYOUT.installation(&SVector::<f64, N>::zeros())),
+            env_t: env_t(&config.env),
+            scratch: Scratch::zeros(),
+            _model: PhantomData,
+        }
+    }
+
+    /// Makes this filter equal to `Filter::with_prior_variance(config, x0,
+    /// variance)`, in place, whatever it held (its working memory, not
+    /// state, is left as it was: [`Scratch`]). `variance` is what
+    /// [`Filter::prior_variance`] returned for `config`, `x0`: finite and
+    /// not negative, so this cannot fail.
+    pub(crate) fn init_in_place(
+        &mut self,
+        config: FilterConfig<T>,
+        x0: SVector<f64, N>,
+        variance: &SVector<T, N>,
+    ) {
+        // `variance` passed `prior_variance`'s checks: accepted.
+        let _accepted = self.ud.set_diagonal(variance);
+        self.x = x0;
+        self.command = CommandFrame::aligned(config.env.earth_rate_n);
+        self.env_t = env_t(&config.env);
+        self.config = config;
+        self.pending.clear();
+        self.reference = None;
+        self.updates = 0;
+        self.gated_run = 0;
+        self.gate_open = false;
+        self.matrices.fill(Self::LAYOUT.installation(&x0));
     }
 
     /// [`Filter::new`] from the prior variances `variance` that
@@ -180,19 +254,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         sigma0: SVector<T, N>,
     ) -> Result<(), Error> {
         let variance = Self::prior_variance(&config, &x0, &sigma0)?;
-        if !self.ud.set_diagonal(&variance) {
-            return Err(Error::NonFiniteInput);
-        }
-        self.x = x0;
-        self.command = CommandFrame::aligned(config.env.earth_rate_n);
-        self.env_t = env_t(&config.env);
-        self.config = config;
-        self.pending.clear();
-        self.reference = None;
-        self.updates = 0;
-        self.gated_run = 0;
-        self.gate_open = false;
-        self.matrices.fill(Self::LAYOUT.installation(&x0));
+        self.init_in_place(config, x0, &variance);
         Ok(())
     }
 

@@ -271,6 +271,15 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         }
     }
 
+    /// All zeros (not a factor: the storage a filter is built in before
+    /// [`Ud::set_diagonal`] makes it one, in place).
+    #[inline(always)]
+    pub(crate) fn zeros() -> Self {
+        Self {
+            m: SMatrix::zeros(),
+        }
+    }
+
     /// Copies the factor's storage (column by column) into `out`, in place.
     pub(crate) fn save_into(&self, out: &mut [[T; N]; N]) {
         for (o, c) in out.iter_mut().zip(self.m.data.0.iter()) {

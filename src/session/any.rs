@@ -131,57 +131,80 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
     /// prior into `slot`
     /// (whatever it held; untouched on error). Each configuration is built
     /// by its own out-of-line function, so a firmware's stack holds one
-    /// configuration's temporaries, not seven (37 KB of frame on the M7
-    /// before); the prior is checked first and the calibrator then built
-    /// straight into `slot`, with no `Result` holding it (12.3 KB of frame
-    /// on the M7 before, 2.0 KB now).
+    /// configuration's temporaries, not seven; the prior is checked first
+    /// and the calibrator then made in `slot` itself: one of the same
+    /// configuration is re-initialised in place, any other slot first
+    /// receives a placeholder of zeros, which the compiler writes straight
+    /// into it (`Calibrator::init_in_place`). No calibrator-sized value
+    /// is on the stack: on the all-configuration M7 image (f64, the full
+    /// model's 54 states) the largest frame of this path is 3.8 KB and its
+    /// deepest call path 9.6 KB, where building the calibrator by value
+    /// took a 38.4 KB frame (issue 43; `python3 tools/stack-usage.py ELF
+    /// 'build_one|session::any::place'`, the ELF
+    /// `firmware/target/m7/thumbv7em-none-eabihf/release/rollcal-firmware`
+    /// of `firmware/run-qemu.sh`).
     pub fn build_into(
         slot: &mut Option<Self>,
         settings: CalibratorConfig,
     ) -> Result<(), calibrator::Error> {
+        // `$v`: the configuration's variant.
+        macro_rules! build_as {
+            ($v:ident) => {
+                Self::build_one(
+                    slot,
+                    settings,
+                    |any| match any {
+                        Self::$v(c) => Some(c),
+                        #[allow(unreachable_patterns)] // a build of one configuration
+                        _ => None,
+                    },
+                    Self::$v,
+                )
+            };
+        }
         match (settings.config, settings.errors) {
             #[cfg(all(feature = "m1-pa", feature = "installation-model"))]
             (ConfigId::M1Pa, ErrorModel::Installation) => {
-                Self::build_one(slot, settings, Self::M1Pa)
+                build_as!(M1Pa)
             }
             #[cfg(all(feature = "m1-ps", feature = "installation-model"))]
             (ConfigId::M1Ps, ErrorModel::Installation) => {
-                Self::build_one(slot, settings, Self::M1Ps)
+                build_as!(M1Ps)
             }
             #[cfg(all(feature = "m2-ps", feature = "installation-model"))]
             (ConfigId::M2Ps, ErrorModel::Installation) => {
-                Self::build_one(slot, settings, Self::M2Ps)
+                build_as!(M2Ps)
             }
             #[cfg(all(feature = "m3-pa", feature = "installation-model"))]
             (ConfigId::M3Pa, ErrorModel::Installation) => {
-                Self::build_one(slot, settings, Self::M3Pa)
+                build_as!(M3Pa)
             }
             #[cfg(all(feature = "m3-ps", feature = "installation-model"))]
             (ConfigId::M3Ps, ErrorModel::Installation) => {
-                Self::build_one(slot, settings, Self::M3Ps)
+                build_as!(M3Ps)
             }
             #[cfg(all(feature = "m4-pa", feature = "installation-model"))]
             (ConfigId::M4Pa, ErrorModel::Installation) => {
-                Self::build_one(slot, settings, Self::M4Pa)
+                build_as!(M4Pa)
             }
             #[cfg(all(feature = "m4-ps", feature = "installation-model"))]
             (ConfigId::M4Ps, ErrorModel::Installation) => {
-                Self::build_one(slot, settings, Self::M4Ps)
+                build_as!(M4Ps)
             }
             #[cfg(all(feature = "m1-pa", feature = "full-model"))]
-            (ConfigId::M1Pa, ErrorModel::Full) => Self::build_one(slot, settings, Self::M1PaFull),
+            (ConfigId::M1Pa, ErrorModel::Full) => build_as!(M1PaFull),
             #[cfg(all(feature = "m1-ps", feature = "full-model"))]
-            (ConfigId::M1Ps, ErrorModel::Full) => Self::build_one(slot, settings, Self::M1PsFull),
+            (ConfigId::M1Ps, ErrorModel::Full) => build_as!(M1PsFull),
             #[cfg(all(feature = "m2-ps", feature = "full-model"))]
-            (ConfigId::M2Ps, ErrorModel::Full) => Self::build_one(slot, settings, Self::M2PsFull),
+            (ConfigId::M2Ps, ErrorModel::Full) => build_as!(M2PsFull),
             #[cfg(all(feature = "m3-pa", feature = "full-model"))]
-            (ConfigId::M3Pa, ErrorModel::Full) => Self::build_one(slot, settings, Self::M3PaFull),
+            (ConfigId::M3Pa, ErrorModel::Full) => build_as!(M3PaFull),
             #[cfg(all(feature = "m3-ps", feature = "full-model"))]
-            (ConfigId::M3Ps, ErrorModel::Full) => Self::build_one(slot, settings, Self::M3PsFull),
+            (ConfigId::M3Ps, ErrorModel::Full) => build_as!(M3PsFull),
             #[cfg(all(feature = "m4-pa", feature = "full-model"))]
-            (ConfigId::M4Pa, ErrorModel::Full) => Self::build_one(slot, settings, Self::M4PaFull),
+            (ConfigId::M4Pa, ErrorModel::Full) => build_as!(M4PaFull),
             #[cfg(all(feature = "m4-ps", feature = "full-model"))]
-            (ConfigId::M4Ps, ErrorModel::Full) => Self::build_one(slot, settings, Self::M4PsFull),
+            (ConfigId::M4Ps, ErrorModel::Full) => build_as!(M4PsFull),
             // The full model in a build without the `full-model` feature.
             #[cfg(not(feature = "full-model"))]
             (_, ErrorModel::Full) => Err(calibrator::Error::ErrorModelMismatch {
@@ -205,18 +228,33 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
         }
     }
 
-    /// [`AnyCalibrator::build_into`] for one configuration.
+    /// [`AnyCalibrator::build_into`] for one configuration: `of` is its
+    /// variant (`None` for another), `wrap` makes one. A slot that holds
+    /// this configuration's calibrator is made a new one in place; any
+    /// other is first filled with a placeholder ([`place`]), made one in
+    /// place then.
     #[inline(never)]
     fn build_one<M: Model<N, Z> + Clone, const N: usize, const Z: usize>(
         slot: &mut Option<Self>,
         settings: CalibratorConfig,
-        variant: impl FnOnce(Calibrator<T, M, N, Z>) -> Self,
+        of: fn(&mut Self) -> Option<&mut Calibrator<T, M, N, Z>>,
+        wrap: fn(Calibrator<T, M, N, Z>) -> Self,
     ) -> Result<(), calibrator::Error> {
         let variance = Calibrator::<T, M, N, Z>::prior_variance(&settings)?;
-        *slot = Some(variant(Calibrator::with_prior_variance(
-            settings, &variance,
-        )));
-        Ok(())
+        if slot.as_mut().and_then(of).is_none() {
+            place(slot, settings, wrap);
+        }
+        match slot.as_mut().and_then(of) {
+            Some(c) => {
+                c.init_in_place(settings, &variance);
+                Ok(())
+            }
+            // Not reached: `place` has just put this variant there.
+            None => Err(calibrator::Error::ConfigMismatch {
+                expected: M::ID,
+                found: settings.config,
+            }),
+        }
     }
 
     /// The calibrator's settings.
@@ -274,6 +312,18 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
     pub fn log_start(&self, log: &mut (dyn SampleLog<T> + '_)) -> Result<LogStart, EstimatorError> {
         each!(self, c => c.log_start(log))
     }
+}
+
+/// `*slot` becomes `wrap`'s variant holding [`Calibrator::placeholder`],
+/// in a frame of its own: the placeholder's zeros are written straight
+/// into the slot, with no calibrator-sized temporary.
+#[inline(never)]
+fn place<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize>(
+    slot: &mut Option<AnyCalibrator<T>>,
+    settings: CalibratorConfig,
+    wrap: fn(Calibrator<T, M, N, Z>) -> AnyCalibrator<T>,
+) {
+    *slot = Some(wrap(Calibrator::placeholder(settings)));
 }
 
 /// [`Calibrator::restore_in_place`], in a frame of its own (one

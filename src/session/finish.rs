@@ -108,11 +108,12 @@ fn finish_one<
 
 /// `*scratch` becomes a filter of `c`'s configuration, in a frame of its
 /// own, which has returned before the passes run. What it holds does not
-/// matter (the passes restart it, [`Calibrator::finish_in`]): it is built
-/// from the prior straight into the slot (`wrap`, the variant's
-/// constructor, is inlined here), not copied from the running filter,
-/// whose copy would pass through this frame (18 KB for the full M2-ps
-/// model in f64).
+/// matter (the passes restart it in place, [`Calibrator::finish_in`]):
+/// it is [`Calibrator::scratch_filter`]'s placeholder, zeros written
+/// straight into the slot (`wrap`, the variant's constructor, is inlined
+/// here), neither a filter built from the prior by value (its factor a
+/// temporary in this frame: 24–36 KB on the M7 for the full model) nor a
+/// copy of the running filter.
 #[inline(never)]
 fn fill_scratch<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize>(
     scratch: &mut Option<AnyFilter<T>>,

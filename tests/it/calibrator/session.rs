@@ -126,6 +126,94 @@ fn the_sessions_finish_is_the_calibrators_whatever_its_filter_held() {
     }
 }
 
+/// `Configure` builds its calibrator in the session's slot, in place
+/// (issue 43: no calibrator-sized temporary on a firmware's stack): the
+/// calibrator is `AnyCalibrator::new`'s, `==` and bit for bit in what it
+/// answers, whatever the slot held (nothing, a calibrator of another
+/// configuration, one of the same that has run); and so is a filter built
+/// by `Filter::new_in` into a slot holding one that has run.
+#[cfg(all(feature = "m1-pa", feature = "m2-ps"))]
+#[test]
+fn configure_builds_in_place_the_new_calibrator_whatever_the_slot_held() {
+    use rollcal::estimator::{EstimatorOptions, LogRecord, SliceLog};
+    use rollcal::session::{AnyCalibrator, Reply, Session};
+    let (sc, data) = samples(120);
+    let blank = LogRecord::predicted(1.0, nalgebra::Vector3::zeros());
+    let opts = EstimatorOptions::default();
+    let mut session = Session::<f64>::new(None, opts);
+    // The answers of a fresh calibrator of `cfg` (built by value) on `data`.
+    let fresh_run = |cfg: CalibratorConfig| {
+        let mut storage = vec![blank; data.len()];
+        let mut log = SliceLog::new(&mut storage);
+        let mut cal = AnyCalibrator::<f64>::new(cfg).unwrap();
+        let running: Vec<_> = data
+            .iter()
+            .map(|s| cal.push_logged(s, &mut log).unwrap())
+            .collect();
+        let mut scratch = None;
+        let fin = cal.finish(&mut scratch, &mut log, &opts, &mut |_, _| {});
+        (running, fin)
+    };
+    // Nothing, then M2-ps over M2-ps (that has run), M1-pa over M2-ps, M2-ps
+    // over M1-pa.
+    for id in [
+        ConfigId::M2Ps,
+        ConfigId::M2Ps,
+        ConfigId::M1Pa,
+        ConfigId::M2Ps,
+    ] {
+        let cfg = settings(&sc, id, 10);
+        let mut storage = vec![blank; data.len()];
+        let mut log = SliceLog::new(&mut storage);
+        let configure = Message::Configure(cfg);
+        assert_eq!(session.handle(&configure, &mut log), Reply::Nothing);
+        // (`==` of two calibrators at the prior is false: `last_nis` is NaN
+        // before any update; their checkpoints' bytes carry every state.)
+        let built = session.calibrator().unwrap();
+        let fresh = AnyCalibrator::<f64>::new(cfg).unwrap();
+        assert_eq!(built.settings(), fresh.settings());
+        assert_eq!(
+            bytes(&Message::Checkpoint(built.checkpoint())),
+            bytes(&Message::Checkpoint(fresh.checkpoint()))
+        );
+        let running: Vec<_> = data
+            .iter()
+            .map(|s| match session.handle(&Message::Sample(*s), &mut log) {
+                Reply::Nothing => None,
+                Reply::Send(Message::Estimate(e)) => Some(e),
+                other => panic!("{other:?}"),
+            })
+            .collect();
+        let Reply::Send(Message::Estimate(fin)) = session.handle(&Message::Finish, &mut log) else {
+            panic!("no final estimate")
+        };
+        assert_eq!((running, fin), fresh_run(cfg), "{id:?}");
+    }
+    // `Filter::new_in` into a slot whose filter has run (a prediction
+    // pending, a nominal set) is `Filter::new`, and runs as it does.
+    let cfg = settings(&sc, ConfigId::M2Ps, 0);
+    let fcfg = filter_config(&cfg, Options::default());
+    let (x0, sigma0) = (
+        nalgebra::SVector::zeros(),
+        nalgebra::SVector::repeat(cfg.prior_sigma_rad),
+    );
+    let mut slot = None;
+    let f = M2PsFilter::<f64>::new_in(&mut slot, fcfg, x0, sigma0).unwrap();
+    for s in &data[..20] {
+        let obs = Observation {
+            accel_mean: nalgebra::Vector3::from(s.accel_mean).map(f64::from),
+            gimbal: s.gimbal.map(|g| nalgebra::Vector3::from(g).map(f64::from)),
+        };
+        let dtheta = nalgebra::Vector3::from(s.dtheta_cmd);
+        f.step(&dtheta, f64::from(s.dt), &obs).unwrap();
+    }
+    f.predict(&nalgebra::Vector3::from(data[20].dtheta_cmd), 1.0)
+        .unwrap();
+    f.set_nominal(Some(nalgebra::SVector::repeat(1e-4)));
+    let again = M2PsFilter::<f64>::new_in(&mut slot, fcfg, x0, sigma0).unwrap();
+    assert_eq!(*again, M2PsFilter::<f64>::new(fcfg, x0, sigma0).unwrap());
+}
+
 /// `Session::handle_into` and `request_into` (a reply slot the caller owns,
 /// the firmware's way) are `handle` and `request`: the same replies, the
 /// same session after each message, whatever the slot held before (it
