@@ -314,7 +314,8 @@ fn options_that_cannot_be_served_are_refused_before_reading() {
 }
 
 /// A stream's frames with a `Configure` refused mid-stream (an Earth rate
-/// of 2e-3 rad/s, above the filter's bound) and a restore of another
+/// of 2e-3 rad/s, above the filter's bound; a negative bias instability,
+/// refused naming the field) and a restore of another
 /// configuration's checkpoint: each is answered `Refused`, the calibrator
 /// stays as it was and the run goes on to the same answer as without them.
 #[test]
@@ -343,12 +344,18 @@ fn a_refused_configure_or_restore_leaves_the_run_going() {
         earth_rate_n: [2e-3, 0.0, 0.0],
         ..CalibratorConfig::paper(ConfigId::M1Pa)
     }));
+    // A data-sheet figure with its sign lost: refused naming the field
+    // (issue 43).
+    let mut negative = CalibratorConfig::paper(ConfigId::M1Pa);
+    negative.wander.gyro_markov_sigma = -1.5e-8;
+    let negative = frame(&Message::Configure(negative));
     let other = AnyCalibrator::<f64>::new(CalibratorConfig::paper(ConfigId::M4Pa)).unwrap();
     let restore = frame(&Message::Checkpoint(other.checkpoint()));
     let mut altered: Vec<u8> = Vec::new();
     for (k, f) in frames.iter().enumerate() {
         if k == 2000 {
             altered.extend(&bad);
+            altered.extend(&negative);
             altered.extend(&restore);
         }
         altered.extend(*f);
@@ -380,9 +387,15 @@ fn a_refused_configure_or_restore_leaves_the_run_going() {
         ),
         "{text}"
     );
+    assert!(
+        text.contains(
+            "refused: Configure ×1: wander.gyro_markov_sigma is not finite, negative or outside 0 or 1e-15..4.848e-3 rad/s"
+        ),
+        "{text}"
+    );
     let (va, vb) = (support::json_file(&a), support::json_file(&b));
     assert_eq!(va["states"], vb["states"], "the same answer");
-    assert_eq!(vb["refused"].as_array().unwrap().len(), 2);
+    assert_eq!(vb["refused"].as_array().unwrap().len(), 3);
     std::fs::remove_dir_all(&dir).ok();
 }
 
