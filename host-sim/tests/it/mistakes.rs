@@ -457,3 +457,57 @@ fn with_a_truth_every_state_is_judged() {
     assert_eq!(verdict(&text, "ba_x"), "converged", "{text}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A stream whose only `Configure` carries a bad data-sheet figure (a `k2`
+/// prior of 100 g/g²: the data sheet's µg/g² taken for g/g²): refused
+/// naming the field, no calibrator runs, and `calibrate` says so and
+/// exits with status 1 (an error: docs/cli.md).
+#[test]
+fn a_stream_whose_only_configure_is_refused_names_the_field() {
+    use rollcal::wire::{encode, FrameDecoder, Message, MAX_FRAME_LEN};
+    let dir = scratch("mistakes-bad-field");
+    let stream = dir.join("s.bin");
+    assert_success(
+        &host_sim()
+            .args(["record", "--config", "M1-pa", "--seed", "1", "--out"])
+            .arg(&stream)
+            .output()
+            .unwrap(),
+    );
+    let bytes = std::fs::read(&stream).unwrap();
+    let mut altered: Vec<u8> = Vec::new();
+    for f in bytes.split_inclusive(|b| *b == 0) {
+        let mut got = None;
+        FrameDecoder::new().feed(f, |m| got = Some(m));
+        match got {
+            Some(Message::Configure(mut c)) => {
+                c.instrument_prior.k2 = 100.0;
+                let mut buf = vec![0u8; MAX_FRAME_LEN];
+                let n = encode(&Message::Configure(c), &mut buf).unwrap();
+                altered.extend(&buf[..n]);
+            }
+            _ => altered.extend(f),
+        }
+    }
+    let path = dir.join("altered.bin");
+    std::fs::write(&path, &altered).unwrap();
+    let out = host_sim()
+        .args(["calibrate", "--input"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    let why = "instrument_prior.k2 is not finite, negative or outside 0 or 1e-12..1e-2 g/g²";
+    assert!(
+        err.contains(&format!("note: Configure refused ({why})")),
+        "{err}"
+    );
+    assert!(
+        err.contains(&format!(
+            "host-sim: error: the stream's Configure was refused ({why}): no calibrator ran"
+        )),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
