@@ -142,7 +142,7 @@ pub struct FieldBounds {
     /// warm-up time; but a time whose σ is zero is not read, and only
     /// finite and not negative is asked of it.
     pub zero: bool,
-    /// The unit (`"rad/s"`, `"g"`, …).
+    /// The unit (`"rad/s"`, `"g"`, …; `""` for a scale factor).
     pub unit: &'static str,
 }
 
@@ -213,7 +213,7 @@ impl ConfigField {
                 b(1e-15, GYRO, true, "rad/s")
             }
             ConfigField::PriorDG => b(1e-15, GYRO, true, "rad/s/g"),
-            ConfigField::PriorKg | ConfigField::PriorKa => b(1e-12, 0.1, true, "1"),
+            ConfigField::PriorKg | ConfigField::PriorKa => b(1e-12, 0.1, true, ""),
             ConfigField::PriorBa
             | ConfigField::AccelMarkovSigma
             | ConfigField::AccelWarmupSigma => b(1e-12, 0.1, true, "g"),
@@ -284,14 +284,19 @@ impl core::fmt::Display for ConfigField {
 }
 
 impl core::fmt::Display for FieldBounds {
-    /// `"0 or 1e-15..4.848e-3 rad/s"` (each bound to four significant
-    /// digits at most).
+    /// `"0 or 1e-15..4.848e-3 rad/s"`, `"1e-12..0.1 g"` (each bound as
+    /// written where that is short, else to four significant digits).
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        /// `v` as `{:e}` where that is short (`1e-15`, `0.1` as `1e-1`),
-        /// else to four significant digits (`4.848e-3`).
+        /// `v` as `{}` between 1e-3 and 1e6 where that is short (`0.01`),
+        /// else as `{:e}` where that is short (`1e-15`), else to four
+        /// significant digits (`4.848e-3`).
         fn short(f: &mut core::fmt::Formatter<'_>, v: f64) -> core::fmt::Result {
             use core::fmt::Write;
-            let mut s = heapless::String::<32>::new();
+            let mut s = heapless::String::<40>::new();
+            if (1e-3..1e6).contains(&v) && write!(s, "{v}").is_ok() && s.len() <= 8 {
+                return f.write_str(&s);
+            }
+            s.clear();
             if write!(s, "{v:e}").is_ok() && s.len() <= 8 {
                 f.write_str(&s)
             } else {
@@ -304,7 +309,10 @@ impl core::fmt::Display for FieldBounds {
         short(f, self.min)?;
         f.write_str("..")?;
         short(f, self.max)?;
-        write!(f, " {}", self.unit)
+        if !self.unit.is_empty() {
+            write!(f, " {}", self.unit)?;
+        }
+        Ok(())
     }
 }
 

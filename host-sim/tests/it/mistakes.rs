@@ -498,7 +498,7 @@ fn a_stream_whose_only_configure_is_refused_names_the_field() {
         .unwrap();
     let err = stderr(&out);
     assert_eq!(out.status.code(), Some(1), "{err}");
-    let why = "instrument_prior.k2 is not finite, negative or outside 0 or 1e-12..1e-2 g/g²";
+    let why = "instrument_prior.k2 is not finite, negative or outside 0 or 1e-12..0.01 g/g²";
     assert!(
         err.contains(&format!("note: Configure refused ({why})")),
         "{err}"

@@ -127,6 +127,26 @@ fn a_configure_with_a_bad_figure_is_refused_naming_the_field_and_changes_nothing
     assert_eq!(refused, 18 * 6 + 4);
 }
 
+/// The bounds as a refusal prints them.
+#[test]
+fn the_bounds_print_short() {
+    for (field, text) in [
+        (ConfigField::SigmaAccel, "1e-12..0.1 g"),
+        (ConfigField::GyroMarkovSigma, "0 or 1e-15..4.848e-3 rad/s"),
+        (ConfigField::GyroRandomWalk, "0 or 1e-15..8.080e-5 rad/s/√s"),
+        (ConfigField::AccelRandomWalk, "0 or 1e-12..1.667e-3 g/√s"),
+        (ConfigField::PriorKg, "0 or 1e-12..0.1"),
+        (ConfigField::PriorK2, "0 or 1e-12..0.01 g/g²"),
+        (ConfigField::WarmupTau, "0.001..1e7 s"),
+    ] {
+        assert_eq!(field.bounds().to_string(), text, "{field}");
+    }
+    assert_eq!(
+        RefusalReason::InvalidField(ConfigField::PriorK2).to_string(),
+        "instrument_prior.k2 is not finite, negative or outside 0 or 1e-12..0.01 g/g²"
+    );
+}
+
 /// A time whose σ is zero is not read (only finite and not negative is
 /// asked of it), one in use may not be zero; the gimbal noise may be zero
 /// only where gimbal angles are not measured.
