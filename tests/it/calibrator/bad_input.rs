@@ -280,6 +280,28 @@ fn a_checkpoint_of_another_model_configuration_or_version_is_refused_and_changes
         assert_eq!(e.refusal(restore.tag()).reason, reason);
         assert_eq!(state(&session), before, "{reason}: the session as it was");
     }
+    // A calibrator's own checkpoint restored with a bad figure in the
+    // settings given with it: refused naming the field, unchanged.
+    let mut cal = rollcal::calibrator::M1PaFullCalibrator::<f64>::new(full).unwrap();
+    for s in &data {
+        let _ = cal.push(s);
+    }
+    let cp = cal.checkpoint();
+    let bad = CalibratorConfig {
+        wander: Wander {
+            accel_markov_tau_s: -900.0,
+            ..realistic()
+        },
+        ..full
+    };
+    assert_eq!(
+        cal.restore_in_place(bad, &cp),
+        Err(calibrator::Error::InvalidField(ConfigField::AccelMarkovTau))
+    );
+    assert_eq!(
+        bytes(&Message::Checkpoint(cal.checkpoint())),
+        bytes(&Message::Checkpoint(cp))
+    );
     // The session's own checkpoint framed for another version: counted as
     // such, never decoded into a message.
     let own = bytes(&Message::Checkpoint(
