@@ -196,8 +196,14 @@ FILTER_ERRORS = ["NonFiniteInput", "InvalidPeriod", "MissingGimbal", "GimbalLock
                  "UnsupportedOption"]
 
 
+CONFIG_FIELDS = ["SigmaAccel", "SigmaGyro", "SigmaGimbal", "PriorDg", "PriorDG", "PriorKg",
+                 "PriorBa", "PriorKa", "PriorK2", "GyroMarkovSigma", "GyroMarkovTau",
+                 "GyroRandomWalk", "AccelMarkovSigma", "AccelMarkovTau", "AccelRandomWalk",
+                 "GyroWarmupSigma", "AccelWarmupSigma", "WarmupTau"]
+
+
 def refusal_reason(r):
-    k = r.enum(6)
+    k = r.enum(7)
     if k == 0:
         return "NotConfigured"
     if k == 1:
@@ -208,7 +214,9 @@ def refusal_reason(r):
         return "CheckpointDimension"
     if k == 4:
         return "CheckpointInvalid"
-    return "Filter(%s)" % FILTER_ERRORS[r.enum(len(FILTER_ERRORS))]
+    if k == 5:
+        return "Filter(%s)" % FILTER_ERRORS[r.enum(len(FILTER_ERRORS))]
+    return "InvalidField(%s)" % CONFIG_FIELDS[r.enum(len(CONFIG_FIELDS))]
 
 
 def refused(r):

@@ -92,6 +92,9 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     ) -> Result<(), Error> {
         Self::check_config(settings.config, settings.errors)?;
         Self::check_config(cp.config, cp.errors)?;
+        if let Some(field) = settings.invalid_field() {
+            return Err(Error::InvalidField(field));
+        }
         let vector = |v: &[f64]| {
             (v.len() == N)
                 .then(|| SVector::<f64, N>::from_iterator(v.iter().copied()))

@@ -2,6 +2,7 @@
 
 use crate::ekf;
 use crate::models::{ConfigId, ErrorModel};
+use crate::wire::ConfigField;
 
 /// Errors of building or restoring a calibrator.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -34,6 +35,11 @@ pub enum Error {
     CheckpointInvalid,
     /// The filter refused the settings or the checkpoint's values.
     Filter(ekf::Error),
+    /// A data-sheet figure of the settings (a noise level, an instrument
+    /// prior σ, a wandering error) is not finite, is negative, or is
+    /// outside its bounds ([`ConfigField::bounds`]): the field, named
+    /// ([`CalibratorConfig::invalid_field`](crate::wire::CalibratorConfig::invalid_field)).
+    InvalidField(ConfigField),
 }
 
 impl core::fmt::Display for Error {
@@ -56,6 +62,11 @@ impl core::fmt::Display for Error {
                 "checkpoint is not a filter's (factor not upper triangular or frame not a rotation)",
             ),
             Error::Filter(e) => write!(f, "filter: {e}"),
+            Error::InvalidField(field) => write!(
+                f,
+                "{field} is not finite, negative or outside {}",
+                field.bounds()
+            ),
         }
     }
 }

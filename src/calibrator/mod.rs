@@ -181,6 +181,9 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     /// [`Calibrator::with_prior_variance`].
     pub(crate) fn prior_variance(settings: &CalibratorConfig) -> Result<SVector<T, N>, Error> {
         Self::check_config(settings.config, settings.errors)?;
+        if let Some(field) = settings.invalid_field() {
+            return Err(Error::InvalidField(field));
+        }
         let (config, x0, sigma0) = Self::prior(settings);
         Ok(Filter::<T, M, N, Z>::prior_variance(&config, &x0, &sigma0)?)
     }

@@ -311,10 +311,16 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         {
             return Err(Error::NonFiniteInput);
         }
-        // The errors that wander: valid figures, and states to carry them.
+        // The errors that wander: figures within their bounds
+        // (`Wander::invalid_field`; so every σ's variance is a normal number
+        // and every τ in use at least 1e-3 s), and states to carry them.
         let wander = &config.wander;
         if !wander.is_valid() {
-            return Err(Error::NonFiniteInput);
+            return Err(if all_finite(wander.figures()) {
+                Error::OutOfRange
+            } else {
+                Error::NonFiniteInput
+            });
         }
         if !wander.is_none() && Self::LAYOUT.dg_gm().is_none() {
             return Err(Error::OutOfRange);
@@ -347,21 +353,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let gimbal_ok = !Self::LAYOUT.gimbal_obs || normal(config.sigma_gimbal);
         let zero_or_normal = |s: T| s == T::zero() || normal(s);
         let gyro_ok = zero_or_normal(config.sigma_gyro);
-        // The wandering figures' variances too (a period's increment is of
-        // their order), and correlation times whose period decay is
-        // computable (τ ≥ 1e-3 s; a period beyond 20 τ is held at exp(−20)).
-        let tau_ok = |sigma: T, tau: T| sigma == T::zero() || tau >= nalgebra::convert(1e-3);
-        let wander_ok = [
-            wander.gyro_markov_sigma,
-            wander.gyro_random_walk,
-            wander.accel_markov_sigma,
-            wander.accel_random_walk,
-        ]
-        .into_iter()
-        .all(zero_or_normal)
-            && tau_ok(wander.gyro_markov_sigma, wander.gyro_markov_tau_s)
-            && tau_ok(wander.accel_markov_sigma, wander.accel_markov_tau_s);
-        if !normal(config.sigma_accel) || !gyro_ok || !gimbal_ok || !wander_ok {
+        if !normal(config.sigma_accel) || !gyro_ok || !gimbal_ok {
             return Err(Error::OutOfRange);
         }
         Ok(variance)

@@ -31,7 +31,9 @@ pub enum Error {
     /// an Earth rate above [`MAX_EARTH_RATE`](super::MAX_EARTH_RATE)
     /// (rad/s), or a gravity outside [`GRAVITY_RANGE`](super::GRAVITY_RANGE)
     /// (g); or a noise level whose square is not a normal number of the
-    /// filter's precision (it would underflow or overflow in the update).
+    /// filter's precision (it would underflow or overflow in the update);
+    /// or a wandering error outside its bounds
+    /// ([`Wander::invalid_field`](crate::models::Wander::invalid_field)).
     OutOfRange,
     /// The options ask for a branch this build leaves out: the second-order
     /// dynamics or the iterated update without the cargo feature
@@ -54,7 +56,7 @@ impl core::fmt::Display for Error {
             Error::Gated => "innovation rejected by the NIS gate",
             Error::NoPrediction => "update without a preceding predict",
             Error::OutOfRange => {
-                "environment or noise level out of range (Earth rate above 1e-3 rad/s, gravity outside 0.5..2 g, or a noise variance not a normal number)"
+                "environment or noise level out of range (Earth rate above 1e-3 rad/s, gravity outside 0.5..2 g, a noise variance not a normal number, or a wandering error outside its bounds)"
             }
             Error::UnsupportedOption => {
                 "option not in this build (second-order dynamics or iterated update: cargo feature research-options)"

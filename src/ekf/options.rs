@@ -159,7 +159,9 @@ pub struct FilterConfig<T: RealField + Copy> {
     /// decay of their Gauss–Markov parts. [`Wander::none`] for constant
     /// errors; a model without those states
     /// ([`ErrorModel::Installation`](crate::models::ErrorModel::Installation))
-    /// refuses any other ([`Error::OutOfRange`](super::Error::OutOfRange)).
+    /// refuses any other ([`Error::OutOfRange`](super::Error::OutOfRange)),
+    /// as every model refuses figures outside their bounds
+    /// ([`Wander::invalid_field`]; `NonFiniteInput` for NaN or infinite).
     pub wander: Wander<T>,
 }
 

@@ -157,10 +157,9 @@ impl<T: RealField + Copy> Wander<T> {
         self.gyro_warmup_sigma != T::zero() || self.accel_warmup_sigma != T::zero()
     }
 
-    /// Every figure finite and not negative, and each correlation or
-    /// warm-up time strictly positive where its σ is not zero.
-    pub fn is_valid(&self) -> bool {
-        let figures = [
+    /// The nine figures in declaration order.
+    pub(crate) fn figures(&self) -> [T; 9] {
+        [
             self.gyro_markov_sigma,
             self.gyro_markov_tau_s,
             self.gyro_random_walk,
@@ -170,12 +169,15 @@ impl<T: RealField + Copy> Wander<T> {
             self.gyro_warmup_sigma,
             self.accel_warmup_sigma,
             self.warmup_tau_s,
-        ];
-        let tau_ok = |sigma: T, tau: T| sigma == T::zero() || tau > T::zero();
-        figures.iter().all(|v| v.is_finite() && *v >= T::zero())
-            && tau_ok(self.gyro_markov_sigma, self.gyro_markov_tau_s)
-            && tau_ok(self.accel_markov_sigma, self.accel_markov_tau_s)
-            && (!self.has_warmup() || self.warmup_tau_s > T::zero())
+        ]
+    }
+
+    /// Every figure finite, not negative and within its bounds
+    /// ([`crate::wire::ConfigField::bounds`]), and each correlation or
+    /// warm-up time within its bounds where its σ is not zero: no
+    /// [`Wander::invalid_field`].
+    pub fn is_valid(&self) -> bool {
+        self.invalid_field().is_none()
     }
 
     /// One period of length `dt` (s) of the wandering errors.

@@ -185,6 +185,9 @@ impl SessionError {
                 RefusalReason::CheckpointInvalid
             }
             SessionError::Calibrator(calibrator::Error::Filter(e)) => RefusalReason::Filter(e),
+            SessionError::Calibrator(calibrator::Error::InvalidField(field)) => {
+                RefusalReason::InvalidField(field)
+            }
         };
         Refusal { message, reason }
     }

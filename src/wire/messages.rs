@@ -239,23 +239,8 @@ impl InstrumentPrior {
         })
     }
 
-    /// The first field that is not finite and zero or positive, by name
-    /// (`"dg_rad_s"` …), or `None`.
-    pub fn invalid_field(&self) -> Option<&'static str> {
-        [
-            ("dg_rad_s", self.dg_rad_s),
-            ("d_g_rad_s_g", self.d_g_rad_s_g),
-            ("kg", self.kg),
-            ("ba_g", self.ba_g),
-            ("ka", self.ka),
-            ("k2", self.k2),
-        ]
-        .into_iter()
-        .find(|(_, v)| !(v.is_finite() && *v >= 0.0))
-        .map(|(name, _)| name)
-    }
-
-    /// Every σ finite and zero or positive.
+    /// Every σ finite, zero or positive, and within its bounds: no
+    /// [`InstrumentPrior::invalid_field`].
     pub fn is_valid(&self) -> bool {
         self.invalid_field().is_none()
     }
@@ -680,6 +665,11 @@ pub enum RefusalReason {
     /// The filter refused the settings or the checkpoint's values
     /// ([`crate::ekf::Error`], its index in docs/wire.md).
     Filter(crate::ekf::Error),
+    /// A `Configure`'s data-sheet figure (a noise level, an instrument
+    /// prior σ, a wandering error) is not finite, is negative, or is
+    /// outside its bounds ([`ConfigField::bounds`](super::ConfigField::bounds)):
+    /// the field, named. Appended in version 6 (issue 43).
+    InvalidField(super::ConfigField),
 }
 
 impl core::fmt::Display for RefusalReason {
@@ -701,6 +691,11 @@ impl core::fmt::Display for RefusalReason {
             RefusalReason::CheckpointDimension => f.write_str("checkpoint dimensions do not match"),
             RefusalReason::CheckpointInvalid => f.write_str("checkpoint is not a filter's"),
             RefusalReason::Filter(e) => write!(f, "filter: {e}"),
+            RefusalReason::InvalidField(field) => write!(
+                f,
+                "{field} is not finite, negative or outside {}",
+                field.bounds()
+            ),
         }
     }
 }

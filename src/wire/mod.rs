@@ -27,7 +27,8 @@
 
 //! The module by concern: `messages` (the schema: [`Message`] and what it
 //! carries), `crc` ([`crc32`]), `encode` ([`encode`], COBS on the fly),
-//! `decode` (one frame: [`decode_frame`]), `decoder` (the stream:
+//! `field` (the data-sheet figures of a `Configure` and their bounds:
+//! [`ConfigField`]), `decode` (one frame: [`decode_frame`]), `decoder` (the stream:
 //! [`Decoder`], [`DecoderStats`]) and `error` ([`EncodeError`],
 //! [`FrameError`]).
 //!
@@ -53,6 +54,7 @@ mod decode;
 mod decoder;
 mod encode;
 mod error;
+mod field;
 mod in_place;
 mod messages;
 
@@ -61,6 +63,7 @@ pub use decode::{decode_frame, decode_frame_into};
 pub use decoder::{Decoder, DecoderStats, FrameDecoder};
 pub use encode::encode;
 pub use error::{EncodeError, FrameError};
+pub use field::{ConfigField, FieldBounds};
 pub use messages::{
     CalibratorConfig, Checkpoint, Estimate, EstimateKind, InstrumentPrior, Limits, Message,
     Progress, Refusal, RefusalReason, RejectCounts, Sample, SinglePassReason, INSTRUMENT_STATES,

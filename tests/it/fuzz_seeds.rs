@@ -104,6 +104,13 @@ fn seeds() -> Vec<(String, Vec<u8>)> {
                 reason: RefusalReason::Filter(rollcal::ekf::Error::OutOfRange),
             }),
         ),
+        (
+            "refused-field",
+            Message::Refused(Refusal {
+                message: 3,
+                reason: RefusalReason::InvalidField(rollcal::wire::ConfigField::WarmupTau),
+            }),
+        ),
     ];
     let mut out = Vec::new();
     for id in ConfigId::ALL {

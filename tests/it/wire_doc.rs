@@ -147,6 +147,7 @@ fn examples() -> Vec<(&'static str, Message)> {
         ("Finish", Message::Finish),
         ("Refused, Configure", refused_configure()),
         ("Refused, restore", refused_restore()),
+        ("Refused, field", refused_field()),
     ]
 }
 
@@ -174,6 +175,32 @@ fn refused_configure() -> Message {
         checkpoint(&session),
         before,
         "the session as it was, bit for bit"
+    );
+    Message::Refused(e.refusal(bad.tag()))
+}
+
+/// What the same session sends back for a `Configure` whose `k2` prior is
+/// 100 g/g² (the data sheet's 100 µg/g² given as g/g²): the field, named.
+fn refused_field() -> Message {
+    let mut session = Session::<f64>::new(None, EstimatorOptions::default());
+    let mut log = SliceLog::new(&mut []);
+    let paper = CalibratorConfig::paper(ConfigId::M1Pa);
+    assert_eq!(
+        session.handle(&Message::Configure(paper), &mut log),
+        Reply::Nothing
+    );
+    let mut bad = paper;
+    bad.instrument_prior.k2 = 100.0;
+    let bad = Message::Configure(bad);
+    let checkpoint = |s: &Session<f64>| pc(&s.calibrator().unwrap().checkpoint());
+    let before = checkpoint(&session);
+    let Reply::Error(e) = session.handle(&bad, &mut log) else {
+        panic!("the Configure is refused")
+    };
+    assert_eq!(checkpoint(&session), before, "the session as it was");
+    assert_eq!(
+        session.calibrator().unwrap().settings().instrument_prior.k2,
+        paper.instrument_prior.k2
     );
     Message::Refused(e.refusal(bad.tag()))
 }

@@ -119,6 +119,65 @@ fn calibrate_errors_full_is_run_errors_full() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+const REALISTIC: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/realistic.toml");
+
+/// Issue 43 item 1: `calibrate` on a recorded stream of the realistic
+/// scenario (the full model's `Configure` in the stream: the wandering
+/// errors, the `k2` prior) equals `run --errors full` of the same seed
+/// within 0.05σ for every state, M2-ps and M1-pa, with the same σ to 0.1 %
+/// (the stream's f32 samples are the only difference); the largest
+/// difference is printed.
+#[test]
+fn calibrate_on_a_realistic_stream_is_run() {
+    let dir = support::scratch("calibrate-full-realistic");
+    for config in ["M2-ps", "M1-pa"] {
+        let bin = dir.join("s.bin");
+        let rec = support::host_sim()
+            .args(["record", "--config", config, "--scenario", REALISTIC])
+            .args(["--seed", "5", "--errors", "full", "--out"])
+            .arg(&bin)
+            .output()
+            .unwrap();
+        support::assert_success(&rec);
+        let (cal_json, run_json) = (dir.join("c.json"), dir.join("r.json"));
+        let cal = support::host_sim()
+            .args(["calibrate", "--input"])
+            .arg(&bin)
+            .arg("--json")
+            .arg(&cal_json)
+            .output()
+            .unwrap();
+        support::assert_success(&cal);
+        let run = support::host_sim()
+            .args(["run", "--config", config, "--errors", "full", "--seed", "5"])
+            .args(["--scenario", REALISTIC, "--json"])
+            .arg(&run_json)
+            .output()
+            .unwrap();
+        support::assert_success(&run);
+        let (c, r) = (support::json_file(&cal_json), support::json_file(&run_json));
+        assert_eq!(c["errors"], "full");
+        let (c, r) = (states(&c), states(&r));
+        assert_eq!(c.len(), if config == "M2-ps" { 54 } else { 48 });
+        assert_eq!(c.len(), r.len());
+        let mut worst = (0.0, String::new());
+        for (a, b) in c.iter().zip(&r) {
+            assert_eq!(a.0, b.0);
+            // Every state is estimated: the realistic scenario models
+            // every wandering term.
+            assert!(b.2 > 0.0, "{config} {}", a.0);
+            let dx = (a.1 - b.1).abs() / b.2;
+            assert!(dx < 0.05, "{config} {}: {dx}σ from run's", a.0);
+            assert!((a.2 / b.2 - 1.0).abs() < 1e-3, "{config} {} σ", a.0);
+            if dx > worst.0 {
+                worst = (dx, a.0.clone());
+            }
+        }
+        println!("{config}: largest difference {:.4}σ ({})", worst.0, worst.1);
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// A platform file names the error model and the instruments' prior; a
 /// platform file with instrument values, or a prior ≤ 0, is refused naming
 /// the field; a stream of protocol version 4 is refused naming both

@@ -485,8 +485,9 @@ fn sidecar_records_the_instrument_truth() {
 
 /// The keys of the errors that wander, in a scenario file and in a
 /// platform file alike: a negative σ, a zero or negative correlation or
-/// warm-up time where its term is given, an absurd magnitude or time, and
-/// a prior σ of k2 below zero are refused naming the key.
+/// warm-up time where its term is given, an absurd magnitude or time, a
+/// prior σ of k2 below zero, and a figure outside the calibrator's bounds
+/// (`rollcal::wire::ConfigField::bounds`) are refused naming the key.
 #[test]
 fn wandering_keys_are_validated_naming_the_field() {
     let w = "[instruments.wander]\n";
@@ -561,6 +562,20 @@ fn wandering_keys_are_validated_naming_the_field() {
             (
                 "[instruments.prior]\nsigma_dg_deg_h = 0.0\n[instruments.wander]\ngyro_rate_random_walk_deg_h_rt_h = 0.002\n".to_string(),
                 "instruments.prior.sigma_dg_deg_h = 0 (not estimated)",
+            ),
+            // Outside the calibrator's bounds (issue 43): named by the key,
+            // in its units, with the Configure field it becomes.
+            (
+                "[instruments.prior]\nsigma_k2_ug_g2 = 1e8\n".to_string(),
+                "instruments.prior.sigma_k2_ug_g2 = 1e8 µg/g² is outside the calibrator's bounds: instrument_prior.k2 = 100, not 0 or 1e-12..0.01 g/g²",
+            ),
+            (
+                "[instruments.prior]\nsigma_kg_ppm = 1e6\n".to_string(),
+                "instruments.prior.sigma_kg_ppm = 1e6 ppm is outside the calibrator's bounds: instrument_prior.kg = 1, not 0 or 1e-12..0.1",
+            ),
+            (
+                format!("{w}gyro_bias_instability_deg_h = 1e-12\ngyro_correlation_time_s = 600.0\n"),
+                "instruments.wander.gyro_bias_instability_deg_h = 1e-12 °/h is outside the calibrator's bounds: wander.gyro_markov_sigma = 4.8481e-18, not 0 or 1e-15..4.848e-3 rad/s",
             ),
         ])
         .collect();

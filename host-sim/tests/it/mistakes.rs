@@ -314,7 +314,8 @@ fn options_that_cannot_be_served_are_refused_before_reading() {
 }
 
 /// A stream's frames with a `Configure` refused mid-stream (an Earth rate
-/// of 2e-3 rad/s, above the filter's bound) and a restore of another
+/// of 2e-3 rad/s, above the filter's bound; a negative bias instability,
+/// refused naming the field) and a restore of another
 /// configuration's checkpoint: each is answered `Refused`, the calibrator
 /// stays as it was and the run goes on to the same answer as without them.
 #[test]
@@ -343,12 +344,18 @@ fn a_refused_configure_or_restore_leaves_the_run_going() {
         earth_rate_n: [2e-3, 0.0, 0.0],
         ..CalibratorConfig::paper(ConfigId::M1Pa)
     }));
+    // A data-sheet figure with its sign lost: refused naming the field
+    // (issue 43).
+    let mut negative = CalibratorConfig::paper(ConfigId::M1Pa);
+    negative.wander.gyro_markov_sigma = -1.5e-8;
+    let negative = frame(&Message::Configure(negative));
     let other = AnyCalibrator::<f64>::new(CalibratorConfig::paper(ConfigId::M4Pa)).unwrap();
     let restore = frame(&Message::Checkpoint(other.checkpoint()));
     let mut altered: Vec<u8> = Vec::new();
     for (k, f) in frames.iter().enumerate() {
         if k == 2000 {
             altered.extend(&bad);
+            altered.extend(&negative);
             altered.extend(&restore);
         }
         altered.extend(*f);
@@ -380,9 +387,15 @@ fn a_refused_configure_or_restore_leaves_the_run_going() {
         ),
         "{text}"
     );
+    assert!(
+        text.contains(
+            "refused: Configure ×1: wander.gyro_markov_sigma is not finite, negative or outside 0 or 1e-15..4.848e-3 rad/s"
+        ),
+        "{text}"
+    );
     let (va, vb) = (support::json_file(&a), support::json_file(&b));
     assert_eq!(va["states"], vb["states"], "the same answer");
-    assert_eq!(vb["refused"].as_array().unwrap().len(), 2);
+    assert_eq!(vb["refused"].as_array().unwrap().len(), 3);
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -442,5 +455,59 @@ fn with_a_truth_every_state_is_judged() {
     let text = calibrate(&moved);
     assert_eq!(verdict(&text, "ba_z"), "FAILED", "{text}");
     assert_eq!(verdict(&text, "ba_x"), "converged", "{text}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// A stream whose only `Configure` carries a bad data-sheet figure (a `k2`
+/// prior of 100 g/g²: the data sheet's µg/g² taken for g/g²): refused
+/// naming the field, no calibrator runs, and `calibrate` says so and
+/// exits with status 1 (an error: docs/cli.md).
+#[test]
+fn a_stream_whose_only_configure_is_refused_names_the_field() {
+    use rollcal::wire::{encode, FrameDecoder, Message, MAX_FRAME_LEN};
+    let dir = scratch("mistakes-bad-field");
+    let stream = dir.join("s.bin");
+    assert_success(
+        &host_sim()
+            .args(["record", "--config", "M1-pa", "--seed", "1", "--out"])
+            .arg(&stream)
+            .output()
+            .unwrap(),
+    );
+    let bytes = std::fs::read(&stream).unwrap();
+    let mut altered: Vec<u8> = Vec::new();
+    for f in bytes.split_inclusive(|b| *b == 0) {
+        let mut got = None;
+        FrameDecoder::new().feed(f, |m| got = Some(m));
+        match got {
+            Some(Message::Configure(mut c)) => {
+                c.instrument_prior.k2 = 100.0;
+                let mut buf = vec![0u8; MAX_FRAME_LEN];
+                let n = encode(&Message::Configure(c), &mut buf).unwrap();
+                altered.extend(&buf[..n]);
+            }
+            _ => altered.extend(f),
+        }
+    }
+    let path = dir.join("altered.bin");
+    std::fs::write(&path, &altered).unwrap();
+    let out = host_sim()
+        .args(["calibrate", "--input"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    let why = "instrument_prior.k2 is not finite, negative or outside 0 or 1e-12..0.01 g/g²";
+    assert!(
+        err.contains(&format!("note: Configure refused ({why})")),
+        "{err}"
+    );
+    assert!(
+        err.contains(&format!(
+            "host-sim: error: the stream's Configure was refused ({why}): no calibrator ran"
+        )),
+        "{err}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }

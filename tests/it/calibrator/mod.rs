@@ -5,6 +5,7 @@
 //! bit-identically from a checkpoint taken at any sample. One module per
 //! subject; the recorded paper stream's helpers here.
 
+mod bad_input;
 mod checkpoint;
 mod finish;
 mod gaps;

@@ -8,6 +8,7 @@ use std::path::Path;
 use rollcal::models::ParseConfigIdError;
 use serde::{Deserialize, Serialize};
 
+mod bounds;
 mod platform;
 pub use platform::{Platform, PlatformInstruments, PlatformTiming};
 
@@ -165,7 +166,9 @@ impl Wander {
 
     /// Every figure finite and ≥ 0 and within [`MAX_WANDER`], each
     /// correlation time > 0 and ≤ [`MAX_TIME_CONSTANT_S`] where its
-    /// instability is given; errors name the key (`prefix.…`).
+    /// instability is given, and every figure within the calibrator's
+    /// bounds (`rollcal::wire::ConfigField::bounds`); errors name the key
+    /// (`prefix.…`).
     pub fn validate(&self, prefix: &str) -> Result<(), ScenarioError> {
         let (gyro_max, accel_max) = MAX_WANDER;
         for (name, v, max, unit) in [
@@ -238,7 +241,7 @@ impl Wander {
                 "{prefix}.warmup_time_constant_s = {tau} s: a warm-up ({prefix}.gyro_warmup_deg_h or accel_warmup_ug) needs its time constant, at least 1 s"
             )));
         }
-        Ok(())
+        self.check_bounds(prefix)
     }
 }
 
@@ -360,8 +363,9 @@ impl InstrumentPrior {
         }
     }
 
-    /// Every σ finite and ≥ 0 (0: the term is not estimated); errors name
-    /// the key (`prefix.sigma_…`).
+    /// Every σ finite and ≥ 0 (0: the term is not estimated) and within
+    /// the calibrator's bounds (`rollcal::wire::ConfigField::bounds`);
+    /// errors name the key (`prefix.sigma_…`).
     pub fn validate(&self, prefix: &str) -> Result<(), ScenarioError> {
         for (name, v) in [
             ("sigma_dg_deg_h", self.sigma_dg_deg_h),
@@ -377,7 +381,7 @@ impl InstrumentPrior {
                 )));
             }
         }
-        Ok(())
+        self.check_bounds(prefix)
     }
 
     /// The prior and the wandering errors agree: a drift or bias that is not
