@@ -50,11 +50,20 @@ impl StageStats {
     }
 }
 
+/// Candidates scored between two reads of the shared bound (see
+/// [`score_all`]): a fixed number, not one per thread, so that the answer
+/// is the same on every machine.
+const BOUND_CHUNK: usize = 32;
+
 /// Scores `patterns` in parallel (rayon). For `Goal::Reach` the candidates
 /// share the best reach time found so far and stop there (branch and
 /// bound: a candidate still short of its targets at that time cannot win).
-/// Ties go to the earlier candidate, so the result does not depend on the
-/// scheduling. `progress(done)` is called after every candidate.
+/// The bound is read at the start of each chunk of [`BOUND_CHUNK`]
+/// candidates and lowered after it, so which candidates are cut short does
+/// not depend on the scheduling (a bound read while other threads run
+/// would make the pool of candidates, and so the design, vary from run to
+/// run). Ties go to the earlier candidate. `progress(done)` is called after
+/// every candidate.
 pub fn score_all(
     problem: &Problem,
     patterns: Vec<Pattern>,
@@ -66,29 +75,33 @@ pub fn score_all(
     let t0 = std::time::Instant::now();
     let done = AtomicUsize::new(0);
     let periods = AtomicU64::new(0);
-    let scored: Vec<Scored> = patterns
-        .into_par_iter()
-        .map(|pattern| {
-            let g = match goal {
-                Goal::Reach { .. } => Goal::Reach {
-                    cutoff: incumbent.load(Ordering::Relaxed),
-                },
-                b => b,
-            };
-            let outcome = problem.evaluate(&pattern, g, false, false);
-            if let Some(r) = outcome.reach {
-                incumbent.fetch_min(r, Ordering::Relaxed);
-            }
-            periods.fetch_add(outcome.periods, Ordering::Relaxed);
-            progress(done.fetch_add(1, Ordering::Relaxed) + 1);
-            let score = outcome.score(goal);
-            Scored {
-                pattern,
-                outcome,
-                score,
-            }
-        })
-        .collect();
+    let mut scored: Vec<Scored> = Vec::with_capacity(patterns.len());
+    for chunk in patterns.chunks(BOUND_CHUNK) {
+        let g = match goal {
+            Goal::Reach { .. } => Goal::Reach {
+                cutoff: incumbent.load(Ordering::Relaxed),
+            },
+            b => b,
+        };
+        let part: Vec<Scored> = chunk
+            .par_iter()
+            .map(|pattern| {
+                let outcome = problem.evaluate(pattern, g, false, false);
+                periods.fetch_add(outcome.periods, Ordering::Relaxed);
+                progress(done.fetch_add(1, Ordering::Relaxed) + 1);
+                let score = outcome.score(goal);
+                Scored {
+                    pattern: pattern.clone(),
+                    outcome,
+                    score,
+                }
+            })
+            .collect();
+        for r in part.iter().filter_map(|s| s.outcome.reach) {
+            incumbent.fetch_min(r, Ordering::Relaxed);
+        }
+        scored.extend(part);
+    }
     let infeasible = scored
         .iter()
         .filter(|s| s.outcome.gimbal_lock.is_some() && !s.outcome.feasible(goal))
