@@ -58,7 +58,7 @@ const BOUND_CHUNK: usize = 32;
 /// Scores `patterns` in parallel (rayon). For `Goal::Reach` the candidates
 /// share the best reach time found so far and stop there (branch and
 /// bound: a candidate still short of its targets at that time cannot win).
-/// The bound is read at the start of each chunk of [`BOUND_CHUNK`]
+/// The bound is read at the start of each chunk of `BOUND_CHUNK` (32)
 /// candidates and lowered after it, so which candidates are cut short does
 /// not depend on the scheduling (a bound read while other threads run
 /// would make the pool of candidates, and so the design, vary from run to
