@@ -193,15 +193,9 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     /// its calibrator in place, [`Calibrator::init_in_place`].)
     #[inline(always)]
     fn with_prior_variance(settings: CalibratorConfig, variance: &SVector<T, N>) -> Self {
-        let (config, x0, _) = Self::prior(&settings);
-        Self {
-            filter: Filter::with_prior_variance(config, x0, variance),
-            settings,
-            progress: Progress::default(),
-            frame_errors: 0,
-            start: LogStart::aligned(),
-            _model: PhantomData,
-        }
+        let mut c = Self::placeholder(settings);
+        c.init_in_place(settings, variance);
+        c
     }
 
     /// A calibrator whose filter is [`Filter::placeholder`]'s zeros: not a

@@ -160,8 +160,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         }
     }
 
-    /// Makes this filter equal to `Filter::with_prior_variance(config, x0,
-    /// variance)`, in place, whatever it held (its working memory, not
+    /// Makes this filter the one [`Filter::new`] builds at `x0` with the
+    /// prior variances `variance`, in place, whatever it held (its working memory, not
     /// state, is left as it was: [`Scratch`]). `variance` is what
     /// [`Filter::prior_variance`] returned for `config`, `x0`: finite and
     /// not negative, so this cannot fail.
@@ -195,21 +195,9 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         x0: SVector<f64, N>,
         variance: &SVector<T, N>,
     ) -> Self {
-        Self {
-            x: x0,
-            ud: Ud::diagonal(variance),
-            command: CommandFrame::aligned(config.env.earth_rate_n),
-            config,
-            pending: PendingSlot::empty(),
-            reference: None,
-            updates: 0,
-            gated_run: 0,
-            gate_open: false,
-            matrices: MatricesCache::new(Self::LAYOUT.installation(&x0)),
-            env_t: env_t(&config.env),
-            scratch: Scratch::zeros(),
-            _model: PhantomData,
-        }
+        let mut f = Self::placeholder(config);
+        f.init_in_place(config, x0, variance);
+        f
     }
 
     /// Makes this filter equal to `Filter::new(config, x0, sigma0)`, in

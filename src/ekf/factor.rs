@@ -263,14 +263,6 @@ fn attitude_block<T: RealField + Copy>(
 }
 
 impl<T: RealField + Copy, const N: usize> Ud<T, N> {
-    /// The factor of a diagonal covariance with these variances (rad²),
-    /// which the caller has checked (finite, strictly positive).
-    pub(crate) fn diagonal(variances: &SVector<T, N>) -> Self {
-        Self {
-            m: SMatrix::from_diagonal(variances),
-        }
-    }
-
     /// All zeros (not a factor: the storage a filter is built in before
     /// [`Ud::set_diagonal`] makes it one, in place).
     #[inline(always)]
@@ -295,8 +287,8 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         }
     }
 
-    /// Makes this factor [`Ud::diagonal`]'s of `variances`, in
-    /// place; `false` (and the factor unchanged) unless every variance is
+    /// Makes this factor the one of a diagonal covariance with these
+    /// variances (rad²), in place; `false` (and the factor unchanged) unless every variance is
     /// finite and not negative (zero: a state the model does not
     /// estimate).
     pub fn set_diagonal(&mut self, variances: &SVector<T, N>) -> bool {
