@@ -11,6 +11,24 @@ const INSTRUMENTED: &str = concat!(
     "/../scenarios/instrumented.toml"
 );
 
+/// The full model's states of `calibrate`'s JSON and `run`'s, paired by
+/// name (every state of the configuration, in the same order in both).
+fn paired_states(
+    cal_json: &std::path::Path,
+    run_json: &std::path::Path,
+    config: &str,
+) -> Vec<((String, f64, f64), (String, f64, f64))> {
+    let (c, r) = (support::json_file(cal_json), support::json_file(run_json));
+    assert_eq!(c["errors"], "full");
+    let (c, r) = (states(&c), states(&r));
+    assert_eq!(c.len(), if config == "M2-ps" { 54 } else { 48 });
+    assert_eq!(c.len(), r.len());
+    for (a, b) in c.iter().zip(&r) {
+        assert_eq!(a.0, b.0);
+    }
+    c.into_iter().zip(r).collect()
+}
+
 /// Every state's (estimate, σ) of a `--json` file: the installation states
 /// (rad), then the instrument errors (printed units).
 fn states(v: &serde_json::Value) -> Vec<(String, f64, f64)> {
@@ -81,13 +99,8 @@ fn calibrate_errors_full_is_run_errors_full() {
             .output()
             .unwrap();
         support::assert_success(&run);
-        let (c, r) = (support::json_file(&cal_json), support::json_file(&run_json));
-        assert_eq!(c["errors"], "full");
-        let (c, r) = (states(&c), states(&r));
-        assert_eq!(c.len(), if config == "M2-ps" { 54 } else { 48 });
-        assert_eq!(c.len(), r.len());
-        for (a, b) in c.iter().zip(&r) {
-            assert_eq!(a.0, b.0);
+        let pairs = paired_states(&cal_json, &run_json, config);
+        for (a, b) in &pairs {
             if b.2 == 0.0 {
                 // Not estimated (the Gauss–Markov parts of an instrument
                 // without bias instability): held at zero by both.
@@ -101,7 +114,10 @@ fn calibrate_errors_full_is_run_errors_full() {
         // The matrices carry every state of the full model.
         let m = support::json_file(&matrices);
         assert_eq!(m["errors"], "full");
-        assert_eq!(m["all_states"]["names"].as_array().unwrap().len(), c.len());
+        assert_eq!(
+            m["all_states"]["names"].as_array().unwrap().len(),
+            pairs.len()
+        );
         let v = support::json_file(&cal_json);
         // The passes stop on their tolerance: the states held at zero do
         // not keep them from converging (they did, every full-model answer
@@ -155,14 +171,8 @@ fn calibrate_on_a_realistic_stream_is_run() {
             .output()
             .unwrap();
         support::assert_success(&run);
-        let (c, r) = (support::json_file(&cal_json), support::json_file(&run_json));
-        assert_eq!(c["errors"], "full");
-        let (c, r) = (states(&c), states(&r));
-        assert_eq!(c.len(), if config == "M2-ps" { 54 } else { 48 });
-        assert_eq!(c.len(), r.len());
         let mut worst = (0.0, String::new());
-        for (a, b) in c.iter().zip(&r) {
-            assert_eq!(a.0, b.0);
+        for (a, b) in paired_states(&cal_json, &run_json, config) {
             // Every state is estimated: the realistic scenario models
             // every wandering term.
             assert!(b.2 > 0.0, "{config} {}", a.0);

@@ -324,15 +324,7 @@ fn a_refused_configure_or_restore_leaves_the_run_going() {
     use rollcal::session::AnyCalibrator;
     use rollcal::wire::{encode, CalibratorConfig, Message, MAX_FRAME_LEN};
     let dir = scratch("mistakes-refused");
-    let stream = dir.join("s.bin");
-    assert_success(
-        &host_sim()
-            .args(["record", "--config", "M1-pa", "--seed", "1", "--out"])
-            .arg(&stream)
-            .output()
-            .unwrap(),
-    );
-    let bytes = std::fs::read(&stream).unwrap();
+    let bytes = recorded_m1pa_stream(&dir);
     let frames: Vec<&[u8]> = bytes.split_inclusive(|b| *b == 0).collect();
     let frame = |m: &Message| {
         let mut buf = vec![0u8; MAX_FRAME_LEN];
@@ -372,7 +364,7 @@ fn a_refused_configure_or_restore_leaves_the_run_going() {
             .unwrap()
     };
     let (a, b) = (dir.join("a.json"), dir.join("b.json"));
-    let clean = run(&stream, &a);
+    let clean = run(&dir.join("s.bin"), &a);
     let out = run(&altered_path, &b);
     assert_eq!(out.status.code(), clean.status.code(), "{}", stderr(&out));
     assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
@@ -466,15 +458,7 @@ fn with_a_truth_every_state_is_judged() {
 fn a_stream_whose_only_configure_is_refused_names_the_field() {
     use rollcal::wire::{encode, FrameDecoder, Message, MAX_FRAME_LEN};
     let dir = scratch("mistakes-bad-field");
-    let stream = dir.join("s.bin");
-    assert_success(
-        &host_sim()
-            .args(["record", "--config", "M1-pa", "--seed", "1", "--out"])
-            .arg(&stream)
-            .output()
-            .unwrap(),
-    );
-    let bytes = std::fs::read(&stream).unwrap();
+    let bytes = recorded_m1pa_stream(&dir);
     let mut altered: Vec<u8> = Vec::new();
     for f in bytes.split_inclusive(|b| *b == 0) {
         let mut got = None;
@@ -510,4 +494,18 @@ fn a_stream_whose_only_configure_is_refused_names_the_field() {
         "{err}"
     );
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The frames of an M1-pa stream of the paper's scenario (seed 1),
+/// recorded into `dir` as `s.bin`.
+fn recorded_m1pa_stream(dir: &std::path::Path) -> Vec<u8> {
+    let stream = dir.join("s.bin");
+    assert_success(
+        &host_sim()
+            .args(["record", "--config", "M1-pa", "--seed", "1", "--out"])
+            .arg(&stream)
+            .output()
+            .unwrap(),
+    );
+    std::fs::read(&stream).unwrap()
 }
