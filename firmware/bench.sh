@@ -87,6 +87,12 @@ done
 
 echo
 echo "## Flash of one-configuration flight images (cargo features config-* and the error model; text + data)"
+# static_ram_bytes ELF: data + bss without the sample log (.log, in the LOG region).
+static_ram_bytes() {
+    local l
+    l=$(arm-none-eabi-size -A "$1" | awk '$1 == ".log" { print $2 }')
+    arm-none-eabi-size "$1" | awk -v l="${l:-0}" 'NR == 2 { print $2 + $3 - l }'
+}
 # one_config_flash FEATURES NAME LIMIT: flash and panicking calls of both
 # variants of a flight image.
 one_config_flash() {
@@ -96,7 +102,7 @@ one_config_flash() {
         elf=$one_m4f
         [ "$v" = m7 ] && elf=$one_m7
         b=$(flash_bytes "$elf")
-        echo "$v $features: flash $b bytes"
+        echo "$v $features: flash $b bytes, static RAM $(static_ram_bytes "$elf") bytes"
         goal "flash-one-config-$v-$name" "$b" "$limit"
         python3 "$ROOT/tools/flash-by-area.py" "$elf" --top 5 | sed "s/^/    /"
         # Inlining differs with one configuration: its panicking calls too.
