@@ -11,13 +11,16 @@ const INSTRUMENTED: &str = concat!(
     "/../scenarios/instrumented.toml"
 );
 
+/// A state of a JSON answer: name, estimate, σ (internal units).
+type StateRow = (String, f64, f64);
+
 /// The full model's states of `calibrate`'s JSON and `run`'s, paired by
 /// name (every state of the configuration, in the same order in both).
 fn paired_states(
     cal_json: &std::path::Path,
     run_json: &std::path::Path,
     config: &str,
-) -> Vec<((String, f64, f64), (String, f64, f64))> {
+) -> Vec<(StateRow, StateRow)> {
     let (c, r) = (support::json_file(cal_json), support::json_file(run_json));
     assert_eq!(c["errors"], "full");
     let (c, r) = (states(&c), states(&r));
@@ -31,7 +34,7 @@ fn paired_states(
 
 /// Every state's (estimate, σ) of a `--json` file: the installation states
 /// (rad), then the instrument errors (printed units).
-fn states(v: &serde_json::Value) -> Vec<(String, f64, f64)> {
+fn states(v: &serde_json::Value) -> Vec<StateRow> {
     let mut out = Vec::new();
     for s in v["states"].as_array().unwrap() {
         out.push((
