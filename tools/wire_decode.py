@@ -22,7 +22,7 @@ import struct
 import sys
 import zlib
 
-VERSION = 6
+VERSION = 7
 
 
 class Malformed(Exception):
@@ -110,7 +110,7 @@ class Reader:
 
 
 MAX_STATES = 54
-MAX_COVARIANCE = MAX_STATES * MAX_STATES
+MAX_FACTOR = MAX_STATES * (MAX_STATES + 1) // 2
 CONFIG_IDS = ["M1-pa", "M1-ps", "M2-ps", "M3-pa", "M3-ps", "M4-pa", "M4-ps"]
 ERROR_MODELS = ["Installation", "Full"]
 SINGLE_PASS = ["NoLog", "LogFull", "LogStorage", "LogMismatch", "Reacquired",
@@ -160,7 +160,7 @@ def estimate(r):
 
 def checkpoint(r):
     return dict(config=CONFIG_IDS[r.enum(7)], errors=ERROR_MODELS[r.enum(2)],
-                state=r.vec(r.f64, MAX_STATES), factor=r.vec(r.f64, MAX_COVARIANCE),
+                state=r.vec(r.f64, MAX_STATES), factor=r.vec(r.f64, MAX_FACTOR),
                 nominal=r.option(lambda: r.vec(r.f64, MAX_STATES)),
                 c_cn=r.array(r.f64, 9), updates=r.u32(), gated_run=r.u32(),
                 gate_open=r.bool(), progress=progress(r))

@@ -129,14 +129,16 @@ mod bench {
     }
 
     fn checkpoint() -> Message {
-        // A U-D factor: D on the diagonal, U above it, zeros below.
-        let factor = (0..N * N)
-            .map(|k| {
-                let (r, c) = (k / N, k % N);
-                match r.cmp(&c) {
-                    core::cmp::Ordering::Greater => 0.0,
-                    core::cmp::Ordering::Equal => value(k, 1e-10),
-                    core::cmp::Ordering::Less => value(k, -1e-2),
+        // A U-D factor's upper triangle row by row: D on the diagonal, U
+        // to its right.
+        let factor = (0..N)
+            .flat_map(|r| (r..N).map(move |c| (r, c)))
+            .map(|(r, c)| {
+                let k = r * N + c;
+                if r == c {
+                    value(k, 1e-10)
+                } else {
+                    value(k, -1e-2)
                 }
             })
             .collect();

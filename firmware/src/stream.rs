@@ -44,7 +44,6 @@ use rollcal::calibrator::RejectReason;
 use rollcal::estimator::{
     EstimatorOptions, FlashLog, LogError, LogRecord, PackedLayout, SampleLog,
 };
-use rollcal::models::{ConfigId, ErrorModel};
 use rollcal::session::{Reply, Request, Session, SessionError};
 use rollcal::wire::{
     decode_frame_into, encode, CalibratorConfig, Decoder, EstimateKind, Message, MAX_FRAME_LEN,
@@ -153,70 +152,21 @@ impl SampleLog<Real> for Log {
     }
 }
 
-/// The largest state count of the models this image holds: its
-/// configurations (cargo features `config-*`) in its error models
-/// (`installation-model`, `full-model`); 54 for the full M2-ps model.
-const MAX_BUILT_STATES: usize = {
-    let mut n = 0;
-    let mut i = 0;
-    while i < ConfigId::ALL.len() {
-        let c = ConfigId::ALL[i];
-        if c.is_built() {
-            if cfg!(feature = "installation-model") {
-                let k = c.layout_with(ErrorModel::Installation).n();
-                n = if k > n { k } else { n };
-            }
-            if cfg!(feature = "full-model") {
-                let k = c.layout_with(ErrorModel::Full).n();
-                n = if k > n { k } else { n };
-            }
-        }
-        i += 1;
-    }
-    n
-};
-
-/// An upper bound of the encoded frame of any message of a model of `n`
-/// states, delimiter included (bytes). The largest is a `Checkpoint`: `n`
-/// states, `n` nominal states, the `n²` factor and the 3×3 `C_cn`, each an
-/// 8-byte `f64`, and fields of fixed largest size (version, tags, vector
-/// lengths, counters, bookkeeping, CRC: 191 bytes in the largest frame of
-/// docs/wire.md §Limits and sizes, bounded here by 512); COBS adds a byte
-/// per 254 and the delimiter one. For 54 states 24 875 bytes, against the
-/// measured largest 24 553; for 18 states 3 479, against 3 157.
-const fn frame_bound(n: usize) -> usize {
-    let payload = 8 * (n * n + 2 * n + 9) + 512;
-    payload + payload.div_ceil(254) + 1
-}
-
-/// The receive and reply buffers' capacity: the largest frame of the
-/// models this image holds ([`frame_bound`] of [`MAX_BUILT_STATES`]), at
-/// most `MAX_FRAME_LEN` (32 768 with the `full-model` feature: a frame for
-/// any model of the crate's). A frame above it is counted `oversized` and
-/// dropped: it is for a model this image does not hold.
-const FRAME_CAP: usize = {
-    let b = frame_bound(MAX_BUILT_STATES);
-    if b < MAX_FRAME_LEN {
-        b
-    } else {
-        MAX_FRAME_LEN
-    }
-};
-
 /// The stream's large state: the session (its calibrator and the filter
 /// `Finish` runs the estimator of record in: ≈ 8 KB each for M2-ps on the
 /// M7, ≈ 58 KB with the full model's 54 states), the frame decoder's buffer
-/// and the reply buffer ([`FRAME_CAP`] each: 3.4 KB for the installation
-/// model's 18 states, 24.3 KB for the full model's 54), the last decoded
-/// message and the session's reply to it (each the size of a checkpoint:
-/// ≈ 3 KB, 24 KB with the full model). A static, not `run`'s locals:
+/// and the reply buffer ([`MAX_FRAME_LEN`] each, sized by the crate for
+/// the models this image holds: 2.2 KB for the installation model's 18
+/// states, 13.1 KB for the full model's 54), the last decoded message and
+/// the session's reply to it (each the size of a checkpoint of those
+/// models: ≈ 1.8 KB, 12.8 KB with the full model's 54 states). A static, not `run`'s locals:
 /// `main`'s frame, which every path of the firmware pays, would otherwise
 /// hold them, and the message and the reply would be in the frames below
 /// which the estimator of record runs. Only [`state`] touches it.
 struct State {
     session: Session<Real>,
-    decoder: Decoder<FRAME_CAP>,
-    out: [u8; FRAME_CAP],
+    decoder: Decoder<MAX_FRAME_LEN>,
+    out: [u8; MAX_FRAME_LEN],
     message: Message,
     reply: Reply,
 }
@@ -240,7 +190,7 @@ fn state() -> Option<&'static mut State> {
         let base = addr_of_mut!(STATE).cast::<State>();
         addr_of_mut!((*base).session).write(Session::new(None, EstimatorOptions::default()));
         addr_of_mut!((*base).decoder).write(Decoder::new());
-        addr_of_mut!((*base).out).write([0; FRAME_CAP]);
+        addr_of_mut!((*base).out).write([0; MAX_FRAME_LEN]);
         addr_of_mut!((*base).message).write(Message::Reset);
         addr_of_mut!((*base).reply).write(Reply::Nothing);
         Some(&mut *base)
@@ -267,7 +217,7 @@ pub struct Totals {
 struct Link {
     uart: Uart,
     tx: Option<Uart>,
-    out: &'static mut [u8; FRAME_CAP],
+    out: &'static mut [u8; MAX_FRAME_LEN],
 }
 
 impl Link {

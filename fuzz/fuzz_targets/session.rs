@@ -310,6 +310,12 @@ fn arbitrary_sample(u: &mut Unstructured) -> Result<Sample> {
     })
 }
 
+/// Where `D_r` is in a checkpoint's factor of `n` states (its upper
+/// triangle row by row: each row starts on the diagonal).
+fn diagonal_index(n: usize, r: usize) -> usize {
+    r * n - r * r.saturating_sub(1) / 2
+}
+
 /// Corrupts a checkpoint (its dimensions, values or bookkeeping).
 fn corrupt(u: &mut Unstructured, cp: &mut Checkpoint) -> Result<()> {
     match u.int_in_range(0..=9u8)? {
@@ -326,7 +332,9 @@ fn corrupt(u: &mut Unstructured, cp: &mut Checkpoint) -> Result<()> {
             }
         }
         4 => {
-            let i = usize::from(u.int_in_range(0..=17u8)?) * 19;
+            // A diagonal entry (D) of the upper triangle.
+            let n = cp.state.len();
+            let i = diagonal_index(n, usize::from(u.int_in_range(0..=53u8)?));
             if let Some(v) = cp.factor.get_mut(i) {
                 *v = value(u, -*v)?;
             }
@@ -405,15 +413,17 @@ impl core::fmt::Debug for CpBytes {
         let c = &self.1;
         let n = c.state.len();
         let diagonal: Vec<f64> = (0..n)
-            .map(|i| c.factor.get(i * n + i).copied().unwrap_or(f64::NAN))
+            .map(|i| {
+                c.factor
+                    .get(diagonal_index(n, i))
+                    .copied()
+                    .unwrap_or(f64::NAN)
+            })
             .collect();
         let non_finite = c.factor.iter().filter(|v| !v.is_finite()).count();
-        let below = (0..n * n)
-            .filter(|k| k % n < k / n && c.factor[*k].to_bits() != 0)
-            .count();
         write!(
             f,
-            "{:?}/{:?} state {:?} D {:?} ({non_finite} non-finite factor entries, {below} not +0.0 below the diagonal) c_cn {:?} updates {} gate ({}, {}) progress {:?}",
+            "{:?}/{:?} state {:?} D {:?} ({non_finite} non-finite factor entries) c_cn {:?} updates {} gate ({}, {}) progress {:?}",
             c.config, c.errors, c.state, diagonal, c.c_cn, c.updates, c.gated_run, c.gate_open, c.progress
         )
     }
@@ -1050,13 +1060,16 @@ impl<T: RealField + Copy> Harness<'_, T> {
                     (cp.config, cp.errors),
                     (c.settings().config, c.settings().errors)
                 );
-                assert_eq!((cp.state.len(), cp.factor.len()), (n, n * n));
+                assert_eq!(
+                    (cp.state.len(), cp.factor.len()),
+                    (n, rollcal::wire::factor_len(n))
+                );
                 assert!(same_progress(&cp.progress, c.progress()));
                 // Its own checkpoint restores, bit-identically — except
                 // once the factor has a non-positive D (the factored filter
                 // refuses any update that would leave one, so this should
                 // not happen), which `Filter::from_parts` refuses.
-                let degenerate = (0..n).any(|i| cp.factor[i * n + i] <= 0.0);
+                let degenerate = (0..n).any(|i| cp.factor[diagonal_index(n, i)] <= 0.0);
                 let mut again = c.clone();
                 let restored = again.restore(cp);
                 if degenerate {

@@ -7,7 +7,7 @@ use super::{to_f64, Calibrator, Error};
 use crate::ekf::{FilterConfig, Parts};
 use crate::estimator::LogStart;
 use crate::models::Model;
-use crate::wire::{CalibratorConfig, Checkpoint};
+use crate::wire::{factor_len, CalibratorConfig, Checkpoint};
 
 /// `v` becomes the values of `it`, in order (at most its capacity: the
 /// calibrator's `N` is checked against [`crate::wire::MAX_STATES`] when it
@@ -31,9 +31,8 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     }
 
     /// [`Calibrator::checkpoint`] written into `cp` (whatever it held),
-    /// field by field: no checkpoint-sized temporary (12.6 KB with the full
-    /// model's 39 states) on the stack, and none of the factor's transpose
-    /// (12.2 KB). A firmware that keeps `cp` in static memory (the reply
+    /// field by field: no checkpoint-sized temporary (≈ 12.8 KB with the
+    /// full model's 54 states) on the stack, and no copy of the factor. A firmware that keeps `cp` in static memory (the reply
     /// slot of [`crate::session::Session::handle_into`]) checkpoints in a
     /// few hundred bytes of stack.
     // Not inlined: the session dispatches to seven of these, and their
@@ -44,13 +43,13 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         cp.config = M::ID;
         cp.errors = M::ERRORS;
         fill(&mut cp.state, f.state().iter().copied());
-        // Row-major.
-        cp.factor.clear();
-        for row in f.factor().row_iter() {
-            for v in row.iter() {
-                let _ = cp.factor.push(to_f64(*v));
-            }
-        }
+        // The upper triangle, row by row.
+        let factor = f.factor();
+        fill(
+            &mut cp.factor,
+            (0..N)
+                .flat_map(|r| (r..N).filter_map(move |c| factor.get((r, c)).copied().map(to_f64))),
+        );
         match (f.nominal(), &mut cp.nominal) {
             (Some(n), Some(v)) => fill(v, n.iter().copied()),
             (Some(n), slot @ None) => {
@@ -101,11 +100,11 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
                 .ok_or(Error::CheckpointDimension)
         };
         let x = vector(&cp.state)?;
-        if cp.factor.len() != N * N {
+        if cp.factor.len() != factor_len(N) {
             return Err(Error::CheckpointDimension);
         }
         let c_cn = Matrix3::from_row_iterator(cp.c_cn.iter().copied());
-        if !lower_triangle_zero(&cp.factor, N) || !is_rotation(&c_cn) {
+        if !is_rotation(&c_cn) {
             return Err(Error::CheckpointInvalid);
         }
         let nominal = match &cp.nominal {
@@ -129,16 +128,6 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         self.start = LogStart::aligned();
         Ok(())
     }
-}
-
-/// Whether every entry of the `n×n` factor `rows` (row by row) below its
-/// diagonal is `+0.0`, bit for bit: the packed factor a checkpoint carries
-/// has nothing there, and a restored filter would drop any value, so a
-/// checkpoint with one could not be written back as it was read.
-fn lower_triangle_zero(rows: &[f64], n: usize) -> bool {
-    rows.chunks_exact(n)
-        .enumerate()
-        .all(|(r, row)| row.iter().take(r).all(|v| v.to_bits() == 0))
 }
 
 /// How far from orthonormal (`|CᵀC − I|`, any entry) a restored computed

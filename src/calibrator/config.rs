@@ -52,7 +52,8 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
 {
     /// `Ok` when `found` and `errors` are this calibrator type's
     /// configuration and error model, and its states fit the messages
-    /// ([`MAX_STATES`]: the full model needs the `full-model` feature).
+    /// ([`MAX_STATES`]: sized for the models the build holds; a larger one
+    /// is refused as the session refuses a model the build leaves out).
     pub(super) fn check_config(found: ConfigId, errors: ErrorModel) -> Result<(), Error> {
         if found != M::ID {
             return Err(Error::ConfigMismatch {
@@ -61,9 +62,26 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
             });
         }
         if N > MAX_STATES {
-            return Err(Error::ErrorModelMismatch {
-                expected: ErrorModel::Installation,
-                found: M::ERRORS,
+            let full_built = cfg!(feature = "full-model");
+            let model_built = match M::ERRORS {
+                ErrorModel::Installation => cfg!(feature = "installation-model"),
+                ErrorModel::Full => full_built,
+            };
+            return Err(if model_built {
+                // A configuration whose model is larger than the build's.
+                Error::ConfigMismatch {
+                    expected: ConfigId::first_built(),
+                    found: M::ID,
+                }
+            } else {
+                Error::ErrorModelMismatch {
+                    expected: if full_built {
+                        ErrorModel::Full
+                    } else {
+                        ErrorModel::Installation
+                    },
+                    found: M::ERRORS,
+                }
             });
         }
         if errors != M::ERRORS {

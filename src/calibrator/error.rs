@@ -27,11 +27,8 @@ pub enum Error {
     },
     /// A checkpoint vector has the wrong length for the configuration.
     CheckpointDimension,
-    /// A checkpoint's values are not a filter's: an entry of the factor
-    /// below its diagonal that is not `+0.0` (a checkpoint carries the
-    /// packed factor, whose lower triangle is zero), or a computed frame
-    /// `C_cn` that is not a rotation (orthonormal within 1e-4, determinant
-    /// +1).
+    /// A checkpoint's values are not a filter's: its computed frame `C_cn`
+    /// is not a rotation (orthonormal within 1e-4, determinant +1).
     CheckpointInvalid,
     /// The filter refused the settings or the checkpoint's values.
     Filter(ekf::Error),

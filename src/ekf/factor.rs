@@ -304,34 +304,60 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
         true
     }
 
-    /// Makes this factor the one whose packed form ([`Ud::packed`]; the
-    /// part below the diagonal ignored) is given by its `N·N` entries row
-    /// by row in f64 (a checkpoint's layout), rounded to `T`, in place;
-    /// `false` (and the factor unchanged) unless there are `N·N` entries,
-    /// all finite in `T`, every `D` is positive or zero, and the column of
-    /// `U` above a zero `D` and its row to the right are zero (a state the
-    /// model does not estimate, as the filter keeps it); a zero `D` only at
-    /// states `held_from..N` (those before it keep `D > 0`:
+    /// Makes this factor the one whose packed form ([`Ud::packed`]) has
+    /// the upper triangle, diagonal included, `at(r, c)` (`c ≥ r`, in f64,
+    /// rounded to `T`; a checkpoint's values), zeros below, in place;
+    /// `false` (and the factor unchanged) unless every such entry is there
+    /// (`Some`) and finite in `T`, every `D` is positive or zero, and the
+    /// column of `U` above a zero `D` and its row to the right are zero (a
+    /// state the model does not estimate, as the filter keeps it); a zero
+    /// `D` only at states `held_from..N` (those before it keep `D > 0`:
     /// [`Ud::update_into`]).
-    pub fn set_packed_rows(&mut self, rows: &[f64], held_from: usize) -> bool {
-        let t = |v: f64| -> T { nalgebra::convert(v) };
-        let at = |r: usize, c: usize| rows.get(r * N + c).map(|v| t(*v));
-        let diagonal_valid = (0..N).all(|i| match at(i, i) {
-            Some(d) if d > T::zero() => true,
-            Some(d) if d == T::zero() && i >= held_from => {
-                (0..i).all(|r| at(r, i) == Some(T::zero()))
-                    && (i + 1..N).all(|c| at(i, c) == Some(T::zero()))
-            }
-            _ => false,
-        });
-        if rows.len() != N * N || !diagonal_valid || rows.iter().any(|v| !t(*v).is_finite()) {
-            return false;
-        }
-        for (r, row) in rows.chunks_exact(N).enumerate() {
-            for (c, v) in row.iter().enumerate() {
-                if let Some(e) = self.m.get_mut((r, c)) {
-                    *e = if c >= r { t(*v) } else { T::zero() };
+    // One body per filter type, whatever gives the entries (`dyn`): a
+    // restore is rare, its code is not worth a copy per caller in flash.
+    #[inline(never)]
+    pub fn set_upper_with(
+        &mut self,
+        at: &dyn Fn(usize, usize) -> Option<f64>,
+        held_from: usize,
+    ) -> bool {
+        let t = |r: usize, c: usize| at(r, c).map(|v| -> T { nalgebra::convert(v) });
+        // Row by row: every entry there and finite, D ≥ 0 (zero only from
+        // `held_from`), the row right of a zero D zero.
+        let mut zero_d = [false; N];
+        for r in 0..N {
+            for c in r..N {
+                let Some(v) = t(r, c).filter(|v| v.is_finite()) else {
+                    return false;
+                };
+                let valid = if c == r {
+                    v > T::zero() || (v == T::zero() && r >= held_from)
+                } else {
+                    v == T::zero() || !zero_d.get(r).copied().unwrap_or(true)
+                };
+                if !valid {
+                    return false;
                 }
+                if c == r {
+                    if let Some(z) = zero_d.get_mut(r) {
+                        *z = v == T::zero();
+                    }
+                }
+            }
+        }
+        // The column above a zero D zero.
+        for (c, _) in zero_d.iter().enumerate().filter(|(_, z)| **z) {
+            if (0..c).any(|r| t(r, c) != Some(T::zero())) {
+                return false;
+            }
+        }
+        for (c, column) in self.m.column_iter_mut().enumerate() {
+            for (r, e) in column.into_iter().enumerate() {
+                *e = if c >= r {
+                    t(r, c).unwrap_or_else(T::zero)
+                } else {
+                    T::zero()
+                };
             }
         }
         true
@@ -783,6 +809,57 @@ mod tests {
     /// `W diag(d) Wᵀ + Q` of an attitude block (3×3, f64).
     fn dense_block(w: &Matrix3<f64>, d: [f64; 3], q: &Matrix3<f64>) -> Matrix3<f64> {
         w * Matrix3::from_diagonal(&nalgebra::Vector3::from(d)) * w.transpose() + q
+    }
+
+    /// A factor set from its upper triangle holds those values above and
+    /// on the diagonal and zeros below; a zero `D` is taken only from
+    /// `held_from` on and with its row and column zero; a missing or
+    /// non-finite entry, a negative `D` refuse it, the factor unchanged.
+    #[test]
+    fn set_upper_with_takes_a_factor_and_refuses_what_is_not_one() {
+        // 4 states; D_3 = 0 (a held state): its row and column are zero.
+        let upper = [
+            [2.0, 0.5, -0.25, 0.0],
+            [0.0, 3.0, 0.125, 0.0],
+            [0.0, 0.0, 4.0, 0.0],
+            [0.0, 0.0, 0.0, 0.0],
+        ];
+        let at = |u: [[f64; 4]; 4]| move |r: usize, c: usize| u.get(r)?.get(c).copied();
+        let mut ud = Ud::<f64, 4>::zeros();
+        assert!(ud.set_upper_with(&at(upper), 3));
+        for r in 0..4 {
+            for c in 0..4 {
+                let want = if c >= r { upper[r][c] } else { 0.0 };
+                assert_eq!(ud.packed()[(r, c)], want, "({r}, {c})");
+            }
+        }
+        let kept = ud;
+        let with = |r: usize, c: usize, v: f64| {
+            let mut u = upper;
+            u[r][c] = v;
+            u
+        };
+        for (bad, held_from, what) in [
+            (upper, 4, "a zero D before held_from"),
+            (with(0, 3, 0.5), 3, "U above a zero D"),
+            (with(1, 1, -1.0), 3, "a negative D"),
+            (with(0, 2, f64::NAN), 3, "a NaN"),
+            (with(2, 2, f64::INFINITY), 3, "an infinite D"),
+        ] {
+            assert!(!ud.set_upper_with(&at(bad), held_from), "{what}");
+            assert_eq!(ud, kept, "{what}");
+        }
+        // A zero D with U to its right.
+        // A zero D with its column above zero but U to its right.
+        let mut u = upper;
+        (u[0][2], u[1][2], u[2][2]) = (0.0, 0.0, 0.0);
+        assert!(ud.set_upper_with(&at(u), 2), "a held state at 2");
+        ud = kept;
+        u[2][3] = 0.5;
+        assert!(!ud.set_upper_with(&at(u), 2), "U right of a zero D");
+        // A missing entry.
+        assert!(!ud.set_upper_with(&|r, c| (r + c < 6).then_some(1.0), 0));
+        assert_eq!(ud, kept);
     }
 
     /// The weighted Gram–Schmidt factor of the attitude block is the

@@ -7,7 +7,15 @@ use nalgebra::{Matrix3, RealField, SMatrix, SVector};
 use super::{all_finite, env_t, Error, Filter, FilterConfig};
 use crate::command::CommandFrame;
 use crate::models::Model;
-use crate::precision::to_f64;
+use crate::precision::scalar_to_f64;
+use crate::wire::factor_len;
+
+/// Where entry `(r, c)`, `c ≥ r`, of an `n×n` upper triangle stored row by
+/// row ([`Parts::factor`]) is: row `r` starts after the `n − k` entries of
+/// each row `k < r`.
+fn upper_index(n: usize, r: usize, c: usize) -> usize {
+    r * n - r * r.saturating_sub(1) / 2 + (c - r)
+}
 
 /// The parts of a filter between two periods, as a checkpoint saves them
 /// ([`Filter::set_parts`], [`Filter::from_parts`]).
@@ -16,8 +24,9 @@ pub struct Parts<'a, const N: usize> {
     /// State (rad; the configuration's state order).
     pub x: &'a SVector<f64, N>,
     /// The packed U-D factor of the covariance (rad², [`Filter::factor`]),
-    /// its `N·N` entries row by row in f64 (rounded to `T`); the part below
-    /// the diagonal is ignored.
+    /// its upper triangle (diagonal included, the zeros below left out) row
+    /// by row in f64 (rounded to `T`): `N (N + 1) / 2` values
+    /// ([`crate::wire::factor_len`]), row `r` holding columns `r..N`.
     pub factor: &'a [f64],
     /// The computed frame `C^c_n` at the start of the next period.
     pub c_cn: &'a Matrix3<f64>,
@@ -91,25 +100,28 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         gate_state: (u32, bool),
     ) -> Result<Self, Error> {
         let mut f = Self::new(config, SVector::zeros(), SVector::repeat(T::one()))?;
-        // Exact: every T of the filter is an f64.
-        let rows: SMatrix<f64, N, N> = to_f64(&factor.transpose());
         let parts = Parts {
             x: &x,
-            factor: rows.as_slice(),
+            // Not read: the factor is `factor`'s entries (below).
+            factor: &[],
             c_cn: &c_cn,
             nominal: nominal.as_ref(),
             updates,
             gate_state,
         };
-        f.set_parts(config, &parts)?;
+        // Exact: every T of the filter is an f64.
+        f.set_parts_with(config, &parts, &|r, c| {
+            factor.get((r, c)).copied().map(scalar_to_f64)
+        })?;
         Ok(f)
     }
 
-    /// [`Filter::from_parts`] in place, with the factor as its `N·N`
-    /// entries in row-major order in f64 (a checkpoint's layout, read where
-    /// it is: no `N×N` temporary). Every part is checked before the filter
-    /// is touched: on error it is unchanged ([`Error::NonFiniteInput`] also
-    /// for a factor that has not `N·N` entries).
+    /// [`Filter::from_parts`] in place, with the factor as its upper
+    /// triangle row by row in f64 ([`Parts::factor`]: a checkpoint's
+    /// layout, read where it is: no `N×N` temporary). Every part is checked
+    /// before the filter is touched: on error it is unchanged
+    /// ([`Error::NonFiniteInput`] also for a factor that has not
+    /// `N (N + 1) / 2` entries).
     ///
     /// # Examples
     ///
@@ -134,8 +146,12 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// # let (dtheta_c, dt) = (w_ie * 1.0, 1.0);
     /// # let obs = Observation { accel_mean: gravity_n::<f64>(), gimbal: None };
     /// f.step(&dtheta_c, dt, &obs)?;
-    /// // The factor in a checkpoint's layout: its entries row by row, in f64.
-    /// let rows: Vec<f64> = f.factor().transpose().iter().copied().collect();
+    /// // The factor in a checkpoint's layout: its upper triangle row by row,
+    /// // in f64.
+    /// let n = f.state().len();
+    /// let rows: Vec<f64> = (0..n).flat_map(|r| (r..n).map(move |c| (r, c)))
+    ///     .map(|(r, c)| f.factor()[(r, c)])
+    ///     .collect();
     /// let parts = rollcal::ekf::Parts {
     ///     x: f.state(),
     ///     factor: &rows,
@@ -158,6 +174,24 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         config: FilterConfig<T>,
         parts: &Parts<'_, N>,
     ) -> Result<(), Error> {
+        let upper = parts.factor;
+        // A factor of another length has no entry (refused as non-finite).
+        let whole = upper.len() == factor_len(N);
+        self.set_parts_with(config, parts, &|r, c| {
+            whole
+                .then(|| upper.get(upper_index(N, r, c)).copied())
+                .flatten()
+        })
+    }
+
+    /// [`Filter::set_parts`] with the factor's upper triangle given by
+    /// `factor_at(r, c)` (`c ≥ r`; f64) instead of [`Parts::factor`].
+    fn set_parts_with(
+        &mut self,
+        config: FilterConfig<T>,
+        parts: &Parts<'_, N>,
+        factor_at: &dyn Fn(usize, usize) -> Option<f64>,
+    ) -> Result<(), Error> {
         Self::prior_variance(&config, &SVector::zeros(), &SVector::repeat(T::one()))?;
         let nominal_values = parts.nominal.iter().flat_map(|v| v.iter().copied());
         if !all_finite(
@@ -167,16 +201,17 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 .chain(parts.c_cn.iter())
                 .copied()
                 .chain(nominal_values),
-        ) || parts.factor.len() != N * N
+        )
             // Finite in T, not only in f64 (an f32 overflow is non-finite).
-            || !parts
-                .factor
-                .iter()
-                .all(|v| nalgebra::convert::<f64, T>(*v).is_finite())
+            || !(0..N).all(|r| {
+                (r..N).all(|c| {
+                    factor_at(r, c).is_some_and(|v| nalgebra::convert::<f64, T>(v).is_finite())
+                })
+            })
         {
             return Err(Error::NonFiniteInput);
         }
-        if !self.ud.set_packed_rows(parts.factor, Self::HELD_FROM) {
+        if !self.ud.set_upper_with(factor_at, Self::HELD_FROM) {
             return Err(Error::CovarianceNotPositiveDefinite);
         }
         self.x = *parts.x;
@@ -191,5 +226,23 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         self.matrices
             .fill(Self::LAYOUT.installation(&SVector::<f64, N>::zeros()));
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::upper_index;
+
+    #[test]
+    fn upper_index_walks_the_triangle_row_by_row() {
+        let n = 5;
+        let mut want = 0;
+        for r in 0..n {
+            for c in r..n {
+                assert_eq!(upper_index(n, r, c), want);
+                want += 1;
+            }
+        }
+        assert_eq!(want, crate::wire::factor_len(n));
     }
 }

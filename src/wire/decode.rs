@@ -66,8 +66,9 @@ pub fn decode_frame(frame: &mut [u8]) -> Result<Message, FrameError> {
 }
 
 /// [`decode_frame`] with the message written into `msg` (what it held is
-/// replaced). A message is a checkpoint's size whatever it holds (≈ 3 KB,
-/// ≈ 12.6 KB with the `full-model` feature): a firmware that keeps `msg` in
+/// replaced). A message is a checkpoint's size whatever it holds (≈ 1.8 KB
+/// for the installation model's 18 states, ≈ 12.8 KB for the full model's
+/// 54: [`crate::wire::MAX_STATES`]): a firmware that keeps `msg` in
 /// static memory has no copy of it on its stack, as a checkpoint is
 /// decoded into `msg`'s own vectors (the `in_place` module). On an error of
 /// the frame (COBS, length, CRC, version) `msg` is untouched; on a

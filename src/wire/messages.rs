@@ -11,21 +11,66 @@ use serde::{Deserialize, Serialize};
 use crate::ekf::Options;
 use crate::models::{ConfigId, ErrorModel, Wander};
 
-/// Largest state dimension of any model this build carries: 54 (the full
-/// M2-ps and M3-ps models) with the `full-model` feature, else 18 (M2-ps,
-/// M3-ps). It sizes the messages' vectors only: the bytes of a message do
-/// not depend on it (postcard writes a vector's length before its items).
-#[cfg(feature = "full-model")]
-pub const MAX_STATES: usize = 54;
-/// Largest state dimension of any model this build carries: 48 (the full
-/// M2-ps and M3-ps models) with the `full-model` feature, else 18 (M2-ps,
-/// M3-ps). It sizes the messages' vectors only: the bytes of a message do
-/// not depend on it (postcard writes a vector's length before its items).
-#[cfg(not(feature = "full-model"))]
-pub const MAX_STATES: usize = 18;
+/// Largest state dimension of the models this build holds: the largest
+/// [`ConfigId::layout_with`] over its configurations (cargo features
+/// `m1-pa` … `m4-ps`) and error models (`installation-model`,
+/// `full-model`). 54 with the default features (the full M2-ps and M3-ps
+/// models); 48 in an image of the full M1-pa model alone, 18 in one of the
+/// installation M2-ps model, 12 of the installation M1-pa model. It sizes
+/// the messages' vectors only: the bytes of a message do not depend on it
+/// (postcard writes a vector's length before its items).
+///
+/// # Examples
+///
+/// ```
+/// use rollcal::models::{ConfigId, ErrorModel};
+/// // The default features hold every configuration in both models.
+/// assert_eq!(rollcal::wire::MAX_STATES, ConfigId::M2Ps.layout_with(ErrorModel::Full).n());
+/// ```
+pub const MAX_STATES: usize = max_built_states();
 
-/// Capacity of a row-major covariance of [`MAX_STATES`] states.
+/// [`MAX_STATES`], computed from the build's features.
+const fn max_built_states() -> usize {
+    let mut n = 0;
+    let mut rest: &[ConfigId] = &ConfigId::ALL;
+    while let [c, tail @ ..] = rest {
+        if c.is_built() {
+            if cfg!(feature = "installation-model") {
+                let k = c.layout_with(ErrorModel::Installation).n();
+                n = if k > n { k } else { n };
+            }
+            if cfg!(feature = "full-model") {
+                let k = c.layout_with(ErrorModel::Full).n();
+                n = if k > n { k } else { n };
+            }
+        }
+        rest = tail;
+    }
+    n
+}
+
+/// Capacity of a row-major covariance of [`MAX_STATES`] states
+/// ([`crate::session::Covariance`]).
 pub const MAX_COVARIANCE: usize = MAX_STATES * MAX_STATES;
+
+/// Capacity of [`Checkpoint::factor`]: the upper triangle, diagonal
+/// included, of an `N×N` factor of [`MAX_STATES`] states,
+/// `N (N + 1) / 2` values (1 485 for 54 states, 171 for 18).
+pub const MAX_FACTOR: usize = factor_len(MAX_STATES);
+
+/// Values in the upper triangle, diagonal included, of an `n×n` matrix:
+/// `n (n + 1) / 2` (the length of [`Checkpoint::factor`] of a model of `n`
+/// states).
+///
+/// # Examples
+///
+/// ```
+/// assert_eq!(rollcal::wire::factor_len(12), 78);
+/// assert_eq!(rollcal::wire::factor_len(54), 1485);
+/// ```
+pub const fn factor_len(n: usize) -> usize {
+    n * (n + 1) / 2
+}
 
 /// One filter period as measured by the platform (docs/wire.md). `f32` fields:
 /// f32 spacing is 1.2e-7 g at 1 g (the accelerometer noise is 1e-6 g) and
@@ -513,11 +558,12 @@ pub struct Checkpoint {
     pub errors: ErrorModel,
     /// State `x` (rad).
     pub state: Vec<f64, MAX_STATES>,
-    /// The packed U-D factor of the covariance `P = U D Uᵀ` (rad²),
-    /// row-major N×N: `D` on the diagonal, the unit upper triangular `U`'s
-    /// strict upper triangle above it, zeros below
-    /// ([`crate::ekf::Filter::factor`]).
-    pub factor: Vec<f64, MAX_COVARIANCE>,
+    /// The packed U-D factor of the covariance `P = U D Uᵀ` (rad²), its
+    /// upper triangle row by row ([`factor_len`]`(N)` values): row `r` is
+    /// `D_r`, then `U_{r,r+1} … U_{r,N-1}` (the unit upper triangular
+    /// `U`'s strict upper triangle; the zeros below the diagonal are not
+    /// sent; [`crate::ekf::Filter::factor`]).
+    pub factor: Vec<f64, MAX_FACTOR>,
     /// Nominal state of a linearised filter (rad), if any.
     pub nominal: Option<Vec<f64, MAX_STATES>>,
     /// `C^c_n` of the computed frame, row-major.
@@ -659,8 +705,8 @@ pub enum RefusalReason {
     },
     /// A checkpoint's vectors have the wrong lengths for its configuration.
     CheckpointDimension,
-    /// A checkpoint's values are not a filter's (a factor entry below the
-    /// diagonal that is not `+0.0`, a frame that is not a rotation).
+    /// A checkpoint's values are not a filter's (a frame that is not a
+    /// rotation).
     CheckpointInvalid,
     /// The filter refused the settings or the checkpoint's values
     /// ([`crate::ekf::Error`], its index in docs/wire.md).

@@ -65,15 +65,15 @@ pub use encode::encode;
 pub use error::{EncodeError, FrameError};
 pub use field::{ConfigField, FieldBounds};
 pub use messages::{
-    CalibratorConfig, Checkpoint, Estimate, EstimateKind, InstrumentPrior, Limits, Message,
-    Progress, Refusal, RefusalReason, RejectCounts, Sample, SinglePassReason, INSTRUMENT_STATES,
-    MAX_COVARIANCE, MAX_STATES,
+    factor_len, CalibratorConfig, Checkpoint, Estimate, EstimateKind, InstrumentPrior, Limits,
+    Message, Progress, Refusal, RefusalReason, RejectCounts, Sample, SinglePassReason,
+    INSTRUMENT_STATES, MAX_COVARIANCE, MAX_FACTOR, MAX_STATES,
 };
 
-/// Protocol version carried in the first byte of every frame (6: the full
-/// model with the errors that wander, and the `Refused` reply; docs/wire.md
+/// Protocol version carried in the first byte of every frame (7: a
+/// [`Checkpoint`] carries its factor's upper triangle only; docs/wire.md
 /// §Version policy).
-pub const VERSION: u8 = 6;
+pub const VERSION: u8 = 7;
 
 /// Length of the CRC trailer (bytes).
 pub const CRC_LEN: usize = 4;
@@ -81,17 +81,32 @@ pub const CRC_LEN: usize = 4;
 /// Smallest valid decoded frame: version, one tag byte, CRC (bytes).
 pub const MIN_DECODED_LEN: usize = 1 + 1 + CRC_LEN;
 
-/// Upper bound of an encoded frame of any [`Message`], delimiter included
-/// (bytes). The largest message is a [`Checkpoint`] of [`MAX_STATES`]
-/// states: 2 881 to 3 157 bytes encoded for 18 states, about 25 KB for the
-/// full model's 54 (`full-model` feature; docs/wire.md §Limits and sizes);
-/// a [`Decoder`] with this capacity accepts every message.
-#[cfg(not(feature = "full-model"))]
-pub const MAX_FRAME_LEN: usize = 4096;
-/// Upper bound of an encoded frame of any [`Message`], delimiter included
-/// (bytes). The largest message is a [`Checkpoint`] of [`MAX_STATES`]
-/// states: 2 881 to 3 157 bytes encoded for 18 states, about 25 KB for the
-/// full model's 54 (`full-model` feature; docs/wire.md §Limits and sizes);
-/// a [`Decoder`] with this capacity accepts every message.
-#[cfg(feature = "full-model")]
-pub const MAX_FRAME_LEN: usize = 32768;
+/// Upper bound of an encoded frame of any [`Message`] of this build,
+/// delimiter included (bytes): [`max_frame_len`] of [`MAX_STATES`], so an
+/// image pays for its own models' largest message, not the crate's. 13 382
+/// with the default features (a [`Checkpoint`] of the full model's 54
+/// states, 12 839 to 13 179 bytes encoded; docs/wire.md §Limits and sizes),
+/// 2 250 in an image of the installation M2-ps model. A [`Decoder`] with
+/// this capacity accepts every message of the build; a larger frame is for
+/// a model the build does not hold.
+pub const MAX_FRAME_LEN: usize = max_frame_len(MAX_STATES);
+
+/// Upper bound of the encoded frame of any [`Message`] of a model of `n`
+/// states, delimiter included (bytes). The largest is a [`Checkpoint`]: `n`
+/// states, `n` nominal states, the factor's [`factor_len`]`(n)` values and
+/// the 3×3 `C_cn`, each an 8-byte `f64`, and fields of bounded size
+/// (version, tags, vector lengths, counters, bookkeeping, CRC: 191 bytes in
+/// the largest frame of docs/wire.md §Limits and sizes, bounded here by
+/// 512); COBS adds a byte per 254 and the delimiter one.
+///
+/// # Examples
+///
+/// ```
+/// use rollcal::wire::{max_frame_len, MAX_FRAME_LEN, MAX_STATES};
+/// assert_eq!(max_frame_len(54), 13_382);
+/// assert_eq!(MAX_FRAME_LEN, max_frame_len(MAX_STATES));
+/// ```
+pub const fn max_frame_len(n: usize) -> usize {
+    let payload = 8 * (factor_len(n) + 2 * n + 9) + 512;
+    payload + payload.div_ceil(254) + 1
+}

@@ -12,7 +12,7 @@ use rollcal::models::ConfigId;
 use rollcal::wire::{
     crc32, decode_frame, decode_frame_into, encode, CalibratorConfig, Checkpoint, Decoder,
     DecoderStats, Estimate, EstimateKind, FrameDecoder, FrameError, Message, Progress,
-    RejectCounts, Sample, SinglePassReason, MAX_COVARIANCE, MAX_FRAME_LEN, MAX_STATES, VERSION,
+    RejectCounts, Sample, SinglePassReason, MAX_FACTOR, MAX_FRAME_LEN, MAX_STATES, VERSION,
 };
 
 fn frame(msg: &Message) -> Vec<u8> {
@@ -51,7 +51,7 @@ fn big_checkpoint() -> Checkpoint {
         config: ConfigId::M2Ps,
         errors: rollcal::models::ErrorModel::Full,
         state: v.clone(),
-        factor: (0..MAX_COVARIANCE).map(|i| 1e-300 * i as f64).collect(),
+        factor: (0..MAX_FACTOR).map(|i| 1e-300 * i as f64).collect(),
         nominal: Some(v),
         c_cn: [f64::MAX; 9],
         updates: u32::MAX,
@@ -637,7 +637,7 @@ fn arb_message() -> impl Strategy<Value = Message> {
         (
             arb_config(),
             arb_vec::<MAX_STATES>(MAX_STATES),
-            arb_vec::<MAX_COVARIANCE>(MAX_COVARIANCE),
+            arb_vec::<MAX_FACTOR>(MAX_FACTOR),
             proptest::option::of(arb_vec::<MAX_STATES>(MAX_STATES)),
             proptest::array::uniform9(arb_f64()),
             any::<u32>(),

@@ -107,10 +107,14 @@ fn checkpoint() -> Checkpoint {
     let config = CalibratorConfig::paper(ConfigId::M1Pa);
     let c = AnyCalibrator::<f64>::new(config).unwrap().checkpoint();
     let n = 12;
-    assert_eq!((c.state.len(), c.factor.len()), (n, n * n));
+    assert_eq!((c.state.len(), c.factor.len()), (n, n * (n + 1) / 2));
     assert!(c.state.iter().all(|x| *x == 0.0));
+    // The upper triangle row by row: each row starts on the diagonal.
+    let diagonal: Vec<usize> = (0..n)
+        .map(|r| r * n - r * r.saturating_sub(1) / 2)
+        .collect();
     for (k, d) in c.factor.iter().enumerate() {
-        let want = if k % (n + 1) == 0 {
+        let want = if diagonal.contains(&k) {
             config.prior_sigma_rad.powi(2)
         } else {
             0.0
@@ -408,7 +412,7 @@ fn checkpoint_of(n: usize, max: bool) -> Message {
         config,
         errors,
         state: (0..n).map(|_| v).collect(),
-        factor: (0..n * n).map(|_| v).collect(),
+        factor: (0..n * (n + 1) / 2).map(|_| v).collect(),
         nominal: max.then(|| (0..n).map(|_| v).collect()),
         c_cn: [v; 9],
         updates: if max { u32::MAX } else { 0 },

@@ -121,25 +121,27 @@ fn a_checkpoint_restores_in_place_and_a_refused_one_leaves_the_calibrator_untouc
     nan.factor[1] = f64::NAN;
     let mut short = cp.clone();
     short.factor.pop();
+    let mut long = cp.clone();
+    long.factor.push(0.0).unwrap();
     let mut short_state = cp.clone();
     short_state.state.pop();
     let mut other = cp.clone();
     other.config = ConfigId::M1Pa;
-    // Not a filter's checkpoint: a value below the factor's diagonal (even
-    // -0.0, which a restored filter would write back as +0.0), a computed
-    // frame that is not a rotation (scaled, reflected).
-    let n = cp.state.len();
-    let mut below = cp.clone();
-    below.factor[n] = 1e-3;
-    let mut negative_zero = cp.clone();
-    negative_zero.factor[2 * n + 1] = -0.0;
+    // Not a filter's checkpoint: a computed frame that is not a rotation
+    // (scaled, reflected). (The factor's part below the diagonal is not
+    // sent: nothing there to refuse.)
     let mut scaled = cp.clone();
     scaled.c_cn.iter_mut().for_each(|v| *v *= 1.001);
     let mut reflected = cp.clone();
     reflected.c_cn.iter_mut().for_each(|v| *v = -*v);
+    for (bad, what) in [(&short, "short factor"), (&long, "long factor")] {
+        assert_eq!(
+            target.restore_in_place(cfg, bad),
+            Err(rollcal::calibrator::Error::CheckpointDimension),
+            "{what}"
+        );
+    }
     for (bad, what) in [
-        (&below, "an entry below the diagonal"),
-        (&negative_zero, "-0.0 below the diagonal"),
         (&scaled, "a scaled frame"),
         (&reflected, "a reflected frame"),
     ] {
@@ -153,10 +155,9 @@ fn a_checkpoint_restores_in_place_and_a_refused_one_leaves_the_calibrator_untouc
         (&bad_d, "D <= 0"),
         (&nan, "NaN"),
         (&short, "short factor"),
+        (&long, "long factor"),
         (&short_state, "short state"),
         (&other, "another configuration"),
-        (&below, "an entry below the diagonal"),
-        (&negative_zero, "-0.0 below the diagonal"),
         (&scaled, "a scaled frame"),
         (&reflected, "a reflected frame"),
     ] {

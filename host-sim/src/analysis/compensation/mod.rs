@@ -329,14 +329,21 @@ pub fn of_run(r: &crate::analysis::runner::RunResult) -> Result<Compensation, Er
     )
 }
 
-/// The covariance (row-major, N·N) of a packed U-D factor (row-major: `D`
-/// on the diagonal, the unit upper-triangular `U` strictly above;
-/// [`rollcal::wire::Checkpoint::factor`]): `P = U D Uᵀ`.
+/// The covariance (row-major, N·N) of a packed U-D factor given by its
+/// upper triangle row by row (`D` on the diagonal, the unit
+/// upper-triangular `U` strictly above; [`rollcal::wire::Checkpoint::factor`]):
+/// `P = U D Uᵀ`. Empty unless `packed` has `N (N + 1) / 2` values.
 pub fn covariance_of_packed_ud(n: usize, packed: &[f64]) -> Vec<f64> {
-    if packed.len() != n * n {
+    if packed.len() != rollcal::wire::factor_len(n) {
         return Vec::new();
     }
-    let a = DMatrix::from_row_slice(n, n, packed);
+    let mut values = packed.iter().copied();
+    let mut a = DMatrix::<f64>::zeros(n, n);
+    for r in 0..n {
+        for c in r..n {
+            a[(r, c)] = values.next().unwrap_or(0.0);
+        }
+    }
     let d = DVector::from_iterator(n, (0..n).map(|i| a[(i, i)]));
     let mut u = a.upper_triangle();
     u.fill_diagonal(1.0);
@@ -402,7 +409,11 @@ mod tests {
                 packed[i * n + j] = 0.1 * ((i + 2 * j) % 5) as f64 - 0.2;
             }
         }
-        let p = covariance_of_packed_ud(n, &packed);
+        let upper: Vec<f64> = (0..n)
+            .flat_map(|i| (i..n).map(move |j| (i, j)))
+            .map(|(i, j)| packed[i * n + j])
+            .collect();
+        let p = covariance_of_packed_ud(n, &upper);
         let sigma: Vec<f64> = (0..n).map(|i| p[i * n + i].sqrt()).collect();
         let x = vec![0.0; n];
         let c = Compensation::new(ConfigId::M1Pa, &x, &sigma, &p).unwrap();
