@@ -17,7 +17,7 @@
 #     (tools/panic-check.py);
 #   - the full model (the instruments' own errors, 54 / 48 states): its
 #     instructions per period (synthetic), its painted stack, its recorded
-#     streams (instrumented scenario) and its Finish; the sample log's
+#     streams (realistic scenario) and its Finish; the sample log's
 #     bytes per period in flash (FlashLog);
 #   - the frame layer's instructions per frame (firmware/frames.sh: encode
 #     and decode of a Sample, an Estimate and a Checkpoint);
@@ -297,7 +297,7 @@ if [ "$QUICK" = --quick ]; then
 fi
 
 echo
-echo "## Instructions per period, recorded streams (seed 1, Calibrator::push): the paper's (installation model), the instrumented scenario's (full model)"
+echo "## Instructions per period, recorded streams (seed 1, Calibrator::push): the paper's (installation model), the realistic scenario's (full model)"
 echo "(every period of the stream: the m4f run is cut at QEMU_TIMEOUT_F32 s, default 120, and the m7 run at QEMU_TIMEOUT s, default 600)"
 STREAMS=(M2-ps M1-pa M2-ps-full M1-pa-full)
 for c in M2-ps M1-pa; do

@@ -84,14 +84,15 @@ build_plugin() {
 # record_stream CONFIG [full]: records a stream (seed 1) and appends the
 # end-of-stream frames (EstimateRequest, Finish): the paper scenario with
 # the installation model, $OUT/<config>.bin (stream) and $OUT/<config>-in.bin
-# (firmware input); with `full`, the instrumented scenario (the instruments'
-# own errors, docs/model.md §Instrument errors) with the full model, $OUT/<config>-full.bin and
+# (firmware input); with `full`, the realistic scenario (the instruments'
+# own errors, k2 and the errors that wander, docs/model.md §Errors that
+# wander) with the full model, $OUT/<config>-full.bin and
 # $OUT/<config>-full-in.bin.
 record_stream() {
     local config=$1 name=$1 args=()
     if [ "${2:-}" = full ]; then
         name=$config-full
-        args=(--errors full --scenario "$ROOT/scenarios/instrumented.toml")
+        args=(--errors full --scenario "$ROOT/scenarios/realistic.toml")
     fi
     "$HOST_SIM" record --config "$config" --seed 1 "${args[@]}" --out "$OUT/$name.bin" 2>/dev/null
     "$FW_CHECK" end-frame >"$OUT/$name-end.bin"

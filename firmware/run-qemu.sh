@@ -4,7 +4,8 @@
 # Cortex-M4F/f32 and Cortex-M7/f64 variants (every configuration, the full
 # model), records four streams with `host-sim record` (seed 1): M2-ps and
 # M1-pa on the paper's scenario with the installation model, and on the
-# instrumented scenario (the instruments' own errors) with the full model;
+# realistic scenario (the instruments' own errors, k2 and the errors that
+# wander) with the full model;
 # appends EstimateRequest + Finish (`firmware-check end-frame`), feeds each
 # stream to the firmware's UART0 (QEMU `-serial stdio`, stdin redirected) and
 # collects the Estimate frames from UART1. The firmware logs every period in
@@ -44,7 +45,7 @@ source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 CHECKPOINT_AT=2700
 SUMMARY="$OUT/summary.txt"
 # The streams: <config> (paper scenario, installation model) and
-# <config>-full (instrumented scenario, full model).
+# <config>-full (realistic scenario, full model).
 STREAMS=(M2-ps M1-pa M2-ps-full M1-pa-full)
 
 ensure_tools

@@ -310,8 +310,8 @@ fn arbitrary_sample(u: &mut Unstructured) -> Result<Sample> {
     })
 }
 
-/// Where `D_r` is in a checkpoint's factor of `n` states (its upper
-/// triangle row by row: each row starts on the diagonal).
+/// Where `D_r` (`r < n`) is in a checkpoint's factor of `n` states (its
+/// upper triangle row by row: each row starts on the diagonal).
 fn diagonal_index(n: usize, r: usize) -> usize {
     r * n - r * r.saturating_sub(1) / 2
 }
@@ -334,7 +334,7 @@ fn corrupt(u: &mut Unstructured, cp: &mut Checkpoint) -> Result<()> {
         4 => {
             // A diagonal entry (D) of the upper triangle.
             let n = cp.state.len();
-            let i = diagonal_index(n, usize::from(u.int_in_range(0..=53u8)?));
+            let i = diagonal_index(n, usize::from(u.arbitrary::<u8>()?) % n.max(1));
             if let Some(v) = cp.factor.get_mut(i) {
                 *v = value(u, -*v)?;
             }

@@ -188,18 +188,21 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         dx: &mut SVector<T, N>,
     ) -> Result<T, Error> {
         let mut nis = T::zero();
-        let mut gain = [T::zero(); N];
-        for (row, nu_i) in h_w.row_iter().zip(nu_w.iter()) {
-            let row = row.transpose();
-            let resid = *nu_i - row.dot(&*dx);
-            let Some(alpha) = self
-                .ud
-                .update_into(&row, T::one(), &mut gain, Self::HELD_FROM)
+        // The row and the gain in the working memory, not in this frame.
+        let scratch = &mut self.scratch;
+        for (i, nu_i) in nu_w.iter().enumerate() {
+            for (r, h) in scratch.row.iter_mut().zip(h_w.row(i).iter()) {
+                *r = *h;
+            }
+            let resid = *nu_i - scratch.row.dot(&*dx);
+            let Some(alpha) =
+                self.ud
+                    .update_into(&scratch.row, T::one(), &mut scratch.gain, Self::HELD_FROM)
             else {
                 return Err(Error::CovarianceNotPositiveDefinite);
             };
             nis += resid * resid / alpha;
-            for (d, g) in dx.iter_mut().zip(gain.iter()) {
+            for (d, g) in dx.iter_mut().zip(scratch.gain.iter()) {
                 *d += *g * resid;
             }
         }

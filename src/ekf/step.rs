@@ -91,8 +91,9 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         // estimate, the computed frame, and the nominal's attitude (`predict`
         // moves only the attitude of the nominal).
         let layout = Self::LAYOUT;
+        // The estimate in the working memory, not in this frame.
+        self.scratch.x_before = self.x;
         let saved = (
-            self.x,
             self.command,
             self.reference.as_ref().map(|r| layout.attitude(r)),
         );
@@ -103,8 +104,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         };
         match updated {
             Err(e) if e != Error::Gated => {
-                let (x, command, nominal_att) = saved;
-                self.x = x;
+                let (command, nominal_att) = saved;
+                self.x = self.scratch.x_before;
                 self.command = command;
                 if let (Some(r), Some(att)) = (self.reference.as_mut(), nominal_att) {
                     r.fixed_rows_mut::<3>(ATT).copy_from(&att);
