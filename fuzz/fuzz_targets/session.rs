@@ -1066,10 +1066,12 @@ impl<T: RealField + Copy> Harness<'_, T> {
                 );
                 assert!(same_progress(&cp.progress, c.progress()));
                 // Its own checkpoint restores, bit-identically — except
-                // once the factor has a non-positive D (the factored filter
-                // refuses any update that would leave one, so this should
-                // not happen), which `Filter::from_parts` refuses.
-                let degenerate = (0..n).any(|i| cp.factor[diagonal_index(n, i)] <= 0.0);
+                // once the factor has a negative D (the
+                // factored filter refuses any update that would leave one,
+                // so this should not happen), which `Filter::from_parts`
+                // refuses. A zero D is a state the model does not estimate
+                // (its prior σ zero): restored like any other.
+                let degenerate = (0..n).any(|i| cp.factor[diagonal_index(n, i)] < 0.0);
                 let mut again = c.clone();
                 let restored = again.restore(cp);
                 if degenerate {
@@ -1248,11 +1250,18 @@ impl<T: RealField + Copy> Harness<'_, T> {
                     assert_eq!(pa.clock_candidate, Some((s.seq, s.t_us)));
                 }
                 // Only bridged periods (consumed whatever the sample's own
-                // period does) and their records change anything else.
-                if pa.log_incomplete != Some(SinglePassReason::FilterFailed)
-                    && pb.logged < u32::MAX - MAX_GAP
-                {
-                    assert!(pa.logged - pb.logged <= bridged);
+                // period does) and their records change anything else,
+                // while the log holds the run (a bridged gap that failed
+                // after logging some periods marks it incomplete: with
+                // `FilterFailed`, or with the reason it already had, e.g.
+                // `LogFull` when it filled up inside that gap).
+                if pa.log_incomplete.is_none() && pb.logged < u32::MAX - MAX_GAP {
+                    assert!(
+                        pa.logged - pb.logged <= bridged,
+                        "{r:?}: logged {} -> {}, bridged {bridged}; before {pb:?}; after {pa:?}",
+                        pb.logged,
+                        pa.logged
+                    );
                 }
                 if bridged == 0 && reacquired == 0 {
                     // The filter (and everything but the rejection's own
@@ -1269,10 +1278,9 @@ impl<T: RealField + Copy> Harness<'_, T> {
                     }
                     // A gap whose prediction the filter refused part-way:
                     // the filter is restored, the records already logged
-                    // are marked (FilterFailed).
-                    if pb.log_incomplete.is_none()
-                        && p.log_incomplete == Some(SinglePassReason::FilterFailed)
-                    {
+                    // are marked (FilterFailed, or the reason the log got
+                    // inside that gap: LogFull when it filled up there).
+                    if pb.log_incomplete.is_none() && p.log_incomplete.is_some() {
                         p.log_incomplete = None;
                         p.logged = pb.logged;
                     }

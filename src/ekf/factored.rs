@@ -139,12 +139,18 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let d_att = rows_times(phi_att, &dx) + w.j_l * (w.nu_w - h_w * dx);
         dx.fixed_rows_mut::<3>(ATT).copy_from(&d_att);
         // The base (the estimate, or the nominal plus its offset) plus the
-        // correction, element by element.
-        let mut x = match (base, &self.reference) {
-            (Base::Nominal { delta }, Some(nominal)) => nominal + delta,
+        // correction, element by element, formed in the working memory (not
+        // in this frame, which is on a step's deepest path).
+        let x = &mut self.scratch.x_new;
+        match (base, &self.reference) {
+            (Base::Nominal { delta }, Some(nominal)) => {
+                for ((x_i, n_i), d_i) in x.iter_mut().zip(nominal.iter()).zip(delta.iter()) {
+                    *x_i = *n_i + *d_i;
+                }
+            }
             (Base::Nominal { .. }, None) => return Err(Error::NoPrediction),
-            (Base::Estimate, _) => self.x,
-        };
+            (Base::Estimate, _) => x.copy_from(&self.x),
+        }
         for (x_i, dx_i) in x.iter_mut().zip(dx.iter()) {
             *x_i += scalar_to_f64(*dx_i);
         }
@@ -161,7 +167,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         }
         // The end of the period for the errors that wander (cannot fail).
         let dt = self.pending.get().map_or(0.0, |p| p.period.dt);
-        self.x = x;
+        self.x = *x;
         self.wander_jump(dt);
         self.pending.clear();
         self.updates = self.updates.saturating_add(1);
@@ -188,21 +194,18 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         dx: &mut SVector<T, N>,
     ) -> Result<T, Error> {
         let mut nis = T::zero();
-        // The row and the gain in the working memory, not in this frame.
-        let scratch = &mut self.scratch;
-        for (i, nu_i) in nu_w.iter().enumerate() {
-            for (r, h) in scratch.row.iter_mut().zip(h_w.row(i).iter()) {
-                *r = *h;
-            }
-            let resid = *nu_i - scratch.row.dot(&*dx);
-            let Some(alpha) =
-                self.ud
-                    .update_into(&scratch.row, T::one(), &mut scratch.gain, Self::HELD_FROM)
+        let mut gain = [T::zero(); N];
+        for (row, nu_i) in h_w.row_iter().zip(nu_w.iter()) {
+            let row = row.transpose();
+            let resid = *nu_i - row.dot(&*dx);
+            let Some(alpha) = self
+                .ud
+                .update_into(&row, T::one(), &mut gain, Self::HELD_FROM)
             else {
                 return Err(Error::CovarianceNotPositiveDefinite);
             };
             nis += resid * resid / alpha;
-            for (d, g) in dx.iter_mut().zip(scratch.gain.iter()) {
+            for (d, g) in dx.iter_mut().zip(gain.iter()) {
                 *d += *g * resid;
             }
         }

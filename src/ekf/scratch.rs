@@ -2,9 +2,8 @@
 //! measurement rows' projections of the congruence `H P Hᵀ` and the
 //! whitened update ([`Whitened`]), which are `Z×N` and `3×N` of the
 //! filter's precision, the factor as it was before the update (`N×N`),
-//! to which a failed update returns, the row and gain of the scalar
-//! update being applied (`N` each) and the estimate before the step (`N`,
-//! f64), to which a refused step returns. On a firmware's stack they were 3.5 KB of f64 for
+//! to which a failed update returns, the estimate before the step (`N`,
+//! f64), to which a refused step returns, and the one the update forms. On a firmware's stack they were 3.5 KB of f64 for
 //! the full M2-ps model (39 states, 6 measurements), a step's stack budget
 //! being 8 KB; in the filter, which a firmware keeps in static memory, they
 //! cost that much static memory once per filter instead.
@@ -39,15 +38,14 @@ pub(super) struct Scratch<T: RealField + Copy, const N: usize, const Z: usize> {
     /// place when a filter is built in its slot: no `N×N` temporary on a
     /// firmware's stack.
     pub(super) factor: [[T; N]; N],
-    /// The whitened row of the scalar update being applied, and its gain:
-    /// on the M7's stack they took a step's deepest path (the full M2-ps
-    /// model's linearised update, 54 states in f64) over 8 KB.
-    pub(super) row: SVector<T, N>,
-    /// The gain of that scalar update (`Ud::update_into`'s `b`).
-    pub(super) gain: [T; N],
     /// The estimate before the step being taken (rad), to which a refused
-    /// step returns: kept here, not in the step's frame, for the same 8 KB.
+    /// step returns: kept here, not in the step's frame, which is on the
+    /// deepest path of a step (the full M2-ps model's linearised update, 54
+    /// states in f64: over 8 KB on the M7).
     pub(super) x_before: SVector<f64, N>,
+    /// The estimate the update forms (rad), checked before it becomes the
+    /// filter's: here for the same reason.
+    pub(super) x_new: SVector<f64, N>,
 }
 
 impl<T: RealField + Copy, const N: usize, const Z: usize> Scratch<T, N, Z> {
@@ -57,9 +55,8 @@ impl<T: RealField + Copy, const N: usize, const Z: usize> Scratch<T, N, Z> {
             projections: [[T::zero(); N]; Z],
             whitened: Whitened::zeros(),
             factor: [[T::zero(); N]; N],
-            row: SVector::zeros(),
-            gain: [T::zero(); N],
             x_before: SVector::zeros(),
+            x_new: SVector::zeros(),
         }
     }
 }
