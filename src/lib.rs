@@ -51,6 +51,8 @@
 
 pub mod calibrator;
 pub mod command;
+#[cfg(feature = "flash-log")]
+pub mod device;
 pub mod ekf;
 pub mod estimator;
 pub mod geometry;

@@ -56,6 +56,7 @@ mod error;
 mod finish;
 mod gaps;
 mod push;
+mod replay;
 mod start;
 mod validate;
 

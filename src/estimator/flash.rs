@@ -284,6 +284,84 @@ impl<F: NorFlash, T: RealField + Copy, const S: usize> FlashLog<F, T, S> {
     /// Errors: [`FlashLogError::Region`], [`FlashLogError::Geometry`], or a
     /// failed read ([`FlashLogError::Flash`]).
     pub fn open(flash: F, region: Range<u32>, layout: PackedLayout) -> Result<Self, FlashLogError> {
+        Self::open_or_return(flash, region, layout).map_err(|(_, e)| e)
+    }
+
+    /// [`FlashLog::open`], giving the device back when the log cannot be
+    /// opened (to try another region or layout, or to use it otherwise).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// # use embedded_storage::nor_flash::{ErrorType, NorFlash, NorFlashErrorKind, ReadNorFlash};
+    /// # struct Ram([u8; 4096]);
+    /// # impl ErrorType for Ram { type Error = NorFlashErrorKind; }
+    /// # impl ReadNorFlash for Ram {
+    /// #     const READ_SIZE: usize = 1;
+    /// #     fn read(&mut self, o: u32, b: &mut [u8]) -> Result<(), Self::Error> {
+    /// #         b.copy_from_slice(self.0.get(o as usize..o as usize + b.len()).ok_or(NorFlashErrorKind::OutOfBounds)?);
+    /// #         Ok(())
+    /// #     }
+    /// #     fn capacity(&self) -> usize { self.0.len() }
+    /// # }
+    /// # impl NorFlash for Ram {
+    /// #     const WRITE_SIZE: usize = 4;
+    /// #     const ERASE_SIZE: usize = 1024;
+    /// #     fn erase(&mut self, f: u32, t: u32) -> Result<(), Self::Error> { self.0[f as usize..t as usize].fill(0xFF); Ok(()) }
+    /// #     fn write(&mut self, o: u32, b: &[u8]) -> Result<(), Self::Error> { self.0[o as usize..o as usize + b.len()].copy_from_slice(b); Ok(()) }
+    /// # }
+    /// use rollcal::estimator::{FlashLog, FlashLogError, PackedLayout, SampleLog};
+    ///
+    /// // 1000..2000 is not whole sectors: refused, and the device comes back.
+    /// let Err((ram, e)) = FlashLog::<_, f64>::open_or_return(Ram([0xFF; 4096]), 1000..2000, PackedLayout::Accel) else {
+    ///     unreachable!()
+    /// };
+    /// assert_eq!(e, FlashLogError::Region);
+    /// let log = FlashLog::<_, f64>::open(ram, 0..4096, PackedLayout::Accel)?;
+    /// assert_eq!(log.len(), 0);
+    /// # Ok::<(), FlashLogError>(())
+    /// ```
+    #[allow(clippy::result_large_err)]
+    pub fn open_or_return(
+        flash: F,
+        region: Range<u32>,
+        layout: PackedLayout,
+    ) -> Result<Self, (F, FlashLogError)> {
+        match Self::check_geometry(&flash, &region, layout) {
+            Ok((sectors, slot32, per_sector)) => {
+                let mut log = Self {
+                    flash,
+                    layout,
+                    base: region.start,
+                    sectors,
+                    slot: slot32,
+                    per_sector,
+                    epoch: 0,
+                    next_epoch: 0,
+                    len: 0,
+                    head: 0,
+                    erased_to: 0,
+                    segments: [Segment::default(); S],
+                    used: 0,
+                    last_error: None,
+                    _scalar: PhantomData,
+                };
+                match log.scan() {
+                    Ok(()) => Ok(log),
+                    Err(e) => Err((log.flash, FlashLogError::Flash(e))),
+                }
+            }
+            Err(e) => Err((flash, e)),
+        }
+    }
+
+    /// What [`FlashLog::open`] checks of the device and region: the
+    /// number of sectors, the slot length and the slots a sector holds.
+    fn check_geometry(
+        flash: &F,
+        region: &Range<u32>,
+        layout: PackedLayout,
+    ) -> Result<(u32, u32, NonZeroU32), FlashLogError> {
         let erase = F::ERASE_SIZE;
         let slot = Self::slot_len_of(layout);
         // Slots start at multiples of their length inside a sector, so a
@@ -310,25 +388,7 @@ impl<F: NorFlash, T: RealField + Copy, const S: usize> FlashLog<F, T, S> {
         if sectors.checked_mul(per_sector.get()).is_none() {
             return Err(FlashLogError::Region);
         }
-        let mut log = Self {
-            flash,
-            layout,
-            base: region.start,
-            sectors,
-            slot: slot32,
-            per_sector,
-            epoch: 0,
-            next_epoch: 0,
-            len: 0,
-            head: 0,
-            erased_to: 0,
-            segments: [Segment::default(); S],
-            used: 0,
-            last_error: None,
-            _scalar: PhantomData,
-        };
-        log.scan().map_err(FlashLogError::Flash)?;
-        Ok(log)
+        Ok((sectors, slot32, per_sector))
     }
 
     /// Slots in the region: the records a run holds when no write was torn
@@ -370,6 +430,50 @@ impl<F: NorFlash, T: RealField + Copy, const S: usize> FlashLog<F, T, S> {
     /// The flash device, e.g. to reopen the log after a simulated reset.
     pub fn into_inner(self) -> F {
         self.flash
+    }
+
+    /// The device, for the control records an integration kit keeps beside
+    /// the log ([`crate::device`]); the log's own region must not be
+    /// written through it.
+    pub(crate) fn flash_mut(&mut self) -> &mut F {
+        &mut self.flash
+    }
+
+    /// The run the records belong to: a number that changes whenever the
+    /// log starts a new run (`truncate(0)`), written in every record's slot.
+    pub fn epoch(&self) -> u32 {
+        self.epoch
+    }
+
+    /// Erases the sector after the one the next record goes to, when it is
+    /// not known erased: call it when the firmware is idle, and
+    /// [`SampleLog::append`] never erases (it still erases, as a last
+    /// resort, a sector it enters that was not erased ahead: the first
+    /// record of a new run, whose sector 0 still held the previous run's).
+    /// Returns whether it erased; at most one sector a call.
+    ///
+    /// # Errors
+    ///
+    /// [`LogError::Storage`] when the device failed ([`FlashLog::last_error`]).
+    pub fn erase_ahead(&mut self) -> Result<bool, LogError> {
+        let sector = self.head / self.per_sector;
+        // The sector of the head itself (when it starts one) and the next.
+        let wanted = sector.saturating_add(2).min(self.sectors);
+        if self.erased_to >= wanted || self.erased_to < sector {
+            // Enough erased, or the head is in a sector `append` erases
+            // itself (a new run's first).
+            return Ok(false);
+        }
+        if self.erased_to == sector && !self.head.is_multiple_of(self.per_sector.get()) {
+            return Ok(false);
+        }
+        let from = self.offset(self.erased_to * self.per_sector.get());
+        if let Err(e) = self.flash.erase(from, from + self.erase_size()) {
+            self.last_error = Some(e.kind());
+            return Err(LogError::Storage);
+        }
+        self.erased_to += 1;
+        Ok(true)
     }
 
     /// Erases the whole region now and empties the log: the following

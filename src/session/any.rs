@@ -303,6 +303,12 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
         each!(self, c => restore_into(c, settings, cp))
     }
 
+    /// [`Calibrator::replay_log`]: the log's records past the calibrator's
+    /// count run through its filter (after a device reset).
+    pub fn replay_log(&mut self, log: &mut (dyn SampleLog<T> + '_)) -> u32 {
+        each!(self, c => c.replay_log(log))
+    }
+
     /// [`Calibrator::set_frame_errors`].
     pub fn set_frame_errors(&mut self, n: u32) {
         each!(self, c => c.set_frame_errors(n))

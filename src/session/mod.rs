@@ -249,6 +249,31 @@ impl<T: RealField + Copy> Session<T> {
         }
     }
 
+    /// [`Session::new`] written at `p`, field by field (no session-sized
+    /// value on the stack: [`crate::device::DeviceCell`]).
+    ///
+    /// # Safety
+    ///
+    /// `p` is valid for writes and aligned; what it held is overwritten
+    /// without being dropped.
+    #[cfg(feature = "flash-log")]
+    #[allow(unsafe_code)]
+    pub(crate) unsafe fn init_at(
+        p: *mut Self,
+        expected: Option<ConfigId>,
+        passes: EstimatorOptions,
+    ) {
+        use core::ptr::addr_of_mut;
+        // SAFETY: the caller's; each field of `*p` is written once.
+        unsafe {
+            addr_of_mut!((*p).cal).write(None);
+            addr_of_mut!((*p).scratch).write(None);
+            addr_of_mut!((*p).expected).write(expected);
+            addr_of_mut!((*p).passes).write(passes);
+            addr_of_mut!((*p).stats).write(SessionStats::default());
+        }
+    }
+
     /// The calibrator, once configured.
     pub fn calibrator(&self) -> Option<&AnyCalibrator<T>> {
         self.cal.as_ref()

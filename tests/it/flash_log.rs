@@ -32,7 +32,7 @@ use crate::support::{log_record, paper_stream, settings};
 
 /// How much of the operation a power cut interrupts lands.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Cut {
+pub(crate) enum Cut {
     /// None of it.
     Nothing,
     /// Its first half (whole words).
@@ -43,17 +43,17 @@ enum Cut {
 
 /// A NOR flash in RAM: `R`-byte reads, `W`-byte words, `E`-byte sectors.
 #[derive(Clone, Debug)]
-struct Nor<const R: usize, const W: usize, const E: usize> {
-    mem: Vec<u8>,
+pub(crate) struct Nor<const R: usize, const W: usize, const E: usize> {
+    pub(crate) mem: Vec<u8>,
     /// Per word: written since its sector's last erase.
     written: Vec<bool>,
     /// Writes and erases so far.
-    ops: usize,
+    pub(crate) ops: usize,
     /// The operation (1-based) the power cut interrupts.
     cut_at: Option<usize>,
     cut: Cut,
     /// Power is off: every operation fails.
-    dead: bool,
+    pub(crate) dead: bool,
     writes: usize,
     erases: usize,
 }
@@ -61,7 +61,7 @@ struct Nor<const R: usize, const W: usize, const E: usize> {
 impl<const R: usize, const W: usize, const E: usize> Nor<R, W, E> {
     /// A device of `sectors` sectors as shipped: every bit programmed (0),
     /// so that nothing is taken for erased before the log erases it.
-    fn new(sectors: usize) -> Self {
+    pub(crate) fn new(sectors: usize) -> Self {
         Self {
             mem: vec![0; sectors * E],
             written: vec![true; sectors * E / W],
@@ -74,14 +74,14 @@ impl<const R: usize, const W: usize, const E: usize> Nor<R, W, E> {
         }
     }
 
-    fn cut_after(mut self, ops: usize, cut: Cut) -> Self {
+    pub(crate) fn cut_after(mut self, ops: usize, cut: Cut) -> Self {
         self.cut_at = Some(ops + 1);
         self.cut = cut;
         self
     }
 
     /// Power back on.
-    fn revive(mut self) -> Self {
+    pub(crate) fn revive(mut self) -> Self {
         self.dead = false;
         self.cut_at = None;
         self

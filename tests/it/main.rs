@@ -11,6 +11,7 @@ mod support;
 
 mod calibrator;
 mod configs;
+mod device;
 mod estimator;
 mod f32;
 mod filter_api;
