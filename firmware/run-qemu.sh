@@ -10,7 +10,8 @@
 # stream to the firmware's UART0 (QEMU `-serial stdio`, stdin redirected) and
 # collects the Estimate frames from UART1. The firmware logs every period in
 # its sample log, `FlashLog` over a NOR flash device on the SSRAM
-# (firmware/src/flash.rs); on Finish it runs the estimator of record over
+# (firmware/src/flash.rs), through the integration kit (rollcal::device,
+# firmware/src/stream.rs); on Finish it runs the estimator of record over
 # the log and replies with the final estimate, which is compared with
 # `host-sim calibrate --log packed` (default passes, f64, the records
 # rounded as the flash log stores them) on the same stream.
@@ -22,10 +23,17 @@
 #                  with the host's passes, every installation state within
 #                  1e-9 rad of the host's and every instrument term of the
 #                  full model within 1e-6 of its σ;
-#   M2-ps, full model, with selftest=checkpoint-at=2700: checkpoint, Reset,
-#                  the log reopened from the flash device, restore mid-run;
-#                  every Estimate frame, the final one included,
+#   M2-ps, full model, with selftest=checkpoint-at=2700: CheckpointRequest,
+#                  Reset and the checkpoint back, as a host sends them,
+#                  mid-run; every Estimate frame, the final one included,
 #                  bit-identical to the uninterrupted run's;
+#   M2-ps, full model, with selftest=reset-at=2850: the device started
+#                  again on the flash alone mid-run (the kit resumes the
+#                  configuration, the checkpoint of sample 2707 and the
+#                  records after it); the final estimate's state and σ
+#                  bit-identical to the uninterrupted run's, the running
+#                  ones after the reset within 0.01σ (the replayed records
+#                  are the packed log's, rounded);
 #   M2-ps with its first frame (Configure) garbled: the samples are dropped
 #                  and nothing is logged; the firmware must exit with 3.
 # M4F/f32 runs (M2-ps, M1-pa; installation and full model), each of which
@@ -43,6 +51,9 @@ set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 
 CHECKPOINT_AT=2700
+# Not a checkpoint's sample: the resumed device replays the records after
+# the last one (the kit checkpoints every 300 samples).
+RESET_AT=2850
 SUMMARY="$OUT/summary.txt"
 # The streams: <config> (paper scenario, installation model) and
 # <config>-full (realistic scenario, full model).
@@ -110,6 +121,14 @@ name=m7-M2-ps-full-checkpoint
 run_one m7 "$OUT/M2-ps-full-in.bin" "$name" "exit=request reply=uart1 selftest=checkpoint-at=$CHECKPOINT_AT"
 "$FW_CHECK" identical --firmware "$OUT/$name.out" --reference "$OUT/m7-M2-ps-full.out" \
     --against uninterrupted --build M7/f64 --config "M2-ps-full+checkpoint-at=$CHECKPOINT_AT" \
+    --rc "$(cat "$OUT/$name.rc")" --seconds "$(cat "$OUT/$name.seconds")" | tee -a "$SUMMARY" || status=1
+
+log "QEMU M7/f64 on M2-ps-full: a reset after sample $RESET_AT, the device resumed from the flash alone"
+name=m7-M2-ps-full-reset
+run_one m7 "$OUT/M2-ps-full-in.bin" "$name" "exit=request reply=uart1 selftest=reset-at=$RESET_AT"
+"$FW_CHECK" identical --firmware "$OUT/$name.out" --reference "$OUT/m7-M2-ps-full.out" \
+    --against uninterrupted --final-only-running-sigma 0.01 --build M7/f64 \
+    --config "M2-ps-full+reset-at=$RESET_AT" \
     --rc "$(cat "$OUT/$name.rc")" --seconds "$(cat "$OUT/$name.seconds")" | tee -a "$SUMMARY" || status=1
 
 log "QEMU M7/f64 on M2-ps without its Configure frame (must fail with exit status 3)"

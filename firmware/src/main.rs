@@ -98,6 +98,10 @@ pub struct Args {
     /// if the host had sent `CheckpointRequest`, `Reset`, `Checkpoint`. The
     /// log stays in RAM. 0: off.
     pub checkpoint_at: u32,
+    /// `selftest=reset-at=N` (stream runs): after the N-th `Sample` frame
+    /// (and its idle moment), start the device again on the flash alone,
+    /// as a board does after a reset ([`stream`]). 0: off.
+    pub reset_at: u32,
 }
 
 impl Args {
@@ -116,6 +120,7 @@ impl Args {
             periods: 200,
             noise_scale: 1,
             checkpoint_at: 0,
+            reset_at: 0,
         };
         for word in line.split(|&b| b == b' ') {
             let mut kv = word.splitn(2, |&b| b == b'=');
@@ -149,6 +154,12 @@ impl Args {
                 (b"selftest", t) if t.starts_with(b"checkpoint-at=") => {
                     match parse_u32(t.get(14..).unwrap_or(&[])) {
                         Some(n) if n > 0 => a.checkpoint_at = n,
+                        _ => defmt::warn!("ignored argument {=[u8]:a}", word),
+                    }
+                }
+                (b"selftest", t) if t.starts_with(b"reset-at=") => {
+                    match parse_u32(t.get(9..).unwrap_or(&[])) {
+                        Some(n) if n > 0 => a.reset_at = n,
                         _ => defmt::warn!("ignored argument {=[u8]:a}", word),
                     }
                 }

@@ -1,53 +1,44 @@
-//! The calibrator on a frame stream: bytes in from the UART, through the
-//! wire decoder, into a `Calibrator` that logs every period into the sample
-//! log; `Estimate` (and `Checkpoint`) frames out over the same UART (or
-//! UART1).
+//! The calibrator on a frame stream, through the integration kit
+//! (`rollcal::device`): every byte from UART0 goes to the `Device`, every
+//! reply it hands back goes out on UART0 (or UART1), and the device is
+//! given an idle moment after every frame (`Device::idle`: the sample log's
+//! next sector erased ahead, the periodic checkpoint written). What this
+//! module adds to the kit is the board's (the UART, the flash stand-in),
+//! the instruction marks (the kit's `Hooks`), logging, the run's totals
+//! and two self-tests.
 //!
-//! Every message goes through `rollcal::session::Session`, the protocol
-//! implementation `host-sim calibrate` drives too (docs/wire.md): `Configure`
-//! (re)creates the calibrator for any of the seven configurations; `Sample`
-//! runs one period and logs it (`Calibrator::push_logged`); `EstimateRequest`
-//! replies with the running `Estimate`; `Finish` runs the estimator of
-//! record over the log (`Calibrator::finish`, default `EstimatorOptions`: at
-//! most 4 passes) and replies with the final `Estimate` (and, with
-//! `exit=request`, ends the run: the QEMU script appends `EstimateRequest`,
-//! `Finish` to the recorded stream, as a UART has no end of file);
-//! `CheckpointRequest` replies with a `Checkpoint`; `Checkpoint` restores;
-//! `Reset` restarts from the prior. This module adds the UART, the sample
-//! log's storage, the instruction marks, logging and the run's totals.
+//! The device runs the protocol (`rollcal::session`, the one `host-sim
+//! calibrate` drives): `Configure` (re)creates the calibrator for any of
+//! the configurations the image holds; `Sample` runs one period and logs
+//! it; `EstimateRequest` replies with the running `Estimate`; `Finish` runs
+//! the estimator of record over the log (at most 4 passes) and replies
+//! with the final `Estimate` (with `exit=request` the run then ends: the
+//! QEMU script appends `EstimateRequest`, `Finish` to the recorded stream,
+//! as a UART has no end of file); `CheckpointRequest` replies with a
+//! `Checkpoint`; `Checkpoint` restores; `Reset` restarts from the prior; a
+//! message it cannot act on is answered with `Refused`.
 //!
-//! # The sample log
+//! # The flash
 //!
-//! `rollcal::estimator::FlashLog`, the log in NOR flash, over [`Ssram`]
-//! (`crate::flash`: the `LOG` region of `memory.x` behind
-//! `embedded-storage`'s `NorFlash` traits, as a flight computer's HAL
-//! implements them for its flash): packed records in write-aligned slots,
-//! each with its run's epoch, its index and a CRC, sectors erased as the
-//! log enters them. It is opened at start-up from what the device holds
-//! (`FlashLog::open`: the newest run's complete records) and in the layout
-//! of each `Configure`'s configuration (with the gimbal angles for M2-ps).
-//! It stands for storage that survives a reset: a `Checkpoint` restore
-//! keeps its records, and the restored calibrator takes the log back to the
-//! checkpoint's `progress.logged` at its next sample, so that calibrator
-//! and log agree and `Finish` still runs the estimator of record (the
-//! checkpoint self-test reopens the log from the device between the
-//! `Reset` and the restore, as a device that lost its RAM would). After a
-//! `Configure` or `Reset` the first sample empties it (a new epoch). A log
-//! shorter than the calibrator's count is not the run's: `Finish` then
-//! answers a single pass, `LogMismatch`.
+//! The kit keeps, in the 512 KiB `LOG` region of `memory.x` behind
+//! `embedded-storage`'s `NorFlash` traits ([`Ssram`]: a serial NOR chip's
+//! semantics over the boards' SSRAM), the configuration and the last
+//! checkpoint (two 16 KiB banks) and the sample log (`FlashLog`). At boot
+//! it resumes from them (nothing under QEMU, whose SSRAM starts zeroed).
+//!
+//! # Self-tests
+//!
+//! - `selftest=checkpoint-at=N`: after the N-th `Sample`, what a host
+//!   does over the wire: `CheckpointRequest` (the reply kept), `Reset`,
+//!   the kept `Checkpoint` frame back (feature `selftest`).
+//! - `selftest=reset-at=N`: after the N-th `Sample` (and its idle
+//!   moment), the device started again on the flash alone
+//!   (`Device::start`: what a board does after a reset): it resumes from
+//!   the stored configuration, checkpoint and the records after it.
 
-use core::mem::MaybeUninit;
-use core::ptr::addr_of_mut;
-use core::sync::atomic::{AtomicBool, Ordering};
-
-use rollcal::calibrator::RejectReason;
-use rollcal::estimator::{
-    EstimatorOptions, FlashLog, LogError, LogRecord, PackedLayout, SampleLog,
-};
-use rollcal::session::{Reply, Request, Session, SessionError};
-use rollcal::wire::{
-    decode_frame_into, encode, CalibratorConfig, Decoder, EstimateKind, Message, MAX_FRAME_LEN,
-};
+use rollcal::device::{DeviceCell, Hooks, Idle};
+use rollcal::session::{Reply, SessionError};
+use rollcal::wire::{CalibratorConfig, EstimateKind, Message};
 use rollcal::Options;
 
 use crate::flash::{Ssram, LOG_BYTES};
@@ -58,144 +49,12 @@ use crate::marks::{
 use crate::uart::Uart;
 use crate::{Args, Mode, Real};
 
-/// The sample log (see the module docs): a `FlashLog` over the SSRAM
-/// device, or none when the device could not be opened (every append then
-/// fails, and `Finish` answers a single pass).
-struct Log {
-    inner: Option<FlashLog<Ssram, Real>>,
-}
+/// The device: built in place by `take` (no device-sized value on the
+/// stack), zero bytes in the image.
+static DEVICE: DeviceCell<Ssram, Real> = DeviceCell::new();
 
-impl Log {
-    /// The log the device holds, read in `layout`.
-    fn open(flash: Ssram, layout: PackedLayout) -> Self {
-        match FlashLog::open(flash, 0..LOG_BYTES as u32, layout) {
-            Ok(log) => {
-                defmt::info!(
-                    "sample log: FlashLog of {} slots of {} bytes ({} KiB NOR over SSRAM, {}-byte sectors, {}-byte words), {} records found, layout {}",
-                    log.capacity(),
-                    log.slot_len(),
-                    LOG_BYTES / 1024,
-                    crate::flash::ERASE_SIZE,
-                    crate::flash::WRITE_SIZE,
-                    log.len(),
-                    layout
-                );
-                Self { inner: Some(log) }
-            }
-            Err(e) => {
-                defmt::error!("the sample log cannot be opened: {}", e);
-                Self { inner: None }
-            }
-        }
-    }
-
-    /// Reopened from the device, in `layout`: what a device that lost its
-    /// RAM finds.
-    fn reopen(&mut self, layout: PackedLayout) {
-        if let Some(log) = self.inner.take() {
-            *self = Self::open(log.into_inner(), layout);
-        }
-    }
-
-    /// Reopened in `layout` if it is read in another one.
-    fn use_layout(&mut self, layout: PackedLayout) {
-        if self.inner.as_ref().is_some_and(|l| l.layout() != layout) {
-            self.reopen(layout);
-        }
-    }
-
-    fn layout(&self) -> PackedLayout {
-        self.inner
-            .as_ref()
-            .map_or(PackedLayout::AccelGimbal, |l| l.layout())
-    }
-
-    /// What the log asked of the device, and its last error.
-    fn report(&self) {
-        if let Some(log) = &self.inner {
-            let s = log.flash().stats();
-            defmt::info!(
-                "flash: {} records in {} segments, {} bytes a slot; {} writes ({} bytes), {} sector erases, {} reads; last error {}",
-                log.len(),
-                log.segments(),
-                log.slot_len(),
-                s.writes,
-                s.bytes_written,
-                s.erases,
-                s.reads,
-                log.last_error()
-            );
-        }
-    }
-}
-
-impl SampleLog<Real> for Log {
-    fn append(&mut self, record: &LogRecord<Real>) -> Result<(), LogError> {
-        match &mut self.inner {
-            Some(log) => log.append(record),
-            None => Err(LogError::Storage),
-        }
-    }
-
-    fn len(&self) -> usize {
-        self.inner.as_ref().map_or(0, |l| l.len())
-    }
-
-    fn get(&mut self, k: usize) -> Option<LogRecord<Real>> {
-        self.inner.as_mut()?.get(k)
-    }
-
-    fn truncate(&mut self, len: usize) {
-        if let Some(log) = &mut self.inner {
-            log.truncate(len);
-        }
-    }
-}
-
-/// The stream's large state: the session (its calibrator and the filter
-/// `Finish` runs the estimator of record in: ≈ 8 KB each for M2-ps on the
-/// M7, ≈ 58 KB with the full model's 54 states), the frame decoder's buffer
-/// and the reply buffer ([`MAX_FRAME_LEN`] each, sized by the crate for
-/// the models this image holds: 2.2 KB for the installation model's 18
-/// states, 13.1 KB for the full model's 54), the last decoded message and
-/// the session's reply to it (each the size of a checkpoint of those
-/// models: ≈ 1.8 KB, 12.8 KB with the full model's 54 states). A static, not `run`'s locals:
-/// `main`'s frame, which every path of the firmware pays, would otherwise
-/// hold them, and the message and the reply would be in the frames below
-/// which the estimator of record runs. Only [`state`] touches it.
-struct State {
-    session: Session<Real>,
-    decoder: Decoder<MAX_FRAME_LEN>,
-    out: [u8; MAX_FRAME_LEN],
-    message: Message,
-    reply: Reply,
-}
-
-static mut STATE: MaybeUninit<State> = MaybeUninit::uninit();
-
-/// Set once [`state`] has handed out [`STATE`].
-static STATE_TAKEN: AtomicBool = AtomicBool::new(false);
-
-/// The stream's state, initialised in place. `None` on a second call.
-/// Out of line: its frame (where the compiler may build the session before
-/// writing it) is gone before the stream runs.
-#[inline(never)]
-fn state() -> Option<&'static mut State> {
-    if STATE_TAKEN.swap(true, Ordering::AcqRel) {
-        return None;
-    }
-    // SAFETY: the flag above makes this the only reference ever made to
-    // STATE; every field is written before the reference is formed.
-    unsafe {
-        let base = addr_of_mut!(STATE).cast::<State>();
-        addr_of_mut!((*base).session).write(Session::new(None, EstimatorOptions::default()));
-        addr_of_mut!((*base).decoder).write(Decoder::new());
-        addr_of_mut!((*base).out).write([0; MAX_FRAME_LEN]);
-        addr_of_mut!((*base).message).write(Message::Reset);
-        addr_of_mut!((*base).reply).write(Reply::Nothing);
-        Some(&mut *base)
-    }
-}
+/// The flash region the kit owns: the whole `LOG` region.
+const REGION: core::ops::Range<u32> = 0..LOG_BYTES as u32;
 
 /// Totals of a run, for the closing log line (and the exit status).
 #[derive(Default, defmt::Format)]
@@ -206,36 +65,35 @@ pub struct Totals {
     pub rejected: u32,
     /// Of those, dropped because no `Configure` had come before them.
     pub dropped: u32,
-    /// Estimate frames sent (running and final).
-    pub estimates: u32,
+    /// Frames sent (estimates, checkpoints, refusals).
+    pub sent: u32,
     /// Final estimates of record sent (`EstimateKind::Final`).
     pub finals: u32,
     /// Records in the sample log at the end.
     pub logged: u32,
 }
 
-struct Link {
-    uart: Uart,
-    tx: Option<Uart>,
-    out: &'static mut [u8; MAX_FRAME_LEN],
+/// The instruction marks around a period and around `Finish`
+/// (`tools/qemu-insnmark`), through the kit's hooks.
+fn period_start() {
+    rollcal_mark_period_start();
+}
+fn period_end() {
+    rollcal_mark_period_end();
+}
+fn finish_start() {
+    rollcal_mark_finish_start();
+}
+fn finish_end() {
+    rollcal_mark_finish_end();
 }
 
-impl Link {
-    fn send(&mut self, msg: &Message) {
-        match encode(msg, self.out) {
-            Ok(n) => {
-                let bytes = self.out.get(..n).unwrap_or(&[]);
-                match &mut self.tx {
-                    Some(tx) => tx.write_all(bytes),
-                    None => self.uart.write_all(bytes),
-                }
-            }
-            Err(e) => defmt::error!("cannot encode a reply: {}", e),
-        }
-    }
+/// `mode=plain`: every `Configure` runs the plain EKF.
+fn plain(c: &mut CalibratorConfig) {
+    c.options = Options::plain();
 }
 
-/// What the loop does after a message.
+/// What the loop does after a frame.
 #[derive(PartialEq, Eq)]
 enum Flow {
     Continue,
@@ -243,118 +101,122 @@ enum Flow {
     Exit,
 }
 
-/// The stream's state: the protocol session (`rollcal::session`, the same
-/// one `host-sim calibrate` drives), its log, its reply, the reply link.
-struct Stream<'a> {
-    args: &'a Args,
-    link: Link,
-    session: &'static mut Session<Real>,
-    /// What the session answered to the last message
-    /// (`Session::handle_into`).
-    reply: &'static mut Reply,
-    log: Log,
-    totals: Totals,
-    /// The decoder's count of rejected frames, told to every calibrator.
-    frame_errors: u32,
+/// Runs the calibrator on the UART stream. Returns when a `Finish` arrives
+/// and `args.exit_on_request` is set; otherwise never.
+#[inline(never)]
+pub fn run(args: &Args) -> Totals {
+    // SAFETY: UART0 is used by nothing else in this program.
+    let mut uart = unsafe { Uart::new(crate::uart::UART0_BASE) };
+    // SAFETY: likewise UART1.
+    let mut tx = args
+        .reply_uart1
+        .then(|| unsafe { Uart::new(crate::uart::UART1_BASE) });
+    let Some(flash) = Ssram::take() else {
+        defmt::panic!("the flash device is already in use");
+    };
+    let Some(device) = DEVICE.take() else {
+        defmt::panic!("the device is already in use");
+    };
+    device.set_hooks(Hooks {
+        before_sample: period_start,
+        after_sample: period_end,
+        before_finish: finish_start,
+        after_finish: finish_end,
+        configure: if args.mode == Mode::Plain {
+            plain
+        } else {
+            Hooks::NONE.configure
+        },
+    });
+    start(device, flash);
+    let mut totals = Totals::default();
+    let mut handled = 0;
+    defmt::info!("waiting for frames on UART0");
+    loop {
+        let byte = loop {
+            if let Some(b) = uart.try_read() {
+                break b;
+            }
+        };
+        let reply = device.push_byte(byte);
+        if !reply.is_empty() {
+            match &mut tx {
+                Some(tx) => tx.write_all(reply),
+                None => uart.write_all(reply),
+            }
+        }
+        if byte != 0 {
+            continue;
+        }
+        // A frame ended: what it did, then the idle moment.
+        if device.stats().messages != handled {
+            handled = device.stats().messages;
+            if observe(device, args, &mut totals) == Flow::Exit {
+                report(device, &mut totals);
+                return totals;
+            }
+        } else {
+            let n = device.decoder().stats().errors();
+            if n <= 5 {
+                defmt::warn!("frame rejected ({} so far)", n);
+            }
+        }
+        if device.idle() == Idle::Failed {
+            defmt::warn!("flash: {}", device.stats().last_flash_error);
+        }
+        if device.last_tag() == Some(0) && totals.samples == args.checkpoint_at {
+            selftest::checkpoint(device, &mut uart, &mut tx);
+        }
+        if device.last_tag() == Some(0) && totals.samples == args.reset_at {
+            defmt::info!("selftest: reset after sample {}", totals.samples);
+            let Some(flash) = device.release() else {
+                defmt::panic!("the device has no flash");
+            };
+            start(device, flash);
+        }
+    }
 }
 
-impl Stream<'_> {
-    // Every message goes through `Session::handle`; what the firmware adds
-    // is logging, the instruction marks, the counts and the link. The
-    // handlers that need large frames (`Finish`, a restore) are their own
-    // functions, not inlined into the sample path: their frames must not
-    // add up with a filter step's (BENCHMARKS.md, "Stack").
-    fn handle(&mut self, msg: &Message) -> Flow {
-        match msg {
-            Message::Configure(c) => self.configure(c),
-            Message::Sample(s) => self.sample(msg, s.seq),
-            Message::Finish => return self.finish(),
-            Message::Checkpoint(_) => self.restore(msg),
-            other => self.other(other),
-        }
-        Flow::Continue
+/// `Device::start` on `flash`, logged.
+fn start(device: &mut rollcal::device::Device<Ssram, Real>, flash: Ssram) {
+    match device.start(flash, REGION) {
+        Ok(r) => defmt::info!(
+            "flash: {} KiB of NOR over SSRAM ({}-byte sectors, {}-byte words); resumed {}",
+            LOG_BYTES / 1024,
+            crate::flash::ERASE_SIZE,
+            crate::flash::WRITE_SIZE,
+            r
+        ),
+        Err((_, e)) => defmt::error!("the flash cannot be used: {}", e),
     }
+}
 
-    /// Any other message: what the session answers. Out of line, like the
-    /// handlers above: the reply (a message, up to 3 KB) is not in the
-    /// receive loop's frame.
-    #[inline(never)]
-    fn other(&mut self, msg: &Message) {
-        self.session.handle_into(msg, &mut self.log, self.reply);
-        self.send_reply();
+/// Logs and counts what the last message did.
+fn observe(device: &rollcal::device::Device<Ssram, Real>, args: &Args, t: &mut Totals) -> Flow {
+    let tag = device.last_tag();
+    let is_sample = tag == Some(0);
+    if is_sample {
+        t.samples += 1;
     }
-
-    /// Sends what the session answered (`self.reply`), or logs why it could
-    /// not act.
-    fn send_reply(&mut self) {
-        match &*self.reply {
-            Reply::Send(m) => {
-                if let Message::Estimate(_) = m {
-                    self.totals.estimates += 1;
-                }
-                self.link.send(m);
-            }
-            Reply::Error(e) => defmt::warn!("message refused: {}", e),
-            Reply::Nothing | Reply::Rejected(_) => {}
-        }
-    }
-
-    /// Tells the (new or restored) calibrator how many frames the decoder
-    /// has rejected so far.
-    fn tell_frame_errors(&mut self) {
-        let n = self.frame_errors;
-        if let Some(c) = self.session.calibrator_mut() {
-            c.set_frame_errors(n);
-        }
-    }
-
-    /// `Configure`: a new calibrator from the prior (`mode=plain` overrides
-    /// its filter options).
-    #[inline(never)]
-    fn configure(&mut self, c: &CalibratorConfig) {
-        let mut c = *c;
-        if self.args.mode == Mode::Plain {
-            c.options = Options::plain();
-        }
-        // `Session::configure`, what `handle` does with a `Configure`
-        // (without a message-sized `Message::Configure` and reply here).
-        match self.session.configure(c) {
-            Err(e) => defmt::error!("Configure refused: {}", e),
-            Ok(()) => {
-                defmt::info!(
-                    "configured {} ({} model), estimate every {} samples, second-order S {}",
-                    c.config,
-                    c.errors,
-                    c.estimate_every,
-                    c.options.second_order_covariance
+    match device.reply() {
+        Reply::Error(SessionError::NotConfigured) if is_sample => {
+            t.dropped += 1;
+            if t.dropped == 1 {
+                defmt::warn!(
+                    "sample {} before any Configure message: dropped (and every one after it until a Configure)",
+                    t.samples
                 );
-                let z = c.config.layout_with(c.errors).z();
-                self.log.use_layout(PackedLayout::for_measurements(z));
             }
         }
-        self.tell_frame_errors();
-    }
-
-    #[inline(never)]
-    fn sample(&mut self, msg: &Message, seq: u32) {
-        self.totals.samples += 1;
-        rollcal_mark_period_start();
-        self.session.handle_into(msg, &mut self.log, self.reply);
-        rollcal_mark_period_end();
-        let t = &mut self.totals;
-        match &*self.reply {
-            Reply::Error(SessionError::NotConfigured) => {
-                t.dropped += 1;
-                if t.dropped == 1 {
-                    defmt::warn!(
-                        "sample {} before any Configure message: dropped (and every one after it until a Configure)",
-                        seq
-                    );
-                }
+        Reply::Rejected(reason) => {
+            t.rejected += 1;
+            if t.rejected <= 5 {
+                defmt::warn!("sample {} rejected: {}", t.samples, reason);
             }
-            Reply::Send(m @ Message::Estimate(est)) => {
-                t.estimates += 1;
-                if est.seq % 600 == 0 || t.estimates == 1 {
+        }
+        Reply::Send(Message::Estimate(est)) => match est.kind {
+            EstimateKind::Running => {
+                if est.seq % 600 == 0 {
                     defmt::info!(
                         "seq {}: {} updates, last NIS {}, {} logged",
                         est.seq,
@@ -363,224 +225,152 @@ impl Stream<'_> {
                         est.progress.logged
                     );
                 }
-                // The reply itself (no second message on the stack).
-                self.link.send(m);
             }
-            Reply::Rejected(reason) => {
-                t.rejected += 1;
-                if t.rejected <= 5 || matches!(reason, RejectReason::Filter(_)) {
-                    defmt::warn!("sample {} rejected: {}", seq, reason);
-                }
+            EstimateKind::Final { passes, converged } => {
+                t.finals += 1;
+                defmt::info!(
+                    "Finish: estimator of record over {} records: {} passes, converged {}",
+                    est.progress.logged,
+                    passes,
+                    converged
+                );
             }
-            _ => self.send_reply(),
-        }
-    }
-
-    /// Whether the sample just handled is the one after which
-    /// `selftest=checkpoint-at=N` checkpoints and restores.
-    fn selftest_due(&self, msg: &Message) -> bool {
-        matches!(msg, Message::Sample(_))
-            && self.args.checkpoint_at != 0
-            && self.totals.samples == self.args.checkpoint_at
-    }
-
-    /// `Finish`: the estimator of record over the log, the final estimate.
-    #[inline(never)]
-    fn finish(&mut self) -> Flow {
-        rollcal_mark_finish_start();
-        // A request, not `&Message::Finish`: that constant would be
-        // message-sized (3 KB of flash).
-        self.session
-            .request_into(Request::Finish, &mut self.log, self.reply);
-        rollcal_mark_finish_end();
-        match &*self.reply {
-            Reply::Send(Message::Estimate(est)) => match est.kind {
-                EstimateKind::Final { passes, converged } => {
-                    self.totals.finals += 1;
-                    defmt::info!(
-                        "Finish: estimator of record over {} records: {} passes, converged {}",
-                        self.log.len(),
-                        passes,
-                        converged
-                    );
-                }
-                EstimateKind::SinglePass { reason, logged } => defmt::warn!(
-                    "Finish: single pass only ({}); {} records logged, {} in the log",
+            EstimateKind::SinglePass { reason, logged } => {
+                defmt::warn!(
+                    "Finish: single pass only ({}); {} records logged",
                     reason,
-                    logged,
-                    self.log.len()
-                ),
-                EstimateKind::Running => {}
-            },
-            Reply::Error(e) => defmt::error!("Finish: no estimate ({})", e),
-            _ => {}
-        }
-        self.send_reply();
-        if self.args.exit_on_request {
-            self.totals.logged = u32::try_from(self.log.len()).unwrap_or(u32::MAX);
-            return Flow::Exit;
-        }
-        Flow::Continue
-    }
-
-    /// `Checkpoint`: restore the calibrator. The log keeps its records;
-    /// the calibrator takes it back to the checkpoint's `logged` count at
-    /// its next sample.
-    #[inline(never)]
-    fn restore(&mut self, msg: &Message) {
-        self.session.handle_into(msg, &mut self.log, self.reply);
-        match &*self.reply {
-            Reply::Error(e) => defmt::warn!("checkpoint refused: {}", e),
-            _ => {
-                if let Message::Checkpoint(cp) = msg {
-                    defmt::info!(
-                        "restored from a checkpoint at seq {}: {} records logged, {} in the log",
-                        cp.progress.last_seq,
-                        cp.progress.logged,
-                        self.log.len()
-                    );
-                }
-                self.tell_frame_errors();
+                    logged
+                )
             }
+        },
+        Reply::Error(e) => defmt::warn!("message {} refused: {}", tag, e),
+        _ => {}
+    }
+    if tag == Some(3) {
+        if let Some(c) = device.session().calibrator() {
+            let s = c.settings();
+            defmt::info!(
+                "configured {} ({} model), estimate every {} samples, second-order S {}",
+                s.config,
+                s.errors,
+                s.estimate_every,
+                s.options.second_order_covariance
+            );
+        }
+    }
+    if tag == Some(7) && args.exit_on_request {
+        return Flow::Exit;
+    }
+    Flow::Continue
+}
+
+/// The run's closing figures: the totals and what the log asked of the
+/// device.
+fn report(device: &rollcal::device::Device<Ssram, Real>, t: &mut Totals) {
+    let d = device.stats();
+    t.sent = d.sent;
+    defmt::info!(
+        "Finish answered; decoder {}; device {}",
+        device.decoder().stats(),
+        d
+    );
+    if let Some(log) = device.log() {
+        use rollcal::estimator::SampleLog;
+        t.logged = u32::try_from(log.len()).unwrap_or(u32::MAX);
+        let s = log.flash().stats();
+        defmt::info!(
+            "flash: {} records in {} segments, {} bytes a slot; {} writes ({} bytes), {} sector erases, {} reads; last error {}",
+            log.len(),
+            log.segments(),
+            log.slot_len(),
+            s.writes,
+            s.bytes_written,
+            s.erases,
+            s.reads,
+            log.last_error()
+        );
+    }
+}
+
+/// `selftest=checkpoint-at=N`.
+#[cfg(feature = "selftest")]
+mod selftest {
+    use core::mem::MaybeUninit;
+    use core::ptr::addr_of_mut;
+    use core::sync::atomic::{AtomicBool, Ordering};
+
+    use rollcal::device::Device;
+    use rollcal::wire::{encode, Message, MAX_FRAME_LEN};
+
+    use super::{Real, Ssram, Uart};
+
+    static mut FRAME: MaybeUninit<[u8; MAX_FRAME_LEN]> = MaybeUninit::uninit();
+    static TAKEN: AtomicBool = AtomicBool::new(false);
+
+    /// The checkpoint frame's buffer (zeroed in place). `None` after the
+    /// first call.
+    fn frame() -> Option<&'static mut [u8; MAX_FRAME_LEN]> {
+        if TAKEN.swap(true, Ordering::AcqRel) {
+            return None;
+        }
+        // SAFETY: the flag makes this the only reference ever made to
+        // FRAME, zeroed before it is formed.
+        unsafe {
+            let p = addr_of_mut!(FRAME).cast::<[u8; MAX_FRAME_LEN]>();
+            p.write_bytes(0, 1);
+            Some(&mut *p)
         }
     }
 
-    /// `selftest=checkpoint-at=N`: `CheckpointRequest` → (wire frame) →
-    /// `Reset` → `Checkpoint` from the decoded frame, through the session,
-    /// as if the host had sent them. The checkpoint is the session's reply
-    /// (the static slot), its frame is in the reply buffer, and it is
-    /// decoded into `slot` (the static slot of received messages): no
-    /// message on the stack.
+    /// The frame of a message without payload into `buf`; its length.
+    fn request(m: &Message, buf: &mut [u8; 16]) -> usize {
+        encode(m, buf).unwrap_or(0)
+    }
+
+    /// `CheckpointRequest` (its reply kept), `Reset`, the checkpoint back:
+    /// the bytes a host sends, through the device. Nothing is sent back.
     #[inline(never)]
-    fn selftest_checkpoint(&mut self, slot: &mut Message) {
-        let Some(n) = self.selftest_frame_checkpoint() else {
+    pub fn checkpoint(device: &mut Device<Ssram, Real>, _uart: &mut Uart, _tx: &mut Option<Uart>) {
+        let Some(kept) = frame() else {
+            defmt::error!("selftest: the checkpoint buffer is in use");
             return;
         };
-        let logged = self.log.len();
-        defmt::info!(
-            "selftest: checkpoint after sample {} ({} bytes framed, {} records logged); Reset; restore",
-            self.totals.samples,
-            n,
-            logged
-        );
-        self.selftest_reset();
-        // A device that lost its RAM: the log as the flash holds it.
-        let layout = self.log.layout();
-        self.log.reopen(layout);
-        self.selftest_restore(n, slot);
-    }
-
-    /// The session's checkpoint, framed into the reply buffer (no second
-    /// 4 KB buffer on the stack; nothing is sent until the restore has
-    /// decoded it). Returns the frame's length.
-    #[inline(never)]
-    fn selftest_frame_checkpoint(&mut self) -> Option<usize> {
-        self.session
-            .request_into(Request::Checkpoint, &mut self.log, self.reply);
-        let Reply::Send(cp @ Message::Checkpoint(_)) = &*self.reply else {
-            defmt::error!("selftest: no checkpoint");
-            return None;
-        };
-        match encode(cp, self.link.out) {
-            Ok(n) => Some(n),
-            Err(e) => {
-                defmt::error!("selftest: cannot encode the checkpoint: {}", e);
-                None
+        let mut small = [0u8; 16];
+        let n = request(&Message::CheckpointRequest, &mut small);
+        let mut len = 0;
+        for &b in small.get(..n).unwrap_or(&[]) {
+            let reply = device.push_byte(b);
+            if let Some(dst) = kept.get_mut(..reply.len()) {
+                dst.copy_from_slice(reply);
+                len = reply.len();
             }
         }
-    }
-
-    #[inline(never)]
-    fn selftest_reset(&mut self) {
-        self.session
-            .request_into(Request::Reset, &mut self.log, self.reply);
-        if let Reply::Error(e) = &*self.reply {
-            defmt::error!("selftest: reset refused: {}", e);
+        defmt::info!(
+            "selftest: checkpoint ({} bytes framed); Reset; restore",
+            len
+        );
+        let n = request(&Message::Reset, &mut small);
+        for &b in small.get(..n).unwrap_or(&[]) {
+            let _ = device.push_byte(b);
         }
-    }
-
-    /// Decodes the checkpoint frame of length `n` in the reply buffer into
-    /// `slot` and restores from it.
-    #[inline(never)]
-    fn selftest_restore(&mut self, n: usize, slot: &mut Message) {
-        // The frame without its delimiter.
-        let body = self
-            .link
-            .out
-            .get_mut(..n.saturating_sub(1))
-            .unwrap_or(&mut []);
-        match decode_frame_into(body, slot) {
-            Ok(()) if matches!(slot, Message::Checkpoint(_)) => self.restore(slot),
-            Ok(()) => defmt::error!("selftest: the checkpoint frame decoded to another message"),
-            Err(e) => defmt::error!("selftest: the checkpoint frame does not decode: {}", e),
+        for &b in kept.get(..len).unwrap_or(&[]) {
+            let _ = device.push_byte(b);
+        }
+        match device.reply() {
+            rollcal::session::Reply::Error(e) => defmt::error!("selftest: restore refused: {}", e),
+            _ => defmt::info!("selftest: restored"),
         }
     }
 }
 
-/// Runs the calibrator on the UART stream. Returns when a `Finish` arrives
-/// and `args.exit_on_request` is set; otherwise never. Out of line: its
-/// frame (the decoded message) is not `main`'s, which the synthetic run
-/// pays too.
-#[inline(never)]
-pub fn run(args: &Args) -> Totals {
-    // SAFETY: UART0 is used by nothing else in this program.
-    let uart = unsafe { Uart::new(crate::uart::UART0_BASE) };
-    // SAFETY: likewise UART1.
-    let tx = args
-        .reply_uart1
-        .then(|| unsafe { Uart::new(crate::uart::UART1_BASE) });
-    let Some(flash) = Ssram::take() else {
-        defmt::panic!("the sample log's device is already in use");
-    };
-    let Some(State {
-        session,
-        decoder,
-        out,
-        message,
-        reply,
-    }) = state()
-    else {
-        defmt::panic!("the stream state is already in use");
-    };
-    let mut stream = Stream {
-        args,
-        link: Link { uart, tx, out },
-        session,
-        reply,
-        log: Log::open(flash, PackedLayout::AccelGimbal),
-        totals: Totals::default(),
-        frame_errors: 0,
-    };
-    defmt::info!("waiting for frames on UART0");
-    loop {
-        let byte = loop {
-            if let Some(b) = stream.link.uart.try_read() {
-                break b;
-            }
-        };
-        // Decoded into the static slot: no message (3 KB) in this frame.
-        let Some(frame) = decoder.push_byte_into(byte, message) else {
-            continue;
-        };
-        match frame {
-            Ok(()) => {
-                if stream.handle(message) == Flow::Exit {
-                    defmt::info!("Finish answered; decoder {}", decoder.stats());
-                    stream.log.report();
-                    return stream.totals;
-                }
-                if stream.selftest_due(message) {
-                    stream.selftest_checkpoint(message);
-                }
-            }
-            Err(e) => {
-                let n = decoder.stats().errors();
-                if n <= 5 {
-                    defmt::warn!("frame rejected: {}", e);
-                }
-                stream.frame_errors = n;
-                stream.tell_frame_errors();
-            }
-        }
+/// Without the feature `selftest`: `checkpoint-at` is refused.
+#[cfg(not(feature = "selftest"))]
+mod selftest {
+    use rollcal::device::Device;
+
+    use super::{Real, Ssram, Uart};
+
+    pub fn checkpoint(_: &mut Device<Ssram, Real>, _: &mut Uart, _: &mut Option<Uart>) {
+        defmt::error!("selftest: checkpoint-at needs the feature `selftest`");
     }
 }

@@ -11,7 +11,7 @@ use core::sync::atomic::{AtomicBool, Ordering};
 use embedded_storage::nor_flash::NorFlash;
 use nalgebra::RealField;
 
-use super::{Device, DeviceStats, DEFAULT_CHECKPOINT_EVERY};
+use super::{Device, DeviceStats, Hooks, DEFAULT_CHECKPOINT_EVERY};
 use crate::estimator::EstimatorOptions;
 use crate::session::{Reply, Session};
 use crate::wire::{Decoder, Message};
@@ -92,6 +92,8 @@ impl<F: NorFlash, T: RealField + Copy> DeviceCell<F, T> {
             addr_of_mut!((*p).store).write(None);
             addr_of_mut!((*p).parked).write(None);
             addr_of_mut!((*p).checkpoint_every).write(DEFAULT_CHECKPOINT_EVERY);
+            addr_of_mut!((*p).hooks).write(Hooks::NONE);
+            addr_of_mut!((*p).last_tag).write(None);
             addr_of_mut!((*p).stats).write(DeviceStats::default());
             Some(&mut *p)
         }

@@ -106,7 +106,9 @@ pub use cell::DeviceCell;
 use crate::estimator::{EstimatorOptions, FlashLog, LogError, LogRecord, PackedLayout, SampleLog};
 use crate::models::{ConfigId, ErrorModel};
 use crate::session::{Reply, Request, Session, SessionError};
-use crate::wire::{decode_frame_into, encode, Decoder, FrameError, Message, MAX_FRAME_LEN};
+use crate::wire::{
+    decode_frame_into, encode, CalibratorConfig, Decoder, FrameError, Message, MAX_FRAME_LEN,
+};
 use control::{bank_len, Header, Read, CONFIG_FRAME_MAX, HEADER, MAX_ALIGN};
 
 /// Bytes of the device's output buffer: a frame of the largest message the
@@ -228,6 +230,8 @@ pub enum Idle {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct DeviceStats {
+    /// Messages decoded and acted on.
+    pub messages: u32,
     /// Frames sent (their bytes returned by [`Device::push_byte`]).
     pub sent: u32,
     /// Control records written (configurations and checkpoints).
@@ -241,6 +245,46 @@ pub struct DeviceStats {
     /// The last such failure.
     pub last_flash_error: Option<NorFlashErrorKind>,
 }
+
+/// Functions the device calls around its work, for a firmware that times
+/// it or adjusts a configuration ([`Device::set_hooks`]). Each defaults to
+/// doing nothing.
+#[derive(Clone, Copy, Debug)]
+pub struct Hooks {
+    /// Before a `Sample` is acted on (one filter period and its log record).
+    pub before_sample: fn(),
+    /// After it.
+    pub after_sample: fn(),
+    /// Before a `Finish` is acted on (the estimator of record).
+    pub before_finish: fn(),
+    /// After it.
+    pub after_finish: fn(),
+    /// A received `Configure`'s settings, before the session acts on them:
+    /// a firmware that forces some of its own (filter options, the estimate
+    /// cadence) changes them here.
+    pub configure: fn(&mut CalibratorConfig),
+}
+
+impl Hooks {
+    /// Hooks that do nothing.
+    pub const NONE: Hooks = Hooks {
+        before_sample: nothing,
+        after_sample: nothing,
+        before_finish: nothing,
+        after_finish: nothing,
+        configure: keep,
+    };
+}
+
+impl Default for Hooks {
+    fn default() -> Self {
+        Self::NONE
+    }
+}
+
+fn nothing() {}
+
+fn keep(_: &mut CalibratorConfig) {}
 
 /// The sample log in flash, the control banks, and what is due.
 struct Store<F, T: RealField + Copy> {
@@ -297,6 +341,9 @@ pub struct Device<F, T: RealField + Copy> {
     /// The flash when it could no longer be read as a log.
     parked: Option<F>,
     checkpoint_every: u32,
+    hooks: Hooks,
+    /// The tag of the last message acted on.
+    last_tag: Option<u8>,
     stats: DeviceStats,
 }
 
@@ -319,6 +366,8 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
             store: None,
             parked: None,
             checkpoint_every: DEFAULT_CHECKPOINT_EVERY,
+            hooks: Hooks::NONE,
+            last_tag: None,
             stats: DeviceStats::default(),
         }
     }
@@ -421,7 +470,11 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
             stored: None,
             due: false,
         });
-        self.session = Session::new(None, EstimatorOptions::default());
+        // What a reset leaves: no calibrator, no partial frame.
+        self.session.clear(None, EstimatorOptions::default());
+        self.decoder.clear();
+        self.last_tag = None;
+        self.stats = DeviceStats::default();
         let mut resume = Resume {
             refused: other_format.map(ResumeRefusal::Format),
             ..Resume::default()
@@ -460,6 +513,25 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
     /// Sets [`Device::checkpoint_every`] (at least 1).
     pub fn set_checkpoint_every(&mut self, samples: u32) {
         self.checkpoint_every = samples.max(1);
+    }
+
+    /// Sets the functions called around the device's work ([`Hooks`]).
+    pub fn set_hooks(&mut self, hooks: Hooks) {
+        self.hooks = hooks;
+    }
+
+    /// What the session answered to the last message (a reply to send, a
+    /// rejected sample and why, a refusal, or nothing): for a firmware that
+    /// logs or counts what happened.
+    pub fn reply(&self) -> &Reply {
+        &self.reply
+    }
+
+    /// The tag ([`Message::tag`]: `Sample` 0 … `Finish` 7) of the last
+    /// message the device acted on; with [`Device::reply`] and
+    /// [`DeviceStats::messages`], what a firmware logs of each.
+    pub fn last_tag(&self) -> Option<u8> {
+        self.last_tag
     }
 
     /// The flash, given back (the device then logs nothing).
@@ -543,12 +615,24 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
     fn act(&mut self) -> usize {
         let tag = self.message.tag();
         let kind = Kind::of(&self.message);
+        self.last_tag = Some(tag);
+        self.stats.messages = self.stats.messages.saturating_add(1);
+        if let Message::Configure(settings) = &mut self.message {
+            (self.hooks.configure)(settings);
+        }
         let log: &mut dyn SampleLog<T> = match &mut self.store {
             Some(s) => &mut s.log,
             None => &mut NoLog,
         };
+        let (before, after) = match kind {
+            Kind::Sample => (self.hooks.before_sample, self.hooks.after_sample),
+            Kind::Finish => (self.hooks.before_finish, self.hooks.after_finish),
+            _ => (nothing as fn(), nothing as fn()),
+        };
+        before();
         self.session
             .handle_into(&self.message, log, &mut self.reply);
+        after();
         let acted = !matches!(self.reply, Reply::Error(_));
         match kind {
             Kind::Configure if acted => self.configured(),
@@ -795,7 +879,7 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
     /// The log read in the layout of `settings` (reopened if it is read in
     /// another; if the device then fails, it is parked and nothing is
     /// logged).
-    fn use_layout(&mut self, settings: &crate::wire::CalibratorConfig) {
+    fn use_layout(&mut self, settings: &CalibratorConfig) {
         let layout =
             PackedLayout::for_measurements(settings.config.layout_with(settings.errors).z());
         let Some(s) = self.store.take() else {
@@ -912,6 +996,7 @@ enum Kind {
     Reset,
     Restore,
     Sample,
+    Finish,
     Other,
 }
 
@@ -922,6 +1007,7 @@ impl Kind {
             Message::Reset => Kind::Reset,
             Message::Checkpoint(_) => Kind::Restore,
             Message::Sample(_) => Kind::Sample,
+            Message::Finish => Kind::Finish,
             _ => Kind::Other,
         }
     }

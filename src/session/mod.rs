@@ -274,6 +274,18 @@ impl<T: RealField + Copy> Session<T> {
         }
     }
 
+    /// Back to [`Session::new`]`(expected, passes)`, in place: the
+    /// calibrator and the last `Finish`'s filter dropped, the counters
+    /// cleared (no session-sized value on the stack, as an assignment of
+    /// a new session may make).
+    pub fn clear(&mut self, expected: Option<ConfigId>, passes: EstimatorOptions) {
+        self.cal = None;
+        self.scratch = None;
+        self.expected = expected;
+        self.passes = passes;
+        self.stats = SessionStats::default();
+    }
+
     /// The calibrator, once configured.
     pub fn calibrator(&self) -> Option<&AnyCalibrator<T>> {
         self.cal.as_ref()

@@ -8,7 +8,8 @@
 //!   and the final answer is bit for bit the uninterrupted run's where the
 //!   cut lost no sample, and bit for bit that of an uninterrupted run over
 //!   the samples the device kept where it lost some (or within 1e-6σ of it:
-//!   the gap is bridged from a replayed, packed increment);
+//!   the gap is bridged from a replayed record's increment, as the packed
+//!   log rounded it);
 //! - a flash of another format version, or whose stored `Configure` is
 //!   damaged, is recognised and not resumed from;
 //! - a region that does not fit is refused and the device given back.
@@ -259,4 +260,28 @@ fn a_region_that_does_not_fit_gives_the_device_back() {
     };
     assert_eq!(e, DeviceError::Region);
     assert!(dev.start(flash, REGION).is_ok());
+}
+
+/// `examples/device.rs` is a whole firmware integration; what it writes
+/// beyond the HAL's UART and flash drivers (between its `glue` marks,
+/// blank and comment lines aside) is at most 60 lines, and its docs say
+/// how many.
+#[test]
+fn the_example_glue_is_at_most_60_lines() {
+    let text = include_str!("../../examples/device.rs");
+    let glue = text
+        .split("// glue: begin")
+        .nth(1)
+        .and_then(|rest| rest.split("// glue: end").next())
+        .expect("the example marks its glue");
+    let lines = glue
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with("//"))
+        .count();
+    assert!(lines <= 60, "{lines} lines of glue");
+    assert!(
+        text.contains(&format!("between the `glue` marks: {lines} lines")),
+        "the example's docs give its glue as {lines} lines"
+    );
 }
