@@ -180,7 +180,9 @@ fn run(u: &mut Unstructured<'_>) -> Result<()> {
         assert!(
             !matches!(
                 resume.refused,
-                Some(ResumeRefusal::Format(_) | ResumeRefusal::Frame(_) | ResumeRefusal::Unexpected)
+                Some(
+                    ResumeRefusal::Format(_) | ResumeRefusal::Frame(_) | ResumeRefusal::Unexpected
+                )
             ),
             "its own flash refused: {resume:?}"
         );

@@ -310,12 +310,6 @@ fn arbitrary_sample(u: &mut Unstructured) -> Result<Sample> {
     })
 }
 
-/// Where `D_r` (`r < n`) is in a checkpoint's factor of `n` states (its
-/// upper triangle row by row: each row starts on the diagonal).
-fn diagonal_index(n: usize, r: usize) -> usize {
-    r * n - r * r.saturating_sub(1) / 2
-}
-
 /// Corrupts a checkpoint (its dimensions, values or bookkeeping).
 fn corrupt(u: &mut Unstructured, cp: &mut Checkpoint) -> Result<()> {
     match u.int_in_range(0..=9u8)? {
@@ -334,7 +328,8 @@ fn corrupt(u: &mut Unstructured, cp: &mut Checkpoint) -> Result<()> {
         4 => {
             // A diagonal entry (D) of the upper triangle.
             let n = cp.state.len();
-            let i = diagonal_index(n, usize::from(u.arbitrary::<u8>()?) % n.max(1));
+            let r = usize::from(u.arbitrary::<u8>()?) % n.max(1);
+            let i = rollcal::wire::factor_index(n, r, r);
             if let Some(v) = cp.factor.get_mut(i) {
                 *v = value(u, -*v)?;
             }
@@ -415,7 +410,7 @@ impl core::fmt::Debug for CpBytes {
         let diagonal: Vec<f64> = (0..n)
             .map(|i| {
                 c.factor
-                    .get(diagonal_index(n, i))
+                    .get(rollcal::wire::factor_index(n, i, i))
                     .copied()
                     .unwrap_or(f64::NAN)
             })
@@ -1071,7 +1066,8 @@ impl<T: RealField + Copy> Harness<'_, T> {
                 // so this should not happen), which `Filter::from_parts`
                 // refuses. A zero D is a state the model does not estimate
                 // (its prior σ zero): restored like any other.
-                let degenerate = (0..n).any(|i| cp.factor[diagonal_index(n, i)] < 0.0);
+                let degenerate =
+                    (0..n).any(|i| cp.factor[rollcal::wire::factor_index(n, i, i)] < 0.0);
                 let mut again = c.clone();
                 let restored = again.restore(cp);
                 if degenerate {

@@ -62,27 +62,9 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
             });
         }
         if N > MAX_STATES {
-            let full_built = cfg!(feature = "full-model");
-            let model_built = match M::ERRORS {
-                ErrorModel::Installation => cfg!(feature = "installation-model"),
-                ErrorModel::Full => full_built,
-            };
-            return Err(if model_built {
-                // A configuration whose model is larger than the build's.
-                Error::ConfigMismatch {
-                    expected: ConfigId::first_built(),
-                    found: M::ID,
-                }
-            } else {
-                Error::ErrorModelMismatch {
-                    expected: if full_built {
-                        ErrorModel::Full
-                    } else {
-                        ErrorModel::Installation
-                    },
-                    found: M::ERRORS,
-                }
-            });
+            // A model larger than the build's: refused as the session
+            // refuses one the build leaves out.
+            return Err(Error::not_built(M::ID, M::ERRORS));
         }
         if errors != M::ERRORS {
             return Err(Error::ErrorModelMismatch {

@@ -70,6 +70,27 @@ impl core::fmt::Display for Error {
 
 impl core::error::Error for Error {}
 
+impl Error {
+    /// Why a calibrator of `config` with `errors` cannot be built here: the
+    /// error model is left out of this build (cargo features), or else
+    /// the configuration (or a model larger than the build's,
+    /// [`crate::wire::MAX_STATES`]). The one refusal the calibrator and the
+    /// session's dispatch both give.
+    pub(crate) const fn not_built(config: ConfigId, errors: ErrorModel) -> Self {
+        if errors.is_built() {
+            Error::ConfigMismatch {
+                expected: ConfigId::first_built(),
+                found: config,
+            }
+        } else {
+            Error::ErrorModelMismatch {
+                expected: ErrorModel::first_built(),
+                found: errors,
+            }
+        }
+    }
+}
+
 impl From<ekf::Error> for Error {
     fn from(e: ekf::Error) -> Self {
         Error::Filter(e)

@@ -10,13 +10,6 @@ use crate::models::Model;
 use crate::precision::scalar_to_f64;
 use crate::wire::factor_len;
 
-/// Where entry `(r, c)`, `c ≥ r`, of an `n×n` upper triangle stored row by
-/// row ([`Parts::factor`]) is: row `r` starts after the `n − k` entries of
-/// each row `k < r`.
-fn upper_index(n: usize, r: usize, c: usize) -> usize {
-    r * n - r * r.saturating_sub(1) / 2 + (c - r)
-}
-
 /// The parts of a filter between two periods, as a checkpoint saves them
 /// ([`Filter::set_parts`], [`Filter::from_parts`]).
 #[derive(Clone, Copy, Debug)]
@@ -179,7 +172,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let whole = upper.len() == factor_len(N);
         self.set_parts_with(config, parts, &|r, c| {
             whole
-                .then(|| upper.get(upper_index(N, r, c)).copied())
+                .then(|| upper.get(crate::wire::factor_index(N, r, c)).copied())
                 .flatten()
         })
     }
@@ -231,15 +224,15 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
 
 #[cfg(test)]
 mod tests {
-    use super::upper_index;
+    use crate::wire::factor_index;
 
     #[test]
-    fn upper_index_walks_the_triangle_row_by_row() {
+    fn factor_index_walks_the_triangle_row_by_row() {
         let n = 5;
         let mut want = 0;
         for r in 0..n {
             for c in r..n {
-                assert_eq!(upper_index(n, r, c), want);
+                assert_eq!(factor_index(n, r, c), want);
                 want += 1;
             }
         }

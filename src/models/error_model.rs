@@ -68,6 +68,25 @@ impl ErrorModel {
         }
     }
 
+    /// Whether this build holds the error model (cargo features
+    /// `installation-model`, `full-model`).
+    pub const fn is_built(self) -> bool {
+        match self {
+            ErrorModel::Installation => cfg!(feature = "installation-model"),
+            ErrorModel::Full => cfg!(feature = "full-model"),
+        }
+    }
+
+    /// The first error model this build holds (the installation model
+    /// when it holds both).
+    pub const fn first_built() -> ErrorModel {
+        if ErrorModel::Installation.is_built() {
+            ErrorModel::Installation
+        } else {
+            ErrorModel::Full
+        }
+    }
+
     /// Parses a name, case-insensitively (`"Full"` = `"full"`).
     pub fn parse(s: &str) -> Option<Self> {
         Self::ALL

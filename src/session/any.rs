@@ -205,26 +205,10 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
             (ConfigId::M4Pa, ErrorModel::Full) => build_as!(M4PaFull),
             #[cfg(all(feature = "m4-ps", feature = "full-model"))]
             (ConfigId::M4Ps, ErrorModel::Full) => build_as!(M4PsFull),
-            // The full model in a build without the `full-model` feature.
-            #[cfg(not(feature = "full-model"))]
-            (_, ErrorModel::Full) => Err(calibrator::Error::ErrorModelMismatch {
-                expected: ErrorModel::Installation,
-                found: ErrorModel::Full,
-            }),
-            // The installation model in a build without the
-            // `installation-model` feature (a flight image of the full
-            // model alone).
-            #[cfg(not(feature = "installation-model"))]
-            (_, ErrorModel::Installation) => Err(calibrator::Error::ErrorModelMismatch {
-                expected: ErrorModel::Full,
-                found: ErrorModel::Installation,
-            }),
-            // A configuration left out of this build (cargo features).
+            // A configuration or an error model left out of this build
+            // (cargo features).
             #[allow(unreachable_patterns)]
-            (found, _) => Err(calibrator::Error::ConfigMismatch {
-                expected: ConfigId::first_built(),
-                found,
-            }),
+            (found, errors) => Err(calibrator::Error::not_built(found, errors)),
         }
     }
 

@@ -72,6 +72,23 @@ pub const fn factor_len(n: usize) -> usize {
     n * (n + 1) / 2
 }
 
+/// Where entry `(r, c)`, `r ≤ c < n`, of an `n×n` upper triangle stored
+/// row by row ([`Checkpoint::factor`]) is: row `r` starts after the
+/// `n − k` entries of each row `k < r`, on its diagonal.
+///
+/// # Examples
+///
+/// ```
+/// use rollcal::wire::{factor_index, factor_len};
+///
+/// assert_eq!(factor_index(3, 0, 0), 0);
+/// assert_eq!(factor_index(3, 1, 1), 3); // row 1 starts after the 3 of row 0
+/// assert_eq!(factor_index(3, 2, 2), factor_len(3) - 1);
+/// ```
+pub const fn factor_index(n: usize, r: usize, c: usize) -> usize {
+    r * n - r * r.saturating_sub(1) / 2 + (c - r)
+}
+
 /// One filter period as measured by the platform (docs/wire.md). `f32` fields:
 /// f32 spacing is 1.2e-7 g at 1 g (the accelerometer noise is 1e-6 g) and
 /// 0.05″ at π rad (the gimbal noise is 10″).

@@ -65,9 +65,9 @@ pub use encode::encode;
 pub use error::{EncodeError, FrameError};
 pub use field::{ConfigField, FieldBounds};
 pub use messages::{
-    factor_len, CalibratorConfig, Checkpoint, Estimate, EstimateKind, InstrumentPrior, Limits,
-    Message, Progress, Refusal, RefusalReason, RejectCounts, Sample, SinglePassReason,
-    INSTRUMENT_STATES, MAX_COVARIANCE, MAX_FACTOR, MAX_STATES,
+    factor_index, factor_len, CalibratorConfig, Checkpoint, Estimate, EstimateKind,
+    InstrumentPrior, Limits, Message, Progress, Refusal, RefusalReason, RejectCounts, Sample,
+    SinglePassReason, INSTRUMENT_STATES, MAX_COVARIANCE, MAX_FACTOR, MAX_STATES,
 };
 
 /// Protocol version carried in the first byte of every frame (7: a

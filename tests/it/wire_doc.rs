@@ -111,7 +111,7 @@ fn checkpoint() -> Checkpoint {
     assert!(c.state.iter().all(|x| *x == 0.0));
     // The upper triangle row by row: each row starts on the diagonal.
     let diagonal: Vec<usize> = (0..n)
-        .map(|r| r * n - r * r.saturating_sub(1) / 2)
+        .map(|r| rollcal::wire::factor_index(n, r, r))
         .collect();
     for (k, d) in c.factor.iter().enumerate() {
         let want = if diagonal.contains(&k) {
