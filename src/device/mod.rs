@@ -418,6 +418,7 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
     /// The device is given back with [`DeviceError`] when the region or the
     /// device's sizes do not fit, or it cannot be read.
     #[allow(clippy::result_large_err)]
+    #[inline(never)]
     pub fn start(&mut self, flash: F, region: Range<u32>) -> Result<Resume, (F, DeviceError)> {
         let erase = F::ERASE_SIZE;
         let (w, r) = (F::WRITE_SIZE.max(1), F::READ_SIZE.max(1));
@@ -651,6 +652,8 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
 
     /// After a `Configure`: the log in its layout, the configuration
     /// recorded.
+    // Out of line: its frame is not on the path of a period or `Finish`.
+    #[inline(never)]
     fn configured(&mut self) {
         self.tell_frame_errors();
         let Some(settings) = self.session.calibrator().map(|c| *c.settings()) else {
@@ -662,6 +665,8 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
 
     /// A control record with the configuration only, now (a `Configure` or
     /// `Reset`: a stored checkpoint is no longer the run's).
+    // Out of line: its frame is not on the path of a period or `Finish`.
+    #[inline(never)]
     fn record_now(&mut self) {
         if self.store.is_none() {
             return;
@@ -682,6 +687,8 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
     }
 
     /// After a `Sample`: whether a checkpoint is due.
+    // Out of line: its frame is not on the path of a period or `Finish`.
+    #[inline(never)]
     fn after_sample(&mut self) {
         let Some(p) = self.session.calibrator().map(|c| *c.progress()) else {
             return;
@@ -701,6 +708,8 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
     }
 
     /// Encodes what the session answered into `self.out`; its length.
+    // Out of line: its frame is not on the path of a period or `Finish`.
+    #[inline(never)]
     fn encode_reply(&mut self, tag: u8) -> usize {
         let sent = match &self.reply {
             Reply::Send(m) => encode(m, &mut self.out).ok(),
@@ -727,6 +736,8 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
     }
 
     /// Erases the spare bank's next sector if it is not erased yet.
+    // Out of line: its frame is not on the path of a period or `Finish`.
+    #[inline(never)]
     fn erase_spare_sector(&mut self) -> Result<bool, NorFlashErrorKind> {
         let Some(s) = self.store.as_mut() else {
             return Ok(false);
@@ -747,6 +758,8 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
 
     /// Writes a control record (the configuration, and the checkpoint when
     /// `checkpoint`) into the spare bank, which must be erased.
+    // Out of line: its frame is not on the path of a period or `Finish`.
+    #[inline(never)]
     fn write_record(&mut self, checkpoint: bool) -> Result<(), NorFlashErrorKind> {
         let Some(settings) = self.session.calibrator().map(|c| *c.settings()) else {
             if let Some(s) = self.store.as_mut() {
@@ -810,6 +823,8 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
     }
 
     /// [`Device::start`]'s resume from the record in `bank`.
+    // Out of line: its frame is not on the path of a period or `Finish`.
+    #[inline(never)]
     fn resume(&mut self, bank: u32, header: &Header, resume: &mut Resume) {
         let Some(s) = self.store.as_mut() else {
             return;
@@ -856,9 +871,12 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
             s.log.truncate(0);
             resume.refused = Some(ResumeRefusal::LogOfAnotherRun);
         }
-        self.session
-            .handle_into(&self.message, &mut s.log, &mut self.reply);
-        if let Reply::Error(e) = self.reply {
+        // The restore alone (what the session does with a `Checkpoint`).
+        let restored = match (&self.message, self.session.calibrator_mut()) {
+            (Message::Checkpoint(cp), Some(c)) => c.restore(cp).map_err(SessionError::Calibrator),
+            _ => Err(SessionError::NotConfigured),
+        };
+        if let Err(e) = restored {
             resume.refused = Some(ResumeRefusal::Session(e));
             return;
         }
