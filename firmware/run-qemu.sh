@@ -116,7 +116,7 @@ for stream in "${STREAMS[@]}"; do
     compare_one m7 "$stream" M7/f64 --tol 1e-9 || status=1
 done
 
-log "QEMU M7/f64 on M2-ps-full: checkpoint, Reset, the log reopened, restore after sample $CHECKPOINT_AT"
+log "QEMU M7/f64 on M2-ps-full: CheckpointRequest, Reset and the checkpoint back after sample $CHECKPOINT_AT"
 name=m7-M2-ps-full-checkpoint
 run_one m7 "$OUT/M2-ps-full-in.bin" "$name" "exit=request reply=uart1 selftest=checkpoint-at=$CHECKPOINT_AT"
 "$FW_CHECK" identical --firmware "$OUT/$name.out" --reference "$OUT/m7-M2-ps-full.out" \

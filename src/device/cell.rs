@@ -19,7 +19,7 @@ use crate::wire::{Decoder, Message};
 /// Room for a [`Device`] in a `static`: `const`-constructible, zero bytes
 /// in the image (`.bss`), and the device built in place, field by field,
 /// the first time it is taken ([`DeviceCell::take`]): no device-sized
-/// value on the stack (≈ 140 KB with the full model in `f64`).
+/// value on the stack (173.5 KB with the full model in `f64`).
 ///
 /// # Examples
 ///

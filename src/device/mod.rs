@@ -329,8 +329,11 @@ impl<T: RealField + Copy> SampleLog<T> for NoLog {
 /// HAL's flash driver, `T` the estimator's scalar (`f32` on a single
 /// precision FPU, `f64` on a Cortex-M7).
 ///
-/// Its size is the session's and two frames of the build's largest message
-/// (≈ 2 × 13 KB with the full model); keep it in a [`DeviceCell`].
+/// Its size is the session's (its calibrator and the filter `Finish`
+/// runs in), two frame buffers and two message slots of the build's
+/// largest model: 173.5 KB in `f64` and 116.6 KB in `f32` with the full
+/// model's 54 states (`cargo test --release -p rollcal --test it device::
+/// -- --nocapture` prints it); keep it in a [`DeviceCell`].
 pub struct Device<F, T: RealField + Copy> {
     session: Session<T>,
     decoder: Decoder<MAX_FRAME_LEN>,

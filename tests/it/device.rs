@@ -176,6 +176,11 @@ fn a_cut_after_every_flash_operation_resumes_to_the_uninterrupted_answer() {
         }
     }
     println!(
+        "device: {} bytes in f64, {} in f32 (the session, two frame buffers, two message slots)",
+        std::mem::size_of::<Device<Dev, f64>>(),
+        std::mem::size_of::<Device<Dev, f32>>()
+    );
+    println!(
         "device power cuts: {ops} operations x 2 kinds of cut: {identical} resumed bit-identical \
          with nothing lost; {lost_runs} lost samples, of which {lost_identical} bit-identical to \
          the run over the kept samples, the rest within {worst:.1e} sigma of it; {no_config} \
