@@ -25,7 +25,16 @@ mod frames;
 mod marks;
 mod stack;
 mod stream;
+#[cfg(feature = "synthetic")]
 mod synthetic;
+/// Without the cargo feature `synthetic` (a flight image): fails.
+#[cfg(not(feature = "synthetic"))]
+mod synthetic {
+    pub fn run(_: &crate::Args) -> bool {
+        defmt::error!("source=synthetic needs the cargo feature synthetic");
+        false
+    }
+}
 mod uart;
 
 use core::mem::size_of;

@@ -34,7 +34,8 @@
 //! - `selftest=reset-at=N`: after the N-th `Sample` (and its idle
 //!   moment), the device started again on the flash alone
 //!   (`Device::start`: what a board does after a reset): it resumes from
-//!   the stored configuration, checkpoint and the records after it.
+//!   the stored configuration, checkpoint and the records after it
+//!   (feature `selftest`).
 
 use rollcal::device::{DeviceCell, Hooks, Idle};
 use rollcal::session::{Reply, SessionError};
@@ -168,11 +169,7 @@ pub fn run(args: &Args) -> Totals {
             selftest::checkpoint(device, &mut uart, &mut tx);
         }
         if device.last_tag() == Some(0) && totals.samples == args.reset_at {
-            defmt::info!("selftest: reset after sample {}", totals.samples);
-            let Some(flash) = device.release() else {
-                defmt::panic!("the device has no flash");
-            };
-            start(device, flash);
+            selftest::reset(device);
         }
     }
 }
@@ -181,11 +178,10 @@ pub fn run(args: &Args) -> Totals {
 fn start(device: &mut rollcal::device::Device<Ssram, Real>, flash: Ssram) {
     match device.start(flash, REGION) {
         Ok(r) => defmt::info!(
-            "flash: {} KiB of NOR over SSRAM ({}-byte sectors, {}-byte words); resumed {}",
-            LOG_BYTES / 1024,
-            crate::flash::ERASE_SIZE,
-            crate::flash::WRITE_SIZE,
-            r
+            "flash: resumed a checkpoint of {} samples, {} replayed, last seq {}",
+            r.checkpoint,
+            r.replayed,
+            r.last_seq
         ),
         Err((_, e)) => defmt::error!("the flash cannot be used: {}", e),
     }
@@ -292,7 +288,7 @@ fn report(device: &rollcal::device::Device<Ssram, Real>, t: &mut Totals) {
     }
 }
 
-/// `selftest=checkpoint-at=N`.
+/// `selftest=checkpoint-at=N` and `selftest=reset-at=N`.
 #[cfg(feature = "selftest")]
 mod selftest {
     use core::mem::MaybeUninit;
@@ -319,6 +315,16 @@ mod selftest {
             let p = addr_of_mut!(FRAME).cast::<[u8; MAX_FRAME_LEN]>();
             p.write_bytes(0, 1);
             Some(&mut *p)
+        }
+    }
+
+    /// `selftest=reset-at=N`: the device started again on the flash alone.
+    #[inline(never)]
+    pub fn reset(device: &mut Device<Ssram, Real>) {
+        defmt::info!("selftest: reset");
+        match device.release() {
+            Some(flash) => super::start(device, flash),
+            None => defmt::error!("selftest: the device has no flash"),
         }
     }
 
@@ -363,7 +369,7 @@ mod selftest {
     }
 }
 
-/// Without the feature `selftest`: `checkpoint-at` is refused.
+/// Without the feature `selftest`: the self-tests are refused.
 #[cfg(not(feature = "selftest"))]
 mod selftest {
     use rollcal::device::Device;
@@ -372,5 +378,9 @@ mod selftest {
 
     pub fn checkpoint(_: &mut Device<Ssram, Real>, _: &mut Uart, _: &mut Option<Uart>) {
         defmt::error!("selftest: checkpoint-at needs the feature `selftest`");
+    }
+
+    pub fn reset(_: &mut Device<Ssram, Real>) {
+        defmt::error!("selftest: reset-at needs the feature `selftest`");
     }
 }

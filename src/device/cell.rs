@@ -90,7 +90,6 @@ impl<F: NorFlash, T: RealField + Copy> DeviceCell<F, T> {
             addr_of_mut!((*p).reply).write(Reply::Nothing);
             addr_of_mut!((*p).out).write_bytes(0, 1);
             addr_of_mut!((*p).store).write(None);
-            addr_of_mut!((*p).parked).write(None);
             addr_of_mut!((*p).checkpoint_every).write(DEFAULT_CHECKPOINT_EVERY);
             addr_of_mut!((*p).hooks).write(Hooks::NONE);
             addr_of_mut!((*p).last_tag).write(None);

@@ -74,7 +74,6 @@ pub(crate) enum Read {
 impl Header {
     /// The 32 bytes written.
     pub(crate) fn to_bytes(self) -> [u8; HEADER] {
-        let mut b = [0u8; HEADER];
         let words = [
             u32::from_le_bytes([MAGIC[0], MAGIC[1], MAGIC[2], FORMAT]),
             self.generation,
@@ -84,37 +83,33 @@ impl Header {
             self.logged,
             0,
         ];
+        let mut b = [0u8; HEADER];
         for (chunk, w) in b.chunks_exact_mut(4).zip(words) {
             chunk.copy_from_slice(&w.to_le_bytes());
         }
-        let crc = crc32(b.get(..HEADER - 4).unwrap_or(&[]));
-        if let Some(tail) = b.get_mut(HEADER - 4..) {
-            tail.copy_from_slice(&crc.to_le_bytes());
-        }
+        let crc = crc32(&b[..HEADER - 4]);
+        b[HEADER - 4..].copy_from_slice(&crc.to_le_bytes());
         b
     }
 
     /// The header `b` holds.
     pub(crate) fn parse(b: &[u8; HEADER]) -> Read {
-        let word = |i: usize| {
-            b.get(4 * i..4 * i + 4)
-                .and_then(|s| s.try_into().ok())
-                .map_or(0, u32::from_le_bytes)
-        };
-        let crc_ok = crc32(b.get(..HEADER - 4).unwrap_or(&[])) == word(7);
-        if !crc_ok || b.get(..3) != Some(&MAGIC[..]) {
+        let mut w = [0u32; HEADER / 4];
+        for (word, chunk) in w.iter_mut().zip(b.chunks_exact(4)) {
+            *word = chunk.try_into().map_or(0, u32::from_le_bytes);
+        }
+        if crc32(&b[..HEADER - 4]) != w[7] || b[..3] != MAGIC {
             return Read::Empty;
         }
-        let version = b.get(3).copied().unwrap_or(0);
-        if version != FORMAT {
-            return Read::OtherFormat(version);
+        if b[3] != FORMAT {
+            return Read::OtherFormat(b[3]);
         }
         Read::Valid(Header {
-            generation: word(1),
-            config_len: word(2),
-            checkpoint_len: word(3),
-            epoch: word(4),
-            logged: word(5),
+            generation: w[1],
+            config_len: w[2],
+            checkpoint_len: w[3],
+            epoch: w[4],
+            logged: w[5],
         })
     }
 }

@@ -289,8 +289,6 @@ fn keep(_: &mut CalibratorConfig) {}
 /// The sample log in flash, the control banks, and what is due.
 struct Store<F, T: RealField + Copy> {
     log: FlashLog<F, T>,
-    /// The log's part of the region.
-    log_region: Range<u32>,
     /// The region's start (bank 0; bank 1 follows it).
     base: u32,
     /// Bytes of a bank.
@@ -341,8 +339,6 @@ pub struct Device<F, T: RealField + Copy> {
     reply: Reply,
     out: [u8; OUT_LEN],
     store: Option<Store<F, T>>,
-    /// The flash when it could no longer be read as a log.
-    parked: Option<F>,
     checkpoint_every: u32,
     hooks: Hooks,
     /// The tag of the last message acted on.
@@ -367,7 +363,6 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
             reply: Reply::Nothing,
             out: [0; OUT_LEN],
             store: None,
-            parked: None,
             checkpoint_every: DEFAULT_CHECKPOINT_EVERY,
             hooks: Hooks::NONE,
             last_tag: None,
@@ -462,10 +457,8 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
             Ok(log) => log,
             Err((flash, e)) => return Err((flash, e.into())),
         };
-        self.parked = None;
         self.store = Some(Store {
             log,
-            log_region,
             base: region.start,
             bank,
             active: None,
@@ -540,10 +533,7 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
 
     /// The flash, given back (the device then logs nothing).
     pub fn release(&mut self) -> Option<F> {
-        self.store
-            .take()
-            .map(|s| s.log.into_inner())
-            .or_else(|| self.parked.take())
+        self.store.take().map(|s| s.log.into_inner())
     }
 
     /// One received byte. Returns the bytes to send back (a whole frame,
@@ -897,18 +887,17 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
         self.tell_frame_errors();
     }
 
-    /// The log read in the layout of `settings` (reopened if it is read in
-    /// another; if the device then fails, it is parked and nothing is
-    /// logged).
+    /// The log read in the layout of `settings` (reopened in place if it
+    /// is read in another; a device that fails then leaves it empty).
     fn use_layout(&mut self, settings: &CalibratorConfig) {
         let layout =
             PackedLayout::for_measurements(settings.config.layout_with(settings.errors).z());
-        let Some(s) = self.store.take() else {
+        let Some(s) = self.store.as_mut() else {
             return;
         };
-        match s.in_layout(layout) {
-            Ok(s) => self.store = Some(s),
-            Err(flash) => self.parked = Some(flash),
+        if s.log.layout() != layout && s.log.reopen(layout).is_err() {
+            let e = s.log.last_error();
+            self.failed(e);
         }
     }
 
@@ -963,22 +952,6 @@ impl<F: NorFlash, T: RealField + Copy> Store<F, T> {
 
     fn spare_start(&self) -> u32 {
         self.base + self.spare_index() * self.bank
-    }
-
-    /// The log read in `layout` (reopened if it is read in another); the
-    /// device, if it cannot be read.
-    fn in_layout(mut self, layout: PackedLayout) -> Result<Self, F> {
-        if self.log.layout() == layout {
-            return Ok(self);
-        }
-        let flash = self.log.into_inner();
-        match FlashLog::open_or_return(flash, self.log_region.clone(), layout) {
-            Ok(log) => {
-                self.log = log;
-                Ok(self)
-            }
-            Err((flash, _)) => Err(flash),
-        }
     }
 }
 

@@ -432,6 +432,43 @@ impl<F: NorFlash, T: RealField + Copy, const S: usize> FlashLog<F, T, S> {
         self.flash
     }
 
+    /// Reads the region again in `layout`, in place ([`FlashLog::open`]
+    /// without giving up the device): the records the device holds in
+    /// that layout.
+    ///
+    /// # Errors
+    ///
+    /// [`FlashLogError::Geometry`] when the device's sizes do not fit
+    /// `layout`'s slots (the log is then as it was); [`FlashLogError::Flash`]
+    /// when the device failed while it was read (the log then holds
+    /// nothing, and its next record starts a new run).
+    pub fn reopen(&mut self, layout: PackedLayout) -> Result<(), FlashLogError> {
+        let end = self
+            .sectors
+            .checked_mul(self.erase_size())
+            .and_then(|n| n.checked_add(self.base))
+            .ok_or(FlashLogError::Region)?;
+        let (sectors, slot, per_sector) =
+            Self::check_geometry(&self.flash, &(self.base..end), layout)?;
+        self.layout = layout;
+        self.sectors = sectors;
+        self.slot = slot;
+        self.per_sector = per_sector;
+        self.epoch = 0;
+        self.next_epoch = 0;
+        self.len = 0;
+        self.head = 0;
+        self.erased_to = 0;
+        self.used = 0;
+        self.scan().map_err(|e| {
+            self.len = 0;
+            self.used = 0;
+            self.head = 0;
+            self.erased_to = 0;
+            FlashLogError::Flash(e)
+        })
+    }
+
     /// The device, for the control records an integration kit keeps beside
     /// the log ([`crate::device`]); the log's own region must not be
     /// written through it.

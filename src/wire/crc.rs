@@ -68,6 +68,9 @@ impl Crc {
 /// assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
 /// assert_eq!(crc32(b""), 0);
 /// ```
+// Out of line: called by the frames, the flash log's records and the
+// kit's control records, one copy of the loop in the image.
+#[inline(never)]
 pub fn crc32(data: &[u8]) -> u32 {
     let mut c = Crc::new();
     for b in data {
