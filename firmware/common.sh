@@ -37,7 +37,7 @@ build_firmware() {
     log "building firmware (M4F f32, M7 f64)"
     (cd "$FW" && DEFMT_LOG=info cargo build --release --features full-model --target-dir target/m4f)
     (cd "$FW" && DEFMT_LOG=info RUSTFLAGS="-C target-cpu=cortex-m7" \
-        cargo build --release --no-default-features --features f64,all-configs,research-options,installation-model,full-model,selftest --target-dir target/m7)
+        cargo build --release --no-default-features --features f64,all-configs,research-options,installation-model,full-model,selftest,synthetic --target-dir target/m7)
     # The M7 build must use the double FPU, not soft-float calls.
     local n
     n=$(arm-none-eabi-objdump -d "$M7_ELF" | grep -c 'vmul\.f64' || true)
