@@ -475,7 +475,7 @@ fn identical(
         ));
     }
     let differing = differing.filter(|_| running_sigma.is_none());
-    if let Some(limit) = running_sigma.filter(|l| !(running_dsigma <= *l)) {
+    if let Some(limit) = running_sigma.filter(|l| running_dsigma.is_nan() || running_dsigma > *l) {
         why.push(format!(
             "the running estimates differ by {running_dsigma:.3e} sigma (limit {limit:e})"
         ));
