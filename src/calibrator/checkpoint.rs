@@ -4,7 +4,7 @@
 use nalgebra::{Matrix3, RealField, SVector};
 
 use super::{to_f64, Calibrator, Error};
-use crate::ekf::{FilterConfig, Parts};
+use crate::ekf::{Filter, FilterConfig, Parts};
 use crate::estimator::LogStart;
 use crate::models::Model;
 use crate::wire::{factor_len, CalibratorConfig, Checkpoint};
@@ -94,40 +94,65 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         if let Some(field) = settings.invalid_field() {
             return Err(Error::InvalidField(field));
         }
-        let vector = |v: &[f64]| {
-            (v.len() == N)
-                .then(|| SVector::<f64, N>::from_iterator(v.iter().copied()))
-                .ok_or(Error::CheckpointDimension)
-        };
-        let x = vector(&cp.state)?;
-        if cp.factor.len() != factor_len(N) {
-            return Err(Error::CheckpointDimension);
-        }
-        let c_cn = Matrix3::from_row_iterator(cp.c_cn.iter().copied());
-        if !is_rotation(&c_cn) {
-            return Err(Error::CheckpointInvalid);
-        }
-        let nominal = match &cp.nominal {
-            Some(v) => Some(vector(v)?),
-            None => None,
-        };
-        self.filter.set_parts(
-            FilterConfig::from(&settings),
-            &Parts {
-                x: &x,
-                factor: &cp.factor,
-                c_cn: &c_cn,
-                nominal: nominal.as_ref(),
-                updates: cp.updates,
-                gate_state: (cp.gated_run, cp.gate_open),
-            },
-        )?;
+        set_filter(&mut self.filter, FilterConfig::from(&settings), cp)?;
         self.settings = settings;
         self.progress = cp.progress;
         self.frame_errors = 0;
         self.start = LogStart::aligned();
         Ok(())
     }
+
+    /// The filter put back from `saved`, its own checkpoint
+    /// ([`Calibrator::finish_in_place`]), with its own settings `config`:
+    /// the filter only (the bookkeeping, the log's start and the frame
+    /// errors are the calibrator's, which the passes do not touch).
+    pub(super) fn put_back(
+        &mut self,
+        config: FilterConfig<T>,
+        saved: &Checkpoint,
+    ) -> Result<(), Error> {
+        set_filter(&mut self.filter, config, saved)
+    }
+}
+
+/// `f` becomes the filter `cp` saved, with settings `config`; every part is
+/// checked first (on error `f` is unchanged).
+// Not inlined: its vectors are not in the frames of its callers.
+#[inline(never)]
+fn set_filter<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize>(
+    f: &mut Filter<T, M, N, Z>,
+    config: FilterConfig<T>,
+    cp: &Checkpoint,
+) -> Result<(), Error> {
+    let vector = |v: &[f64]| {
+        (v.len() == N)
+            .then(|| SVector::<f64, N>::from_iterator(v.iter().copied()))
+            .ok_or(Error::CheckpointDimension)
+    };
+    let x = vector(&cp.state)?;
+    if cp.factor.len() != factor_len(N) {
+        return Err(Error::CheckpointDimension);
+    }
+    let c_cn = Matrix3::from_row_iterator(cp.c_cn.iter().copied());
+    if !is_rotation(&c_cn) {
+        return Err(Error::CheckpointInvalid);
+    }
+    let nominal = match &cp.nominal {
+        Some(v) => Some(vector(v)?),
+        None => None,
+    };
+    f.set_parts(
+        config,
+        &Parts {
+            x: &x,
+            factor: &cp.factor,
+            c_cn: &c_cn,
+            nominal: nominal.as_ref(),
+            updates: cp.updates,
+            gate_state: (cp.gated_run, cp.gate_open),
+        },
+    )?;
+    Ok(())
 }
 
 /// How far from orthonormal (`|CᵀC − I|`, any entry) a restored computed

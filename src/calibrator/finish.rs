@@ -5,9 +5,9 @@ use nalgebra::RealField;
 
 use super::{to_f64, Calibrator};
 use crate::ekf::Filter;
-use crate::estimator::{self, EstimatorOptions, PassEvent, PassStart, SampleLog};
+use crate::estimator::{self, EstimatorOptions, LogStart, PassEvent, PassStart, SampleLog};
 use crate::models::Model;
-use crate::wire::{Estimate, EstimateKind, SinglePassReason};
+use crate::wire::{CalibratorConfig, Checkpoint, Estimate, EstimateKind, SinglePassReason};
 
 impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize>
     Calibrator<T, M, N, Z>
@@ -64,10 +64,10 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     /// [`Calibrator::finish`] in the caller's `filter`: the passes restart
     /// it ([`estimator::estimate_in`]; what it held does not matter), and
     /// after an [`EstimateKind::Final`] answer it is the final filter
-    /// (otherwise it is left as it was or as the failing pass left it). A
-    /// firmware whose session keeps this filter in static memory
-    /// ([`crate::session::AnyFilter`]) has no filter on its stack under the
-    /// passes (5.8 KB of f64 filter on the M7).
+    /// (otherwise it is left as it was or as the failing pass left it).
+    /// With `filter` in static memory ([`crate::session::AnyFilter`]) no
+    /// filter is on the stack under the passes; a firmware with room for
+    /// one filter only uses [`Calibrator::finish_in_place`].
     // Not inlined: the session dispatches to seven of these, and their
     // frames must not add up in one caller's frame (firmware stack).
     #[inline(never)]
@@ -81,40 +81,137 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     where
         F: FnMut(&PassEvent<'_, T, M, N, Z>),
     {
+        let at = match self.final_start(log) {
+            Ok(at) => at,
+            Err(r) => return self.single_pass(r),
+        };
+        match Self::passes_in(filter, &self.settings, at, log, passes, observer) {
+            Some(kind) => self.estimate_of(filter, kind),
+            None => self.single_pass(SinglePassReason::Estimator),
+        }
+    }
+
+    /// [`Calibrator::finish`] in the calibrator's own filter, for a
+    /// firmware with room for one filter: the running filter is saved into
+    /// `saved` ([`Calibrator::checkpoint_into`], the factor's upper
+    /// triangle: 13.0 KB for the full M2-ps model, where a filter is
+    /// 59.7 KB in f64), the passes run in its place, and it is put back
+    /// from `saved` ([`Filter::set_parts`]). Afterwards the calibrator is
+    /// as it was, bit for bit (`==`), and more samples may follow; `saved`
+    /// holds its checkpoint (what it held before does not matter). The
+    /// session answers `Finish` with this, `saved` being its reply slot
+    /// ([`crate::session::Session::handle_into`]).
+    ///
+    /// The put-back cannot fail (the checkpoint is the filter's own, whose
+    /// values are finite); were it to, the calibrator is reset
+    /// ([`Calibrator::reset`]) rather than left holding the final filter.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use nalgebra::Vector3;
+    /// use rollcal::calibrator::Calibrator;
+    /// use rollcal::estimator::{EstimatorOptions, LogRecord, SliceLog};
+    /// use rollcal::models::{ConfigId, M1Pa};
+    /// use rollcal::wire::{CalibratorConfig, Checkpoint, EstimateKind, Sample};
+    ///
+    /// let mut cal = Calibrator::<f64, M1Pa, 12, 3>::new(CalibratorConfig::paper(ConfigId::M1Pa))?;
+    /// let mut records = [LogRecord::predicted(0.0, Vector3::zeros()); 20];
+    /// let mut log = SliceLog::new(&mut records);
+    /// let e = cal.settings().earth_rate_n; // at rest: the Earth rate alone
+    /// for k in 0..20 {
+    ///     let s = Sample {
+    ///         seq: k,
+    ///         t_us: (u64::from(k) + 1) * 1_000_000,
+    ///         dt: 1.0,
+    ///         dtheta_cmd: e,
+    ///         c_cn_quat: [1.0, 0.0, 0.0, 0.0],
+    ///         accel_mean: [0.0, 1.0, 0.0],
+    ///         gimbal: None,
+    ///     };
+    ///     cal.push_logged(&s, &mut log).expect("a valid sample");
+    /// }
+    /// let before = cal.clone();
+    /// let mut saved = Checkpoint::empty();
+    /// let passes = EstimatorOptions::default();
+    /// let answer = cal.finish_in_place(&mut saved, &mut log, &passes, |_| {});
+    /// assert!(matches!(answer.kind, EstimateKind::Final { .. }));
+    /// // The same answer as `finish`'s, and the calibrator as it was.
+    /// assert_eq!(before.finish(&mut log, &passes, |_| {}).0, answer);
+    /// assert_eq!(cal, before);
+    /// # Ok::<(), rollcal::calibrator::Error>(())
+    /// ```
+    // Not inlined: the session dispatches to seven of these (firmware stack).
+    #[inline(never)]
+    pub fn finish_in_place<F>(
+        &mut self,
+        saved: &mut Checkpoint,
+        log: &mut (dyn SampleLog<T> + '_),
+        passes: &EstimatorOptions,
+        observer: F,
+    ) -> Estimate
+    where
+        F: FnMut(&PassEvent<'_, T, M, N, Z>),
+    {
+        let at = match self.final_start(log) {
+            Ok(at) => at,
+            Err(r) => return self.single_pass(r),
+        };
+        self.checkpoint_into(saved);
+        let running = *self.filter.config();
+        let kind = Self::passes_in(&mut self.filter, &self.settings, at, log, passes, observer);
+        let estimate = kind.map(|kind| self.estimate_of(&self.filter, kind));
+        if self.put_back(running, saved).is_err() {
+            // Not reached (see the doc); never continue from the final filter.
+            let _ = self.reset();
+        }
+        estimate.unwrap_or_else(|| self.single_pass(SinglePassReason::Estimator))
+    }
+
+    /// Where the passes of [`Calibrator::finish_in`] start over `log`, or
+    /// why they cannot run (a log that does not hold what was pushed,
+    /// truncated first to what the calibrator counted when it holds more).
+    fn final_start(&self, log: &mut (dyn SampleLog<T> + '_)) -> Result<LogStart, SinglePassReason> {
         let logged = self.progress.logged;
         if log.len() > logged as usize && self.progress.log_incomplete.is_none() {
             log.truncate(logged as usize);
         }
-        let reason = match self.progress.log_incomplete {
-            Some(r) => Some(r),
+        match self.progress.log_incomplete {
+            Some(r) => return Err(r),
             None if u32::try_from(log.len()).ok() != Some(logged) => {
-                Some(SinglePassReason::LogMismatch)
+                return Err(SinglePassReason::LogMismatch)
             }
-            None => None,
-        };
-        if let Some(r) = reason {
-            return self.single_pass(r);
+            None => {}
         }
-        let Ok(at) = self.log_start(log) else {
-            return self.single_pass(SinglePassReason::Estimator);
-        };
-        let (config, x0, sigma0) = Self::prior(&self.settings);
+        self.log_start(log).map_err(|_| SinglePassReason::Estimator)
+    }
+
+    /// The estimator of record in `filter` from the prior of `settings`
+    /// at `at`: the final answer's kind, `None` when a pass failed.
+    fn passes_in<F>(
+        filter: &mut Filter<T, M, N, Z>,
+        settings: &CalibratorConfig,
+        at: LogStart,
+        log: &mut (dyn SampleLog<T> + '_),
+        passes: &EstimatorOptions,
+        observer: F,
+    ) -> Option<EstimateKind>
+    where
+        F: FnMut(&PassEvent<'_, T, M, N, Z>),
+    {
+        let (config, x0, sigma0) = Self::prior(settings);
         let x0 = at.state(M::LAYOUT, &x0);
         let start = PassStart {
             x0: &x0,
             sigma0: &sigma0,
             at,
         };
-        match estimator::estimate_from(filter, &config, &start, log, passes, observer) {
-            Ok(report) => {
-                let kind = EstimateKind::Final {
-                    passes: report.passes,
-                    converged: report.converged,
-                };
-                self.estimate_of(filter, kind)
-            }
-            Err(_) => self.single_pass(SinglePassReason::Estimator),
-        }
+        estimator::estimate_from(filter, &config, &start, log, passes, observer)
+            .ok()
+            .map(|report| EstimateKind::Final {
+                passes: report.passes,
+                converged: report.converged,
+            })
     }
 
     /// A filter of this configuration for [`Calibrator::finish_in`], which

@@ -107,12 +107,16 @@ use crate::estimator::{EstimatorOptions, FlashLog, LogError, LogRecord, PackedLa
 use crate::models::{ConfigId, ErrorModel};
 use crate::session::{Reply, Request, Session, SessionError};
 use crate::wire::{
-    decode_frame_into, encode, CalibratorConfig, Decoder, FrameError, Message, MAX_FRAME_LEN,
+    decode_frame_into, encode, encode_refusal, CalibratorConfig, Decoder, FrameError, Message,
+    MAX_FRAME_LEN,
 };
 use control::{bank_len, Header, Read, CONFIG_FRAME_MAX, HEADER, MAX_ALIGN};
 
-/// Bytes of the device's output buffer: a frame of the largest message the
-/// build holds, and room to pad it to a flash write.
+/// Bytes of the device's frame buffer: a frame of the largest message the
+/// build holds, and room to pad it to a flash write. One buffer receives a
+/// frame and then holds the reply's bytes (returned by
+/// [`Device::push_byte`], sent before the next byte arrives) and the flash
+/// records.
 pub const OUT_LEN: usize = MAX_FRAME_LEN + MAX_ALIGN;
 
 /// The default [`Device::checkpoint_every`]: samples between checkpoints
@@ -327,17 +331,21 @@ impl<T: RealField + Copy> SampleLog<T> for NoLog {
 /// HAL's flash driver, `T` the estimator's scalar (`f32` on a single
 /// precision FPU, `f64` on a Cortex-M7).
 ///
-/// Its size is the session's (its calibrator and the filter `Finish`
-/// runs in), two frame buffers and two message slots of the build's
-/// largest model: 173.5 KB in `f64` and 116.6 KB in `f32` with the full
-/// model's 54 states (`cargo test --release -p rollcal --test it device::
-/// -- --nocapture` prints it); keep it in a [`DeviceCell`].
+/// Its size is the session's (its calibrator: `Finish` runs in the
+/// calibrator's own filter, the running one kept meanwhile in the message
+/// slot), one frame buffer and one message slot of the build's largest
+/// model: 87.3 KB in `f64` and 58.8 KB in `f32` with the full model's 54
+/// states (`cargo test --release -p rollcal --test it device:: --
+/// --nocapture` prints it); keep it in a [`DeviceCell`].
 pub struct Device<F, T: RealField + Copy> {
     session: Session<T>,
-    decoder: Decoder<MAX_FRAME_LEN>,
-    message: Message,
-    reply: Reply,
-    out: [u8; OUT_LEN],
+    /// Its buffer also holds the reply's bytes and the flash records
+    /// between frames ([`Decoder::spare_buffer`]).
+    decoder: Decoder<OUT_LEN>,
+    /// The message received (`Reply::Send(message)`, as the decoder wrote
+    /// it), then the session's reply to it
+    /// ([`Session::handle_in_place`]), and the flash records' messages.
+    slot: Reply,
     store: Option<Store<F, T>>,
     checkpoint_every: u32,
     hooks: Hooks,
@@ -359,9 +367,7 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
         Self {
             session: Session::new(None, EstimatorOptions::default()),
             decoder: Decoder::new(),
-            message: Message::Reset,
-            reply: Reply::Nothing,
-            out: [0; OUT_LEN],
+            slot: Reply::Nothing,
             store: None,
             checkpoint_every: DEFAULT_CHECKPOINT_EVERY,
             hooks: Hooks::NONE,
@@ -482,7 +488,7 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
         Ok(resume)
     }
 
-    /// The session (its calibrator, counters and the last `Finish`'s filter).
+    /// The session (its calibrator and counters).
     pub fn session(&self) -> &Session<T> {
         &self.session
     }
@@ -493,7 +499,7 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
     }
 
     /// The frame decoder (its counts of frames and of rejected ones).
-    pub fn decoder(&self) -> &Decoder<MAX_FRAME_LEN> {
+    pub fn decoder(&self) -> &Decoder<OUT_LEN> {
         &self.decoder
     }
 
@@ -519,9 +525,11 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
 
     /// What the session answered to the last message (a reply to send, a
     /// rejected sample and why, a refusal, or nothing): for a firmware that
-    /// logs or counts what happened.
+    /// logs or counts what happened. Read it before the next byte (the
+    /// device's one message slot then takes the next message) or
+    /// [`Device::idle`] (a record written leaves it [`Reply::Nothing`]).
     pub fn reply(&self) -> &Reply {
-        &self.reply
+        &self.slot
     }
 
     /// The tag ([`Message::tag`]: `Sample` 0 … `Finish` 7) of the last
@@ -541,7 +549,21 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
     /// bytes, a `Sample` between estimates, a `Configure`. Send them before
     /// the next call (they live in the device's buffer).
     pub fn push_byte(&mut self, byte: u8) -> &[u8] {
-        let n = match self.decoder.push_byte_into(byte, &mut self.message) {
+        let slot = &mut self.slot;
+        // Decoded into the slot at the delimiter (the slot is untouched by
+        // the other bytes: it holds the last reply until then).
+        let decoded = self.decoder.push_byte_with(byte, |frame| {
+            // The buffer has room for padding: a longer frame is as
+            // oversized as one past the buffer.
+            if frame.len() > MAX_FRAME_LEN {
+                return Err(FrameError::Oversized);
+            }
+            match inbox(slot) {
+                Some(msg) => decode_frame_into(frame, msg),
+                None => Err(FrameError::Malformed),
+            }
+        });
+        let n = match decoded {
             None => 0,
             Some(Ok(())) => self.act(),
             Some(Err(_)) => {
@@ -549,7 +571,10 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
                 0
             }
         };
-        self.out.get(..n).unwrap_or(&[])
+        match self.decoder.spare_buffer() {
+            Some(out) => out.get(..n).unwrap_or(&[]),
+            None => &[],
+        }
     }
 
     /// Received bytes (a DMA buffer): [`Device::push_byte`] of each, `send`
@@ -591,7 +616,10 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
         if self.store.as_ref().is_some_and(|s| s.due) {
             return match self.write_record(true) {
                 Ok(()) => Idle::Checkpointed,
-                Err(e) => self.failed(Some(e)),
+                // A frame is arriving in the buffer the record is
+                // encoded in: at the next `idle`.
+                Err(RecordError::Busy) => Idle::Nothing,
+                Err(e) => self.failed(e.flash()),
             };
         }
         Idle::Nothing
@@ -607,13 +635,16 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
     /// the reply in `self.out`.
     #[inline(never)]
     fn act(&mut self) -> usize {
-        let tag = self.message.tag();
-        let kind = Kind::of(&self.message);
-        self.last_tag = Some(tag);
-        self.stats.messages = self.stats.messages.saturating_add(1);
-        if let Message::Configure(settings) = &mut self.message {
+        let Reply::Send(msg) = &mut self.slot else {
+            return 0;
+        };
+        let tag = msg.tag();
+        let kind = Kind::of(msg);
+        if let Message::Configure(settings) = msg {
             (self.hooks.configure)(settings);
         }
+        self.last_tag = Some(tag);
+        self.stats.messages = self.stats.messages.saturating_add(1);
         let log: &mut dyn SampleLog<T> = match &mut self.store {
             Some(s) => &mut s.log,
             None => &mut NoLog,
@@ -624,10 +655,9 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
             _ => (nothing as fn(), nothing as fn()),
         };
         before();
-        self.session
-            .handle_into(&self.message, log, &mut self.reply);
+        self.session.handle_in_place(&mut self.slot, log);
         after();
-        let acted = !matches!(self.reply, Reply::Error(_));
+        let acted = !matches!(self.slot, Reply::Error(_));
         match kind {
             Kind::Configure if acted => self.configured(),
             Kind::Reset if acted => self.record_now(),
@@ -675,7 +705,7 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
             }
         }
         if let Err(e) = self.write_record(false) {
-            self.failed(Some(e));
+            self.failed(e.flash());
         }
     }
 
@@ -704,12 +734,13 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
     // Out of line: its frame is not on the path of a period or `Finish`.
     #[inline(never)]
     fn encode_reply(&mut self, tag: u8) -> usize {
-        let sent = match &self.reply {
-            Reply::Send(m) => encode(m, &mut self.out).ok(),
-            Reply::Error(e) => {
-                self.message = Message::Refused(e.refusal(tag));
-                encode(&self.message, &mut self.out).ok()
-            }
+        let Some(out) = self.decoder.spare_buffer() else {
+            return 0;
+        };
+        let sent = match &self.slot {
+            Reply::Send(m) => encode(m, out).ok(),
+            // The slot keeps the error ([`Device::reply`]).
+            Reply::Error(e) => encode_refusal(&e.refusal(tag), out).ok(),
             Reply::Nothing | Reply::Rejected(_) => None,
         };
         match sent {
@@ -750,10 +781,20 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
     }
 
     /// Writes a control record (the configuration, and the checkpoint when
-    /// `checkpoint`) into the spare bank, which must be erased.
+    /// `checkpoint`) into the spare bank, which must be erased. The slot,
+    /// whose message the record's were, is left [`Reply::Nothing`] (a
+    /// record follows a `Configure` or `Reset` that answered nothing, or
+    /// an answer already sent).
     // Out of line: its frame is not on the path of a period or `Finish`.
     #[inline(never)]
-    fn write_record(&mut self, checkpoint: bool) -> Result<(), NorFlashErrorKind> {
+    fn write_record(&mut self, checkpoint: bool) -> Result<(), RecordError> {
+        let written = self.write_record_via_slot(checkpoint);
+        self.slot = Reply::Nothing;
+        written
+    }
+
+    /// [`Device::write_record`], the slot holding its messages.
+    fn write_record_via_slot(&mut self, checkpoint: bool) -> Result<(), RecordError> {
         let Some(settings) = self.session.calibrator().map(|c| *c.settings()) else {
             if let Some(s) = self.store.as_mut() {
                 s.due = false;
@@ -765,20 +806,19 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
         };
         let erase = u32::try_from(F::ERASE_SIZE).unwrap_or(u32::MAX);
         if s.spare_erased.saturating_mul(erase) < s.bank {
-            return Err(NorFlashErrorKind::NotAligned);
+            return Err(RecordError::NotErased);
         }
+        let Some(out) = self.decoder.spare_buffer() else {
+            return Err(RecordError::Busy);
+        };
         let at = s.spare_start();
-        self.message = Message::Configure(settings);
-        let config_len = encode(&self.message, &mut self.out)
+        let msg = inbox(&mut self.slot).ok_or(RecordError::Encode)?;
+        *msg = Message::Configure(settings);
+        let config_len = encode(msg, out)
             .ok()
             .filter(|n| *n <= CONFIG_FRAME_MAX)
-            .ok_or(NorFlashErrorKind::Other)?;
-        write_padded::<F>(
-            s.log.flash_mut(),
-            at + HEADER as u32,
-            &mut self.out,
-            config_len,
-        )?;
+            .ok_or(RecordError::Encode)?;
+        write_padded::<F>(s.log.flash_mut(), at + HEADER as u32, out, config_len)?;
         let mut header = Header {
             generation: s.generation.wrapping_add(1),
             config_len: config_len as u32,
@@ -786,13 +826,13 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
         };
         if checkpoint {
             self.session
-                .request_into(Request::Checkpoint, &mut s.log, &mut self.reply);
-            let Reply::Send(cp) = &self.reply else {
-                return Err(NorFlashErrorKind::Other);
+                .request_into(Request::Checkpoint, &mut s.log, &mut self.slot);
+            let Reply::Send(cp) = &self.slot else {
+                return Err(RecordError::Encode);
             };
-            let n = encode(cp, &mut self.out).map_err(|_| NorFlashErrorKind::Other)?;
+            let n = encode(cp, out).map_err(|_| RecordError::Encode)?;
             let cp_at = at + (HEADER + CONFIG_FRAME_MAX) as u32;
-            write_padded::<F>(s.log.flash_mut(), cp_at, &mut self.out, n)?;
+            write_padded::<F>(s.log.flash_mut(), cp_at, out, n)?;
             let logged = self.session.calibrator().map_or(0, |c| c.progress().logged);
             header.checkpoint_len = n as u32;
             header.epoch = s.log.epoch();
@@ -801,7 +841,7 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
         s.log
             .flash_mut()
             .write(at, &header.to_bytes())
-            .map_err(|e| e.kind())?;
+            .map_err(|e| RecordError::Flash(e.kind()))?;
         // The new record is complete: the other bank is the spare now.
         s.active = Some(s.spare_index());
         s.generation = header.generation;
@@ -831,7 +871,7 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
             resume.refused = Some(why);
             return;
         }
-        let Message::Configure(settings) = self.message else {
+        let Reply::Send(Message::Configure(settings)) = self.slot else {
             resume.refused = Some(ResumeRefusal::Unexpected);
             return;
         };
@@ -850,7 +890,7 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
             resume.refused = Some(why);
             return;
         }
-        if !matches!(self.message, Message::Checkpoint(_)) {
+        if !matches!(self.slot, Reply::Send(Message::Checkpoint(_))) {
             resume.refused = Some(ResumeRefusal::Unexpected);
             return;
         }
@@ -865,8 +905,10 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
             resume.refused = Some(ResumeRefusal::LogOfAnotherRun);
         }
         // The restore alone (what the session does with a `Checkpoint`).
-        let restored = match (&self.message, self.session.calibrator_mut()) {
-            (Message::Checkpoint(cp), Some(c)) => c.restore(cp).map_err(SessionError::Calibrator),
+        let restored = match (&self.slot, self.session.calibrator_mut()) {
+            (Reply::Send(Message::Checkpoint(cp)), Some(c)) => {
+                c.restore(cp).map_err(SessionError::Calibrator)
+            }
             _ => Err(SessionError::NotConfigured),
         };
         if let Err(e) = restored {
@@ -901,8 +943,8 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
         }
     }
 
-    /// Reads the frame of `len` bytes at `at` and decodes it into
-    /// `self.message`.
+    /// Reads the frame of `len` bytes at `at` and decodes it into the slot
+    /// (`Reply::Send(message)`).
     fn read_frame(&mut self, at: u32, len: u32) -> Result<(), ResumeRefusal> {
         let Some(s) = self.store.as_mut() else {
             return Err(ResumeRefusal::Unexpected);
@@ -910,7 +952,11 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
         let r = F::READ_SIZE.max(1);
         let n = len as usize;
         let padded = n.div_ceil(r) * r;
-        let Some(buf) = self.out.get_mut(..padded).filter(|_| n >= 1) else {
+        let out = self
+            .decoder
+            .spare_buffer()
+            .ok_or(ResumeRefusal::Unexpected)?;
+        let Some(buf) = out.get_mut(..padded).filter(|_| n >= 1) else {
             return Err(ResumeRefusal::Frame(FrameError::Oversized));
         };
         s.log
@@ -918,8 +964,9 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
             .read(at, buf)
             .map_err(|_| ResumeRefusal::Frame(FrameError::Truncated))?;
         // The frame without its delimiter.
-        let body = self.out.get_mut(..n - 1).unwrap_or(&mut []);
-        decode_frame_into(body, &mut self.message).map_err(ResumeRefusal::Frame)
+        let body = out.get_mut(..n - 1).unwrap_or(&mut []);
+        let msg = inbox(&mut self.slot).ok_or(ResumeRefusal::Unexpected)?;
+        decode_frame_into(body, msg).map_err(ResumeRefusal::Frame)
     }
 }
 
@@ -930,16 +977,53 @@ fn write_padded<F: NorFlash>(
     at: u32,
     buf: &mut [u8],
     n: usize,
-) -> Result<(), NorFlashErrorKind> {
+) -> Result<(), RecordError> {
     let w = F::WRITE_SIZE.max(1);
     let padded = n.div_ceil(w) * w;
-    let bytes = buf
-        .get_mut(..padded)
-        .ok_or(NorFlashErrorKind::OutOfBounds)?;
+    let bytes = buf.get_mut(..padded).ok_or(RecordError::Encode)?;
     if let Some(pad) = bytes.get_mut(n..) {
         pad.fill(0xFF);
     }
-    flash.write(at, bytes).map_err(|e| e.kind())
+    flash
+        .write(at, bytes)
+        .map_err(|e| RecordError::Flash(e.kind()))
+}
+
+/// Why a control record was not written ([`Device::write_record`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum RecordError {
+    /// The flash failed.
+    Flash(NorFlashErrorKind),
+    /// The spare bank is not erased yet.
+    NotErased,
+    /// The record's message did not encode (not reached: the buffer holds
+    /// the largest frame).
+    Encode,
+    /// A frame is arriving in the buffer the record is encoded in.
+    Busy,
+}
+
+impl RecordError {
+    /// The flash's error, if it was one.
+    fn flash(self) -> Option<NorFlashErrorKind> {
+        match self {
+            RecordError::Flash(e) => Some(e),
+            _ => None,
+        }
+    }
+}
+
+/// The message in `slot`, made `Reply::Send(..)` first unless it is (in
+/// two steps, as the session's checkpoint slot: no message-sized value
+/// built on the stack); `None` is not reached.
+fn inbox(slot: &mut Reply) -> Option<&mut Message> {
+    if !matches!(slot, Reply::Send(_)) {
+        *slot = Reply::Send(Message::Finish);
+    }
+    match slot {
+        Reply::Send(msg) => Some(msg),
+        _ => None,
+    }
 }
 
 impl<F: NorFlash, T: RealField + Copy> Store<F, T> {

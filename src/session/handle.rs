@@ -3,9 +3,9 @@
 
 use nalgebra::RealField;
 
-use super::{AnyCalibrator, AnyFilter, Reply, Request, Session, SessionError};
+use super::{AnyCalibrator, Reply, Request, Session, SessionError};
 use crate::estimator::{EstimatorOptions, SampleLog};
-use crate::wire::{Checkpoint, Estimate, Message};
+use crate::wire::{CalibratorConfig, Checkpoint, Estimate, Message, Sample};
 
 impl<T: RealField + Copy> Session<T> {
     /// Acts on one message; `log` is the sample log of the run.
@@ -97,6 +97,57 @@ impl<T: RealField + Copy> Session<T> {
         self.count(reply);
     }
 
+    /// [`Session::handle_into`] with one slot for the message and its
+    /// reply, for a firmware with room for one message: `slot` holds
+    /// `Reply::Send(message)`, the message received (a decoder writes it
+    /// there, [`crate::wire::Decoder::push_byte_into`]), and becomes the
+    /// reply, the same as [`Session::handle_into`]'s. A slot that holds no
+    /// message (any other [`Reply`]) is left [`Reply::Nothing`] and nothing
+    /// is done. The integration kit ([`crate::device`]) keeps one such slot
+    /// (a checkpoint's size: 13.0 KB with the full model) instead of a
+    /// message and a reply.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use rollcal::estimator::{EstimatorOptions, LogRecord, SliceLog};
+    /// use rollcal::models::ConfigId;
+    /// use rollcal::session::{Reply, Session};
+    /// use rollcal::wire::{CalibratorConfig, Message};
+    ///
+    /// let mut session = Session::<f64>::new(None, EstimatorOptions::default());
+    /// let mut records: [LogRecord<f64>; 0] = [];
+    /// let mut log = SliceLog::new(&mut records);
+    /// let mut slot = Reply::Send(Message::Configure(CalibratorConfig::paper(ConfigId::M1Pa)));
+    /// session.handle_in_place(&mut slot, &mut log);
+    /// assert_eq!(slot, Reply::Nothing);
+    /// // The slot takes the next message, and then its reply.
+    /// slot = Reply::Send(Message::CheckpointRequest);
+    /// session.handle_in_place(&mut slot, &mut log);
+    /// assert!(matches!(slot, Reply::Send(Message::Checkpoint(_))));
+    /// ```
+    pub fn handle_in_place(&mut self, slot: &mut Reply, log: &mut (dyn SampleLog<T> + '_)) {
+        let received = match slot {
+            Reply::Send(msg) => Received::of(msg),
+            _ => {
+                *slot = Reply::Nothing;
+                return;
+            }
+        };
+        match received {
+            Some(received) => self.act_on(received, log, slot),
+            // A checkpoint, read where it is, then replaced by the reply.
+            None => {
+                let restored = match slot {
+                    Reply::Send(Message::Checkpoint(cp)) => self.restore(cp),
+                    _ => Ok(()),
+                };
+                Self::acted(restored, slot);
+            }
+        }
+        self.count(slot);
+    }
+
     // By reference: a reply passed through by value is one more copy of a
     // message-sized value in the caller's frame (3 KB on a firmware stack).
     fn count(&mut self, reply: &Reply) {
@@ -112,40 +163,55 @@ impl<T: RealField + Copy> Session<T> {
     // `send_estimate` and `checkpoint`, never in one below which the
     // estimator runs.
     fn act(&mut self, msg: &Message, log: &mut (dyn SampleLog<T> + '_), reply: &mut Reply) {
-        match msg {
-            Message::Configure(settings) => {
-                *reply = match self.configure(*settings) {
-                    Ok(()) => Reply::Nothing,
-                    Err(e) => Reply::Error(e),
-                }
+        match (Received::of(msg), msg) {
+            (Some(received), _) => self.act_on(received, log, reply),
+            (None, Message::Checkpoint(cp)) => {
+                let restored = self.restore(cp);
+                Self::acted(restored, reply);
             }
-            Message::Estimate(_) | Message::Refused(_) => {
+            // Not reached: `Received::of` is `None` for a checkpoint only.
+            (None, _) => *reply = Reply::Nothing,
+        }
+    }
+
+    /// [`Session::act`] of a message without checkpoint, copied out of
+    /// wherever it was decoded.
+    fn act_on(&mut self, received: Received, log: &mut (dyn SampleLog<T> + '_), reply: &mut Reply) {
+        match received {
+            Received::Configure(settings) => {
+                let configured = self.configure(settings);
+                Self::acted(configured, reply);
+            }
+            Received::Ignored => {
                 self.stats.ignored = self.stats.ignored.saturating_add(1);
                 *reply = Reply::Nothing;
             }
-            Message::Sample(s) => match self.cal.as_mut() {
-                Some(cal) => Self::sample(cal, s, log, reply),
+            Received::Sample(s) => match self.cal.as_mut() {
+                Some(cal) => Self::sample(cal, &s, log, reply),
                 None => {
                     self.stats.unconfigured = self.stats.unconfigured.saturating_add(1);
                     *reply = Reply::Error(SessionError::NotConfigured);
                 }
             },
-            Message::EstimateRequest => self.act_request(Request::Estimate, log, reply),
-            Message::Finish => self.act_request(Request::Finish, log, reply),
-            Message::CheckpointRequest => self.act_request(Request::Checkpoint, log, reply),
-            Message::Reset => self.act_request(Request::Reset, log, reply),
-            // The log follows the calibrator's count of what it logged
-            // (Calibrator::push_logged): kept across a restore when it
-            // still holds those records, emptied after a reset.
-            Message::Checkpoint(cp) => {
-                *reply = match self.cal.as_mut() {
-                    Some(cal) => match cal.restore(cp) {
-                        Ok(()) => Reply::Nothing,
-                        Err(e) => Reply::Error(SessionError::Calibrator(e)),
-                    },
-                    None => Reply::Error(SessionError::NotConfigured),
-                }
-            }
+            Received::Request(request) => self.act_request(request, log, reply),
+        }
+    }
+
+    /// A restore from `cp`. The log follows the calibrator's count of what
+    /// it logged (Calibrator::push_logged): kept across a restore when it
+    /// still holds those records, emptied after a reset.
+    fn restore(&mut self, cp: &Checkpoint) -> Result<(), SessionError> {
+        match self.cal.as_mut() {
+            Some(cal) => cal.restore(cp).map_err(SessionError::Calibrator),
+            None => Err(SessionError::NotConfigured),
+        }
+    }
+
+    /// `reply` becomes what an action without a message to send answers.
+    fn acted(result: Result<(), SessionError>, reply: &mut Reply) {
+        *reply = match result {
+            Ok(()) => Reply::Nothing,
+            Err(e) => Reply::Error(e),
         }
     }
 
@@ -161,7 +227,7 @@ impl<T: RealField + Copy> Session<T> {
         };
         match request {
             Request::Estimate => Self::estimate(cal, reply),
-            Request::Finish => Self::finish(cal, &mut self.scratch, log, &self.passes, reply),
+            Request::Finish => Self::finish(cal, log, &self.passes, reply),
             Request::Checkpoint => Self::checkpoint(cal, reply),
             Request::Reset => {
                 *reply = match cal.reset() {
@@ -189,15 +255,22 @@ impl<T: RealField + Copy> Session<T> {
         }
     }
 
+    /// The final passes in the calibrator's own filter, the running one
+    /// kept meanwhile in the reply slot as a checkpoint
+    /// ([`AnyCalibrator::finish_in_place`]): the session holds one filter.
     #[inline(never)]
     fn finish(
-        cal: &AnyCalibrator<T>,
-        scratch: &mut Option<AnyFilter<T>>,
+        cal: &mut AnyCalibrator<T>,
         log: &mut (dyn SampleLog<T> + '_),
         passes: &EstimatorOptions,
         reply: &mut Reply,
     ) {
-        Self::send_estimate(cal.finish(scratch, log, passes, &mut |_, _| {}), reply);
+        let estimate = match checkpoint_slot(reply) {
+            Some(saved) => cal.finish_in_place(saved, log, passes, &mut |_, _| {}),
+            // Not reached: `checkpoint_slot` has just made the slot one.
+            None => cal.estimate(),
+        };
+        Self::send_estimate(estimate, reply);
     }
 
     // Out of line: the estimate (≈ 0.5 KB) is not in `act_request`'s frame,
@@ -225,17 +298,56 @@ impl<T: RealField + Copy> Session<T> {
     /// frame on the M7, issue 43).
     #[inline(never)]
     fn checkpoint(cal: &AnyCalibrator<T>, reply: &mut Reply) {
-        if !matches!(reply, Reply::Send(_)) {
-            *reply = Reply::Send(Message::Finish);
+        if let Some(cp) = checkpoint_slot(reply) {
+            cal.checkpoint_into(cp);
         }
-        if let Reply::Send(msg) = reply {
+    }
+}
+
+/// The reply slot made a checkpoint message (unless it holds one: what it
+/// holds is kept), in place: the checkpoint in it (`None` is not reached).
+fn checkpoint_slot(reply: &mut Reply) -> Option<&mut Checkpoint> {
+    if !matches!(reply, Reply::Send(_)) {
+        *reply = Reply::Send(Message::Finish);
+    }
+    match reply {
+        Reply::Send(msg) => {
             if !matches!(msg, Message::Checkpoint(_)) {
                 empty_checkpoint(msg);
             }
-            if let Message::Checkpoint(cp) = msg {
-                cal.checkpoint_into(cp);
+            match msg {
+                Message::Checkpoint(cp) => Some(cp),
+                _ => None,
             }
         }
+        _ => None,
+    }
+}
+
+/// A received message other than a checkpoint, copied out of its slot (a
+/// few hundred bytes at most, where a message is a checkpoint's size), so
+/// that the slot can take the reply.
+enum Received {
+    Configure(CalibratorConfig),
+    Sample(Sample),
+    Request(Request),
+    /// `Estimate`, `Refused`: a calibrator's own output.
+    Ignored,
+}
+
+impl Received {
+    /// `msg` copied, `None` for a checkpoint (read where it is).
+    fn of(msg: &Message) -> Option<Self> {
+        Some(match msg {
+            Message::Configure(settings) => Received::Configure(*settings),
+            Message::Sample(s) => Received::Sample(*s),
+            Message::Estimate(_) | Message::Refused(_) => Received::Ignored,
+            Message::EstimateRequest => Received::Request(Request::Estimate),
+            Message::Finish => Received::Request(Request::Finish),
+            Message::CheckpointRequest => Received::Request(Request::Checkpoint),
+            Message::Reset => Received::Request(Request::Reset),
+            Message::Checkpoint(_) => return None,
+        })
     }
 }
 

@@ -7,7 +7,7 @@
 //! | `Configure` | a new calibrator of the named configuration, from the prior (its first sample empties the log) | — |
 //! | `Sample` | one period ([`Calibrator::push_logged`](crate::calibrator::Calibrator::push_logged)) | an `Estimate` at the configured cadence |
 //! | `EstimateRequest` | — | the running `Estimate` |
-//! | `Finish` | the final passes over the log ([`Calibrator::finish_in`](crate::calibrator::Calibrator::finish_in), in the session's filter) | the final `Estimate` |
+//! | `Finish` | the final passes over the log in the calibrator's own filter, the running filter kept meanwhile in the reply slot and put back after ([`Calibrator::finish_in_place`](crate::calibrator::Calibrator::finish_in_place)): the calibrator is as it was, more samples may follow | the final `Estimate` |
 //! | `CheckpointRequest` | — | a `Checkpoint` |
 //! | `Checkpoint` | restore from it; the log is taken back to the records it counted (a log that survived a device reset continues) | — |
 //! | `Reset` | restart from the prior (its first sample empties the log) | — |
@@ -226,10 +226,6 @@ pub struct SessionStats {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Session<T: RealField + Copy> {
     cal: Option<AnyCalibrator<T>>,
-    /// The filter `Finish` runs its passes in ([`AnyCalibrator::finish`]):
-    /// the last `Finish`'s final filter, part of the session's state (and
-    /// of its `==`).
-    scratch: Option<AnyFilter<T>>,
     expected: Option<ConfigId>,
     passes: EstimatorOptions,
     stats: SessionStats,
@@ -242,7 +238,6 @@ impl<T: RealField + Copy> Session<T> {
     pub fn new(expected: Option<ConfigId>, passes: EstimatorOptions) -> Self {
         Self {
             cal: None,
-            scratch: None,
             expected,
             passes,
             stats: SessionStats::default(),
@@ -267,7 +262,6 @@ impl<T: RealField + Copy> Session<T> {
         // SAFETY: the caller's; each field of `*p` is written once.
         unsafe {
             addr_of_mut!((*p).cal).write(None);
-            addr_of_mut!((*p).scratch).write(None);
             addr_of_mut!((*p).expected).write(expected);
             addr_of_mut!((*p).passes).write(passes);
             addr_of_mut!((*p).stats).write(SessionStats::default());
@@ -275,12 +269,11 @@ impl<T: RealField + Copy> Session<T> {
     }
 
     /// Back to [`Session::new`]`(expected, passes)`, in place: the
-    /// calibrator and the last `Finish`'s filter dropped, the counters
+    /// calibrator dropped, the counters
     /// cleared (no session-sized value on the stack, as an assignment of
     /// a new session may make).
     pub fn clear(&mut self, expected: Option<ConfigId>, passes: EstimatorOptions) {
         self.cal = None;
-        self.scratch = None;
         self.expected = expected;
         self.passes = passes;
         self.stats = SessionStats::default();

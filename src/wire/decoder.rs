@@ -165,9 +165,17 @@ impl<const CAP: usize> Decoder<CAP> {
         self.push_byte_with(byte, |frame| decode_frame_into(frame, msg))
     }
 
+    /// The buffer, when it holds no part of a frame that may still decode
+    /// (between frames, or in a frame already too long): the integration
+    /// kit encodes its replies and flash records there. What is written is
+    /// overwritten by the next frame's bytes.
+    pub(crate) fn spare_buffer(&mut self) -> Option<&mut [u8; CAP]> {
+        (self.len == 0 || self.overflow).then_some(&mut self.buf)
+    }
+
     /// Accepts one byte; at a delimiter decodes the frame with `decode`
     /// and counts the outcome.
-    fn push_byte_with<R>(
+    pub(crate) fn push_byte_with<R>(
         &mut self,
         byte: u8,
         decode: impl FnOnce(&mut [u8]) -> Result<R, FrameError>,

@@ -10,7 +10,7 @@
 //! final `0x01` after a full 254-byte block at the end of the data).
 
 use super::crc::Crc;
-use super::{EncodeError, Message, VERSION};
+use super::{EncodeError, Message, Refusal, VERSION};
 
 /// A postcard flavor that CRCs and COBS-encodes on the fly into a slice.
 struct FrameWriter<'a> {
@@ -115,11 +115,60 @@ impl postcard::ser_flavors::Flavor for FrameWriter<'_> {
 /// assert_eq!(encode(&Message::Reset, &mut buf[..4]), Err(EncodeError::BufferTooSmall));
 /// ```
 pub fn encode(msg: &Message, out: &mut [u8]) -> Result<usize, EncodeError> {
+    encode_value(msg, out)
+}
+
+/// [`encode`] of `Message::Refused(*refusal)`, without a message-sized
+/// value (a message is a checkpoint's size, 13.0 KB with the full model):
+/// the same bytes. For the integration kit, whose one message slot then
+/// keeps the session's reply ([`crate::device::Device::reply`]).
+pub(crate) fn encode_refusal(refusal: &Refusal, out: &mut [u8]) -> Result<usize, EncodeError> {
+    /// `Message::Refused(..)` as serde sees it (a newtype variant).
+    struct AsRefused<'a>(&'a Refusal);
+    impl serde::Serialize for AsRefused<'_> {
+        fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+            s.serialize_newtype_variant("Message", REFUSED_VARIANT, "Refused", self.0)
+        }
+    }
+    encode_value(&AsRefused(refusal), out)
+}
+
+/// The index of `Message::Refused` among the variants of [`Message`] (its
+/// tag, [`Message::tag`]): what postcard writes first.
+const REFUSED_VARIANT: u32 = 8;
+
+/// One frame of `value`'s postcard bytes.
+fn encode_value<V: serde::Serialize + ?Sized>(
+    value: &V,
+    out: &mut [u8],
+) -> Result<usize, EncodeError> {
     if out.is_empty() {
         return Err(EncodeError::BufferTooSmall);
     }
-    postcard::serialize_with_flavor(msg, FrameWriter::new(out)).map_err(|e| match e {
+    postcard::serialize_with_flavor(value, FrameWriter::new(out)).map_err(|e| match e {
         postcard::Error::SerializeBufferFull => EncodeError::BufferTooSmall,
         _ => EncodeError::Serialize,
     })
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::{encode, encode_refusal, REFUSED_VARIANT};
+    use crate::wire::{Message, Refusal, RefusalReason, MAX_FRAME_LEN};
+
+    /// `encode_refusal` writes the bytes of `encode(&Message::Refused(..))`.
+    #[test]
+    fn a_refusal_encodes_as_its_message() {
+        let r = Refusal {
+            message: 7,
+            reason: RefusalReason::NotConfigured,
+        };
+        let m = Message::Refused(r);
+        assert_eq!(u32::from(m.tag()), REFUSED_VARIANT);
+        let (mut a, mut b) = ([0u8; MAX_FRAME_LEN], [0u8; MAX_FRAME_LEN]);
+        let n = encode(&m, &mut a).unwrap();
+        assert_eq!(encode_refusal(&r, &mut b).unwrap(), n);
+        assert_eq!(a[..n], b[..n]);
+    }
 }

@@ -62,6 +62,7 @@ pub use crc::crc32;
 pub use decode::{decode_frame, decode_frame_into};
 pub use decoder::{Decoder, DecoderStats, FrameDecoder};
 pub use encode::encode;
+pub(crate) use encode::encode_refusal;
 pub use error::{EncodeError, FrameError};
 pub use field::{ConfigField, FieldBounds};
 pub use messages::{

@@ -80,16 +80,17 @@ fn the_session_checkpoints_resets_restores_and_finishes_as_if_uninterrupted() {
     );
 }
 
-/// `Finish` runs its passes in the session's own filter
-/// (`AnyCalibrator::finish`, which a firmware keeps in static memory): the
-/// answer is the calibrator's own `finish` on a first `Finish`, on a
-/// repeated one (the filter then holds the last pass's end), and after the
-/// session ran another configuration (its filter then of another kind).
-// Needs both configurations it switches between (the no-default-features
-// build of .ci/run has M2-ps alone).
+/// `Finish` runs its passes in the calibrator's own filter, the running
+/// filter kept meanwhile in the reply slot and put back after
+/// (`AnyCalibrator::finish_in_place`: a firmware's session holds one
+/// filter): the answer is the calibrator's own `finish`, on a first and on
+/// a repeated `Finish`, the calibrator is bit for bit what it was, and
+/// samples after a `Finish` run on as if there had been none.
+// Needs both configurations (the no-default-features build of .ci/run has
+// M2-ps alone).
 #[cfg(all(feature = "m1-pa", feature = "m2-ps"))]
 #[test]
-fn the_sessions_finish_is_the_calibrators_whatever_its_filter_held() {
+fn the_sessions_finish_is_the_calibrators_and_leaves_it_as_it_was() {
     use rollcal::estimator::{EstimatorOptions, LogRecord, SliceLog};
     use rollcal::session::{AnyCalibrator, Reply, Session};
     use rollcal::wire::{Estimate, EstimateKind};
@@ -99,29 +100,75 @@ fn the_sessions_finish_is_the_calibrators_whatever_its_filter_held() {
     let mut session = Session::<f64>::new(None, opts);
     let same = |a: &Estimate, b: &Estimate| {
         assert!(matches!(a.kind, EstimateKind::Final { .. }), "{:?}", a.kind);
-        assert_eq!(a.kind, b.kind);
-        assert_eq!(a.state, b.state);
-        assert_eq!(a.sigma, b.sigma);
-        assert_eq!(a.updates, b.updates);
+        assert_eq!(a, b);
     };
-    for id in [ConfigId::M2Ps, ConfigId::M1Pa, ConfigId::M2Ps] {
+    let own = |cal: Option<&AnyCalibrator<f64>>, log: &mut SliceLog<'_, f64>| match cal {
+        Some(AnyCalibrator::M2Ps(c)) => c.finish(log, &opts, |_| {}).0,
+        Some(AnyCalibrator::M1Pa(c)) => c.finish(log, &opts, |_| {}).0,
+        #[cfg(feature = "full-model")]
+        Some(AnyCalibrator::M2PsFull(c)) => c.finish(log, &opts, |_| {}).0,
+        other => panic!("{other:?}"),
+    };
+    // The full model with errors that wander too: its predictions move
+    // the wandering states' rows of the factor.
+    let deg_h = core::f64::consts::PI / 180.0 / 3600.0;
+    let wandering = rollcal::models::Wander {
+        gyro_markov_sigma: 0.003 * deg_h,
+        gyro_markov_tau_s: 600.0,
+        gyro_random_walk: 0.002 * deg_h / 60.0,
+        accel_markov_sigma: 2e-6,
+        accel_markov_tau_s: 900.0,
+        accel_random_walk: 1e-6 / 60.0,
+        gyro_warmup_sigma: 0.005 * deg_h,
+        accel_warmup_sigma: 3e-6,
+        warmup_tau_s: 1200.0,
+    };
+    let mut runs = vec![
+        settings(&sc, ConfigId::M2Ps, 0),
+        settings(&sc, ConfigId::M1Pa, 0),
+    ];
+    if cfg!(feature = "full-model") {
+        runs.push(rollcal::wire::CalibratorConfig {
+            errors: rollcal::models::ErrorModel::Full,
+            wander: wandering,
+            ..settings(&sc, ConfigId::M2Ps, 0)
+        });
+    }
+    let (early, late) = data.split_at(150);
+    for run in runs {
+        // The same run without any `Finish` until the end.
         let mut storage = vec![blank; data.len()];
         let mut log = SliceLog::new(&mut storage);
-        let configure = Message::Configure(settings(&sc, id, 0));
-        assert_eq!(session.handle(&configure, &mut log), Reply::Nothing);
+        let mut plain = Session::<f64>::new(None, opts);
+        let configure = Message::Configure(run);
+        assert_eq!(plain.handle(&configure, &mut log), Reply::Nothing);
         for s in &data {
+            plain.handle(&Message::Sample(*s), &mut log);
+        }
+        let end = own(plain.calibrator(), &mut log);
+
+        let mut storage = vec![blank; data.len()];
+        let mut log = SliceLog::new(&mut storage);
+        assert_eq!(session.handle(&configure, &mut log), Reply::Nothing);
+        for s in early {
             session.handle(&Message::Sample(*s), &mut log);
         }
-        let own = match session.calibrator() {
-            Some(AnyCalibrator::M2Ps(c)) => c.finish(&mut log, &opts, |_| {}).0,
-            Some(AnyCalibrator::M1Pa(c)) => c.finish(&mut log, &opts, |_| {}).0,
-            other => panic!("{other:?}"),
-        };
+        let before = session.calibrator().cloned();
+        let expected = own(before.as_ref(), &mut log);
         for _ in 0..2 {
             match session.handle(&Message::Finish, &mut log) {
-                Reply::Send(Message::Estimate(e)) => same(&e, &own),
+                Reply::Send(Message::Estimate(e)) => same(&e, &expected),
                 other => panic!("{other:?}"),
             }
+            assert_eq!(session.calibrator(), before.as_ref());
+        }
+        for s in late {
+            session.handle(&Message::Sample(*s), &mut log);
+        }
+        assert_eq!(session.calibrator(), plain.calibrator());
+        match session.handle(&Message::Finish, &mut log) {
+            Reply::Send(Message::Estimate(e)) => same(&e, &end),
+            other => panic!("{other:?}"),
         }
     }
 }
