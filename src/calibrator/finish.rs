@@ -5,9 +5,23 @@ use nalgebra::RealField;
 
 use super::{to_f64, Calibrator};
 use crate::ekf::Filter;
+use crate::ekf::FilterConfig;
 use crate::estimator::{self, EstimatorOptions, LogStart, PassEvent, PassStart, SampleLog};
 use crate::models::Model;
 use crate::wire::{CalibratorConfig, Checkpoint, Estimate, EstimateKind, SinglePassReason};
+
+/// What [`Calibrator::finish_passes`] did, for
+/// [`Calibrator::finish_answer`].
+pub(crate) enum Passed<T: RealField + Copy> {
+    /// The passes could not run (the filter was not touched).
+    NotRun(SinglePassReason),
+    /// They ran in the calibrator's filter: the answer's kind (`None`: a
+    /// pass failed) and the running filter's settings.
+    Ran {
+        kind: Option<EstimateKind>,
+        running: FilterConfig<T>,
+    },
+}
 
 impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize>
     Calibrator<T, M, N, Z>
@@ -141,8 +155,6 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     /// assert_eq!(cal, before);
     /// # Ok::<(), rollcal::calibrator::Error>(())
     /// ```
-    // Not inlined: the session dispatches to seven of these (firmware stack).
-    #[inline(never)]
     pub fn finish_in_place<F>(
         &mut self,
         saved: &mut Checkpoint,
@@ -153,16 +165,52 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     where
         F: FnMut(&PassEvent<'_, T, M, N, Z>),
     {
+        let passed = self.finish_passes(saved, log, passes, observer);
+        self.finish_answer(passed, saved)
+    }
+
+    /// The first half of [`Calibrator::finish_in_place`]: the passes in the
+    /// calibrator's filter, the running one saved into `saved`.
+    /// [`Calibrator::finish_answer`] must follow, with `saved` as this left
+    /// it. In two halves so that a caller whose return slot for the
+    /// estimate would be on the stack under the passes (the session's) can
+    /// build it after them.
+    // Not inlined: the session dispatches to seven of these (firmware stack).
+    #[inline(never)]
+    pub(crate) fn finish_passes<F>(
+        &mut self,
+        saved: &mut Checkpoint,
+        log: &mut (dyn SampleLog<T> + '_),
+        passes: &EstimatorOptions,
+        observer: F,
+    ) -> Passed<T>
+    where
+        F: FnMut(&PassEvent<'_, T, M, N, Z>),
+    {
         let at = match self.final_start(log) {
             Ok(at) => at,
-            Err(r) => return self.single_pass(r),
+            Err(r) => return Passed::NotRun(r),
         };
         self.checkpoint_into(saved);
         let running = *self.filter.config();
         let kind = Self::passes_in(&mut self.filter, &self.settings, at, log, passes, observer);
+        Passed::Ran { kind, running }
+    }
+
+    /// The second half of [`Calibrator::finish_in_place`]: the answer of
+    /// the passes, and the running filter put back from `saved`.
+    // Not inlined: the estimate is in this frame only, not in one below
+    // which the passes run (firmware stack).
+    #[inline(never)]
+    pub(crate) fn finish_answer(&mut self, passed: Passed<T>, saved: &Checkpoint) -> Estimate {
+        let (kind, running) = match passed {
+            Passed::NotRun(reason) => return self.single_pass(reason),
+            Passed::Ran { kind, running } => (kind, running),
+        };
         let estimate = kind.map(|kind| self.estimate_of(&self.filter, kind));
         if self.put_back(running, saved).is_err() {
-            // Not reached (see the doc); never continue from the final filter.
+            // Not reached (see `finish_in_place`); never continue from the
+            // final filter.
             let _ = self.reset();
         }
         estimate.unwrap_or_else(|| self.single_pass(SinglePassReason::Estimator))
@@ -171,6 +219,9 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     /// Where the passes of [`Calibrator::finish_in`] start over `log`, or
     /// why they cannot run (a log that does not hold what was pushed,
     /// truncated first to what the calibrator counted when it holds more).
+    /// Out of line: the walk back along the log is not in the frame below
+    /// which the passes run.
+    #[inline(never)]
     fn final_start(&self, log: &mut (dyn SampleLog<T> + '_)) -> Result<LogStart, SinglePassReason> {
         let logged = self.progress.logged;
         if log.len() > logged as usize && self.progress.log_incomplete.is_none() {
@@ -187,7 +238,9 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     }
 
     /// The estimator of record in `filter` from the prior of `settings`
-    /// at `at`: the final answer's kind, `None` when a pass failed.
+    /// at `at`: the final answer's kind, `None` when a pass failed. Out of
+    /// line: the prior's vectors are in this frame, not in the callers'.
+    #[inline(never)]
     fn passes_in<F>(
         filter: &mut Filter<T, M, N, Z>,
         settings: &CalibratorConfig,
@@ -226,7 +279,10 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     }
 
     /// The running estimate as the final answer when the passes cannot
-    /// run: [`EstimateKind::SinglePass`] with `reason`.
+    /// run: [`EstimateKind::SinglePass`] with `reason`. Out of line: its
+    /// estimate is written into the caller's return slot, not built in a
+    /// frame below which the passes run (firmware stack).
+    #[inline(never)]
     pub(crate) fn single_pass(&self, reason: SinglePassReason) -> Estimate {
         let logged = self.progress.logged;
         self.estimate_of(&self.filter, EstimateKind::SinglePass { reason, logged })

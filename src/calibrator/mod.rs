@@ -70,6 +70,7 @@ use crate::models::Model;
 use crate::wire::{CalibratorConfig, Progress};
 
 pub use error::Error;
+pub(crate) use finish::Passed;
 pub use gaps::MAX_UNKNOWN_GAP_PERIODS;
 pub use validate::RejectReason;
 

@@ -6,7 +6,7 @@
 use nalgebra::RealField;
 
 use super::{AnyCalibrator, AnyFilter};
-use crate::calibrator::Calibrator;
+use crate::calibrator::{Calibrator, Passed};
 use crate::ekf::Filter;
 use crate::estimator::{EstimatorOptions, SampleLog};
 use crate::models::Model;
@@ -28,12 +28,31 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
         passes: &EstimatorOptions,
         on_update: &mut dyn FnMut(u8, Option<T>),
     ) -> Estimate {
-        each!(self, c => c.finish_in_place(saved, log, passes, |e| {
+        let passed = self.finish_passes(saved, log, passes, on_update);
+        self.finish_answer(passed, saved)
+    }
+
+    /// [`Calibrator::finish_passes`]: the first half of
+    /// [`AnyCalibrator::finish_in_place`].
+    pub(crate) fn finish_passes(
+        &mut self,
+        saved: &mut Checkpoint,
+        log: &mut (dyn SampleLog<T> + '_),
+        passes: &EstimatorOptions,
+        on_update: &mut dyn FnMut(u8, Option<T>),
+    ) -> Passed<T> {
+        each!(self, c => c.finish_passes(saved, log, passes, |e| {
             on_update(
                 e.pass,
                 e.result.as_ref().ok().and_then(|r| r.map(|i| i.nis)),
             );
         }))
+    }
+
+    /// [`Calibrator::finish_answer`]: the second half of
+    /// [`AnyCalibrator::finish_in_place`].
+    pub(crate) fn finish_answer(&mut self, passed: Passed<T>, saved: &Checkpoint) -> Estimate {
+        each!(self, c => c.finish_answer(passed, saved))
     }
 
     /// [`Calibrator::finish_in`] (the final answer) in the filter held by

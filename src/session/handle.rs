@@ -4,6 +4,7 @@
 use nalgebra::RealField;
 
 use super::{AnyCalibrator, Reply, Request, Session, SessionError};
+use crate::calibrator::Passed;
 use crate::estimator::{EstimatorOptions, SampleLog};
 use crate::wire::{CalibratorConfig, Checkpoint, Estimate, Message, Sample};
 
@@ -258,6 +259,9 @@ impl<T: RealField + Copy> Session<T> {
     /// The final passes in the calibrator's own filter, the running one
     /// kept meanwhile in the reply slot as a checkpoint
     /// ([`AnyCalibrator::finish_in_place`]): the session holds one filter.
+    /// In two halves ([`AnyCalibrator::finish_passes`], then
+    /// [`Session::send_answer`]) so that no estimate is in a frame below
+    /// which the passes run (firmware stack).
     #[inline(never)]
     fn finish(
         cal: &mut AnyCalibrator<T>,
@@ -265,10 +269,22 @@ impl<T: RealField + Copy> Session<T> {
         passes: &EstimatorOptions,
         reply: &mut Reply,
     ) {
-        let estimate = match checkpoint_slot(reply) {
-            Some(saved) => cal.finish_in_place(saved, log, passes, &mut |_, _| {}),
+        let Some(saved) = checkpoint_slot(reply) else {
             // Not reached: `checkpoint_slot` has just made the slot one.
-            None => cal.estimate(),
+            return Self::estimate(cal, reply);
+        };
+        let passed = cal.finish_passes(saved, log, passes, &mut |_, _| {});
+        Self::send_answer(cal, passed, reply);
+    }
+
+    /// The answer of the passes into `reply`, once the running filter is
+    /// put back from the checkpoint the slot holds.
+    #[inline(never)]
+    fn send_answer(cal: &mut AnyCalibrator<T>, passed: Passed<T>, reply: &mut Reply) {
+        let estimate = match reply {
+            Reply::Send(Message::Checkpoint(saved)) => cal.finish_answer(passed, saved),
+            // Not reached: the slot holds the checkpoint `finish` saved.
+            _ => cal.estimate(),
         };
         Self::send_estimate(estimate, reply);
     }
