@@ -213,18 +213,19 @@ done
 echo
 echo "## Instructions per period, synthetic motion (200 periods, Filter::step, noise ×1000)"
 # Goals of the linearised period: the installation model's (M2-ps ≤ 100 k
-# on the M4F, 120 k on the M7, M1-pa ≤ 40 k) and the full model's
-# (issue 32: M2-ps ≤ 250 k / 150 k, M1-pa ≤ 150 k / 90 k); pass 1 (the
-# default options) ≤ 2× the linearised period.
+# on the M4F, 120 k on the M7, M1-pa ≤ 40 k) and the full model's with
+# the errors that wander (issue 43: M2-ps ≤ 260 k / 200 k, M1-pa ≤ 140 k /
+# 110 k; issue 32's for the 39-state model were 250 k / 150 k and 150 k /
+# 90 k); pass 1 (the default options) ≤ 2× the linearised period.
 linearised_limit() {
     case "$1-$2-$3" in
         m4f-M2-ps-installation) echo 100000 ;;
         m7-M2-ps-installation) echo 120000 ;;
         *-M1-pa-installation) echo 40000 ;;
-        m4f-M2-ps-full) echo 250000 ;;
-        m7-M2-ps-full) echo 150000 ;;
-        m4f-M1-pa-full) echo 150000 ;;
-        m7-M1-pa-full) echo 90000 ;;
+        m4f-M2-ps-full) echo 260000 ;;
+        m7-M2-ps-full) echo 200000 ;;
+        m4f-M1-pa-full) echo 140000 ;;
+        m7-M1-pa-full) echo 110000 ;;
     esac
 }
 for errors in installation full; do
