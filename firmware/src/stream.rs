@@ -166,7 +166,7 @@ pub fn run(args: &Args) -> Totals {
             defmt::warn!("flash: {}", device.stats().last_flash_error);
         }
         if device.last_tag() == Some(0) && totals.samples == args.checkpoint_at {
-            selftest::checkpoint(device, &mut uart, &mut tx);
+            selftest::checkpoint(device);
         }
         if device.last_tag() == Some(0) && totals.samples == args.reset_at {
             selftest::reset(device);
@@ -298,7 +298,7 @@ mod selftest {
     use rollcal::device::Device;
     use rollcal::wire::{encode, Message, MAX_FRAME_LEN};
 
-    use super::{Real, Ssram, Uart};
+    use super::{Real, Ssram};
 
     static mut FRAME: MaybeUninit<[u8; MAX_FRAME_LEN]> = MaybeUninit::uninit();
     static TAKEN: AtomicBool = AtomicBool::new(false);
@@ -336,7 +336,7 @@ mod selftest {
     /// `CheckpointRequest` (its reply kept), `Reset`, the checkpoint back:
     /// the bytes a host sends, through the device. Nothing is sent back.
     #[inline(never)]
-    pub fn checkpoint(device: &mut Device<Ssram, Real>, _uart: &mut Uart, _tx: &mut Option<Uart>) {
+    pub fn checkpoint(device: &mut Device<Ssram, Real>) {
         let Some(kept) = frame() else {
             defmt::error!("selftest: the checkpoint buffer is in use");
             return;
@@ -374,9 +374,9 @@ mod selftest {
 mod selftest {
     use rollcal::device::Device;
 
-    use super::{Real, Ssram, Uart};
+    use super::{Real, Ssram};
 
-    pub fn checkpoint(_: &mut Device<Ssram, Real>, _: &mut Uart, _: &mut Option<Uart>) {
+    pub fn checkpoint(_: &mut Device<Ssram, Real>) {
         defmt::error!("selftest: checkpoint-at needs the feature `selftest`");
     }
 
