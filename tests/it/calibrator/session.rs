@@ -261,9 +261,10 @@ fn configure_builds_in_place_the_new_calibrator_whatever_the_slot_held() {
     assert_eq!(*again, M2PsFilter::<f64>::new(fcfg, x0, sigma0).unwrap());
 }
 
-/// `Session::handle_into` and `request_into` (a reply slot the caller owns,
-/// the firmware's way) are `handle` and `request`: the same replies, the
-/// same session after each message, whatever the slot held before (it
+/// `Session::handle_into` and `request_into` (a reply slot the caller owns)
+/// and `handle_in_place` (one slot for the message and its reply, the
+/// integration kit's way) are `handle` and `request`: the same replies,
+/// the same session after each message, whatever the slot held before (it
 /// starts with a stale checkpoint, then keeps the last reply); and the
 /// errors among them are counted.
 #[test]
@@ -273,11 +274,19 @@ fn replies_into_a_slot_are_the_replies() {
     let (sc, data) = samples(40);
     let cfg = settings(&sc, ConfigId::M1Pa, 10);
     let blank = LogRecord::predicted(1.0, nalgebra::Vector3::zeros());
-    let mut storage = [vec![blank; 40], vec![blank; 40]];
-    let [a_storage, b_storage] = &mut storage;
+    let mut storage = [vec![blank; 40], vec![blank; 40], vec![blank; 40]];
+    let [a_storage, b_storage, c_storage] = &mut storage;
     let (mut a_log, mut b_log) = (SliceLog::new(a_storage), SliceLog::new(b_storage));
+    let mut c_log = SliceLog::new(c_storage);
     let mut a = Session::<f64>::new(None, EstimatorOptions::default());
     let mut b = Session::<f64>::new(None, EstimatorOptions::default());
+    let mut c = Session::<f64>::new(None, EstimatorOptions::default());
+    // The message in the slot, the reply out of it.
+    let mut in_place = |c: &mut Session<f64>, msg: &Message| {
+        let mut one = Reply::Send(msg.clone());
+        c.handle_in_place(&mut one, &mut c_log);
+        one
+    };
     let mut stale = M1PaCalibrator::<f64>::new(cfg).unwrap();
     for s in &data[..3] {
         let _ = stale.push(s);
@@ -296,6 +305,8 @@ fn replies_into_a_slot_are_the_replies() {
         b.handle_into(msg, &mut b_log, &mut slot);
         assert_eq!(slot, want, "message {k}");
         assert_eq!(a.stats(), b.stats(), "message {k}");
+        assert_eq!(in_place(&mut c, msg), want, "message {k}");
+        assert_eq!(a.stats(), c.stats(), "message {k}");
         kinds.insert(format!("{:?}", std::mem::discriminant(&want)));
         errors += u32::from(matches!(want, Reply::Error(_)));
     }
@@ -304,16 +315,20 @@ fn replies_into_a_slot_are_the_replies() {
     };
     for s in &data[20..] {
         let msg = Message::Sample(*s);
-        assert_eq!(a.handle(&msg, &mut a_log), {
+        let want = a.handle(&msg, &mut a_log);
+        assert_eq!(want, {
             b.handle_into(&msg, &mut b_log, &mut slot);
             slot.clone()
         });
+        assert_eq!(in_place(&mut c, &msg), want);
     }
     let restore = Message::Checkpoint(cp);
-    assert_eq!(a.handle(&restore, &mut a_log), {
+    let want = a.handle(&restore, &mut a_log);
+    assert_eq!(want, {
         b.handle_into(&restore, &mut b_log, &mut slot);
         slot.clone()
     });
+    assert_eq!(in_place(&mut c, &restore), want);
     for r in [
         Request::Estimate,
         Request::Finish,
@@ -323,11 +338,18 @@ fn replies_into_a_slot_are_the_replies() {
         let want = a.request(r, &mut a_log);
         b.request_into(r, &mut b_log, &mut slot);
         assert_eq!(slot, want, "{r:?}");
+        assert_eq!(in_place(&mut c, &r.message()), want, "{r:?}");
         kinds.insert(format!("{:?}", std::mem::discriminant(&want)));
         errors += u32::from(matches!(want, Reply::Error(_)));
     }
     assert_eq!(format!("{a:?}"), format!("{b:?}"));
     assert_eq!(a.stats(), b.stats());
+    assert_eq!(format!("{a:?}"), format!("{c:?}"));
+    // A slot that holds no message: nothing done, the slot emptied.
+    let mut empty = Reply::Rejected(rollcal::calibrator::RejectReason::NonFinite);
+    c.handle_in_place(&mut empty, &mut c_log);
+    assert_eq!(empty, Reply::Nothing);
+    assert_eq!(format!("{a:?}"), format!("{c:?}"));
     // Nothing, Send and Error replies were all compared, and every error
     // was counted.
     assert_eq!(kinds.len(), 3, "{kinds:?}");
