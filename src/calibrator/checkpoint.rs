@@ -103,15 +103,12 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     }
 
     /// The filter put back from `saved`, its own checkpoint
-    /// ([`Calibrator::finish_in_place`]), with its own settings `config`:
-    /// the filter only (the bookkeeping, the log's start and the frame
-    /// errors are the calibrator's, which the passes do not touch).
-    pub(super) fn put_back(
-        &mut self,
-        config: FilterConfig<T>,
-        saved: &Checkpoint,
-    ) -> Result<(), Error> {
-        set_filter(&mut self.filter, config, saved)
+    /// ([`Calibrator::finish_in_place`]), with the calibrator's settings
+    /// (which its filter was built or restored with): the filter only (the
+    /// bookkeeping, the log's start and the frame errors are the
+    /// calibrator's, which the passes do not touch).
+    pub(super) fn put_back(&mut self, saved: &Checkpoint) -> Result<(), Error> {
+        set_filter(&mut self.filter, FilterConfig::from(&self.settings), saved)
     }
 }
 

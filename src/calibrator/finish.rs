@@ -5,22 +5,18 @@ use nalgebra::RealField;
 
 use super::{to_f64, Calibrator};
 use crate::ekf::Filter;
-use crate::ekf::FilterConfig;
 use crate::estimator::{self, EstimatorOptions, LogStart, PassEvent, PassStart, SampleLog};
 use crate::models::Model;
 use crate::wire::{CalibratorConfig, Checkpoint, Estimate, EstimateKind, SinglePassReason};
 
 /// What [`Calibrator::finish_passes`] did, for
 /// [`Calibrator::finish_answer`].
-pub(crate) enum Passed<T: RealField + Copy> {
+pub(crate) enum Passed {
     /// The passes could not run (the filter was not touched).
     NotRun(SinglePassReason),
     /// They ran in the calibrator's filter: the answer's kind (`None`: a
-    /// pass failed) and the running filter's settings.
-    Ran {
-        kind: Option<EstimateKind>,
-        running: FilterConfig<T>,
-    },
+    /// pass failed).
+    Ran(Option<EstimateKind>),
 }
 
 impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize>
@@ -183,7 +179,7 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
         log: &mut (dyn SampleLog<T> + '_),
         passes: &EstimatorOptions,
         observer: F,
-    ) -> Passed<T>
+    ) -> Passed
     where
         F: FnMut(&PassEvent<'_, T, M, N, Z>),
     {
@@ -192,9 +188,8 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
             Err(r) => return Passed::NotRun(r),
         };
         self.checkpoint_into(saved);
-        let running = *self.filter.config();
         let kind = Self::passes_in(&mut self.filter, &self.settings, at, log, passes, observer);
-        Passed::Ran { kind, running }
+        Passed::Ran(kind)
     }
 
     /// The second half of [`Calibrator::finish_in_place`]: the answer of
@@ -202,13 +197,13 @@ impl<T: RealField + Copy, M: Model<N, Z> + Clone, const N: usize, const Z: usize
     // Not inlined: the estimate is in this frame only, not in one below
     // which the passes run (firmware stack).
     #[inline(never)]
-    pub(crate) fn finish_answer(&mut self, passed: Passed<T>, saved: &Checkpoint) -> Estimate {
-        let (kind, running) = match passed {
+    pub(crate) fn finish_answer(&mut self, passed: Passed, saved: &Checkpoint) -> Estimate {
+        let kind = match passed {
             Passed::NotRun(reason) => return self.single_pass(reason),
-            Passed::Ran { kind, running } => (kind, running),
+            Passed::Ran(kind) => kind,
         };
         let estimate = kind.map(|kind| self.estimate_of(&self.filter, kind));
-        if self.put_back(running, saved).is_err() {
+        if self.put_back(saved).is_err() {
             // Not reached (see `finish_in_place`); never continue from the
             // final filter.
             let _ = self.reset();

@@ -105,7 +105,7 @@ pub use cell::DeviceCell;
 
 use crate::estimator::{EstimatorOptions, FlashLog, LogError, LogRecord, PackedLayout, SampleLog};
 use crate::models::{ConfigId, ErrorModel};
-use crate::session::{Reply, Request, Session, SessionError};
+use crate::session::{message_slot, Reply, Request, Session, SessionError};
 use crate::wire::{
     decode_frame_into, encode, encode_refusal, CalibratorConfig, Decoder, FrameError, Message,
     MAX_FRAME_LEN,
@@ -558,7 +558,7 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
             if frame.len() > MAX_FRAME_LEN {
                 return Err(FrameError::Oversized);
             }
-            match inbox(slot) {
+            match message_slot(slot) {
                 Some(msg) => decode_frame_into(frame, msg),
                 None => Err(FrameError::Malformed),
             }
@@ -812,7 +812,7 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
             return Err(RecordError::Busy);
         };
         let at = s.spare_start();
-        let msg = inbox(&mut self.slot).ok_or(RecordError::Encode)?;
+        let msg = message_slot(&mut self.slot).ok_or(RecordError::Encode)?;
         *msg = Message::Configure(settings);
         let config_len = encode(msg, out)
             .ok()
@@ -905,10 +905,8 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
             resume.refused = Some(ResumeRefusal::LogOfAnotherRun);
         }
         // The restore alone (what the session does with a `Checkpoint`).
-        let restored = match (&self.slot, self.session.calibrator_mut()) {
-            (Reply::Send(Message::Checkpoint(cp)), Some(c)) => {
-                c.restore(cp).map_err(SessionError::Calibrator)
-            }
+        let restored = match &self.slot {
+            Reply::Send(Message::Checkpoint(cp)) => self.session.restore(cp),
             _ => Err(SessionError::NotConfigured),
         };
         if let Err(e) = restored {
@@ -965,7 +963,7 @@ impl<F: NorFlash, T: RealField + Copy> Device<F, T> {
             .map_err(|_| ResumeRefusal::Frame(FrameError::Truncated))?;
         // The frame without its delimiter.
         let body = out.get_mut(..n - 1).unwrap_or(&mut []);
-        let msg = inbox(&mut self.slot).ok_or(ResumeRefusal::Unexpected)?;
+        let msg = message_slot(&mut self.slot).ok_or(ResumeRefusal::Unexpected)?;
         decode_frame_into(body, msg).map_err(ResumeRefusal::Frame)
     }
 }
@@ -1010,19 +1008,6 @@ impl RecordError {
             RecordError::Flash(e) => Some(e),
             _ => None,
         }
-    }
-}
-
-/// The message in `slot`, made `Reply::Send(..)` first unless it is (in
-/// two steps, as the session's checkpoint slot: no message-sized value
-/// built on the stack); `None` is not reached.
-fn inbox(slot: &mut Reply) -> Option<&mut Message> {
-    if !matches!(slot, Reply::Send(_)) {
-        *slot = Reply::Send(Message::Finish);
-    }
-    match slot {
-        Reply::Send(msg) => Some(msg),
-        _ => None,
     }
 }
 

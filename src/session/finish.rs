@@ -40,7 +40,7 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
         log: &mut (dyn SampleLog<T> + '_),
         passes: &EstimatorOptions,
         on_update: &mut dyn FnMut(u8, Option<T>),
-    ) -> Passed<T> {
+    ) -> Passed {
         each!(self, c => c.finish_passes(saved, log, passes, |e| {
             on_update(
                 e.pass,
@@ -51,7 +51,7 @@ impl<T: RealField + Copy> AnyCalibrator<T> {
 
     /// [`Calibrator::finish_answer`]: the second half of
     /// [`AnyCalibrator::finish_in_place`].
-    pub(crate) fn finish_answer(&mut self, passed: Passed<T>, saved: &Checkpoint) -> Estimate {
+    pub(crate) fn finish_answer(&mut self, passed: Passed, saved: &Checkpoint) -> Estimate {
         each!(self, c => c.finish_answer(passed, saved))
     }
 

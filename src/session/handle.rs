@@ -198,10 +198,11 @@ impl<T: RealField + Copy> Session<T> {
         }
     }
 
-    /// A restore from `cp`. The log follows the calibrator's count of what
-    /// it logged (Calibrator::push_logged): kept across a restore when it
-    /// still holds those records, emptied after a reset.
-    fn restore(&mut self, cp: &Checkpoint) -> Result<(), SessionError> {
+    /// A restore from `cp` (what a `Checkpoint` message does; also the
+    /// integration kit's resume). The log follows the calibrator's count of
+    /// what it logged (Calibrator::push_logged): kept across a restore when
+    /// it still holds those records, emptied after a reset.
+    pub(crate) fn restore(&mut self, cp: &Checkpoint) -> Result<(), SessionError> {
         match self.cal.as_mut() {
             Some(cal) => cal.restore(cp).map_err(SessionError::Calibrator),
             None => Err(SessionError::NotConfigured),
@@ -280,7 +281,7 @@ impl<T: RealField + Copy> Session<T> {
     /// The answer of the passes into `reply`, once the running filter is
     /// put back from the checkpoint the slot holds.
     #[inline(never)]
-    fn send_answer(cal: &mut AnyCalibrator<T>, passed: Passed<T>, reply: &mut Reply) {
+    fn send_answer(cal: &mut AnyCalibrator<T>, passed: Passed, reply: &mut Reply) {
         let estimate = match reply {
             Reply::Send(Message::Checkpoint(saved)) => cal.finish_answer(passed, saved),
             // Not reached: the slot holds the checkpoint `finish` saved.
@@ -320,22 +321,30 @@ impl<T: RealField + Copy> Session<T> {
     }
 }
 
+/// The message in `slot`, made `Reply::Send(..)` first unless it is (in
+/// two steps: a small message into the slot, then whatever the caller
+/// writes into it, so that no message-sized value is built on the stack);
+/// `None` is not reached. The session's checkpoint slot and the
+/// integration kit's one slot ([`crate::device`]) both go through it.
+pub(crate) fn message_slot(slot: &mut Reply) -> Option<&mut Message> {
+    if !matches!(slot, Reply::Send(_)) {
+        *slot = Reply::Send(Message::Finish);
+    }
+    match slot {
+        Reply::Send(msg) => Some(msg),
+        _ => None,
+    }
+}
+
 /// The reply slot made a checkpoint message (unless it holds one: what it
 /// holds is kept), in place: the checkpoint in it (`None` is not reached).
 fn checkpoint_slot(reply: &mut Reply) -> Option<&mut Checkpoint> {
-    if !matches!(reply, Reply::Send(_)) {
-        *reply = Reply::Send(Message::Finish);
+    let msg = message_slot(reply)?;
+    if !matches!(msg, Message::Checkpoint(_)) {
+        empty_checkpoint(msg);
     }
-    match reply {
-        Reply::Send(msg) => {
-            if !matches!(msg, Message::Checkpoint(_)) {
-                empty_checkpoint(msg);
-            }
-            match msg {
-                Message::Checkpoint(cp) => Some(cp),
-                _ => None,
-            }
-        }
+    match msg {
+        Message::Checkpoint(cp) => Some(cp),
         _ => None,
     }
 }

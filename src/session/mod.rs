@@ -66,6 +66,8 @@ mod covariance;
 mod finish;
 mod handle;
 
+pub(crate) use handle::message_slot;
+
 use nalgebra::RealField;
 
 use crate::calibrator::{self, RejectReason};

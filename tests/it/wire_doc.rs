@@ -445,18 +445,7 @@ fn configure_of(max: bool) -> Message {
         c.options.iterate_updates = u32::MAX;
         c.options.iterations = u8::MAX;
         // The realistic scenario's wandering errors (no zero byte).
-        let deg_h = 1f64.to_radians() / 3600.0;
-        c.wander = rollcal::models::Wander {
-            gyro_markov_sigma: 0.003 * deg_h,
-            gyro_markov_tau_s: 600.0,
-            gyro_random_walk: 0.002 * deg_h / 60.0,
-            accel_markov_sigma: 2e-6,
-            accel_markov_tau_s: 900.0,
-            accel_random_walk: 1e-6 / 60.0,
-            gyro_warmup_sigma: 0.005 * deg_h,
-            accel_warmup_sigma: 3e-6,
-            warmup_tau_s: 1200.0,
-        };
+        c.wander = crate::support::realistic_wander();
     } else {
         c.estimate_every = 0;
         c.limits.max_bridge = 0;

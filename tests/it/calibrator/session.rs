@@ -111,18 +111,6 @@ fn the_sessions_finish_is_the_calibrators_and_leaves_it_as_it_was() {
     };
     // The full model with errors that wander too: its predictions move
     // the wandering states' rows of the factor.
-    let deg_h = core::f64::consts::PI / 180.0 / 3600.0;
-    let wandering = rollcal::models::Wander {
-        gyro_markov_sigma: 0.003 * deg_h,
-        gyro_markov_tau_s: 600.0,
-        gyro_random_walk: 0.002 * deg_h / 60.0,
-        accel_markov_sigma: 2e-6,
-        accel_markov_tau_s: 900.0,
-        accel_random_walk: 1e-6 / 60.0,
-        gyro_warmup_sigma: 0.005 * deg_h,
-        accel_warmup_sigma: 3e-6,
-        warmup_tau_s: 1200.0,
-    };
     let mut runs = vec![
         settings(&sc, ConfigId::M2Ps, 0),
         settings(&sc, ConfigId::M1Pa, 0),
@@ -130,7 +118,7 @@ fn the_sessions_finish_is_the_calibrators_and_leaves_it_as_it_was() {
     if cfg!(feature = "full-model") {
         runs.push(rollcal::wire::CalibratorConfig {
             errors: rollcal::models::ErrorModel::Full,
-            wander: wandering,
+            wander: crate::support::realistic_wander(),
             ..settings(&sc, ConfigId::M2Ps, 0)
         });
     }

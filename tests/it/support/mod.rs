@@ -49,6 +49,23 @@ pub fn settings(id: ConfigId, every: u32) -> CalibratorConfig {
     }
 }
 
+/// The realistic scenario's errors that wander (docs/model.md §The
+/// realistic scenario), in internal units (rad/s, s, g).
+pub fn realistic_wander() -> rollcal::models::Wander<f64> {
+    let deg_h = 1f64.to_radians() / 3600.0;
+    rollcal::models::Wander {
+        gyro_markov_sigma: 0.003 * deg_h,
+        gyro_markov_tau_s: 600.0,
+        gyro_random_walk: 0.002 * deg_h / 60.0,
+        accel_markov_sigma: 2e-6,
+        accel_markov_tau_s: 900.0,
+        accel_random_walk: 1e-6 / 60.0,
+        gyro_warmup_sigma: 0.005 * deg_h,
+        accel_warmup_sigma: 3e-6,
+        warmup_tau_s: 1200.0,
+    }
+}
+
 /// The filter settings of `c` (f64) with filter options `options`.
 pub fn filter_config(c: &CalibratorConfig, options: Options) -> FilterConfig<f64> {
     FilterConfig {
