@@ -22,7 +22,7 @@ import struct
 import sys
 import zlib
 
-VERSION = 7
+VERSION = 8
 
 
 class Malformed(Exception):

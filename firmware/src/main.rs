@@ -97,6 +97,10 @@ pub struct Args {
     pub mode: Mode,
     /// `periods=N` of synthetic motion.
     pub periods: u32,
+    /// `wander=none|realistic` (synthetic runs of the full model): the
+    /// errors that wander, none (default) or the realistic scenario's
+    /// data-sheet figures ([`synthetic::realistic_wander`]).
+    pub realistic_wander: bool,
     /// `noise_scale=K`: multiply the synthetic run's accelerometer and
     /// gimbal noise by K (f32 needs K ≈ 1000 to keep S positive definite
     /// at every step, so that the counts are of complete periods).
@@ -127,6 +131,7 @@ impl Args {
             errors: ErrorModel::Installation,
             mode: Mode::Default,
             periods: 200,
+            realistic_wander: false,
             noise_scale: 1,
             checkpoint_at: 0,
             reset_at: 0,
@@ -152,6 +157,8 @@ impl Args {
                     Some(e) => a.errors = e,
                     None => defmt::warn!("ignored argument {=[u8]:a}", word),
                 },
+                (b"wander", b"none") => a.realistic_wander = false,
+                (b"wander", b"realistic") => a.realistic_wander = true,
                 (b"mode", b"default") => a.mode = Mode::Default,
                 (b"mode", b"plain") => a.mode = Mode::Plain,
                 (b"mode", b"linearised") => a.mode = Mode::Linearised,

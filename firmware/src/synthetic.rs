@@ -2,10 +2,13 @@
 //! rolls about South at 0.1°/s in 1 s periods and the instruments report
 //! what an error-free platform would (gravity in the computed frame, zero
 //! gimbal angles). The numbers are not a calibration, only a load of the
-//! same shape as the recorded stream. The instruments do not wander here:
-//! the full model runs with [`Wander::none`] (its Gauss–Markov and warm-up
-//! states have a zero prior σ, not estimated; the state vector and the
-//! arithmetic of a period are those of the full model all the same).
+//! same shape as the recorded stream. By default the instruments do not
+//! wander here: the full model runs with [`Wander::none`] (its
+//! Gauss–Markov and warm-up states have a zero prior σ, not estimated; the
+//! state vector is the full model's all the same). With `wander=realistic`
+//! it runs with the realistic scenario's figures ([`realistic_wander`]):
+//! every state estimated and the wandering errors moved each period, the
+//! arithmetic of a realistic period.
 
 use core::mem::{align_of, size_of, MaybeUninit};
 use core::ptr::addr_of_mut;
@@ -25,8 +28,26 @@ use crate::{Args, Mode, Real};
 const EARTH_RATE: f64 = 7.292_115e-5;
 const DEG: f64 = core::f64::consts::PI / 180.0;
 
-/// The paper scenario's noise levels and site (docs/model.md §The paper's scenario).
-pub fn filter_config(options: Options, noise_scale: u32) -> FilterConfig<Real> {
+/// The realistic scenario's errors that wander (`scenarios/realistic.toml`,
+/// its data-sheet figures in the filter's units: rad/s, g, s).
+pub fn realistic_wander() -> Wander<f64> {
+    let deg_h = DEG / 3600.0;
+    Wander {
+        gyro_markov_sigma: 0.003 * deg_h,
+        gyro_markov_tau_s: 600.0,
+        gyro_random_walk: 0.002 * deg_h / 60.0,
+        accel_markov_sigma: 2e-6,
+        accel_markov_tau_s: 900.0,
+        accel_random_walk: 1e-6 / 60.0,
+        gyro_warmup_sigma: 0.005 * deg_h,
+        accel_warmup_sigma: 3e-6,
+        warmup_tau_s: 1200.0,
+    }
+}
+
+/// The paper scenario's noise levels and site (docs/model.md §The paper's
+/// scenario), with the errors that wander `wander` (f64 figures).
+pub fn filter_config(options: Options, noise_scale: u32, wander: &Wander<f64>) -> FilterConfig<Real> {
     let k = f64::from(noise_scale);
     let c = |v: f64| v as Real;
     FilterConfig {
@@ -38,7 +59,7 @@ pub fn filter_config(options: Options, noise_scale: u32) -> FilterConfig<Real> {
         sigma_gyro: c(0.1 * DEG / 3600.0),
         sigma_gimbal: c(10.0 * k * DEG / 3600.0),
         options,
-        wander: Wander::none(),
+        wander: wander.to_precision(),
     }
 }
 
@@ -83,10 +104,15 @@ fn run_model<M: Model<N, Z> + 'static, const N: usize, const Z: usize>(args: &Ar
         _ => Options::default(),
     };
     // 1° for the installation states, the default prior for the instrument
-    // terms of the full model (its wandering terms: 0, not estimated, as
-    // the configuration's `Wander::none`).
+    // terms of the full model (its wandering terms: those of `wander`, 0
+    // and not estimated with `Wander::none`).
+    let wander = if args.realistic_wander {
+        realistic_wander()
+    } else {
+        Wander::none()
+    };
     let installation = M::LAYOUT.installation_n();
-    let instruments = InstrumentPrior::default().sigma(&Wander::none());
+    let instruments = InstrumentPrior::default().sigma(&wander);
     let sigma0 = SVector::<Real, N>::from_fn(|i, _| {
         let s = match i.checked_sub(installation) {
             None => 1.0 * DEG,
@@ -101,7 +127,7 @@ fn run_model<M: Model<N, Z> + 'static, const N: usize, const Z: usize>(args: &Ar
     // Built straight into its static slot: no filter on the stack.
     let Ok(f) = Filter::new_in(
         slot,
-        filter_config(options, args.noise_scale),
+        filter_config(options, args.noise_scale, &wander),
         SVector::zeros(),
         sigma0,
     ) else {

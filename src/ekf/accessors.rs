@@ -120,10 +120,10 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
 
     /// The state covariance `P = U D Uᵀ` (rad²) of [`Filter::state`].
     pub fn covariance(&self) -> SMatrix<T, N, N> {
-        match self.pending.get() {
+        Self::covariance_to_state_order(match self.pending.get() {
             Some(_) => self.settled().covariance(),
             None => self.ud.covariance(),
-        }
+        })
     }
 
     /// Per-state standard deviations `√P_ii` (rad).
@@ -165,16 +165,19 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             self.process_noise(p)
                 .and_then(|q| self.ud.predicted_attitude_rows(&p.prop.phi_att, &q))
         });
-        let variances = match rows {
+        let mut variances = match rows {
             Some(rows) => self.ud.variances_with_rows(&rows),
             None => self.ud.variances(),
         };
+        Self::vector_to_state_order(&mut variances);
         variances.map(|v| v.max(T::zero()).sqrt())
     }
 
     /// The packed U-D factor of the covariance (rad²; `D` on the diagonal,
     /// `U` strictly above; see the [module documentation](crate::ekf)), as
-    /// checkpoints carry it.
+    /// checkpoints carry it, its rows and columns in the factor's order
+    /// ([`Filter::FACTOR_ORDER`]: the state vector's for the installation
+    /// model).
     /// Between [`Filter::predict`] and [`Filter::update`] it is the factor at
     /// the start of the pending period.
     pub fn factor(&self) -> &SMatrix<T, N, N> {

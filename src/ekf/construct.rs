@@ -172,7 +172,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         variance: &SVector<T, N>,
     ) {
         // `variance` passed `prior_variance`'s checks: accepted.
-        let _accepted = self.ud.set_diagonal(variance);
+        let _accepted = self.ud.set_diagonal(variance, &Self::FACTOR_ORDER);
         self.x = x0;
         self.command = CommandFrame::aligned(config.env.earth_rate_n);
         self.env_t = env_t(&config.env);

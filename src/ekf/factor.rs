@@ -288,16 +288,18 @@ impl<T: RealField + Copy, const N: usize> Ud<T, N> {
     }
 
     /// Makes this factor the one of a diagonal covariance with these
-    /// variances (rad²), in place; `false` (and the factor unchanged) unless every variance is
-    /// finite and not negative (zero: a state the model does not
-    /// estimate).
-    pub fn set_diagonal(&mut self, variances: &SVector<T, N>) -> bool {
+    /// variances (rad²), position `k` of the factor holding state
+    /// `order[k]` (a permutation of `0..N`: the filter's
+    /// [`FACTOR_ORDER`](super::Filter::FACTOR_ORDER)), in place; `false`
+    /// (and the factor unchanged) unless every variance is finite and not
+    /// negative (zero: a state the model does not estimate).
+    pub fn set_diagonal(&mut self, variances: &SVector<T, N>, order: &[usize; N]) -> bool {
         if variances.iter().any(|v| !v.is_finite() || *v < T::zero()) {
             return false;
         }
         self.m.fill(T::zero());
-        for (i, v) in variances.iter().enumerate() {
-            if let Some(d) = self.m.get_mut((i, i)) {
+        for (k, i) in order.iter().enumerate() {
+            if let (Some(v), Some(d)) = (variances.get(*i), self.m.get_mut((k, k))) {
                 *d = *v;
             }
         }

@@ -138,6 +138,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         // x̂_{k+1} − x̂⁻_{k+1} = Φ δ + J (z − H Φ δ) for the correction δ at t_k.
         let d_att = rows_times(phi_att, &dx) + w.j_l * (w.nu_w - h_w * dx);
         dx.fixed_rows_mut::<3>(ATT).copy_from(&d_att);
+        // The correction in the state vector's order (the factor's so far).
+        Self::vector_to_state_order(&mut dx);
         // The base (the estimate, or the nominal plus its offset) plus the
         // correction, element by element, formed in the working memory (not
         // in this frame, which is on a step's deepest path).

@@ -195,11 +195,13 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 .ok_or(Error::GimbalLock)?,
             noise_map: back.noise_map,
         };
+        let mut prop_t = propagation_t(&prop);
+        Self::columns_to_factor_order(&mut prop_t.phi_att);
         Ok(Pending {
             period: *pr,
             period_t: pending.period_t,
             att: prop.att,
-            prop: propagation_t(&prop),
+            prop: prop_t,
             q_extra: pending.q_extra,
         })
     }

@@ -47,6 +47,7 @@
 //! measurement model), `update/` (the update variants: extended, iterated,
 //! linearised), `whiten` and `factored` (the factored update), `step`;
 //! `cache` (the installation matrices), `factor` (the U-D factor),
+//! `order` (the order of the states in the factor),
 //! `wander` (the errors that wander, moved at the end of each period) and
 //! `second_order/` (the analytic Hessian of the accelerometer output).
 
@@ -59,6 +60,7 @@ mod factored;
 mod measure;
 mod observation;
 mod options;
+mod order;
 mod parts;
 mod pending;
 mod predict;
@@ -77,6 +79,7 @@ pub use options::{
     FilterConfig, Options, DEFAULT_NIS_GATE, GRAVITY_RANGE, MAX_EARTH_RATE, MAX_GATED_RUN,
     RESEARCH_OPTIONS,
 };
+pub use order::factor_state;
 pub use parts::Parts;
 pub use second_order::{AccelCovariance, AccelSecondOrder, Elements};
 

@@ -7,7 +7,7 @@
 use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3};
 
 use super::options::RESEARCH_OPTIONS;
-use super::{all_finite, linear_term, Error, Filter};
+use super::{all_finite, Error, Filter};
 use crate::command::Period;
 use crate::models::{Model, ATT};
 use crate::precision::{to_f64, to_t};
@@ -140,6 +140,8 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 &mut slot.prop,
             )
             .ok_or(Error::GimbalLock)?;
+        // Φ's attitude rows as the factor reads them (its order).
+        Self::columns_to_factor_order(&mut slot.prop.phi_att);
         let new = &self.pending.value;
         let q_extra = if RESEARCH_OPTIONS && self.config.options.second_order_dynamics {
             self.second_order_dynamics(&new.period, &new.att)?
@@ -156,7 +158,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             // place).
             Some(x_nom) => {
                 let mut x = layout.difference(&self.x, x_nom);
-                let d_att = linear_term::<T, N, 3>(&new.prop.phi_att, &x);
+                let d_att = Self::attitude_term(&new.prop.phi_att, &x);
                 for (i, (v, nom)) in x.iter_mut().zip(x_nom.iter()).enumerate() {
                     if i >= ATT + 3 {
                         *v += *nom;
@@ -210,7 +212,9 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
                 || layout.lam().is_some_and(|i| (i..i + 3).contains(&j))
                 || layout.dg().is_some_and(|i| (i..i + 15).contains(&j))
         };
-        let p_now = to_f64(&self.propagated_factor()?.covariance());
+        let p_now = to_f64(&Self::covariance_to_state_order(
+            self.propagated_factor()?.covariance(),
+        ));
         let (_, q2) = hessian_terms(&x_mid, &p_now, relevant, |xp| {
             layout.attitude_rate_jacobian(env, &layout.matrices(xp), &layout.attitude(xp), &wm, &cm)
         })

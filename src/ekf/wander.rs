@@ -9,7 +9,9 @@
 //! decorrelated update (`factored`) as a separate time update, with the
 //! factor's own O(N) scaling and Agee–Turner rank-one updates
 //! ([`Ud::scale_state`](super::factor::Ud::scale_state),
-//! [`Ud::add_variance`](super::factor::Ud::add_variance)).
+//! [`Ud::add_variance`](super::factor::Ud::add_variance)), cheap because
+//! the factor holds the states that gain variance right after the attitude
+//! ([`Filter::FACTOR_ORDER`]).
 
 use nalgebra::{RealField, SVector};
 
@@ -34,13 +36,15 @@ fn moves<T: RealField + Copy>(layout: &Layout, step: &WanderStep<T>) -> [(Option
 }
 
 /// Applies one period (`dt`, s) of the wandering errors of `config` to the
-/// factor `ud` (and, with `x`, to the estimate's Gauss–Markov states: their
-/// mean decays with `φ`). `work` is the rank-one update's vector. Nothing
-/// for a layout without wandering states or [`Wander::none`](crate::models::Wander::none).
+/// factor `ud`, whose position `position[i]` holds state `i` (and, with
+/// `x`, to the estimate's Gauss–Markov states: their mean decays with
+/// `φ`). `work` is the rank-one update's vector. Nothing for a layout
+/// without wandering states or [`Wander::none`](crate::models::Wander::none).
 pub(super) fn apply<T: RealField + Copy, const N: usize>(
     layout: &Layout,
     config: &FilterConfig<T>,
     dt: f64,
+    position: &[usize; N],
     ud: &mut Ud<T, N>,
     x: Option<&mut SVector<f64, N>>,
     work: &mut [T; N],
@@ -55,14 +59,15 @@ pub(super) fn apply<T: RealField + Copy, const N: usize>(
             continue;
         };
         for j in first..first + 3 {
+            let k = position.get(j).copied().unwrap_or(j);
             if phi != T::one() {
-                ud.scale_state(j, phi);
+                ud.scale_state(k, phi);
                 if let Some(v) = x.as_deref_mut().and_then(|x| x.get_mut(j)) {
                     *v *= scalar_to_f64(phi);
                 }
             }
             // q is finite and not negative (Filter::new checks the wander).
-            let _ = ud.add_variance(j, q, work);
+            let _ = ud.add_variance(k, q, work);
         }
     }
 }
@@ -82,6 +87,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
             &Self::LAYOUT,
             &self.config,
             dt,
+            &Self::POSITION,
             &mut self.ud,
             Some(&mut self.x),
             &mut work,

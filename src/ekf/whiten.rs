@@ -114,8 +114,10 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         let nu: SVector<T, Z> = to_t(nu_f64);
         let g_att: Matrix3<T> = noise.g_att;
         let h_att: SMatrix<T, Z, 3> = crate::models::attitude_columns(h);
-        // H Φ in T (f64 is emulated on an FPU without it), in place. It
-        // becomes the whitened rows in place below.
+        // H Φ in T (f64 is emulated on an FPU without it), in place, in the
+        // factor's order (as `phi_att`). It becomes the whitened rows in
+        // place below.
+        Self::columns_to_factor_order(h);
         crate::models::apply_transition(h, phi_att);
         let m_e = h_att * g_att + noise.d;
         let mut r_e = m_e * m_e.transpose() + r_v;

@@ -71,10 +71,12 @@ pub use messages::{
     SinglePassReason, INSTRUMENT_STATES, MAX_COVARIANCE, MAX_FACTOR, MAX_STATES,
 };
 
-/// Protocol version carried in the first byte of every frame (7: a
-/// [`Checkpoint`] carries its factor's upper triangle only; docs/wire.md
+/// Protocol version carried in the first byte of every frame (8: a
+/// [`Checkpoint`] of the full model carries its factor in the factor's
+/// order, [`Filter::FACTOR_ORDER`](crate::ekf::Filter::FACTOR_ORDER); 7: a
+/// checkpoint carries its factor's upper triangle only; docs/wire.md
 /// §Version policy).
-pub const VERSION: u8 = 7;
+pub const VERSION: u8 = 8;
 
 /// Length of the CRC trailer (bytes).
 pub const CRC_LEN: usize = 4;

@@ -38,10 +38,16 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> AccelC
             .process_noise(pending)
             .and_then(|q| f.ud.predicted_attitude_rows(&pending.prop.phi_att, &q));
         layout.accel_covariance(
-            |i, j| match &rows {
-                Some(rows) => f.ud.covariance_entry_with_rows(rows, i, j),
-                // As `settled` (the unpropagated factor; predict checks it).
-                None => f.ud.covariance_entry(i, j),
+            |i, j| {
+                let (i, j) = (
+                    Filter::<T, M, N, Z>::position(i),
+                    Filter::<T, M, N, Z>::position(j),
+                );
+                match &rows {
+                    Some(rows) => f.ud.covariance_entry_with_rows(rows, i, j),
+                    // As `settled` (the unpropagated factor; predict checks it).
+                    None => f.ud.covariance_entry(i, j),
+                }
             },
             p_r,
         );

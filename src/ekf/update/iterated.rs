@@ -80,7 +80,9 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
         iterations: u8,
         measured: &mut Measured<T, N, Z>,
     ) -> Result<SVector<f64, Z>, Error> {
-        let p_prior = to_f64(&self.settled().covariance());
+        let p_prior = to_f64(&Self::covariance_to_state_order(
+            self.settled().covariance(),
+        ));
         let r_v = to_f64(r_v);
         let mut x_lin = self.x;
         let mut lin = *pending;

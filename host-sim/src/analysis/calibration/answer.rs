@@ -315,9 +315,9 @@ fn running<T: RealField + Copy>(
     cal.set_frame_errors(stats.errors());
     let settings = *cal.settings();
     let est = cal.estimate();
-    let n = settings.config.layout_with(settings.errors).n();
+    let layout = settings.config.layout_with(settings.errors);
     let covariance =
-        crate::analysis::compensation::covariance_of_packed_ud(n, &cal.checkpoint().factor);
+        crate::analysis::compensation::covariance_of_packed_ud(&layout, &cal.checkpoint().factor);
     let rejects = findings(
         &est.progress.rejects,
         &host.first_rejects,

@@ -329,11 +329,15 @@ pub fn of_run(r: &crate::analysis::runner::RunResult) -> Result<Compensation, Er
     )
 }
 
-/// The covariance (row-major, N·N) of a packed U-D factor given by its
-/// upper triangle row by row (`D` on the diagonal, the unit
-/// upper-triangular `U` strictly above; [`rollcal::wire::Checkpoint::factor`]):
-/// `P = U D Uᵀ`. Empty unless `packed` has `N (N + 1) / 2` values.
-pub fn covariance_of_packed_ud(n: usize, packed: &[f64]) -> Vec<f64> {
+/// The covariance (row-major, N·N, the state vector's order) of the
+/// packed U-D factor of a filter of `layout` given by its upper triangle
+/// row by row (`D` on the diagonal, the unit upper-triangular `U` strictly
+/// above; [`rollcal::wire::Checkpoint::factor`]), whose rows and columns
+/// are in the factor's order ([`rollcal::ekf::factor_state`]):
+/// `P = U D Uᵀ`, permuted back. Empty unless `packed` has `N (N + 1) / 2`
+/// values.
+pub fn covariance_of_packed_ud(layout: &rollcal::models::Layout, packed: &[f64]) -> Vec<f64> {
+    let n = layout.n();
     if packed.len() != rollcal::wire::factor_len(n) {
         return Vec::new();
     }
@@ -348,10 +352,16 @@ pub fn covariance_of_packed_ud(n: usize, packed: &[f64]) -> Vec<f64> {
     let mut u = a.upper_triangle();
     u.fill_diagonal(1.0);
     let p = &u * DMatrix::from_diagonal(&d) * u.transpose();
+    // State i sits at position position[i] of the factor.
+    let mut position = vec![0; n];
+    for k in 0..n {
+        position[rollcal::ekf::factor_state(layout, k)] = k;
+    }
     (0..n)
         .flat_map(|i| (0..n).map(move |j| (i, j)))
+        .map(|(i, j)| (position[i], position[j]))
         // Symmetric by construction (the product rounds differently).
-        .map(|(i, j)| 0.5 * (p[(i, j)] + p[(j, i)]))
+        .map(|(a, b)| 0.5 * (p[(a, b)] + p[(b, a)]))
         .collect()
 }
 
@@ -413,7 +423,7 @@ mod tests {
             .flat_map(|i| (i..n).map(move |j| (i, j)))
             .map(|(i, j)| packed[i * n + j])
             .collect();
-        let p = covariance_of_packed_ud(n, &upper);
+        let p = covariance_of_packed_ud(&ConfigId::M1Pa.layout(), &upper);
         let sigma: Vec<f64> = (0..n).map(|i| p[i * n + i].sqrt()).collect();
         let x = vec![0.0; n];
         let c = Compensation::new(ConfigId::M1Pa, &x, &sigma, &p).unwrap();
@@ -430,6 +440,66 @@ mod tests {
         assert!((p[i * n + j] - expect).abs() < 1e-24);
         assert_eq!(c.frame(), "pa");
         assert!(Compensation::new(ConfigId::M1Pa, &x, &sigma, &p[1..]).is_err());
+    }
+
+    /// The full model's factor is in the factor's order (the wandering
+    /// states after the attitude): its covariance, permuted back, is the
+    /// filter's, after updates that correlate the states.
+    #[test]
+    fn a_full_models_checkpoint_factor_gives_the_filters_covariance() {
+        use rollcal::estimator::{LogRecord, SliceLog};
+        use rollcal::session::AnyCalibrator;
+        use rollcal::wire::{CalibratorConfig, Sample};
+        let mut settings = CalibratorConfig::paper(ConfigId::M1Pa);
+        settings.errors = ErrorModel::Full;
+        let deg_h = 1f64.to_radians() / 3600.0;
+        settings.wander = rollcal::models::Wander {
+            gyro_markov_sigma: 0.003 * deg_h,
+            gyro_markov_tau_s: 600.0,
+            gyro_random_walk: 0.002 * deg_h / 60.0,
+            accel_markov_sigma: 2e-6,
+            accel_markov_tau_s: 900.0,
+            accel_random_walk: 1e-6 / 60.0,
+            gyro_warmup_sigma: 0.005 * deg_h,
+            accel_warmup_sigma: 3e-6,
+            warmup_tau_s: 1200.0,
+        };
+        let mut cal = AnyCalibrator::<f64>::new(settings).unwrap();
+        let mut records = [LogRecord::predicted(0.0, Vector3::zeros()); 30];
+        let mut log = SliceLog::new(&mut records);
+        let e = settings.earth_rate_n;
+        for k in 0..30u32 {
+            let turn = 0.02 * f64::from(k);
+            let s = Sample {
+                seq: k,
+                t_us: (u64::from(k) + 1) * 1_000_000,
+                dt: 1.0,
+                dtheta_cmd: [e[0] + 0.02, e[1], e[2]],
+                c_cn_quat: [
+                    (turn / 2.0).cos() as f32,
+                    (turn / 2.0).sin() as f32,
+                    0.0,
+                    0.0,
+                ],
+                accel_mean: [0.0, turn.cos() as f32, -turn.sin() as f32],
+                gimbal: None,
+            };
+            cal.push_logged(&s, &mut log).unwrap();
+        }
+        let layout = ConfigId::M1Pa.layout_with(ErrorModel::Full);
+        let n = layout.n();
+        let p = covariance_of_packed_ud(&layout, &cal.checkpoint().factor);
+        let AnyCalibrator::M1PaFull(c) = &cal else {
+            panic!("the full M1-pa calibrator");
+        };
+        let want = c.filter().covariance().transpose();
+        assert_eq!((p.len(), want.len()), (n * n, n * n));
+        for (a, b) in p.iter().zip(want.iter()) {
+            assert!((a - b).abs() <= 1e-9 * (a.abs() + 1e-30), "{a:e} {b:e}");
+        }
+        // Not the identity order: ba's variance is at ba's index.
+        let ba = layout.ba().unwrap();
+        assert_ne!(rollcal::ekf::factor_state(&layout, ba), ba);
     }
 
     #[test]
