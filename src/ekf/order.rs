@@ -191,8 +191,12 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// permute: the installation model).
     pub(super) const IN_STATE_ORDER: bool = is_identity(&Self::FACTOR_ORDER);
 
-    /// The factor's position of state `i` (`i` itself outside `0..N`).
+    /// The factor's position of state `i` (`i` itself outside `0..N`, and
+    /// without a lookup in the state vector's order).
     pub(super) fn position(i: usize) -> usize {
+        if Self::IN_STATE_ORDER {
+            return i;
+        }
         Self::POSITION.get(i).copied().unwrap_or(i)
     }
 
