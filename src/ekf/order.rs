@@ -7,10 +7,10 @@
 //! Why: `P + q e_j e_jᵀ` (a period's process noise on state `j`) changes
 //! only the factor's columns `0..=j`, at a cost O(j²) (Agee–Turner,
 //! [`Ud::add_variance`](super::factor::Ud::add_variance)). At the end of
-//! the state vector (states 33 to 47 of 54 in the full M2-ps), the twelve
-//! updates of a period cost ≈ 16 500 multiply-add pairs, 67 k of the M4F's
-//! 334 k instructions a period; right after the attitude (positions 3 to
-//! 14), ≈ 1 000. The covariance, the state and everything the filter
+//! the state vector (states 18 to 47 of 54 in the full M2-ps), the twelve
+//! updates of a period cost ≈ 16 500 multiply-add pairs, 67 k instructions
+//! a period on the Cortex-M4F (14 % of `Finish`); right after the attitude
+//! (positions 3 to 14), ≈ 1 000 (firmware/bench.sh, BENCHMARKS.md). The covariance, the state and everything the filter
 //! reports stay in the state vector's order; only the factor (and what a
 //! checkpoint carries of it) is in this order.
 

@@ -452,18 +452,13 @@ mod tests {
         use rollcal::wire::{CalibratorConfig, Sample};
         let mut settings = CalibratorConfig::paper(ConfigId::M1Pa);
         settings.errors = ErrorModel::Full;
-        let deg_h = 1f64.to_radians() / 3600.0;
-        settings.wander = rollcal::models::Wander {
-            gyro_markov_sigma: 0.003 * deg_h,
-            gyro_markov_tau_s: 600.0,
-            gyro_random_walk: 0.002 * deg_h / 60.0,
-            accel_markov_sigma: 2e-6,
-            accel_markov_tau_s: 900.0,
-            accel_random_walk: 1e-6 / 60.0,
-            gyro_warmup_sigma: 0.005 * deg_h,
-            accel_warmup_sigma: 3e-6,
-            warmup_tau_s: 1200.0,
-        };
+        // The realistic scenario's errors that wander (its file, as `run`
+        // reads it).
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/realistic.toml");
+        let scenario =
+            crate::sim::scenario::Scenario::from_file(std::path::Path::new(path)).unwrap();
+        settings.wander = scenario.instruments.wander.to_model();
+        assert!(!settings.wander.is_none());
         let mut cal = AnyCalibrator::<f64>::new(settings).unwrap();
         let mut records = [LogRecord::predicted(0.0, Vector3::zeros()); 30];
         let mut log = SliceLog::new(&mut records);
