@@ -25,7 +25,10 @@ use crate::precision::scalar_to_f64;
 /// states): the attitude, then the states that wander (`dg`, `ba`, `δ_g`,
 /// `δ_a`) for a layout with them, then the others in the state vector's
 /// order. The one definition of the order ([`Filter::FACTOR_ORDER`] is
-/// this at every position).
+/// this at every position). Why: a period's process noise on the state at
+/// position `j` changes the factor's columns `0..=j` only (Agee–Turner,
+/// O(j²)), so the states that gain variance every period come first after
+/// the attitude, which the time update needs first.
 ///
 /// # Examples
 ///
@@ -170,7 +173,7 @@ impl<T: RealField + Copy, M: Model<N, Z>, const N: usize, const Z: usize> Filter
     /// [`Filter::state`]) at position `k`. The identity for the
     /// installation model; for the full model the attitude, then the
     /// states that wander (`dg`, `ba`, `δ_g`, `δ_a`), then the others in
-    /// order (see the [module docs](self)).
+    /// order ([`factor_state`], the one definition, says why).
     ///
     /// # Examples
     ///
