@@ -12,21 +12,10 @@ use rollcal::wire::{
     CalibratorConfig, ConfigField, FrameDecoder, Message, RefusalReason, Sample, VERSION,
 };
 
-/// The realistic scenario's wandering errors (docs/model.md §The realistic
-/// scenario), every one of them modelled, so that every time is in use.
+/// The realistic scenario's wandering errors, every one of them
+/// modelled, so that every time is in use (the tests' one copy).
 fn realistic() -> Wander<f64> {
-    let deg_h = 1f64.to_radians() / 3600.0;
-    Wander {
-        gyro_markov_sigma: 0.003 * deg_h,
-        gyro_markov_tau_s: 600.0,
-        gyro_random_walk: 0.002 * deg_h / 60.0,
-        accel_markov_sigma: 2e-6,
-        accel_markov_tau_s: 900.0,
-        accel_random_walk: 1e-6 / 60.0,
-        gyro_warmup_sigma: 0.006 * deg_h,
-        accel_warmup_sigma: 4e-6,
-        warmup_tau_s: 1200.0,
-    }
+    crate::support::realistic_wander()
 }
 
 /// A session running the full M1-pa model with the realistic wander, fed
